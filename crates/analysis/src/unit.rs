@@ -1,0 +1,270 @@
+//! The complete reduction of one instrument (one "unit", OpenHTF's unit
+//! under test) and of a batch of them.
+//!
+//! The per-mounting fits are the primary result: if one cannot be made, the
+//! unit's analysis fails with the reason. The secondary results (full-range
+//! fit, scale-factor model, figures, model comparison) are computed where the
+//! data allow and otherwise left out with a note that says why.
+
+use crate::compare::{ModelComparison, compare_models};
+use crate::figures::{self, Hysteresis, Nonlinearity};
+use crate::model::{Convention, Ieee1293Fit, ModelOrder, MountingFit, fit_ieee1293, fit_mounting};
+use crate::points::{Mount, Point, infer_directions};
+use crate::scale_factor::{ScaleFactorModel, scale_factor_model};
+use crate::{AnalysisError, UG_PER_G};
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// Choices that shape a reduction.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AnalysisOptions {
+    /// Order of the model (2) fitted per mounting and over the full range.
+    pub order: ModelOrder,
+}
+
+/// The points of one unit (serial number) from one run, in the order taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitPoints {
+    /// Serial number.
+    pub unit: String,
+    /// Label of the run (test) these points come from, when there are several.
+    pub run: Option<String>,
+    /// The averaged points, in the order they were taken.
+    pub points: Vec<Point>,
+}
+
+impl UnitPoints {
+    /// "unit 'SN12'" or "unit 'SN12' run '3'", for messages.
+    pub fn label(&self) -> String {
+        match &self.run {
+            Some(run) => format!("unit '{}' run '{run}'", self.unit),
+            None => format!("unit '{}'", self.unit),
+        }
+    }
+}
+
+/// The full-range IEEE 1293 fit over signed input (method.md §3.4).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FullRangeFit {
+    /// The mountings whose points were used.
+    pub mounts: Vec<Mount>,
+    /// The fit against signed input.
+    #[serde(flatten)]
+    pub fit: Ieee1293Fit,
+}
+
+/// Repeatability of one unit across several runs (method.md §3.4).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Repeatability {
+    /// Number of runs compared.
+    pub runs: usize,
+    /// Largest spread of k1 over mean, over the mountings [ppm].
+    pub scale_factor_ppm: f64,
+    /// Largest spread of k0 over the mountings [µg].
+    pub bias_ug: f64,
+}
+
+/// Scale-factor figures of merit of one unit.
+#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+pub struct Figures {
+    /// Scale-factor asymmetry between P (+a) and N (−a) [ppm]; needs both mountings.
+    pub asymmetry_ppm: Option<f64>,
+    /// Nonlinearity from the best straight line over full scale [ppm FS].
+    pub nonlinearity_ppm_fs: Option<f64>,
+    /// Details of the nonlinearity.
+    pub nonlinearity: Option<Nonlinearity>,
+    /// Largest ascending − descending difference [µg].
+    pub hysteresis_ug: Option<f64>,
+    /// Where the hysteresis occurs.
+    pub hysteresis: Option<Hysteresis>,
+    /// Scale-factor repeatability across runs of this unit [ppm].
+    pub repeatability_ppm: Option<f64>,
+    /// Details of the repeatability.
+    pub repeatability: Option<Repeatability>,
+}
+
+/// Everything the reduction says about one unit.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct UnitAnalysis {
+    /// Serial number.
+    pub unit: String,
+    /// Run label, when the input had several runs.
+    pub run: Option<String>,
+    /// Per-mounting fits (method.md §3.4), keyed `P` and/or `N`.
+    pub fits: BTreeMap<Mount, MountingFit>,
+    /// The larger |k2| of the mountings [µg/g²]; `None` for order 1.
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// The mounting k2_max comes from.
+    pub k2_max_mount: Option<Mount>,
+    /// Full-range fit over signed input.
+    pub full_range: Option<FullRangeFit>,
+    /// Scale-factor nonlinearity model (10)–(11).
+    pub scale_factor: Option<ScaleFactorModel>,
+    /// Figures of merit.
+    pub figures: Figures,
+    /// Model families compared per mounting.
+    pub model_comparison: BTreeMap<Mount, ModelComparison>,
+    /// Why any secondary result is missing.
+    pub notes: Vec<String>,
+}
+
+/// Reduce one unit's points.
+pub fn analyze_unit(
+    input: &UnitPoints,
+    options: AnalysisOptions,
+) -> Result<UnitAnalysis, AnalysisError> {
+    let label = input.label();
+    if input.points.is_empty() {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{label} has no points"
+        )));
+    }
+    let mut notes = Vec::new();
+    let mut by_mount: BTreeMap<Mount, Vec<Point>> = BTreeMap::new();
+    for p in &input.points {
+        by_mount.entry(p.mount).or_default().push(*p);
+    }
+    for points in by_mount.values_mut() {
+        infer_directions(points);
+    }
+    let all: Vec<Point> = by_mount.values().flatten().copied().collect();
+
+    let mut fits = BTreeMap::new();
+    for (&mount, points) in &by_mount {
+        let what = format!("{label} mounting {mount}");
+        fits.insert(mount, fit_mounting(points, mount, options.order, &what)?);
+    }
+
+    let k2_max = fits
+        .values()
+        .filter_map(|f| f.fit.k2_ug_per_g2.map(|k2| (f.mount, k2)))
+        .fold(None, |best: Option<(Mount, f64)>, (m, k2)| match best {
+            Some((_, b)) if b.abs() >= k2.abs() => best,
+            _ => Some((m, k2)),
+        });
+
+    let mut note = |e: AnalysisError, what: &str| notes.push(format!("{what} left out: {e}"));
+    let full_range = match fit_ieee1293(
+        &all,
+        options.order,
+        Convention::SignedInput,
+        &format!("{label} full range"),
+    ) {
+        Ok(fit) => Some(FullRangeFit {
+            mounts: by_mount.keys().copied().collect(),
+            fit,
+        }),
+        Err(e) => {
+            note(e, "full-range fit");
+            None
+        }
+    };
+    let scale_factor = scale_factor_model(&all, &label)
+        .map_err(|e| note(e, "scale-factor model"))
+        .ok();
+    let nonlinearity = figures::nonlinearity(&all, &label)
+        .map_err(|e| note(e, "nonlinearity"))
+        .ok();
+    let k1_of = |m: Mount| fits.get(&m).map(|f| f.fit.k1);
+    let asymmetry_ppm = match (k1_of(Mount::P), k1_of(Mount::N)) {
+        (Some(p), Some(n)) => figures::asymmetry_ppm(p, n),
+        _ => None,
+    };
+    let hysteresis = figures::hysteresis(&all, k1_of);
+
+    let mut model_comparison = BTreeMap::new();
+    for (&mount, points) in &by_mount {
+        let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
+        let y: Vec<f64> = points.iter().map(|p| p.output).collect();
+        let k1_abs = k1_of(mount).map_or(1.0, f64::abs);
+        match compare_models(&x, &y, k1_abs, &format!("{label} mounting {mount}")) {
+            Ok(c) => {
+                model_comparison.insert(mount, c);
+            }
+            Err(e) => note(e, "model comparison"),
+        }
+    }
+
+    Ok(UnitAnalysis {
+        unit: input.unit.clone(),
+        run: input.run.clone(),
+        fits,
+        k2_max_ug_per_g2: k2_max.map(|(_, k2)| k2.abs()),
+        k2_max_mount: k2_max.map(|(m, _)| m),
+        full_range,
+        scale_factor,
+        figures: Figures {
+            asymmetry_ppm,
+            nonlinearity_ppm_fs: nonlinearity.map(|n| n.ppm_fs),
+            nonlinearity,
+            hysteresis_ug: hysteresis.map(|h| h.ug),
+            hysteresis,
+            repeatability_ppm: None,
+            repeatability: None,
+        },
+        model_comparison,
+        notes,
+    })
+}
+
+/// The reduction of a batch.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DatasetAnalysis {
+    /// Model order used.
+    pub order: ModelOrder,
+    /// One entry per unit (and run), in input order.
+    pub units: Vec<UnitAnalysis>,
+}
+
+/// Reduce every unit; units that share a serial number across several runs
+/// also get the repeatability of their scale factor and bias.
+pub fn analyze_dataset(
+    inputs: &[UnitPoints],
+    options: AnalysisOptions,
+) -> Result<DatasetAnalysis, AnalysisError> {
+    let mut units = inputs
+        .iter()
+        .map(|u| analyze_unit(u, options))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    let mut by_serial: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+    for (i, u) in units.iter().enumerate() {
+        by_serial.entry(u.unit.clone()).or_default().push(i);
+    }
+    for indices in by_serial.values().filter(|ix| ix.len() >= 2) {
+        let mut sf_ppm: Option<f64> = None;
+        let mut bias_ug: Option<f64> = None;
+        for mount in [Mount::P, Mount::N] {
+            let fits: Vec<&Ieee1293Fit> = indices
+                .iter()
+                .filter_map(|&i| units[i].fits.get(&mount).map(|f| &f.fit))
+                .collect();
+            let k1: Vec<f64> = fits.iter().map(|f| f.k1.abs()).collect();
+            if let Some(r) = figures::repeatability_ppm(&k1) {
+                sf_ppm = Some(sf_ppm.map_or(r, |m| m.max(r)));
+            }
+            let k0: Vec<f64> = fits.iter().map(|f| f.k0_g).collect();
+            if k0.len() >= 2 {
+                let spread = k0.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                    - k0.iter().copied().fold(f64::INFINITY, f64::min);
+                let ug = spread * UG_PER_G;
+                bias_ug = Some(bias_ug.map_or(ug, |m| m.max(ug)));
+            }
+        }
+        if let (Some(scale_factor_ppm), Some(bias_ug)) = (sf_ppm, bias_ug) {
+            let rep = Repeatability {
+                runs: indices.len(),
+                scale_factor_ppm,
+                bias_ug,
+            };
+            for &i in indices {
+                units[i].figures.repeatability_ppm = Some(scale_factor_ppm);
+                units[i].figures.repeatability = Some(rep.clone());
+            }
+        }
+    }
+    Ok(DatasetAnalysis {
+        order: options.order,
+        units,
+    })
+}
