@@ -68,6 +68,13 @@ impl Serialize for ModelOrder {
     }
 }
 
+/// The output of method.md (2) at signed input `a_g` for coefficients
+/// `[k0_g, k1, k2, k3]` (k2 in 1/g, k3 in 1/g², not µg): the truth of simulations and tests.
+pub fn ieee1293_output(k: [f64; 4], a_g: f64) -> f64 {
+    let [k0, k1, k2, k3] = k;
+    k1 * (k0 + a_g + k2 * a_g * a_g + k3 * a_g * a_g * a_g)
+}
+
 /// Which acceleration the model is fitted against (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Convention {

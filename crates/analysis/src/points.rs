@@ -117,6 +117,34 @@ pub fn infer_directions(points: &mut [Point]) {
     }
 }
 
+/// The published level table (method.md §3.3): 0, 1, 5, then every 5 g up to
+/// `max_g` (and `max_g` itself if it is not a multiple of 5).
+pub fn published_levels(max_g: f64) -> Vec<f64> {
+    let mut levels = vec![0.0];
+    if max_g >= 1.0 {
+        levels.push(1.0);
+    }
+    let mut g = 5.0;
+    while g <= max_g {
+        levels.push(g);
+        g += 5.0;
+    }
+    if levels.last().is_some_and(|&last| last < max_g) {
+        levels.push(max_g);
+    }
+    levels
+}
+
+/// The sequence of an up-then-down pass over `levels` (ascending), visiting
+/// the top level once: 0, 1, …, m, …, 1, 0.
+pub fn up_down(levels: &[f64]) -> Vec<f64> {
+    levels
+        .iter()
+        .chain(levels.iter().rev().skip(1))
+        .copied()
+        .collect()
+}
+
 /// Number of distinct nominal levels among `points`.
 pub fn distinct_levels<'a>(points: impl IntoIterator<Item = &'a Point>) -> usize {
     let mut levels: Vec<f64> = points.into_iter().map(|p| p.g_nominal.abs()).collect();
@@ -210,6 +238,17 @@ mod tests {
         assert_eq!(levels[1].output_up, Some(5.0));
         assert_eq!(levels[1].output_down, Some(7.0));
         assert_eq!(levels[2].output_down, None);
+    }
+
+    #[test]
+    fn published_table_steps_by_five() {
+        assert_eq!(
+            published_levels(20.0),
+            vec![0.0, 1.0, 5.0, 10.0, 15.0, 20.0]
+        );
+        assert_eq!(published_levels(72.0).last(), Some(&72.0));
+        assert_eq!(published_levels(70.0).len(), 16);
+        assert_eq!(up_down(&[0.0, 1.0, 5.0]), vec![0.0, 1.0, 5.0, 1.0, 0.0]);
     }
 
     #[test]
