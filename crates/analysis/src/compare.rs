@@ -183,7 +183,7 @@ fn line_on_basis(family: Family, c: f64, x: &[f64], y: &[f64]) -> Option<(f64, f
         sfy += df * dy;
         syy += dy * dy;
     }
-    if !(sff > 0.0) {
+    if sff.is_nan() || sff <= 0.0 {
         return None;
     }
     let b1 = sfy / sff;

@@ -137,7 +137,7 @@ pub fn solve(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<LinearFit, 
     let s = &svd.singular_values;
     let s_max = s.max();
     let s_min = s.min();
-    if !(s_min > RANK_TOLERANCE * s_max) {
+    if s_min.is_nan() || s_min <= RANK_TOLERANCE * s_max {
         return Err(AnalysisError::Singular {
             what: what.to_string(),
             condition: if s_min > 0.0 {

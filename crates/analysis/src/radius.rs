@@ -66,7 +66,7 @@ impl RadiusCalibration {
         }
         let a_meas = cal.acceleration_g(output);
         let signed = mount.input_sign() * a_meas;
-        if !(signed > 0.0) {
+        if signed.is_nan() || signed <= 0.0 {
             return Err(AnalysisError::InvalidInput(format!(
                 "radius step in mounting {mount}: the instrument measured {a_meas:+.6} g, the wrong \
                  sign for this mounting; check that it is mounted {} and that the tumble readings \

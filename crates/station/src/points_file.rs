@@ -28,7 +28,7 @@ pub enum Location {
     Line {
         /// Line number, 1-based.
         line: u64,
-        /// Column position (1-based) and header name.
+        /// Column position (1-based) and header name (empty when not yet known).
         column: Option<(usize, String)>,
     },
     /// A spreadsheet cell.
@@ -47,8 +47,8 @@ pub enum Location {
 pub struct PointsFileError {
     /// The file.
     pub path: PathBuf,
-    /// Where in it, when a place is known.
-    pub location: Option<Location>,
+    /// Where in it, when a place is known (boxed to keep `Result`s small).
+    pub location: Option<Box<Location>>,
     /// What is wrong and what was expected.
     pub message: String,
 }
@@ -56,11 +56,13 @@ pub struct PointsFileError {
 impl fmt::Display for PointsFileError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.path.display())?;
-        match &self.location {
+        match self.location.as_deref() {
             Some(Location::Line { line, column }) => {
                 write!(f, ":{line}")?;
-                if let Some((pos, name)) = column {
-                    write!(f, ": column {pos} ({name})")?;
+                match column {
+                    Some((pos, name)) if name.is_empty() => write!(f, ": column {pos}")?,
+                    Some((pos, name)) => write!(f, ": column {pos} ({name})")?,
+                    None => {}
                 }
             }
             Some(Location::Cell { sheet, row, column }) => {
@@ -154,7 +156,7 @@ pub fn parse_csv(path: &Path, bytes: &[u8]) -> Result<PointsFile, PointsFileErro
             let line = e.position().map(|p| p.line());
             PointsFileError {
                 path: path.to_path_buf(),
-                location: line.map(|line| Location::Line { line, column: None }),
+                location: line.map(|line| Box::new(Location::Line { line, column: None })),
                 message: format!("not valid CSV: {e}"),
             }
         })?;
@@ -163,10 +165,10 @@ pub fn parse_csv(path: &Path, bytes: &[u8]) -> Result<PointsFile, PointsFileErro
         for (i, field) in record.iter().enumerate() {
             let text = std::str::from_utf8(field).map_err(|_| PointsFileError {
                 path: path.to_path_buf(),
-                location: Some(Location::Line {
+                location: Some(Box::new(Location::Line {
                     line: number,
-                    column: Some((i + 1, "?".into())),
-                }),
+                    column: Some((i + 1, String::new())),
+                })),
                 message: "the field is not valid UTF-8 text; save the file as UTF-8 CSV".into(),
             })?;
             cells.push(if text.is_empty() {
@@ -279,7 +281,7 @@ fn parse_rows(
     };
     let fail = |location: Option<Location>, message: String| PointsFileError {
         path: path.to_path_buf(),
-        location,
+        location: location.map(Box::new),
         message,
     };
     let expected_header = REQUIRED_COLUMNS.join(",");

@@ -1,0 +1,254 @@
+//! `spinbench analyze` end to end: golden output, the JSON document's public
+//! shape, spreadsheets, and errors for bad input (through the real binary).
+
+use serde_json::Value;
+use spinbench_station::cli::analyze_file;
+use spinbench_station::render::render_dataset;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn repo_file(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .join(rel)
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
+}
+
+fn spinbench(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(args)
+        .output()
+        .expect("run spinbench");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn golden_human_output_of_the_shipped_example() {
+    let analysis = analyze_file(&repo_file("examples/points.csv"), 3, None).expect("analysis");
+    insta::assert_snapshot!(
+        "example_human",
+        render_dataset("examples/points.csv", &analysis)
+    );
+}
+
+#[test]
+fn golden_json_output_of_a_small_file() {
+    let analysis = analyze_file(&fixture("small.csv"), 3, None).expect("analysis");
+    insta::assert_json_snapshot!("small_json", analysis);
+}
+
+#[test]
+fn json_has_the_documented_public_shape() {
+    let path = fixture("small.csv");
+    let (code, stdout, stderr) =
+        spinbench(&["analyze", path.to_str().expect("utf8 path"), "--json"]);
+    assert_eq!(code, 0, "{stderr}");
+    let doc: Value = serde_json::from_str(&stdout).expect("one JSON document");
+    let units = doc["units"].as_array().expect("units array");
+    assert_eq!(units.len(), 2);
+    let a1 = &units[0];
+    assert_eq!(a1["unit"], "A1");
+    for mount in ["P", "N"] {
+        let fit = &a1["fits"][mount];
+        for key in [
+            "k0_g",
+            "k1",
+            "k2_ug_per_g2",
+            "k3_ug_per_g3",
+            "residual_rms",
+            "points",
+        ] {
+            assert!(fit[key].is_number(), "fits.{mount}.{key} missing: {fit}");
+        }
+        for key in ["k0_g", "k1", "k2_ug_per_g2", "k3_ug_per_g3"] {
+            let ci = fit["ci95"][key].as_array().expect("ci95 interval");
+            assert_eq!(ci.len(), 2);
+            let value = fit[key].as_f64().expect("value");
+            let (lo, hi) = (ci[0].as_f64().expect("lo"), ci[1].as_f64().expect("hi"));
+            assert!(lo < value && value < hi, "{key}: {lo} < {value} < {hi}");
+        }
+        assert_eq!(fit["points"], 11);
+    }
+    // In mounting N the scale factor comes out negative (method.md §3.4).
+    assert!(a1["fits"]["P"]["k1"].as_f64().expect("k1") > 0.0);
+    assert!(a1["fits"]["N"]["k1"].as_f64().expect("k1") < 0.0);
+    let k2p = a1["fits"]["P"]["k2_ug_per_g2"].as_f64().expect("k2").abs();
+    let k2n = a1["fits"]["N"]["k2_ug_per_g2"].as_f64().expect("k2").abs();
+    assert_eq!(
+        a1["k2_max_ug_per_g2"].as_f64().expect("k2_max"),
+        k2p.max(k2n)
+    );
+    for key in ["full_range", "scale_factor", "figures"] {
+        assert!(a1[key].is_object(), "{key} missing");
+    }
+    // A unit with one mounting has only that key under fits.
+    let b2 = &units[1];
+    let keys: Vec<&String> = b2["fits"].as_object().expect("fits").keys().collect();
+    assert_eq!(keys, vec!["P"]);
+    assert!(b2["figures"]["asymmetry_ppm"].is_null());
+}
+
+#[test]
+fn the_reduction_finds_the_example_truth() {
+    // examples/README.md lists the truth the example was generated from.
+    let analysis = analyze_file(&repo_file("examples/points.csv"), 3, None).expect("analysis");
+    let truth = [("SN2601", 12.0), ("SN2602", 6.5), ("SN2603", 24.0)];
+    for (serial, k2) in truth {
+        for unit in analysis.units.iter().filter(|u| u.unit == serial) {
+            for fit in unit.fits.values() {
+                let [lo, hi] = fit.fit.ci95.k2_ug_per_g2.expect("ci");
+                let (lo, hi) = (lo.abs().min(hi.abs()), lo.abs().max(hi.abs()));
+                // 2 µg noise: well inside ±0.1 µg/g², and the interval is a few hundredths wide.
+                assert!(hi - lo < 0.05, "{serial} {}: [{lo}, {hi}]", fit.mount);
+                assert!((fit.fit.k2_ug_per_g2.expect("k2").abs() - k2).abs() < 0.1);
+            }
+        }
+    }
+}
+
+#[test]
+fn spreadsheet_input_gives_the_same_reduction_as_csv() {
+    let csv_path = fixture("small.csv");
+    let from_csv = analyze_file(&csv_path, 3, None).expect("csv");
+
+    let text = std::fs::read_to_string(&csv_path).expect("fixture");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let xlsx = dir.path().join("points.xlsx");
+    let mut book = rust_xlsxwriter::Workbook::new();
+    let sheet = book.add_worksheet();
+    sheet.set_name("points").expect("name");
+    for (r, line) in text.lines().enumerate() {
+        for (c, field) in line.split(',').enumerate() {
+            let (r, c) = (r as u32, c as u16);
+            // Numbers as numbers, as a spreadsheet user would have them.
+            match field.parse::<f64>() {
+                Ok(v) if r > 0 => sheet.write_number(r, c, v).map(|_| ()),
+                _ => sheet.write_string(r, c, field).map(|_| ()),
+            }
+            .expect("write cell");
+        }
+    }
+    book.save(&xlsx).expect("save xlsx");
+    let from_xlsx = analyze_file(&xlsx, 3, None).expect("xlsx");
+    assert_eq!(
+        serde_json::to_value(&from_csv).expect("json"),
+        serde_json::to_value(&from_xlsx).expect("json")
+    );
+
+    // A bad cell is named the way the spreadsheet names it.
+    let bad = dir.path().join("bad.xlsx");
+    let mut book = rust_xlsxwriter::Workbook::new();
+    let sheet = book.add_worksheet();
+    for (c, h) in ["unit", "mount", "g_nominal", "g_applied", "output"]
+        .iter()
+        .enumerate()
+    {
+        sheet.write_string(0, c as u16, *h).expect("header");
+    }
+    sheet.write_string(1, 0, "SN1").expect("cell");
+    sheet.write_string(1, 1, "P").expect("cell");
+    sheet.write_number(1, 2, 0.0).expect("cell");
+    sheet.write_string(1, 4, "twelve").expect("cell");
+    book.save(&bad).expect("save");
+    let err = analyze_file(&bad, 3, None)
+        .expect_err("text in output")
+        .to_string();
+    assert!(
+        err.contains("sheet 'Sheet1', cell E2 (output): expected a number, found 'twelve'"),
+        "{err}"
+    );
+    let err = analyze_file(&bad, 3, Some("nope"))
+        .expect_err("no such sheet")
+        .to_string();
+    assert!(
+        err.contains("no sheet named 'nope'; the sheets are: Sheet1"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_file_line_and_column() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let head = "unit,mount,g_nominal,g_applied,output\n";
+    let three_levels = format!("{head}A,P,0,,1\nA,P,5,,501\nA,P,10,,1001\nA,P,5,,501\n");
+    let cases: Vec<(&str, String, &str)> = vec![
+        (
+            "empty.csv",
+            String::new(),
+            "empty.csv: the file has no rows",
+        ),
+        (
+            "nohead.csv",
+            "A,P,0,,1\n".into(),
+            "nohead.csv:1: expected a header row",
+        ),
+        (
+            "nocol.csv",
+            "unit,mount,g_nominal,g_applied\nA,P,0,\n".into(),
+            "missing column(s) output",
+        ),
+        (
+            "dup.csv",
+            "unit,mount,g_nominal,g_applied,output,mount\n".into(),
+            "dup.csv:1: column 6 (mount): duplicate header",
+        ),
+        (
+            "mount.csv",
+            format!("{head}A,Q,0,,1\n"),
+            "mount.csv:2: column 2 (mount): expected P",
+        ),
+        (
+            "num.csv",
+            format!("{head}A,P,0,,1\nA,P,1,x1,2\n"),
+            "num.csv:3: column 4 (g_applied): expected a number, found 'x1'",
+        ),
+        (
+            "nan.csv",
+            format!("{head}A,P,0,,NaN\n"),
+            "nan.csv:2: column 5 (output): expected a finite number",
+        ),
+        (
+            "few.csv",
+            three_levels,
+            "few.csv: cannot reduce the points: unit 'A' mounting P has 3 distinct level(s); an order-3 fit needs at least 4",
+        ),
+    ];
+    for (name, text, want) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        let (code, stdout, stderr) = spinbench(&["analyze", path.to_str().expect("utf8")]);
+        assert_eq!(code, 1, "{name}: {stderr}");
+        assert!(stdout.is_empty(), "{name}: printed {stdout}");
+        assert!(stderr.starts_with("error: "), "{name}: {stderr}");
+        assert!(
+            stderr.contains(want),
+            "{name}:\n  got: {stderr}\n want: {want}"
+        );
+        assert!(!stderr.contains("panicked"), "{name}: {stderr}");
+    }
+    // The same too-few-levels file is fine at order 2.
+    let (code, _, stderr) = spinbench(&[
+        "analyze",
+        dir.path().join("few.csv").to_str().expect("utf8"),
+        "--order",
+        "2",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let (code, _, stderr) = spinbench(&["analyze", "/no/such/file.csv"]);
+    assert_eq!(code, 1);
+    assert!(
+        stderr.contains("/no/such/file.csv: cannot read the file"),
+        "{stderr}"
+    );
+    let (code, _, _) = spinbench(&["analyze", "x.csv", "--order", "4"]);
+    assert_eq!(code, 2, "clap refuses order 4 as a usage error");
+}
