@@ -6,9 +6,17 @@
 //!   typed payloads ([`fmu::Message`]), the one-second windows that turn
 //!   400 ticks into one value per instrument ([`fmu::WindowAccumulator`]),
 //!   and the check that a line can carry the configured stream
-//!   ([`fmu::check_line_rate`]).
+//!   ([`fmu::check_line_rate`]);
+//! * [`scpi`] — SCPI-style command lines: parsing with abbreviations (the
+//!   instrument side) and reply parsing (the driver side);
+//! * [`centrifuge`] — controller dialects: ACUTROL, and a line dialect
+//!   configured entirely in TOML;
+//! * [`psu`] — SCPI commands of a programmable DC supply.
 //!
 //! Nothing here reads a clock, a port or a file; the `devices` crate moves
 //! the bytes. Every decoder accepts arbitrary input without panicking.
 
+pub mod centrifuge;
 pub mod fmu;
+pub mod psu;
+pub mod scpi;
