@@ -5,6 +5,8 @@
 //! * [`DialectCentrifuge`], [`ScpiPowerSupply`], [`FmuDriver`] — drivers,
 //!   each generic over its [`Transport`], so the same code talks to a real
 //!   serial port, a pseudo-terminal, a TCP socket or a test [`Transcript`];
+//! * [`config`] — the device sections of the station config (TOML) and
+//!   `connect` functions that open a transport and build the driver;
 //! * [`LineChannel`] — deadlines, retries and reconnection shared by the
 //!   line-oriented drivers; [`DeviceError`] names the device and the command.
 //!
@@ -12,6 +14,7 @@
 //! layer sees a byte.
 
 pub mod centrifuge;
+pub mod config;
 mod error;
 pub mod fmu;
 pub mod line;
