@@ -103,8 +103,8 @@ pub enum DialectConfig {
         #[serde(default)]
         short_form: bool,
     },
-    /// A line dialect described in the config.
-    Line(LineDialectConfig),
+    /// A line dialect described in the config (boxed: it is large).
+    Line(Box<LineDialectConfig>),
 }
 
 fn default_axis() -> u8 {
@@ -160,7 +160,7 @@ impl CentrifugeConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.max_rate_deg_s()?;
         if let DialectConfig::Line(line) = &self.dialect {
-            LineDialect::new(line.clone()).map_err(|e| ConfigError {
+            LineDialect::new((**line).clone()).map_err(|e| ConfigError {
                 key: format!("centrifuge.dialect.{}", e.key),
                 problem: e.problem,
             })?;
@@ -187,7 +187,7 @@ impl CentrifugeConfig {
                 max,
             )),
             DialectConfig::Line(line) => {
-                let dialect = LineDialect::new(line.clone()).map_err(|e| ConfigError {
+                let dialect = LineDialect::new((**line).clone()).map_err(|e| ConfigError {
                     key: format!("centrifuge.dialect.{}", e.key),
                     problem: e.problem,
                 })?;
