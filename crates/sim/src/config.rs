@@ -1,0 +1,284 @@
+//! The virtual bench's configuration (TOML). Every key has a default, so an
+//! empty file, or none, is a complete bench: two counter modules with six
+//! instruments each on a 0.8 m centrifuge.
+
+use serde::Deserialize;
+
+/// The whole bench.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SimConfig {
+    /// Seed of every random process (instrument population, noise, faults).
+    pub seed: u64,
+    /// Local gravity [m/s²].
+    pub g_local_m_s2: f64,
+    /// Time: 1 = real time (the hardware's pace), N > 1 = N× faster,
+    /// 0 = as fast as the station reads the counter modules.
+    pub speed: f64,
+    /// Laboratory temperature [°C].
+    pub ambient_c: f64,
+    /// Counter modules (6 instruments each).
+    pub modules: usize,
+    /// Reference clock of reciprocal counting [Hz].
+    pub reference_hz: f64,
+    /// The centrifuge.
+    pub centrifuge: TableConfig,
+    /// How the instruments' true coefficients are drawn.
+    pub instruments: PopulationConfig,
+    /// Faults to inject.
+    pub faults: FaultConfig,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig {
+            seed: 1,
+            g_local_m_s2: spinbench_analysis::STANDARD_GRAVITY_M_S2,
+            speed: 1.0,
+            ambient_c: 23.0,
+            modules: 2,
+            reference_hz: 100e6,
+            centrifuge: TableConfig::default(),
+            instruments: PopulationConfig::default(),
+            faults: FaultConfig::default(),
+        }
+    }
+}
+
+/// Controller language of the simulated centrifuge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SimDialect {
+    /// ACUTROL SCPI-style tree (abbreviations accepted).
+    #[default]
+    Acutrol,
+    /// Short mnemonics (`JOG`, `STO`, `RATE?`) in rpm, for the configurable line dialect.
+    Mnemonic,
+}
+
+/// The centrifuge.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TableConfig {
+    /// Drawing radius R0 of every fixture position [m].
+    pub arm_radius_m: f64,
+    /// Standard deviation of a position's true radius about R0 [mm].
+    pub radius_scatter_mm: f64,
+    /// The proof mass sits this far off the fixture's centre: the effective
+    /// radius is larger by it in one mounting and smaller in the other [mm].
+    pub proof_mass_offset_mm: f64,
+    /// Rate limit [deg/s].
+    pub max_rate_deg_s: f64,
+    /// Angular acceleration limit [deg/s²].
+    pub max_accel_deg_s2: f64,
+    /// Natural frequency of the rate loop [Hz].
+    pub loop_natural_hz: f64,
+    /// Damping ratio of the rate loop (0.6 gives about 10 % overshoot).
+    pub loop_damping: f64,
+    /// Once-per-revolution rate ripple [ppm of the rate].
+    pub ripple_ppm: f64,
+    /// Slow rate wander [ppm of the rate, RMS].
+    pub wander_ppm: f64,
+    /// Controller language.
+    pub dialect: SimDialect,
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        TableConfig {
+            arm_radius_m: 0.8,
+            radius_scatter_mm: 0.5,
+            proof_mass_offset_mm: 0.15,
+            max_rate_deg_s: 2400.0,
+            max_accel_deg_s2: 90.0,
+            loop_natural_hz: 0.5,
+            loop_damping: 0.6,
+            ripple_ppm: 5.0,
+            wander_ppm: 2.0,
+            dialect: SimDialect::Acutrol,
+        }
+    }
+}
+
+/// Ranges the instrument population is drawn from.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PopulationConfig {
+    /// Resonator rest frequency [Hz].
+    pub resonator_hz: f64,
+    /// Scale factor range [Hz/g].
+    pub k1_hz_per_g: [f64; 2],
+    /// Bias magnitude limit [g].
+    pub k0_max_g: f64,
+    /// |k2| range [µg/g²] (sign drawn at random).
+    pub k2_abs_ug_per_g2: [f64; 2],
+    /// k3 magnitude limit [µg/g³].
+    pub k3_max_ug_per_g3: f64,
+    /// Cross-axis sensitivity magnitude limit [µg/g].
+    pub cross_axis_max_ug_per_g: f64,
+    /// White noise of a 1-s dF value, as acceleration [µg].
+    pub noise_ug: f64,
+    /// Bias random walk [µg per √hour].
+    pub bias_walk_ug_per_sqrt_h: f64,
+    /// Temperature coefficient of the bias [µg/°C].
+    pub temp_coeff_ug_per_c: f64,
+    /// Self-heating after power-on [°C] and its time constant [s].
+    pub self_heating_c: f64,
+    /// Time constant of warm-up [s].
+    pub warmup_tau_s: f64,
+    /// Warm-up transient of the bias at power-on [µg], decaying with `warmup_tau_s`.
+    pub warmup_ug: f64,
+    /// Supply current per powered instrument, per rail [A].
+    pub current_a: f64,
+}
+
+impl Default for PopulationConfig {
+    fn default() -> Self {
+        PopulationConfig {
+            resonator_hz: 30_000.0,
+            k1_hz_per_g: [80.0, 140.0],
+            k0_max_g: 0.05,
+            k2_abs_ug_per_g2: [1.0, 30.0],
+            k3_max_ug_per_g3: 0.1,
+            cross_axis_max_ug_per_g: 50.0,
+            noise_ug: 3.0,
+            bias_walk_ug_per_sqrt_h: 5.0,
+            temp_coeff_ug_per_c: 20.0,
+            self_heating_c: 4.0,
+            warmup_tau_s: 120.0,
+            warmup_ug: 150.0,
+            current_a: 0.04,
+        }
+    }
+}
+
+/// An instrument addressed by module and slot (0-based).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SlotRef {
+    /// Module index.
+    pub module: usize,
+    /// Slot on the module, 0–5.
+    pub slot: usize,
+}
+
+/// Faults to inject; all off by default. Times are simulated seconds.
+#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct FaultConfig {
+    /// Probability that a bit of the counter-module stream is flipped.
+    pub bit_error_rate: f64,
+    /// Probability that a byte of the stream is dropped.
+    pub byte_drop_rate: f64,
+    /// Probability that a whole frame is dropped.
+    pub frame_drop_rate: f64,
+    /// A module that goes silent at a time: (module, seconds).
+    pub module_silent: Option<(usize, f64)>,
+    /// Instruments that output nothing.
+    pub dead_instruments: Vec<SlotRef>,
+    /// Instruments with this many times the normal noise.
+    pub noisy_instruments: Vec<SlotRef>,
+    /// Noise multiplier of noisy instruments (default 1000 if zero).
+    pub noisy_factor: f64,
+    /// The centrifuge controller stops answering at this time [s].
+    pub centrifuge_silent_at_s: Option<f64>,
+    /// The interlocks open at this time [s].
+    pub interlock_open_at_s: Option<f64>,
+    /// The instrument supply trips on over-current at this time [s].
+    pub supply_trip_at_s: Option<f64>,
+}
+
+/// A configuration the bench cannot run; names the key.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("sim config: {key}: {problem}")]
+pub struct SimConfigError {
+    /// The key.
+    pub key: String,
+    /// What is wrong.
+    pub problem: String,
+}
+
+impl SimConfig {
+    /// Parse TOML text.
+    pub fn from_toml(text: &str) -> Result<SimConfig, SimConfigError> {
+        let config: SimConfig = toml::from_str(text).map_err(|e| SimConfigError {
+            key: "(file)".into(),
+            problem: e.to_string(),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Check values that TOML types cannot.
+    pub fn validate(&self) -> Result<(), SimConfigError> {
+        let err = |key: &str, problem: String| {
+            Err(SimConfigError {
+                key: key.into(),
+                problem,
+            })
+        };
+        let positive = [
+            ("g_local_m_s2", self.g_local_m_s2),
+            ("reference_hz", self.reference_hz),
+            ("centrifuge.arm_radius_m", self.centrifuge.arm_radius_m),
+            ("centrifuge.max_rate_deg_s", self.centrifuge.max_rate_deg_s),
+            (
+                "centrifuge.max_accel_deg_s2",
+                self.centrifuge.max_accel_deg_s2,
+            ),
+            (
+                "centrifuge.loop_natural_hz",
+                self.centrifuge.loop_natural_hz,
+            ),
+            ("centrifuge.loop_damping", self.centrifuge.loop_damping),
+            ("instruments.resonator_hz", self.instruments.resonator_hz),
+        ];
+        for (key, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return err(key, format!("must be a positive number, got {v}"));
+            }
+        }
+        if !(self.speed.is_finite() && self.speed >= 0.0) {
+            return err(
+                "speed",
+                format!(
+                    "must be 0 (as fast as read), 1 (real time) or more, got {}",
+                    self.speed
+                ),
+            );
+        }
+        if self.modules == 0 || self.modules > 16 {
+            return err("modules", format!("must be 1 to 16, got {}", self.modules));
+        }
+        let [lo, hi] = self.instruments.k1_hz_per_g;
+        if !(lo > 0.0 && hi >= lo) {
+            return err(
+                "instruments.k1_hz_per_g",
+                format!("must be a range [low, high] with 0 < low ≤ high, got [{lo}, {hi}]"),
+            );
+        }
+        for (key, p) in [
+            ("faults.bit_error_rate", self.faults.bit_error_rate),
+            ("faults.byte_drop_rate", self.faults.byte_drop_rate),
+            ("faults.frame_drop_rate", self.faults.frame_drop_rate),
+        ] {
+            if !(0.0..=1.0).contains(&p) {
+                return err(key, format!("must be a probability 0 to 1, got {p}"));
+            }
+        }
+        for s in self
+            .faults
+            .dead_instruments
+            .iter()
+            .chain(&self.faults.noisy_instruments)
+        {
+            if s.module >= self.modules || s.slot >= 6 {
+                return err(
+                    "faults",
+                    format!("no instrument at module {} slot {}", s.module, s.slot),
+                );
+            }
+        }
+        Ok(())
+    }
+}

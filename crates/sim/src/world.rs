@@ -1,0 +1,671 @@
+//! The simulated bench as one deterministic state machine, advanced in
+//! 2.5 ms ticks. Given the same config (seed) and the same commands at the
+//! same ticks, it produces the same bytes: that is what makes runs
+//! reproducible. The serving layer ([`crate::serve`]) only moves bytes
+//! between this world and pseudo-terminals or sockets.
+
+use crate::config::{SimConfig, SimDialect, SlotRef};
+use crate::counter::InputCounter;
+use crate::supply::Supply;
+use crate::table::Table;
+use crate::vba::{Mounting, Vba, VbaTruth};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, StandardNormal, Uniform};
+use serde::Serialize;
+use spinbench_wire::centrifuge::acutrol_headers as h;
+use spinbench_wire::fmu::{
+    INPUTS_PER_MODULE, INSTRUMENTS_PER_MODULE, Message, StatusReply, StreamMode, TICKS_PER_SECOND,
+};
+use spinbench_wire::scpi::{self, HeaderSpec, parse_line};
+use std::collections::VecDeque;
+
+/// Seconds per tick.
+pub const TICK_S: f64 = 1.0 / TICKS_PER_SECOND as f64;
+/// Current drawn by a powered counter module from the logic supply [A].
+const MODULE_CURRENT_A: f64 = 0.15;
+/// Seed offsets of the noise and wire-fault random streams ("noise", "wire").
+const NOISE_STREAM: u64 = 0x006e_6f69_7365;
+const WIRE_STREAM: u64 = 0x7769_7265;
+/// Firmware id the simulated modules report.
+const FIRMWARE_ID: u16 = 0x5101;
+
+/// Which supply a command is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SupplyId {
+    /// The ±15 V instrument supply (channel 1 = +15 V, channel 2 = −15 V).
+    Rails,
+    /// The +5 V counter-module supply.
+    Logic,
+}
+
+/// One fixture position on the arm.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Position {
+    /// Drawing radius R0 [m].
+    pub drawing_radius_m: f64,
+    /// True effective radius in mounting P [m].
+    pub radius_p_m: f64,
+    /// True effective radius in mounting N [m].
+    pub radius_n_m: f64,
+}
+
+/// The truth of one instrument, for comparing with what the station measured.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InstrumentTruth {
+    /// Module index.
+    pub module: usize,
+    /// Slot on the module.
+    pub slot: usize,
+    /// The instrument's parameters.
+    #[serde(flatten)]
+    pub vba: VbaTruth,
+    /// Its fixture position.
+    #[serde(flatten)]
+    pub position: Position,
+}
+
+/// Everything the bench knows that the station must find out.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Truth {
+    /// Seed of the bench.
+    pub seed: u64,
+    /// Local gravity [m/s²].
+    pub g_local_m_s2: f64,
+    /// Every instrument.
+    pub instruments: Vec<InstrumentTruth>,
+}
+
+#[derive(Debug, Clone)]
+struct ModuleSim {
+    relay_mask: u8,
+    streaming: Option<StreamMode>,
+    seq: u16,
+    temp_seq: u16,
+    inputs: [InputCounter; INPUTS_PER_MODULE],
+    overruns: u16,
+    rx_crc_errors: u16,
+}
+
+/// The bench.
+pub struct World {
+    config: SimConfig,
+    tick: u64,
+    noise_rng: ChaCha8Rng,
+    wire_rng: ChaCha8Rng,
+    /// The centrifuge.
+    pub table: Table,
+    instruments: Vec<Vba>,
+    positions: Vec<Position>,
+    modules: Vec<ModuleSim>,
+    /// The ±15 V instrument supply.
+    pub rails: Supply,
+    /// The +5 V counter-module supply.
+    pub logic: Supply,
+    centrifuge_errors: VecDeque<(i32, String)>,
+    centrifuge_silent: bool,
+    module_silent: Vec<bool>,
+    faults_fired: [bool; 3],
+}
+
+fn draw(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
+    if hi > lo {
+        Uniform::new(lo, hi).map_or(lo, |u| u.sample(rng))
+    } else {
+        lo
+    }
+}
+
+impl World {
+    /// A bench from a validated config; the population is drawn from the seed.
+    pub fn new(config: SimConfig) -> World {
+        let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+        let n = config.modules * INSTRUMENTS_PER_MODULE;
+        let p = &config.instruments;
+        let t = &config.centrifuge;
+        let mut instruments = Vec::with_capacity(n);
+        let mut positions = Vec::with_capacity(n);
+        for _ in 0..n {
+            let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            let truth = VbaTruth {
+                k0_g: draw(&mut rng, -p.k0_max_g, p.k0_max_g),
+                k1_hz_per_g: draw(&mut rng, p.k1_hz_per_g[0], p.k1_hz_per_g[1]),
+                k2_ug_per_g2: sign * draw(&mut rng, p.k2_abs_ug_per_g2[0], p.k2_abs_ug_per_g2[1]),
+                k3_ug_per_g3: draw(&mut rng, -p.k3_max_ug_per_g3, p.k3_max_ug_per_g3),
+                cross_axis_ug_per_g: draw(
+                    &mut rng,
+                    -p.cross_axis_max_ug_per_g,
+                    p.cross_axis_max_ug_per_g,
+                ),
+                resonator_hz: p.resonator_hz * draw(&mut rng, 0.98, 1.02),
+                noise_ug: p.noise_ug,
+                bias_walk_ug_per_sqrt_h: p.bias_walk_ug_per_sqrt_h,
+                temp_coeff_ug_per_c: p.temp_coeff_ug_per_c * draw(&mut rng, -1.0, 1.0),
+            };
+            instruments.push(Vba::new(truth));
+            let scatter: f64 = StandardNormal.sample(&mut rng);
+            let centre = t.arm_radius_m + scatter * t.radius_scatter_mm * 1e-3;
+            let offset = t.proof_mass_offset_mm * 1e-3;
+            positions.push(Position {
+                drawing_radius_m: t.arm_radius_m,
+                radius_p_m: centre + offset,
+                radius_n_m: centre - offset,
+            });
+        }
+        let module = ModuleSim {
+            relay_mask: 0,
+            streaming: None,
+            seq: 0,
+            temp_seq: 0,
+            inputs: [InputCounter::default(); INPUTS_PER_MODULE],
+            overruns: 0,
+            rx_crc_errors: 0,
+        };
+        let mut logic = Supply::new("SPINBENCH,SIM-PSU-5V,0,1.0", 1);
+        // The module supply is left on, as on a bench; the instrument rails start off.
+        logic.outputs[0].volts = 5.0;
+        logic.outputs[0].on = true;
+        World {
+            noise_rng: ChaCha8Rng::seed_from_u64(config.seed ^ NOISE_STREAM),
+            wire_rng: ChaCha8Rng::seed_from_u64(config.seed ^ WIRE_STREAM),
+            table: Table::new(config.centrifuge.clone()),
+            instruments,
+            positions,
+            modules: vec![module; config.modules],
+            rails: Supply::new("SPINBENCH,SIM-PSU-15V,0,1.0", 2),
+            logic,
+            centrifuge_errors: VecDeque::new(),
+            centrifuge_silent: false,
+            module_silent: vec![false; config.modules],
+            faults_fired: [false; 3],
+            tick: 0,
+            config,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// Simulated time [s].
+    pub fn now_s(&self) -> f64 {
+        self.tick as f64 * TICK_S
+    }
+
+    /// Ticks elapsed.
+    pub fn tick(&self) -> u64 {
+        self.tick
+    }
+
+    /// Number of instruments.
+    pub fn instrument_count(&self) -> usize {
+        self.instruments.len()
+    }
+
+    /// The truth of every instrument.
+    pub fn truth(&self) -> Truth {
+        Truth {
+            seed: self.config.seed,
+            g_local_m_s2: self.config.g_local_m_s2,
+            instruments: self
+                .instruments
+                .iter()
+                .zip(&self.positions)
+                .enumerate()
+                .map(|(i, (v, p))| InstrumentTruth {
+                    module: i / INSTRUMENTS_PER_MODULE,
+                    slot: i % INSTRUMENTS_PER_MODULE,
+                    vba: v.truth,
+                    position: *p,
+                })
+                .collect(),
+        }
+    }
+
+    /// Mount instrument `index` (module·6 + slot) as `mounting` (the operator's hands).
+    pub fn set_mounting(&mut self, index: usize, mounting: Mounting) {
+        if let Some(v) = self.instruments.get_mut(index) {
+            v.mounting = mounting;
+        }
+    }
+
+    /// Mount every instrument the same way.
+    pub fn set_all_mountings(&mut self, mounting: Mounting) {
+        for v in &mut self.instruments {
+            v.mounting = mounting;
+        }
+    }
+
+    fn rails_on(&self) -> bool {
+        self.rails.outputs.iter().all(|o| o.on)
+    }
+
+    fn module_alive(&self, m: usize) -> bool {
+        self.logic.outputs[0].on && !self.module_silent.get(m).copied().unwrap_or(true)
+    }
+
+    fn is(&self, list: &[SlotRef], i: usize) -> bool {
+        list.iter()
+            .any(|s| s.module * INSTRUMENTS_PER_MODULE + s.slot == i)
+    }
+
+    /// Whether instrument `i` is powered: rails on and its relay closed.
+    pub fn powered(&self, i: usize) -> bool {
+        let m = i / INSTRUMENTS_PER_MODULE;
+        let bit = 1u8 << (i % INSTRUMENTS_PER_MODULE);
+        self.rails_on() && self.module_alive(m) && self.modules[m].relay_mask & bit != 0
+    }
+
+    /// Load current of each rails channel [A].
+    pub fn rail_currents(&self) -> Vec<f64> {
+        let n = (0..self.instruments.len())
+            .filter(|&i| self.powered(i))
+            .count() as f64;
+        vec![n * self.config.instruments.current_a; 2]
+    }
+
+    fn logic_currents(&self) -> Vec<f64> {
+        vec![self.modules.len() as f64 * MODULE_CURRENT_A]
+    }
+
+    /// Acceleration along the input axis and across it [g] for instrument `i` now.
+    pub fn input_g(&self, i: usize) -> (f64, f64) {
+        let w = self.table.measured_rate_rad_s();
+        let g = self.config.g_local_m_s2;
+        let p = self.positions[i];
+        match self.instruments[i].mounting {
+            Mounting::TumbleUp => (1.0, 0.0),
+            Mounting::TumbleDown => (-1.0, 0.0),
+            Mounting::ArmP => (w * w * p.radius_p_m / g, 1.0),
+            Mounting::ArmN => (-(w * w * p.radius_n_m / g), 1.0),
+        }
+    }
+
+    fn fire_faults(&mut self) {
+        let now = self.now_s();
+        let f = self.config.faults.clone();
+        if let Some((m, at)) = f.module_silent
+            && now >= at
+            && let Some(s) = self.module_silent.get_mut(m)
+        {
+            *s = true;
+        }
+        if f.centrifuge_silent_at_s.is_some_and(|at| now >= at) {
+            self.centrifuge_silent = true;
+        }
+        if !self.faults_fired[0] && f.interlock_open_at_s.is_some_and(|at| now >= at) {
+            self.faults_fired[0] = true;
+            self.table.trip_interlocks();
+        }
+        if !self.faults_fired[1] && f.supply_trip_at_s.is_some_and(|at| now >= at) {
+            self.faults_fired[1] = true;
+            self.rails.trip();
+        }
+        // A real over-current: the load exceeds a channel's limit.
+        let currents = self.rail_currents();
+        if self
+            .rails
+            .outputs
+            .iter()
+            .zip(&currents)
+            .any(|(o, c)| o.on && *c > o.current_limit_a)
+        {
+            self.rails.trip();
+        }
+    }
+
+    /// Advance one tick; returns the bytes each counter module sends in it
+    /// (frames, with the configured wire faults applied).
+    pub fn step(&mut self) -> Vec<Vec<u8>> {
+        self.fire_faults();
+        self.table.step(TICK_S, &mut self.noise_rng);
+        let now = self.now_s();
+        // Power transitions and the bias random walk.
+        let walk_per_tick =
+            |v: &Vba| v.truth.bias_walk_ug_per_sqrt_h * 1e-6 * (TICK_S / 3600.0).sqrt();
+        for i in 0..self.instruments.len() {
+            let powered = self.powered(i);
+            let step: f64 = StandardNormal.sample(&mut self.noise_rng);
+            let v = &mut self.instruments[i];
+            match (powered, v.powered_since_s) {
+                (true, None) => v.powered_since_s = Some(now),
+                (false, Some(_)) => v.powered_since_s = None,
+                _ => {}
+            }
+            v.bias_walk_g += step * walk_per_tick(v);
+        }
+
+        let reference_hz = self.config.reference_hz;
+        let tick_ref = (reference_hz * TICK_S).round() as u64;
+        let tick_start_ref = self.tick * tick_ref;
+        let mut out = vec![Vec::new(); self.modules.len()];
+        for (m, module_out) in out.iter_mut().enumerate() {
+            let alive = self.module_alive(m);
+            let mut counts = [0u16; INPUTS_PER_MODULE];
+            let mut recips = [spinbench_wire::fmu::ReciprocalCount::default(); INPUTS_PER_MODULE];
+            for slot in 0..INSTRUMENTS_PER_MODULE {
+                let i = m * INSTRUMENTS_PER_MODULE + slot;
+                let (f1, f2) =
+                    if self.powered(i) && !self.is(&self.config.faults.dead_instruments, i) {
+                        self.frequencies(i, now)
+                    } else {
+                        (0.0, 0.0)
+                    };
+                for (k, f) in [f1, f2].into_iter().enumerate() {
+                    let input = 2 * slot + k;
+                    let c = self.modules[m].inputs[input].advance(
+                        f,
+                        tick_start_ref,
+                        tick_ref,
+                        reference_hz,
+                    );
+                    counts[input] = u16::try_from(c.edges).unwrap_or(u16::MAX);
+                    recips[input] = c.reciprocal;
+                }
+            }
+            let module = &mut self.modules[m];
+            if !alive {
+                continue;
+            }
+            let mut frames = Vec::new();
+            if let Some(mode) = module.streaming {
+                let message = match mode {
+                    StreamMode::Gated => Message::GatedCounts {
+                        seq: module.seq,
+                        status: 0,
+                        counts: counts.to_vec(),
+                    },
+                    StreamMode::Reciprocal => Message::ReciprocalCounts {
+                        seq: module.seq,
+                        status: 0,
+                        inputs: recips.to_vec(),
+                    },
+                };
+                module.seq = module.seq.wrapping_add(1);
+                frames.push(message);
+                if self.tick.is_multiple_of(u64::from(TICKS_PER_SECOND)) {
+                    let temps = (0..INSTRUMENTS_PER_MODULE)
+                        .map(|slot| {
+                            let v = &self.instruments[m * INSTRUMENTS_PER_MODULE + slot];
+                            let t = v.temperature_c(
+                                now,
+                                self.config.ambient_c,
+                                self.config.instruments.self_heating_c,
+                                self.config.instruments.warmup_tau_s,
+                            );
+                            (t * 100.0).round() as i16
+                        })
+                        .collect();
+                    frames.push(Message::Temperatures {
+                        seq: module.temp_seq,
+                        centi_celsius: temps,
+                    });
+                    module.temp_seq = module.temp_seq.wrapping_add(1);
+                }
+            }
+            for f in frames {
+                self.emit(m, &f, module_out);
+            }
+        }
+        self.tick += 1;
+        out
+    }
+
+    /// The resonator frequencies of instrument `i` now, with noise.
+    fn frequencies(&mut self, i: usize, now: f64) -> (f64, f64) {
+        let (a, cross) = self.input_g(i);
+        let pc = &self.config.instruments;
+        let v = &self.instruments[i];
+        let since = v.powered_since_s.map_or(0.0, |t0| (now - t0).max(0.0));
+        let temp = v.temperature_c(
+            now,
+            self.config.ambient_c,
+            pc.self_heating_c,
+            pc.warmup_tau_s,
+        );
+        let temp_offset = temp - (self.config.ambient_c + pc.self_heating_c);
+        let warmup = pc.warmup_ug * 1e-6 * (-since / pc.warmup_tau_s).exp();
+        let (f1, f2) = v.resonators(a, cross, temp_offset, warmup);
+        // White frequency noise: σ per 1-s value → σ·√400 per tick, split over the two resonators.
+        let mut noise_ug = v.truth.noise_ug;
+        if self.is(&self.config.faults.noisy_instruments, i) {
+            noise_ug *= if self.config.faults.noisy_factor > 0.0 {
+                self.config.faults.noisy_factor
+            } else {
+                1000.0
+            };
+        }
+        let sigma_hz = noise_ug * 1e-6 * v.truth.k1_hz_per_g * f64::from(TICKS_PER_SECOND).sqrt()
+            / std::f64::consts::SQRT_2;
+        let (n1, n2) = match Normal::new(0.0, sigma_hz) {
+            Ok(d) => (d.sample(&mut self.noise_rng), d.sample(&mut self.noise_rng)),
+            Err(_) => (0.0, 0.0),
+        };
+        (f1 + n1, f2 + n2)
+    }
+
+    /// Encode a message into module `m`'s output, applying wire faults.
+    fn emit(&mut self, m: usize, message: &Message, out: &mut Vec<u8>) {
+        let f = &self.config.faults;
+        let (ber, drop_byte, drop_frame) = (f.bit_error_rate, f.byte_drop_rate, f.frame_drop_rate);
+        if drop_frame > 0.0 && self.wire_rng.random::<f64>() < drop_frame {
+            return;
+        }
+        let mut bytes = Vec::new();
+        if message.encode(&mut bytes).is_err() {
+            self.modules[m].overruns = self.modules[m].overruns.wrapping_add(1);
+            return;
+        }
+        if ber > 0.0 || drop_byte > 0.0 {
+            for b in bytes {
+                if drop_byte > 0.0 && self.wire_rng.random::<f64>() < drop_byte {
+                    continue;
+                }
+                let mut b = b;
+                if ber > 0.0 {
+                    for bit in 0..8 {
+                        if self.wire_rng.random::<f64>() < ber {
+                            b ^= 1 << bit;
+                        }
+                    }
+                }
+                out.push(b);
+            }
+        } else {
+            out.extend_from_slice(&bytes);
+        }
+    }
+
+    /// A frame from the station to module `m`; returns the bytes of the reply.
+    pub fn handle_module_message(&mut self, m: usize, message: Result<Message, ()>) -> Vec<u8> {
+        if m >= self.modules.len() || !self.module_alive(m) {
+            return Vec::new();
+        }
+        let Ok(message) = message else {
+            self.modules[m].rx_crc_errors = self.modules[m].rx_crc_errors.wrapping_add(1);
+            return Vec::new();
+        };
+        let cmd = message.command() as u8;
+        let ack = |result| Message::Ack { cmd, result };
+        let module = &mut self.modules[m];
+        let reply = match message {
+            Message::SetPower { mask } => {
+                module.relay_mask = mask & 0x3F;
+                ack(0)
+            }
+            Message::StartStreaming { mode } => {
+                module.streaming = Some(mode);
+                ack(0)
+            }
+            Message::StopStreaming => {
+                module.streaming = None;
+                ack(0)
+            }
+            Message::StatusRequest => Message::Status(StatusReply {
+                firmware_id: FIRMWARE_ID,
+                relay_mask: module.relay_mask,
+                rx_crc_errors: module.rx_crc_errors,
+                rx_tail_errors: 0,
+                overruns: module.overruns,
+            }),
+            // A message only a module sends: not a command.
+            _ => ack(1),
+        };
+        let mut out = Vec::new();
+        let _ = reply.encode(&mut out);
+        out
+    }
+
+    /// A line from the station to the centrifuge controller; returns the reply line.
+    pub fn handle_centrifuge_line(&mut self, line: &str) -> Option<String> {
+        if self.centrifuge_silent {
+            return None;
+        }
+        match self.config.centrifuge.dialect {
+            SimDialect::Acutrol => self.acutrol(line),
+            SimDialect::Mnemonic => self.mnemonic(line),
+        }
+    }
+
+    fn demand(&mut self, rate_deg_s: f64) -> Result<(), (i32, &'static str)> {
+        if !rate_deg_s.is_finite() || rate_deg_s.abs() > self.config.centrifuge.max_rate_deg_s {
+            return Err((-222, "Data out of range; rate above the table limit"));
+        }
+        self.table.demand_rad_s = rate_deg_s.to_radians();
+        Ok(())
+    }
+
+    fn acutrol(&mut self, line: &str) -> Option<String> {
+        let Ok(cmd) = parse_line(line) else {
+            self.centrifuge_errors
+                .push_back((-102, "Syntax error".into()));
+            return None;
+        };
+        let is = |spec: &str| HeaderSpec::new(spec).matches(&cmd);
+        let number = |i: usize| cmd.args.get(i).and_then(|a| scpi::parse_number(a).ok());
+        if is(h::IDN) {
+            return Some("ACUTRONIC,SPINBENCH-SIM,0,1.0".into());
+        } else if is(h::STB) {
+            let stb = u8::from(self.table.interlocks_closed)
+                | (u8::from(self.table.rate_mode) << 1)
+                | (u8::from(self.table.interlock_fault) << 2);
+            return Some(stb.to_string());
+        } else if is(h::READ_RATE) {
+            return Some(format!(
+                "{:.6}",
+                self.table.measured_rate_rad_s().to_degrees()
+            ));
+        } else if is(h::INTERLOCK_QUERY) {
+            return Some(
+                if self.table.interlocks_closed {
+                    "1"
+                } else {
+                    "0"
+                }
+                .into(),
+            );
+        } else if is(h::SYSTEM_ERROR) {
+            let (code, msg) = self
+                .centrifuge_errors
+                .pop_front()
+                .unwrap_or((0, "No error".into()));
+            return Some(format!("{code},\"{msg}\""));
+        } else if is(h::DEMAND_RATE) {
+            match number(1) {
+                Some(r) => {
+                    if let Err((code, msg)) = self.demand(r) {
+                        self.centrifuge_errors.push_back((code, msg.into()));
+                    }
+                }
+                None => self
+                    .centrifuge_errors
+                    .push_back((-109, "Missing parameter".into())),
+            }
+        } else if is(h::MODE_RATE) {
+            if self.table.interlocks_closed {
+                self.table.rate_mode = true;
+            } else {
+                self.centrifuge_errors
+                    .push_back((-221, "Settings conflict; interlocks open".into()));
+            }
+        } else if is(h::MODE_OFF) {
+            self.table.rate_mode = false;
+            self.table.demand_rad_s = 0.0;
+        } else if is(h::INTERLOCK_CLOSE) {
+            if self.table.interlock_fault {
+                self.centrifuge_errors.push_back((
+                    -221,
+                    "Settings conflict; interlock fault latched, reset first".into(),
+                ));
+            } else {
+                self.table.interlocks_closed = true;
+            }
+        } else if is(h::INTERLOCK_OPEN) {
+            self.table.interlocks_closed = false;
+            self.table.rate_mode = false;
+        } else if is(h::INTERLOCK_RESET) {
+            self.table.interlock_fault = false;
+        } else if is(h::LIMIT_RATE) || is(h::LIMIT_ACCELERATION) {
+            // Accepted; the simulated table keeps its configured physical limits.
+        } else {
+            self.centrifuge_errors
+                .push_back((-113, "Undefined header".into()));
+        }
+        None
+    }
+
+    fn mnemonic(&mut self, line: &str) -> Option<String> {
+        let mut words = line.split_whitespace();
+        let verb = words.next().unwrap_or("").to_ascii_uppercase();
+        let arg = words.next();
+        Some(match verb.as_str() {
+            "ID?" => "SPINBENCH SIM-TABLE MNEMONIC 1.0".into(),
+            "RATE?" => format!(
+                "RATE {:.4}",
+                spinbench_analysis::centrifuge::rad_s_to_rpm(self.table.measured_rate_rad_s())
+            ),
+            "ILK?" => format!("ILK {}", u8::from(self.table.interlocks_closed)),
+            "ENA" if self.table.interlock_fault => "ERR interlock fault latched, send RST".into(),
+            "ENA" => {
+                self.table.interlocks_closed = true;
+                self.table.rate_mode = true;
+                "OK".into()
+            }
+            "DIS" => {
+                self.table.interlocks_closed = false;
+                "OK".into()
+            }
+            "RST" => {
+                self.table.interlock_fault = false;
+                "OK".into()
+            }
+            "STO" => {
+                self.table.demand_rad_s = 0.0;
+                "OK".into()
+            }
+            "JOG" => match arg.and_then(|a| a.parse::<f64>().ok()) {
+                Some(rpm) => match self.demand(rpm * 6.0) {
+                    Ok(()) => "OK".into(),
+                    Err(_) => "ERR overspeed".into(),
+                },
+                None => "ERR missing rate".into(),
+            },
+            _ => "ERR unknown command".into(),
+        })
+    }
+
+    /// A line from the station to a supply; returns the reply line.
+    pub fn handle_supply_line(&mut self, which: SupplyId, line: &str) -> Option<String> {
+        match which {
+            SupplyId::Rails => {
+                let currents = self.rail_currents();
+                self.rails.handle(line, &currents)
+            }
+            SupplyId::Logic => {
+                let currents = self.logic_currents();
+                self.logic.handle(line, &currents)
+            }
+        }
+    }
+}
