@@ -12,6 +12,7 @@
 
 pub mod config;
 pub mod counter;
+pub mod serve;
 pub mod supply;
 pub mod table;
 pub mod vba;
