@@ -372,6 +372,21 @@ fn run_clock(
     })
 }
 
+/// Make a pty master non-blocking: a blocking write to a pty whose reader
+/// stopped never returns, and the bench could then never shut down.
+fn set_nonblocking(port: &TTYPort) -> io::Result<()> {
+    use nix::fcntl::{FcntlArg, OFlag, fcntl};
+    use std::os::fd::AsRawFd;
+    let fd = port.as_raw_fd();
+    let flags = fcntl(fd, FcntlArg::F_GETFL).map_err(io::Error::from)?;
+    fcntl(
+        fd,
+        FcntlArg::F_SETFL(OFlag::from_bits_truncate(flags) | OFlag::O_NONBLOCK),
+    )
+    .map_err(io::Error::from)?;
+    Ok(())
+}
+
 fn serve_module(
     m: usize,
     master: TTYPort,
@@ -379,6 +394,7 @@ fn serve_module(
     buffer: Shared<VecDeque<u8>>,
     stop: Arc<AtomicBool>,
 ) -> io::Result<Vec<JoinHandle<()>>> {
+    set_nonblocking(&master)?;
     let mut reader = master
         .try_clone_native()
         .map_err(|e| io::Error::other(e.to_string()))?;
@@ -455,6 +471,7 @@ fn serve_pty_lines(
 ) -> JoinHandle<()> {
     thread::spawn(move || {
         let mut port = master;
+        let _ = set_nonblocking(&port);
         let _ = port.set_timeout(Duration::from_millis(20));
         let mut pending = Vec::new();
         let mut bytes = [0u8; 256];

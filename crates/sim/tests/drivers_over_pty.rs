@@ -179,3 +179,27 @@ fn the_printed_station_config_connects_including_the_mnemonic_dialect_over_tcp()
     table.stop().expect("stop");
     bench.shutdown();
 }
+
+#[test]
+fn the_bench_shuts_down_even_when_the_station_stopped_reading() {
+    let bench = RunningBench::start(quiet(0.0), ServeOptions::default()).expect("bench");
+    let mut fmu = FmuDriver::new(
+        serial(&bench.endpoints().modules[0], 921_600),
+        "fmu1",
+        POLICY,
+    );
+    fmu.set_power(0x3F).expect("relays");
+    fmu.start(StreamMode::Reciprocal).expect("start");
+    // Stop reading while the module streams: the pty fills up.
+    std::thread::sleep(Duration::from_millis(500));
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        bench.shutdown();
+        let _ = tx.send(());
+    });
+    assert!(
+        rx.recv_timeout(Duration::from_secs(10)).is_ok(),
+        "the bench did not shut down"
+    );
+    drop(fmu);
+}
