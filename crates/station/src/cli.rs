@@ -39,6 +39,43 @@ pub enum Command {
         #[arg(long)]
         sheet: Option<String>,
     },
+    /// The main job, with no hardware: a complete simulated station (virtual
+    /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
+    /// to end in virtual time and compares what it measured with the truth.
+    Demo {
+        /// Seed of the virtual bench (same seed, same instruments).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON document instead of tables.
+        #[arg(long)]
+        json: bool,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+    },
+    /// Run a test plan on a station (or, with --simulate, on the virtual bench).
+    Run {
+        /// The test plan (TOML).
+        plan: PathBuf,
+        /// The station config (TOML); with --simulate its device sections are replaced by the bench's.
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run against the virtual bench in this process (real pseudo-terminals).
+        #[arg(long)]
+        simulate: bool,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Continue the run in this directory from its journal.
+        #[arg(long, value_name = "RUN_DIR")]
+        resume: Option<PathBuf>,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// Print only faults and the results.
+        #[arg(long)]
+        quiet: bool,
+    },
     /// Start a virtual bench (simulated centrifuge, instruments, counter
     /// modules and supplies) behind real pseudo-terminals, and print the
     /// device sections of a station config that reach it. Runs until
@@ -92,6 +129,25 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 )?;
             }
         }
+        Command::Demo { seed, json, data } => crate::station_run::demo(seed, json, &data, out)?,
+        Command::Run {
+            plan,
+            station,
+            simulate,
+            seed,
+            resume,
+            data,
+            quiet,
+        } => run_plan(
+            &plan,
+            station.as_deref(),
+            simulate,
+            seed,
+            resume.as_deref(),
+            &data,
+            quiet,
+            out,
+        )?,
         Command::Sim {
             config,
             speed,
@@ -99,6 +155,90 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             truth,
             run_for,
         } => run_sim(config, speed, tcp, truth, run_for, out)?,
+    }
+    Ok(())
+}
+
+/// `spinbench run`.
+#[allow(clippy::too_many_arguments)]
+fn run_plan(
+    plan_path: &Path,
+    station_path: Option<&Path>,
+    simulate: bool,
+    seed: u64,
+    resume: Option<&Path>,
+    data: &Path,
+    quiet: bool,
+    out: &mut dyn Write,
+) -> Result<()> {
+    use crate::station_run::{
+        SimOperator, TerminalOperator, connect_bench, execute, new_run_id, sim_station_toml,
+        start_sim,
+    };
+    use spinbench_engine::{StationConfig, TestPlan};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let plan_text = std::fs::read_to_string(plan_path)
+        .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
+    let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_path.display().to_string())?;
+    let abort = Arc::new(AtomicBool::new(false));
+    let flag = abort.clone();
+    // Ctrl-C: the engine stops the table and switches everything off.
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    let dir = match resume {
+        Some(d) => d.to_path_buf(),
+        None => data.join("runs").join(new_run_id()),
+    };
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("{}: cannot create the run directory", dir.display()))?;
+    let sim;
+    let (station, operator): (StationConfig, Box<dyn spinbench_engine::Operator + '_>) = if simulate
+    {
+        let (bench, mut station) = start_sim(seed)?;
+        if let Some(p) = station_path {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("{}: cannot read the station config", p.display()))?;
+            let own = StationConfig::from_toml(&text).with_context(|| p.display().to_string())?;
+            station.arm = own.arm;
+            station.g_local_m_s2 = own.g_local_m_s2;
+            station.station = own.station;
+        }
+        std::fs::write(dir.join("station.toml"), sim_station_toml(&bench))?;
+        sim = Some(bench);
+        let bench_ref = sim.as_ref().context("virtual bench")?;
+        (station, Box::new(SimOperator::new(bench_ref, quiet)))
+    } else {
+        let p = station_path
+            .context("--station CONFIG is needed (or --simulate for the virtual bench)")?;
+        let text = std::fs::read_to_string(p)
+            .with_context(|| format!("{}: cannot read the station config", p.display()))?;
+        std::fs::write(dir.join("station.toml"), &text)?;
+        (
+            StationConfig::from_toml(&text).with_context(|| p.display().to_string())?,
+            Box::new(TerminalOperator),
+        )
+    };
+    // Refuse a plan that cannot run before anything is switched on.
+    plan.compile(&station)?;
+    std::fs::write(dir.join("plan.toml"), &plan_text)?;
+    let bench = connect_bench(&station)?;
+    let finished = execute(
+        &station,
+        &plan,
+        bench,
+        operator,
+        &dir,
+        resume.is_some(),
+        quiet,
+        abort,
+    )?;
+    crate::station_run::render_records(out, &finished)?;
+    if finished.summary.state != spinbench_engine::RunState::Completed {
+        anyhow::bail!(
+            "the run ended {:?}: {}",
+            finished.summary.state,
+            finished.summary.reason.unwrap_or_default()
+        );
     }
     Ok(())
 }

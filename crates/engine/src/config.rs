@@ -1,0 +1,195 @@
+//! The station config (TOML): the devices (`[centrifuge]`, `[[fmu]]`,
+//! `[[power_supply]]` as the `devices` crate defines them), which supply
+//! feeds what, the arm, and local gravity. Errors name the key.
+
+use serde::Deserialize;
+use spinbench_devices::config::{CentrifugeConfig, FmuConfig, PowerSupplyConfig};
+
+/// The whole station.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StationConfig {
+    /// Station name, recorded with every run.
+    #[serde(default = "default_station_name")]
+    pub station: String,
+    /// Local gravity [m/s²] (default 9.80665).
+    #[serde(default = "default_g")]
+    pub g_local_m_s2: f64,
+    /// The arm and its fixture positions.
+    pub arm: ArmConfig,
+    /// Which supply outputs feed the instruments and the modules.
+    pub power: PowerConfig,
+    /// The centrifuge controller.
+    pub centrifuge: CentrifugeConfig,
+    /// The counter modules, in slot order (module i holds instruments 6i..6i+5).
+    pub fmu: Vec<FmuConfig>,
+    /// The programmable supplies.
+    pub power_supply: Vec<PowerSupplyConfig>,
+}
+
+fn default_station_name() -> String {
+    "spinbench".into()
+}
+
+fn default_g() -> f64 {
+    spinbench_analysis::STANDARD_GRAVITY_M_S2
+}
+
+/// The arm.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmConfig {
+    /// Drawing radius R0 of every fixture position [m].
+    pub radius_m: f64,
+    /// Per-position drawing radii [m], overriding `radius_m` (index = module·6 + slot).
+    #[serde(default)]
+    pub position_radius_m: Vec<f64>,
+    /// The largest acceleration the fixtures are rated for [g].
+    pub max_g: f64,
+}
+
+/// Supply roles.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PowerConfig {
+    /// Name of the supply feeding the instruments' ±15 V rails (two outputs).
+    pub instrument_supply: String,
+    /// Rail voltage [V] (default 15).
+    #[serde(default = "default_rail_v")]
+    pub rail_volts: f64,
+    /// Current limit of each rail [A] (default 0.5).
+    #[serde(default = "default_rail_a")]
+    pub rail_current_limit_a: f64,
+    /// Expected current per powered instrument [A], for the alive check (default 0.04).
+    #[serde(default = "default_instrument_a")]
+    pub instrument_current_a: f64,
+    /// Name of the supply feeding the counter modules (+5 V), if switched by the station.
+    pub module_supply: Option<String>,
+}
+
+fn default_rail_v() -> f64 {
+    15.0
+}
+
+fn default_rail_a() -> f64 {
+    0.5
+}
+
+fn default_instrument_a() -> f64 {
+    0.04
+}
+
+/// A station config that cannot work; names the key.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("station config: {key}: {problem}")]
+pub struct StationConfigError {
+    /// The key.
+    pub key: String,
+    /// What is wrong and what to do.
+    pub problem: String,
+}
+
+impl StationConfig {
+    /// Parse and validate TOML text.
+    pub fn from_toml(text: &str) -> Result<StationConfig, StationConfigError> {
+        let config: StationConfig = toml::from_str(text).map_err(|e| StationConfigError {
+            key: e.span().map_or_else(
+                || "(file)".into(),
+                |s| format!("at bytes {}..{}", s.start, s.end),
+            ),
+            problem: e.message().to_string(),
+        })?;
+        config.validate()?;
+        Ok(config)
+    }
+
+    /// Number of instrument slots (6 per module).
+    pub fn slots(&self) -> usize {
+        self.fmu.len() * spinbench_wire::fmu::INSTRUMENTS_PER_MODULE
+    }
+
+    /// Drawing radius of slot `i` [m].
+    pub fn drawing_radius_m(&self, i: usize) -> f64 {
+        self.arm
+            .position_radius_m
+            .get(i)
+            .copied()
+            .unwrap_or(self.arm.radius_m)
+    }
+
+    /// Check every value that can be checked without the hardware.
+    pub fn validate(&self) -> Result<(), StationConfigError> {
+        let err = |key: &str, problem: String| {
+            Err(StationConfigError {
+                key: key.into(),
+                problem,
+            })
+        };
+        if !(self.g_local_m_s2 > 9.7 && self.g_local_m_s2 < 9.9) {
+            return err(
+                "g_local_m_s2",
+                format!(
+                    "{} m/s² is not a gravity on Earth (9.78–9.84)",
+                    self.g_local_m_s2
+                ),
+            );
+        }
+        if !(self.arm.radius_m > 0.0 && self.arm.radius_m.is_finite()) {
+            return err("arm.radius_m", "must be a positive length in metres".into());
+        }
+        if let Some((i, r)) = self
+            .arm
+            .position_radius_m
+            .iter()
+            .enumerate()
+            .find(|(_, r)| !(**r > 0.0 && r.is_finite()))
+        {
+            return err(
+                &format!("arm.position_radius_m[{i}]"),
+                format!("{r} is not a positive length in metres"),
+            );
+        }
+        if !(self.arm.max_g > 0.0 && self.arm.max_g.is_finite()) {
+            return err("arm.max_g", "must be a positive acceleration in g".into());
+        }
+        if self.fmu.is_empty() {
+            return err(
+                "fmu",
+                "at least one counter module ([[fmu]]) is needed".into(),
+            );
+        }
+        self.centrifuge.validate().map_err(|e| StationConfigError {
+            key: e.key,
+            problem: e.problem,
+        })?;
+        for (i, f) in self.fmu.iter().enumerate() {
+            f.validate(i).map_err(|e| StationConfigError {
+                key: e.key,
+                problem: e.problem,
+            })?;
+        }
+        let names: Vec<&str> = self.power_supply.iter().map(|p| p.name.as_str()).collect();
+        if !names.contains(&self.power.instrument_supply.as_str()) {
+            return err(
+                "power.instrument_supply",
+                format!(
+                    "no [[power_supply]] named '{}' (have: {})",
+                    self.power.instrument_supply,
+                    names.join(", ")
+                ),
+            );
+        }
+        if let Some(m) = &self.power.module_supply
+            && !names.contains(&m.as_str())
+        {
+            return err(
+                "power.module_supply",
+                format!(
+                    "no [[power_supply]] named '{m}' (have: {})",
+                    names.join(", ")
+                ),
+            );
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,164 @@
+//! The typed event stream: everything the engine does, as it happens. The
+//! CLI, the journal (and later the store and the web UI) subscribe to it;
+//! none of them reaches into the drivers.
+
+use crate::plan::{CompiledPlan, Fixture};
+use crate::record::{PointRecord, UnitRecord};
+use serde::{Deserialize, Serialize};
+use spinbench_analysis::Mount;
+
+/// A run's state (an explicit table: see [`crate::executor`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunState {
+    /// Created, nothing moved.
+    Idle,
+    /// Executing steps.
+    Running,
+    /// Waiting for the operator.
+    Prompting,
+    /// Bringing the hardware to the safe state.
+    Stopping,
+    /// Finished normally.
+    Completed,
+    /// Ended by a fault, in the safe state.
+    Faulted,
+    /// Ended by the operator, in the safe state.
+    Aborted,
+}
+
+/// One event.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum Event {
+    /// A run began (or resumed) with this plan.
+    RunStarted {
+        /// Run identifier.
+        run_id: String,
+        /// Station name.
+        station: String,
+        /// The compiled plan.
+        plan: Box<CompiledPlan>,
+        /// True when continuing from a journal.
+        resumed: bool,
+    },
+    /// The run's state changed.
+    StateChanged {
+        /// New state.
+        state: RunState,
+    },
+    /// A step began.
+    StepStarted {
+        /// Step index.
+        index: usize,
+        /// Of this many.
+        of: usize,
+        /// What it is.
+        label: String,
+    },
+    /// A step finished.
+    StepDone {
+        /// Step index.
+        index: usize,
+    },
+    /// Once per one-second window: the rate and every instrument's output.
+    Values {
+        /// Station time [s] (counter-module windows).
+        time_s: f64,
+        /// Measured rate [deg/s].
+        rate_deg_s: f64,
+        /// Demanded rate [deg/s].
+        demand_deg_s: f64,
+        /// True while the rate is within tolerance.
+        on_speed: bool,
+        /// dF per slot [Hz] (`None`: no output).
+        outputs_hz: Vec<Option<f64>>,
+    },
+    /// Waiting for stability or averaging at a level.
+    Progress {
+        /// "settling" or "averaging".
+        phase: String,
+        /// Values collected.
+        done: u32,
+        /// Values wanted.
+        of: u32,
+    },
+    /// The tumble reading of one instrument.
+    TumbleDone {
+        /// Slot (0-based).
+        slot: usize,
+        /// Input axis up?
+        up: bool,
+        /// Mean output [Hz].
+        output_hz: f64,
+    },
+    /// The radius of one instrument in one mounting (method.md (6)–(8)).
+    RadiusDone {
+        /// Slot (0-based).
+        slot: usize,
+        /// Mounting.
+        mount: Mount,
+        /// Drawing radius [m].
+        drawing_radius_m: f64,
+        /// Radius found [m].
+        radius_m: f64,
+    },
+    /// An averaged point of every measured instrument at one level.
+    PointDone {
+        /// Step index.
+        step: usize,
+        /// The points, one per measured slot.
+        points: Vec<PointRecord>,
+    },
+    /// An instrument was failed and left out of further measurement.
+    UnitFailed {
+        /// Slot (0-based).
+        slot: usize,
+        /// Why.
+        reason: String,
+    },
+    /// The operator is asked to do something.
+    Prompt {
+        /// What to do.
+        text: String,
+        /// The fixture asked of each slot.
+        fixtures: Vec<Option<Fixture>>,
+    },
+    /// The operator answered.
+    PromptAnswered {
+        /// Continue (true) or abort.
+        proceed: bool,
+        /// Who answered (an operator, or the simulator).
+        by: String,
+    },
+    /// A fault: the run goes to the safe state.
+    Fault {
+        /// Why.
+        reason: String,
+    },
+    /// One instrument's result.
+    UnitResult {
+        /// The record.
+        record: Box<UnitRecord>,
+    },
+    /// The run ended.
+    RunFinished {
+        /// Final state.
+        state: RunState,
+        /// Why, if not completed.
+        reason: Option<String>,
+    },
+}
+
+/// A subscriber to the event stream.
+pub trait EventSink {
+    /// Receive one event; an error stops the run (e.g. the journal cannot be written).
+    fn emit(&mut self, event: &Event) -> Result<(), String>;
+}
+
+impl<F: FnMut(&Event)> EventSink for F {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        self(event);
+        Ok(())
+    }
+}

@@ -1,0 +1,1066 @@
+//! The one executor: runs a compiled plan's steps against the hardware
+//! traits, emits events, and always ends in the safe state.
+//!
+//! Run states (an explicit table):
+//!
+//! | from | event | to |
+//! |---|---|---|
+//! | Idle | start | Running |
+//! | Running | operator prompt | Prompting → Running |
+//! | Running | last step done | Stopping → Completed |
+//! | Running, Prompting | fault (device lost, interlock, over-current, no stability) | Stopping → Faulted |
+//! | Running, Prompting | abort (Ctrl-C, operator) | Stopping → Aborted |
+//!
+//! Time is counted in counter-module windows (one second of ticks each), so
+//! the same code runs against hardware and against a faster-than-real-time
+//! simulator. Data are taken only at stable speed (method.md §3.3).
+
+use crate::config::StationConfig;
+use crate::event::{Event, EventSink, RunState};
+use crate::plan::{CompiledPlan, Fixture, Step};
+use crate::record::{Outcome, PointRecord, UnitRecord};
+use spinbench_analysis::radius::RadiusCalibration;
+use spinbench_analysis::tumble::TumbleCalibration;
+use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
+use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
+use spinbench_devices::{Centrifuge, CounterModule, DeviceError, PowerSupply};
+use spinbench_wire::fmu::{INSTRUMENTS_PER_MODULE, WindowAccumulator, WindowConfig, WindowValue};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Scale factor assumed before the tumble has measured it [Hz/g].
+const NOMINAL_K1_HZ_PER_G: f64 = 100.0;
+/// A table counts as at rest below this rate [deg/s].
+const AT_REST_DEG_S: f64 = 0.05;
+/// Resonator frequencies outside this range mean a dead or miswired input [Hz].
+const RESONATOR_RANGE_HZ: (f64, f64) = (5_000.0, 200_000.0);
+
+/// The hardware of a station.
+pub struct Bench {
+    /// The centrifuge.
+    pub centrifuge: Box<dyn Centrifuge>,
+    /// The counter modules, in slot order.
+    pub modules: Vec<Box<dyn CounterModule>>,
+    /// The instruments' ±15 V supply (outputs 1 and 2).
+    pub instrument_supply: Box<dyn PowerSupply>,
+    /// The modules' supply, if the station switches it.
+    pub module_supply: Option<Box<dyn PowerSupply>>,
+}
+
+/// An operator's answer to a prompt.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Answer {
+    /// Continue (true) or abort the run.
+    pub proceed: bool,
+    /// Who answered.
+    pub by: String,
+}
+
+/// Whoever answers prompts: the terminal, the web UI, or the simulator.
+pub trait Operator {
+    /// Ask the operator to do `text` (mount the instruments as `fixtures`).
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer;
+}
+
+/// Why a run ended early.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EngineError {
+    /// A device failed.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// A counter module sent no data within the deadline.
+    #[error("counter module {module} sent no data for {seconds:.1} s; check its cable and supply")]
+    ModuleSilent {
+        /// Module index (1-based).
+        module: usize,
+        /// Wall-clock seconds of silence.
+        seconds: f64,
+    },
+    /// The interlocks opened while the table was commanded to move.
+    #[error(
+        "the centrifuge interlocks opened; the table was stopped (close the door and reset the interlocks)"
+    )]
+    InterlockOpen,
+    /// The instrument supply lost its output (over-current trip).
+    #[error(
+        "the instrument supply output dropped to {volts:.2} V (over-current trip?); check for a shorted instrument"
+    )]
+    SupplyTripped {
+        /// Measured output voltage.
+        volts: f64,
+    },
+    /// The rate or the outputs did not become stable.
+    #[error("{0}")]
+    NotStable(String),
+    /// The operator or Ctrl-C aborted the run.
+    #[error("aborted by {0}")]
+    Aborted(String),
+    /// An event subscriber (e.g. the journal) failed.
+    #[error("{0}")]
+    Sink(String),
+    /// Nothing left to measure.
+    #[error("every instrument has failed; nothing left to measure")]
+    NoUnits,
+}
+
+/// Options of a run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Run identifier.
+    pub run_id: String,
+    /// Set to abort (Ctrl-C, operator).
+    pub abort: Arc<AtomicBool>,
+    /// Wall-clock deadline for a counter module's silence.
+    pub module_silence: Duration,
+}
+
+#[derive(Debug, Clone, Default)]
+struct UnitState {
+    up: Option<f64>,
+    down: Option<f64>,
+    cal: Option<TumbleCalibration>,
+    radius: BTreeMap<Mount, f64>,
+    points: Vec<PointRecord>,
+    failed: Option<String>,
+}
+
+/// One second of the whole station.
+#[derive(Debug, Clone)]
+struct Window {
+    time_s: f64,
+    rate_deg_s: f64,
+    /// dF per slot, `None` when missing or from an incomplete window.
+    outputs: Vec<Option<f64>>,
+    /// (f1, f2) per slot.
+    resonators: Vec<(Option<f64>, Option<f64>)>,
+}
+
+/// The summary of a finished run.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Final state.
+    pub state: RunState,
+    /// Why it did not complete, if so.
+    pub reason: Option<String>,
+    /// One record per instrument.
+    pub records: Vec<UnitRecord>,
+    /// Station time the run took [s].
+    pub duration_s: f64,
+}
+
+/// The executor.
+pub struct Executor<'a> {
+    station: &'a StationConfig,
+    plan: CompiledPlan,
+    bench: Bench,
+    operator: Box<dyn Operator + 'a>,
+    sinks: Vec<Box<dyn EventSink + 'a>>,
+    options: RunOptions,
+    units: Vec<UnitState>,
+    completed: BTreeSet<usize>,
+    resumed: bool,
+    accumulators: Vec<WindowAccumulator>,
+    pending: Vec<VecDeque<WindowValue>>,
+    last_data: Vec<Instant>,
+    windows: u64,
+    demand_deg_s: f64,
+    streaming: bool,
+}
+
+impl<'a> Executor<'a> {
+    /// An executor for `plan` on `bench`.
+    pub fn new(
+        station: &'a StationConfig,
+        plan: CompiledPlan,
+        bench: Bench,
+        operator: Box<dyn Operator + 'a>,
+        options: RunOptions,
+    ) -> Self {
+        let slots = plan.serials.len();
+        let accumulators = station
+            .fmu
+            .iter()
+            .map(|f| {
+                WindowAccumulator::new(WindowConfig {
+                    mode: f.mode.into(),
+                    reference_hz: f.reference_hz,
+                    ..WindowConfig::default()
+                })
+            })
+            .collect();
+        let modules = station.fmu.len();
+        Executor {
+            station,
+            plan,
+            bench,
+            operator,
+            sinks: Vec::new(),
+            options,
+            units: vec![UnitState::default(); slots],
+            completed: BTreeSet::new(),
+            resumed: false,
+            accumulators,
+            pending: vec![VecDeque::new(); modules],
+            last_data: vec![Instant::now(); modules],
+            windows: 0,
+            demand_deg_s: 0.0,
+            streaming: false,
+        }
+    }
+
+    /// Subscribe to the event stream.
+    pub fn subscribe(&mut self, sink: impl EventSink + 'a) {
+        self.sinks.push(Box::new(sink));
+    }
+
+    /// Restore what a journal says was done, so [`run`](Self::run) continues
+    /// after the last completed step with no point lost or repeated.
+    pub fn restore(&mut self, events: &[Event]) {
+        self.resumed = true;
+        for e in events {
+            match e {
+                Event::StepDone { index } => {
+                    self.completed.insert(*index);
+                }
+                Event::TumbleDone {
+                    slot,
+                    up,
+                    output_hz,
+                } => {
+                    if let Some(u) = self.units.get_mut(*slot) {
+                        if *up {
+                            u.up = Some(*output_hz);
+                        } else {
+                            u.down = Some(*output_hz);
+                        }
+                        if let (Some(up), Some(down)) = (u.up, u.down) {
+                            u.cal = TumbleCalibration::from_up_down(up, down).ok();
+                        }
+                    }
+                }
+                Event::RadiusDone {
+                    slot,
+                    mount,
+                    radius_m,
+                    ..
+                } => {
+                    if let Some(u) = self.units.get_mut(*slot) {
+                        u.radius.insert(*mount, *radius_m);
+                    }
+                }
+                Event::PointDone { step, points } => {
+                    // A point is only whole with its StepDone; a torn step is redone.
+                    let done = events
+                        .iter()
+                        .any(|x| matches!(x, Event::StepDone { index } if index == step));
+                    if done {
+                        for p in points {
+                            if let Some(u) = self.units.get_mut(p.slot) {
+                                u.points.push(p.clone());
+                            }
+                        }
+                    }
+                }
+                Event::UnitFailed { slot, reason } => {
+                    if let Some(u) = self.units.get_mut(*slot) {
+                        u.failed = Some(reason.clone());
+                    }
+                }
+                _ => {}
+            }
+        }
+    }
+
+    fn emit(&mut self, event: Event) -> Result<(), EngineError> {
+        for sink in &mut self.sinks {
+            sink.emit(&event).map_err(EngineError::Sink)?;
+        }
+        Ok(())
+    }
+
+    fn set_state(&mut self, state: RunState) -> Result<(), EngineError> {
+        self.emit(Event::StateChanged { state })
+    }
+
+    fn live(&self, slot: usize) -> bool {
+        self.plan.serials[slot].is_some() && self.units[slot].failed.is_none()
+    }
+
+    fn fail_unit(&mut self, slot: usize, reason: String) -> Result<(), EngineError> {
+        if self.units[slot].failed.is_none() {
+            self.units[slot].failed = Some(reason.clone());
+            self.emit(Event::UnitFailed { slot, reason })?;
+        }
+        if (0..self.units.len()).all(|s| !self.live(s)) {
+            return Err(EngineError::NoUnits);
+        }
+        Ok(())
+    }
+
+    fn k1(&self, slot: usize) -> f64 {
+        self.units[slot]
+            .cal
+            .map_or(NOMINAL_K1_HZ_PER_G, |c| c.scale_factor.abs())
+    }
+
+    /// Run the plan to the end (or to a fault or abort) and return the records.
+    pub fn run(&mut self) -> RunSummary {
+        let started = self.emit(Event::RunStarted {
+            run_id: self.options.run_id.clone(),
+            station: self.station.station.clone(),
+            plan: Box::new(self.plan.clone()),
+            resumed: self.resumed,
+        });
+        let result = started
+            .and_then(|()| self.set_state(RunState::Running))
+            .and_then(|()| self.execute_steps());
+        let (state, reason) = match &result {
+            Ok(()) => (RunState::Completed, None),
+            Err(EngineError::Aborted(_)) => (
+                RunState::Aborted,
+                result.as_ref().err().map(ToString::to_string),
+            ),
+            Err(e) => (RunState::Faulted, Some(e.to_string())),
+        };
+        if let Some(r) = &reason {
+            let _ = self.emit(Event::Fault { reason: r.clone() });
+        }
+        let _ = self.set_state(RunState::Stopping);
+        let safe_problems = self.safe_state();
+        let reason = match (reason, safe_problems.is_empty()) {
+            (r, true) => r,
+            (Some(r), false) => Some(format!(
+                "{r}; while making safe: {}",
+                safe_problems.join("; ")
+            )),
+            (None, false) => Some(format!("while making safe: {}", safe_problems.join("; "))),
+        };
+        let records = self.records();
+        for r in &records {
+            let _ = self.emit(Event::UnitResult {
+                record: Box::new(r.clone()),
+            });
+        }
+        let _ = self.set_state(state);
+        let _ = self.emit(Event::RunFinished {
+            state,
+            reason: reason.clone(),
+        });
+        RunSummary {
+            state,
+            reason,
+            records,
+            duration_s: self.windows as f64,
+        }
+    }
+
+    fn execute_steps(&mut self) -> Result<(), EngineError> {
+        let steps = self.plan.steps.clone();
+        // On resume: the first step still to do, and the mounting it needs.
+        let first_todo = (0..steps.len()).find(|i| !self.completed.contains(i));
+        let remount = first_todo.and_then(|t| {
+            (0..t)
+                .rev()
+                .find(|&i| matches!(steps[i], Step::Mount { .. }))
+        });
+        for (index, step) in steps.iter().enumerate() {
+            let setup = matches!(step, Step::PowerOn | Step::CheckAlive);
+            let needed = !self.completed.contains(&index)
+                || (self.resumed && (setup || Some(index) == remount));
+            if !needed {
+                continue;
+            }
+            if self.options.abort.load(Ordering::Relaxed) {
+                return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
+            }
+            self.emit(Event::StepStarted {
+                index,
+                of: steps.len(),
+                label: label(step),
+            })?;
+            match step {
+                Step::PowerOn => self.power_on()?,
+                Step::CheckAlive => self.check_alive()?,
+                Step::WarmUp { seconds } => self.warm_up(*seconds)?,
+                Step::Mount { fixtures } => self.mount(fixtures)?,
+                Step::Tumble { up } => self.tumble(*up)?,
+                Step::Radius { pass } => self.radius(*pass)?,
+                Step::Level {
+                    pass,
+                    g_nominal,
+                    direction,
+                } => self.level(index, *pass, *g_nominal, *direction)?,
+                Step::Stop => self.command_rate(0.0)?,
+            }
+            self.emit(Event::StepDone { index })?;
+        }
+        Ok(())
+    }
+
+    fn power_on(&mut self) -> Result<(), EngineError> {
+        let p = &self.station.power;
+        if let Some(m) = &mut self.bench.module_supply {
+            m.set_output(1, true)?;
+        }
+        for ch in [1, 2] {
+            self.bench
+                .instrument_supply
+                .configure(ch, p.rail_volts, p.rail_current_limit_a)?;
+            self.bench.instrument_supply.set_output(ch, true)?;
+        }
+        for (m, module) in self.bench.modules.iter_mut().enumerate() {
+            let mask = (0..INSTRUMENTS_PER_MODULE)
+                .filter(|s| {
+                    self.plan
+                        .serials
+                        .get(m * INSTRUMENTS_PER_MODULE + s)
+                        .is_some_and(Option::is_some)
+                })
+                .fold(0u8, |mask, s| mask | (1 << s));
+            module.set_power(mask)?;
+            module.start(self.station.fmu[m].mode.into())?;
+        }
+        self.streaming = true;
+        self.bench.centrifuge.reset_interlocks()?;
+        self.bench.centrifuge.arm()?;
+        let now = Instant::now();
+        self.last_data.iter_mut().for_each(|t| *t = now);
+        Ok(())
+    }
+
+    fn check_alive(&mut self) -> Result<(), EngineError> {
+        let mut seen: Vec<u32> = vec![0; self.units.len()];
+        for _ in 0..3 {
+            let w = self.next_window()?;
+            for (slot, (f1, f2)) in w.resonators.iter().enumerate() {
+                let ok = |f: &Option<f64>| {
+                    f.is_some_and(|f| (RESONATOR_RANGE_HZ.0..=RESONATOR_RANGE_HZ.1).contains(&f))
+                };
+                if ok(f1) && ok(f2) {
+                    seen[slot] += 1;
+                }
+            }
+        }
+        for (slot, &count) in seen.iter().enumerate() {
+            if self.live(slot) && count == 0 {
+                self.fail_unit(
+                    slot,
+                    "no output from its resonators: dead, unpowered or not connected".into(),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    fn warm_up(&mut self, seconds: f64) -> Result<(), EngineError> {
+        let n = seconds.ceil() as u32;
+        for i in 0..n {
+            self.next_window()?;
+            self.emit(Event::Progress {
+                phase: "warm-up".into(),
+                done: i + 1,
+                of: n,
+            })?;
+        }
+        Ok(())
+    }
+
+    fn mount(&mut self, fixtures: &[Option<Fixture>]) -> Result<(), EngineError> {
+        // The table must be at rest before anyone touches it.
+        self.command_rate(0.0)?;
+        let mut waited = 0;
+        while self.next_window()?.rate_deg_s.abs() > AT_REST_DEG_S {
+            waited += 1;
+            if waited > self.plan.plan.stability.max_settle_s {
+                return Err(EngineError::NotStable(
+                    "the table did not come to rest for remounting".into(),
+                ));
+            }
+        }
+        let text = mount_text(fixtures);
+        self.set_state(RunState::Prompting)?;
+        self.emit(Event::Prompt {
+            text: text.clone(),
+            fixtures: fixtures.to_vec(),
+        })?;
+        let answer = self.operator.ask(&text, fixtures);
+        self.emit(Event::PromptAnswered {
+            proceed: answer.proceed,
+            by: answer.by.clone(),
+        })?;
+        self.set_state(RunState::Running)?;
+        if !answer.proceed {
+            return Err(EngineError::Aborted(answer.by));
+        }
+        Ok(())
+    }
+
+    fn command_rate(&mut self, rate_deg_s: f64) -> Result<(), EngineError> {
+        if rate_deg_s == 0.0 {
+            self.bench.centrifuge.stop()?;
+        } else {
+            self.bench.centrifuge.set_rate(rate_deg_s)?;
+        }
+        self.demand_deg_s = rate_deg_s;
+        Ok(())
+    }
+
+    /// Wait for stability, then average; returns the dwell's windows.
+    fn acquire(&mut self, slots: &[usize]) -> Result<Vec<Window>, EngineError> {
+        let st = self.plan.plan.stability;
+        let dwell = self.plan.plan.dwell;
+        let mut restarts = 0;
+        'settle: loop {
+            // Settle: the rate on speed for the hold time, then no output drifting.
+            let mut hold: Vec<Window> = Vec::new();
+            let mut waited = 0;
+            loop {
+                let w = self.next_window()?;
+                waited += 1;
+                self.emit(Event::Progress {
+                    phase: "settling".into(),
+                    done: hold.len() as u32,
+                    of: st.hold_s,
+                })?;
+                if self.on_speed(w.rate_deg_s) {
+                    hold.push(w);
+                } else {
+                    hold.clear();
+                }
+                if hold.len() >= st.hold_s as usize {
+                    let drifting = slots.iter().copied().find(|&s| self.drifting(s, &hold));
+                    match drifting {
+                        None => break,
+                        Some(_) => {
+                            hold.remove(0);
+                        }
+                    }
+                }
+                if waited > st.max_settle_s {
+                    return Err(EngineError::NotStable(format!(
+                        "no stable speed and outputs within {} s at {:.3} deg/s (stability.max_settle_s)",
+                        st.max_settle_s, self.demand_deg_s
+                    )));
+                }
+            }
+            // Average: n values, a rate excursion discards and restarts the point.
+            let mut values: Vec<Window> = Vec::new();
+            let target_n = if dwell.sem_target_ug.is_some() {
+                dwell.max_seconds
+            } else {
+                dwell.seconds
+            };
+            while (values.len() as u32) < target_n {
+                let w = self.next_window()?;
+                if !self.on_speed(w.rate_deg_s) {
+                    restarts += 1;
+                    if restarts > st.max_restarts {
+                        return Err(EngineError::NotStable(format!(
+                            "the rate left its tolerance {restarts} times while averaging at {:.3} deg/s",
+                            self.demand_deg_s
+                        )));
+                    }
+                    continue 'settle;
+                }
+                values.push(w);
+                self.emit(Event::Progress {
+                    phase: "averaging".into(),
+                    done: values.len() as u32,
+                    of: target_n,
+                })?;
+                if let Some(target) = dwell.sem_target_ug
+                    && values.len() as u32 >= dwell.min_seconds
+                    && slots
+                        .iter()
+                        .all(|&s| self.sem_ug(s, &values).is_none_or(|sem| sem <= target))
+                {
+                    break;
+                }
+            }
+            return Ok(values);
+        }
+    }
+
+    fn on_speed(&self, rate_deg_s: f64) -> bool {
+        let d = self.demand_deg_s;
+        let tol = (d.abs() * self.plan.plan.stability.rate_tolerance_ppm * 1e-6).max(AT_REST_DEG_S);
+        (rate_deg_s - d).abs() <= tol
+    }
+
+    /// The slope test: a significant drift above the limit.
+    fn drifting(&self, slot: usize, hold: &[Window]) -> bool {
+        let y: Vec<f64> = hold.iter().filter_map(|w| w.outputs[slot]).collect();
+        if y.len() < 3 {
+            return false;
+        }
+        let n = y.len() as f64;
+        let xbar = (n - 1.0) / 2.0;
+        let ybar = y.iter().sum::<f64>() / n;
+        let sxx: f64 = (0..y.len()).map(|i| (i as f64 - xbar).powi(2)).sum();
+        let sxy: f64 = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (i as f64 - xbar) * (v - ybar))
+            .sum();
+        let slope = sxy / sxx;
+        let rss: f64 = y
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (v - ybar - slope * (i as f64 - xbar)).powi(2))
+            .sum();
+        let se = (rss / (n - 2.0) / sxx).sqrt();
+        let slope_ug = slope.abs() / self.k1(slot) * UG_PER_G;
+        slope_ug > self.plan.plan.stability.drift_limit_ug_per_s && slope.abs() > 3.0 * se
+    }
+
+    /// Each instrument's own scatter [µg]: its 1-s values in g, less the
+    /// common mode of all instruments (the median deviation in each window),
+    /// so that rate ripple and wander, which every instrument feels, do not
+    /// make a good instrument look noisy. Needs at least 3 instruments.
+    fn instrument_noise_ug(&self, slots: &[usize], values: &[Window]) -> BTreeMap<usize, f64> {
+        let mut out = BTreeMap::new();
+        if slots.len() < 3 {
+            return out;
+        }
+        let means: BTreeMap<usize, f64> = slots
+            .iter()
+            .filter_map(|&s| {
+                let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[s]).collect();
+                (!y.is_empty()).then(|| (s, mean_std(&y).0))
+            })
+            .collect();
+        let mut residuals: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
+        for w in values {
+            let dev: Vec<(usize, f64)> = means
+                .iter()
+                .filter_map(|(&s, &m)| w.outputs[s].map(|v| (s, (v - m) / self.k1(s))))
+                .collect();
+            if dev.len() < 3 {
+                continue;
+            }
+            let mut sorted: Vec<f64> = dev.iter().map(|d| d.1).collect();
+            sorted.sort_by(f64::total_cmp);
+            let median = sorted[sorted.len() / 2];
+            for (s, d) in dev {
+                residuals.entry(s).or_default().push(d - median);
+            }
+        }
+        for (s, r) in residuals {
+            if r.len() >= 2 {
+                out.insert(s, mean_std(&r).1 * UG_PER_G);
+            }
+        }
+        out
+    }
+
+    fn sem_ug(&self, slot: usize, values: &[Window]) -> Option<f64> {
+        let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+        if y.len() < 2 {
+            return None;
+        }
+        let (mean, std) = mean_std(&y);
+        let _ = mean;
+        Some(std / (y.len() as f64).sqrt() / self.k1(slot) * UG_PER_G)
+    }
+
+    fn tumble(&mut self, up: bool) -> Result<(), EngineError> {
+        self.command_rate(0.0)?;
+        let slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
+        let values = self.acquire(&slots)?;
+        for slot in slots {
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            if y.is_empty() {
+                self.fail_unit(
+                    slot,
+                    format!(
+                        "no output during the IA-{} tumble reading",
+                        if up { "up" } else { "down" }
+                    ),
+                )?;
+                continue;
+            }
+            let (mean, _) = mean_std(&y);
+            let u = &mut self.units[slot];
+            if up {
+                u.up = Some(mean);
+            } else {
+                u.down = Some(mean);
+            }
+            self.emit(Event::TumbleDone {
+                slot,
+                up,
+                output_hz: mean,
+            })?;
+            let u = &self.units[slot];
+            if let (Some(a), Some(b)) = (u.up, u.down) {
+                match TumbleCalibration::from_up_down(a, b) {
+                    Ok(cal) => self.units[slot].cal = Some(cal),
+                    Err(e) => self.fail_unit(slot, format!("tumble: {e}"))?,
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn radius(&mut self, pass: usize) -> Result<(), EngineError> {
+        let g = self.station.g_local_m_s2;
+        let r0 = self.station.arm.radius_m;
+        let w = centrifuge::rate_for_acceleration_rad_s(1.0, r0, g)
+            .map_err(|e| EngineError::NotStable(e.to_string()))?;
+        self.command_rate(w.to_degrees())?;
+        let slots: Vec<usize> = (0..self.units.len())
+            .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
+            .collect();
+        let values = self.acquire(&slots)?;
+        let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
+        let w_meas = rate.to_radians();
+        for slot in slots {
+            let Some(mount) = self.plan.passes[pass][slot] else {
+                continue;
+            };
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            let Some(cal) = self.units[slot].cal else {
+                continue;
+            };
+            if y.is_empty() {
+                self.fail_unit(slot, "no output during the radius step".into())?;
+                continue;
+            }
+            let (mean, _) = mean_std(&y);
+            let r0_i = self.station.drawing_radius_m(slot);
+            // method.md (6)–(8) at the measured rate: the rate applies ω²·R0/g at R0.
+            let nominal_g = w_meas * w_meas * r0_i / g;
+            match RadiusCalibration::from_reading(mean, &cal, r0_i, nominal_g, mount) {
+                Ok(r) => {
+                    self.units[slot].radius.insert(mount, r.radius_m);
+                    self.emit(Event::RadiusDone {
+                        slot,
+                        mount,
+                        drawing_radius_m: r0_i,
+                        radius_m: r.radius_m,
+                    })?;
+                }
+                Err(e) => self.fail_unit(slot, format!("radius in mounting {mount}: {e}"))?,
+            }
+        }
+        Ok(())
+    }
+
+    fn level(
+        &mut self,
+        step: usize,
+        pass: usize,
+        g_nominal: f64,
+        direction: spinbench_analysis::Direction,
+    ) -> Result<(), EngineError> {
+        let g = self.station.g_local_m_s2;
+        let r0 = self.station.arm.radius_m;
+        let w = centrifuge::rate_for_acceleration_rad_s(g_nominal, r0, g)
+            .map_err(|e| EngineError::NotStable(e.to_string()))?;
+        self.command_rate(w.to_degrees())?;
+        let slots: Vec<usize> = (0..self.units.len())
+            .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
+            .collect();
+        let values = self.acquire(&slots)?;
+        let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
+        let w_meas = rate.to_radians();
+        let mut points = Vec::new();
+        let noise_limit = self.plan.plan.stability.noise_limit_ug;
+        let own_noise = self.instrument_noise_ug(&slots, &values);
+        for slot in slots {
+            let Some(mount) = self.plan.passes[pass][slot] else {
+                continue;
+            };
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            if y.len() < 2 {
+                self.fail_unit(slot, format!("no output at {g_nominal} g"))?;
+                continue;
+            }
+            let (mean, std) = mean_std(&y);
+            let std_ug = own_noise
+                .get(&slot)
+                .copied()
+                .unwrap_or(std / self.k1(slot) * UG_PER_G);
+            if std_ug > noise_limit {
+                self.fail_unit(
+                    slot,
+                    format!("noisy: its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g (limit {noise_limit} µg, stability.noise_limit_ug)"),
+                )?;
+                continue;
+            }
+            let radius = self.units[slot]
+                .radius
+                .get(&mount)
+                .copied()
+                .unwrap_or_else(|| self.station.drawing_radius_m(slot));
+            points.push(PointRecord {
+                slot,
+                mount,
+                g_nominal,
+                direction,
+                // method.md (9): each instrument's own radius.
+                g_applied: w_meas * w_meas * radius / g,
+                rate_deg_s: rate,
+                output_hz: mean,
+                std_hz: std,
+                n: y.len() as u32,
+                time_s: [
+                    values.first().map_or(0.0, |w| w.time_s),
+                    values.last().map_or(0.0, |w| w.time_s),
+                ],
+            });
+        }
+        for p in &points {
+            self.units[p.slot].points.push(p.clone());
+        }
+        self.emit(Event::PointDone { step, points })
+    }
+
+    /// The next one-second window of every module, with the rate and the safety checks.
+    fn next_window(&mut self) -> Result<Window, EngineError> {
+        let modules = self.bench.modules.len();
+        let mut values: Vec<Option<WindowValue>> = vec![None; modules];
+        loop {
+            if self.options.abort.load(Ordering::Relaxed) {
+                return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
+            }
+            for (m, value) in values.iter_mut().enumerate() {
+                if value.is_none() {
+                    *value = self.pending[m].pop_front();
+                }
+            }
+            if values.iter().all(Option::is_some) {
+                break;
+            }
+            for (m, value) in values.iter().enumerate() {
+                if value.is_some() || !self.pending[m].is_empty() {
+                    continue;
+                }
+                let got =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(20))?;
+                if !got.is_empty() {
+                    self.last_data[m] = Instant::now();
+                }
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+                let silent = self.last_data[m].elapsed();
+                if silent > self.options.module_silence {
+                    return Err(EngineError::ModuleSilent {
+                        module: m + 1,
+                        seconds: silent.as_secs_f64(),
+                    });
+                }
+            }
+        }
+        self.windows += 1;
+        let rate = self.bench.centrifuge.read_rate()?;
+        if self.demand_deg_s != 0.0 && !self.bench.centrifuge.read_interlocks()? {
+            return Err(EngineError::InterlockOpen);
+        }
+        if self.windows.is_multiple_of(5) {
+            let volts = self.bench.instrument_supply.measure(1)?.volts;
+            if volts < 0.5 * self.station.power.rail_volts {
+                return Err(EngineError::SupplyTripped { volts });
+            }
+        }
+        let slots = self.units.len();
+        let mut outputs = vec![None; slots];
+        let mut resonators = vec![(None, None); slots];
+        for (m, v) in values.into_iter().enumerate() {
+            let Some(v) = v else { continue };
+            for (k, inst) in v.instruments.iter().enumerate() {
+                let slot = m * INSTRUMENTS_PER_MODULE + k;
+                if slot < slots {
+                    resonators[slot] = (inst.f1_hz, inst.f2_hz);
+                    // A window with lost ticks is marked, never averaged as whole.
+                    outputs[slot] = if v.is_complete() { inst.df_hz } else { None };
+                }
+            }
+        }
+        let window = Window {
+            time_s: self.windows as f64,
+            rate_deg_s: rate,
+            outputs,
+            resonators,
+        };
+        let on_speed = self.on_speed(rate);
+        self.emit(Event::Values {
+            time_s: window.time_s,
+            rate_deg_s: rate,
+            demand_deg_s: self.demand_deg_s,
+            on_speed,
+            outputs_hz: window.outputs.clone(),
+        })?;
+        Ok(window)
+    }
+
+    /// Controlled stop, streaming off, relays open, supplies off. Every
+    /// action is tried; the problems are returned.
+    fn safe_state(&mut self) -> Vec<String> {
+        let mut problems = Vec::new();
+        let mut note = |r: Result<(), DeviceError>| {
+            if let Err(e) = r {
+                problems.push(e.to_string());
+            }
+        };
+        note(self.bench.centrifuge.stop());
+        note(self.bench.centrifuge.disarm());
+        for m in &mut self.bench.modules {
+            if self.streaming {
+                note(m.stop());
+            }
+            note(m.set_power(0));
+        }
+        for ch in [1, 2] {
+            note(self.bench.instrument_supply.set_output(ch, false));
+        }
+        self.demand_deg_s = 0.0;
+        problems
+    }
+
+    /// Fit every instrument and give each its record and outcome.
+    fn records(&self) -> Vec<UnitRecord> {
+        let limits = self.plan.plan.limits;
+        let mut out = Vec::new();
+        for (slot, u) in self.units.iter().enumerate() {
+            let Some(serial) = self.plan.serials[slot].clone() else {
+                continue;
+            };
+            let mut reasons = Vec::new();
+            let mut analysis = None;
+            let mut k2_max = None;
+            let mut outcome = Outcome::Fail;
+            if let Some(f) = &u.failed {
+                reasons.push(f.clone());
+            } else if u.points.is_empty() {
+                reasons.push("no points were taken".into());
+            } else {
+                let points: Vec<Point> = u
+                    .points
+                    .iter()
+                    .map(|p| Point {
+                        mount: p.mount,
+                        g_nominal: p.g_nominal,
+                        g_applied: p.g_applied,
+                        output: p.output_hz,
+                        direction: Some(p.direction),
+                    })
+                    .collect();
+                let input = UnitPoints {
+                    unit: serial.clone(),
+                    run: None,
+                    points,
+                };
+                match analyze_unit(
+                    &input,
+                    AnalysisOptions {
+                        order: self.plan.order,
+                    },
+                ) {
+                    Ok(a) => {
+                        k2_max = a.k2_max_ug_per_g2;
+                        outcome = match k2_max {
+                            Some(k2) if k2 > limits.k2_max_ug_per_g2 => {
+                                reasons.push(format!(
+                                    "|k2| {k2:.3} µg/g² above the limit {} µg/g²",
+                                    limits.k2_max_ug_per_g2
+                                ));
+                                Outcome::Fail
+                            }
+                            Some(k2) if k2 > limits.marginal_fraction * limits.k2_max_ug_per_g2 => {
+                                reasons.push(format!(
+                                    "|k2| {k2:.3} µg/g² within {:.0} % of the limit",
+                                    (1.0 - limits.marginal_fraction) * 100.0
+                                ));
+                                Outcome::Marginal
+                            }
+                            Some(_) => Outcome::Pass,
+                            None => {
+                                reasons.push("the model order has no k2".into());
+                                Outcome::Pass
+                            }
+                        };
+                        reasons.extend(a.notes.iter().cloned());
+                        analysis = Some(a);
+                    }
+                    Err(e) => reasons.push(format!("cannot reduce: {e}")),
+                }
+            }
+            out.push(UnitRecord {
+                slot,
+                serial,
+                tumble: u.cal.map(|c| [c.bias_output, c.scale_factor]),
+                drawing_radius_m: self.station.drawing_radius_m(slot),
+                radius_m: u.radius.clone(),
+                points: u.points.clone(),
+                analysis,
+                k2_max_ug_per_g2: k2_max,
+                outcome,
+                reasons,
+            });
+        }
+        out
+    }
+}
+
+fn mean_std(y: &[f64]) -> (f64, f64) {
+    let n = y.len() as f64;
+    let mean = y.iter().sum::<f64>() / n;
+    let var = if y.len() > 1 {
+        y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
+    } else {
+        0.0
+    };
+    (mean, var.sqrt())
+}
+
+fn mount_text(fixtures: &[Option<Fixture>]) -> String {
+    let kinds: BTreeSet<String> = fixtures
+        .iter()
+        .flatten()
+        .map(|f| format!("{f:?}"))
+        .collect();
+    let describe = |f: &Fixture| match f {
+        Fixture::Up => "on the tumble fixture, input axis UP".to_string(),
+        Fixture::Down => "on the tumble fixture, input axis DOWN".to_string(),
+        Fixture::Arm(Mount::P) => {
+            "on the arm in mounting P (input axis toward the spin axis)".to_string()
+        }
+        Fixture::Arm(Mount::N) => {
+            "on the arm in mounting N (input axis away from the spin axis)".to_string()
+        }
+    };
+    match fixtures.iter().flatten().next() {
+        Some(f) if kinds.len() == 1 => format!("Mount every instrument {}", describe(f)),
+        _ => {
+            let list: Vec<String> = fixtures
+                .iter()
+                .enumerate()
+                .filter_map(|(i, f)| f.map(|f| format!("slot {}: {}", i + 1, describe(&f))))
+                .collect();
+            format!("Mount the instruments: {}", list.join("; "))
+        }
+    }
+}
+
+/// A short label of a step for progress display.
+pub fn label(step: &Step) -> String {
+    match step {
+        Step::PowerOn => "power on".into(),
+        Step::CheckAlive => "check instruments".into(),
+        Step::WarmUp { seconds } => format!("warm-up {seconds:.0} s"),
+        Step::Mount { fixtures } => mount_text(fixtures),
+        Step::Tumble { up } => format!("tumble, input axis {}", if *up { "up" } else { "down" }),
+        Step::Radius { pass } => format!("radius at 1 g (pass {})", pass + 1),
+        Step::Level {
+            pass,
+            g_nominal,
+            direction,
+        } => format!("{g_nominal} g {direction:?} (pass {})", pass + 1),
+        Step::Stop => "stop".into(),
+    }
+}

@@ -1,0 +1,23 @@
+//! The middle layer: everything between the drivers and the operator.
+//!
+//! * [`config`] — the station config (TOML), validated with errors that name the key;
+//! * [`plan`] — test plans (TOML) compiled into a list of steps (a plan is
+//!   data), refused before anything moves if any level exceeds a limit;
+//! * [`executor`] — the one executor: stability, safety, per-instrument
+//!   records, an explicit table of run states;
+//! * [`event`] — the typed event stream the CLI, journal, store and UI subscribe to;
+//! * [`journal`] — the append-only, flushed journal, and reading it back for resume;
+//! * [`record`] — per-instrument records with an outcome.
+
+pub mod config;
+pub mod event;
+pub mod executor;
+pub mod journal;
+pub mod plan;
+pub mod record;
+
+pub use config::StationConfig;
+pub use event::{Event, EventSink, RunState};
+pub use executor::{Answer, Bench, EngineError, Executor, Operator, RunOptions, RunSummary};
+pub use plan::{CompiledPlan, Fixture, TestPlan};
+pub use record::{Outcome, PointRecord, UnitRecord};

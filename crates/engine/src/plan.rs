@@ -1,0 +1,479 @@
+//! Test plans (TOML) and their compilation into a list of steps: a plan is
+//! data, and one executor ([`crate::executor`]) runs any list of steps.
+//!
+//! ```toml
+//! name = "batch 47"
+//! range_g = 70            # levels 0, 1, 5, 10, … 70 (method.md §3.3) unless `levels` is given
+//! passes = ["P", "N"]     # mountings, in order (a serial "P:SN1" or "N:SN1" fixes its slot's mounting)
+//! [serials]
+//! 1 = "SN2601"            # slot number (1-based: module 1 slots 1–6, module 2 slots 7–12, …)
+//! [dwell]
+//! seconds = 10
+//! [limits]
+//! k2_max_ug_per_g2 = 20
+//! ```
+
+use crate::config::StationConfig;
+use serde::{Deserialize, Serialize};
+use spinbench_analysis::{Direction, ModelOrder, Mount, centrifuge, points};
+use std::collections::BTreeMap;
+
+/// The plan as written.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestPlan {
+    /// Name of the test.
+    #[serde(default = "default_name")]
+    pub name: String,
+    /// Operator's name, recorded with the run.
+    #[serde(default)]
+    pub operator: String,
+    /// Serial number per slot (1-based); `P:` or `N:` fixes the slot's mounting.
+    pub serials: BTreeMap<String, String>,
+    /// Range m [g] (default 70).
+    #[serde(default = "default_range")]
+    pub range_g: f64,
+    /// Explicit levels [g], ascending from 0 (default: 0, 1, 5, then every 5 g to m).
+    #[serde(default)]
+    pub levels: Option<Vec<f64>>,
+    /// Visit the levels up and then back down (default true).
+    #[serde(default = "default_true")]
+    pub up_down: bool,
+    /// Mountings to run, in order (default: as the serials' prefixes say, else P).
+    #[serde(default)]
+    pub passes: Vec<Mount>,
+    /// Warm-up after power-on [s] (default 60).
+    #[serde(default = "default_warmup")]
+    pub warmup_s: f64,
+    /// Model order (default 3).
+    #[serde(default = "default_order")]
+    pub order: u8,
+    /// How long to average at each level.
+    #[serde(default)]
+    pub dwell: DwellConfig,
+    /// When the speed and the outputs count as stable.
+    #[serde(default)]
+    pub stability: StabilityConfig,
+    /// Pass/fail limits.
+    #[serde(default)]
+    pub limits: Limits,
+}
+
+fn default_name() -> String {
+    "centrifuge test".into()
+}
+
+fn default_range() -> f64 {
+    70.0
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_warmup() -> f64 {
+    60.0
+}
+
+fn default_order() -> u8 {
+    3
+}
+
+/// Averaging at each level: n one-second values, or adaptive between bounds.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DwellConfig {
+    /// One-second values per point (default 10; the published station's n).
+    pub seconds: u32,
+    /// Adaptive dwell: stop once every instrument's standard error of the
+    /// mean is at most this [µg] (None = fixed dwell).
+    pub sem_target_ug: Option<f64>,
+    /// Fewest values of an adaptive dwell.
+    pub min_seconds: u32,
+    /// Most values of an adaptive dwell.
+    pub max_seconds: u32,
+}
+
+impl Default for DwellConfig {
+    fn default() -> Self {
+        DwellConfig {
+            seconds: 10,
+            sem_target_ug: None,
+            min_seconds: 5,
+            max_seconds: 30,
+        }
+    }
+}
+
+/// Stability criteria (method.md §3.3: data only at stable speed).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StabilityConfig {
+    /// Rate within this of the demand [ppm] counts as on speed.
+    pub rate_tolerance_ppm: f64,
+    /// Seconds the rate must stay on speed before data are taken.
+    pub hold_s: u32,
+    /// Largest acceptable drift of an output over the hold [µg/s] (a slope test).
+    pub drift_limit_ug_per_s: f64,
+    /// Longest wait for stability at a level before the run faults [s].
+    pub max_settle_s: u32,
+    /// Restarts of a point after rate excursions before the run faults.
+    pub max_restarts: u32,
+    /// An instrument whose 1-s values scatter more than this is failed as noisy [µg].
+    pub noise_limit_ug: f64,
+}
+
+impl Default for StabilityConfig {
+    fn default() -> Self {
+        StabilityConfig {
+            rate_tolerance_ppm: 100.0,
+            hold_s: 5,
+            drift_limit_ug_per_s: 3.0,
+            max_settle_s: 180,
+            max_restarts: 5,
+            noise_limit_ug: 300.0,
+        }
+    }
+}
+
+/// Pass/fail limits.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Limits {
+    /// |k2| of the worse mounting must not exceed this [µg/g²].
+    pub k2_max_ug_per_g2: f64,
+    /// Above this fraction of the limit the result is marginal.
+    pub marginal_fraction: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            k2_max_ug_per_g2: 20.0,
+            marginal_fraction: 0.9,
+        }
+    }
+}
+
+/// A plan that cannot run on this station; names the key and what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("test plan: {key}: {problem}")]
+pub struct PlanError {
+    /// The key.
+    pub key: String,
+    /// What is wrong.
+    pub problem: String,
+}
+
+/// The instrument mounting an operator is asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Fixture {
+    /// On the bench, input axis up.
+    Up,
+    /// On the bench, input axis down.
+    Down,
+    /// On the arm, mounting P or N.
+    Arm(Mount),
+}
+
+/// One step of a compiled plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Step {
+    /// Switch the supplies and relays on, start streaming.
+    PowerOn,
+    /// Check each instrument draws current and its resonators are in range.
+    CheckAlive,
+    /// Wait for the instruments to warm up.
+    WarmUp {
+        /// Seconds of station time.
+        seconds: f64,
+    },
+    /// Ask the operator to mount the instruments (per slot; `None` = leave).
+    Mount {
+        /// Requested fixture per slot.
+        fixtures: Vec<Option<Fixture>>,
+    },
+    /// Record the 1 g outputs with the input axis up or down (method.md (5)).
+    Tumble {
+        /// Up (+1 g) or down (−1 g).
+        up: bool,
+    },
+    /// Spin to 1 g at R0 and find each instrument's radius (method.md (6)–(8)).
+    Radius {
+        /// Pass number.
+        pass: usize,
+    },
+    /// Take one averaged point at a level.
+    Level {
+        /// Pass number.
+        pass: usize,
+        /// Nominal level [g] at the drawing radius.
+        g_nominal: f64,
+        /// Ascending or descending.
+        direction: Direction,
+    },
+    /// Controlled stop of the centrifuge.
+    Stop,
+}
+
+/// A compiled plan: the steps, and per pass the mounting of each slot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CompiledPlan {
+    /// The plan as written.
+    pub plan: TestPlan,
+    /// Serial number per slot (without the mounting prefix); `None` = empty slot.
+    pub serials: Vec<Option<String>>,
+    /// Per pass, the mounting of each slot (`None` = not measured in that pass).
+    pub passes: Vec<Vec<Option<Mount>>>,
+    /// The steps, in order.
+    pub steps: Vec<Step>,
+    /// Model order.
+    #[serde(skip)]
+    pub order: ModelOrder,
+}
+
+impl TestPlan {
+    /// Parse TOML text.
+    pub fn from_toml(text: &str) -> Result<TestPlan, PlanError> {
+        toml::from_str(text).map_err(|e| PlanError {
+            key: "(file)".into(),
+            problem: e.to_string(),
+        })
+    }
+
+    /// The ascending level table [g].
+    pub fn level_table(&self) -> Vec<f64> {
+        self.levels
+            .clone()
+            .unwrap_or_else(|| points::published_levels(self.range_g))
+    }
+
+    /// Check the plan against the station and compile it into steps. This
+    /// is where a plan that would exceed the centrifuge's rate limit or the
+    /// fixtures' rating at any position is refused, before anything moves.
+    pub fn compile(&self, station: &StationConfig) -> Result<CompiledPlan, PlanError> {
+        let err = |key: &str, problem: String| {
+            Err(PlanError {
+                key: key.into(),
+                problem,
+            })
+        };
+        let order = ModelOrder::from_degree(self.order).ok_or_else(|| PlanError {
+            key: "order".into(),
+            problem: format!("{} is not 1, 2 or 3", self.order),
+        })?;
+        let levels = self.level_table();
+        if levels.first() != Some(&0.0) {
+            return err("levels", "the levels must start at 0 g".into());
+        }
+        if levels.iter().any(|g| !g.is_finite()) || levels.windows(2).any(|w| w[1] <= w[0]) {
+            return err(
+                "levels",
+                "the levels must be finite and strictly ascending".into(),
+            );
+        }
+        if levels.len() < 6 {
+            return err(
+                "levels",
+                format!(
+                    "{} levels; method.md §3.3 asks for at least 6 from 0 to m",
+                    levels.len()
+                ),
+            );
+        }
+        if levels.len() < usize::from(self.order) + 2 {
+            return err(
+                "levels",
+                format!(
+                    "{} levels cannot fit an order-{} model with a residual",
+                    levels.len(),
+                    self.order
+                ),
+            );
+        }
+        if self.dwell.seconds < 2
+            || self.dwell.min_seconds < 2
+            || self.dwell.max_seconds < self.dwell.min_seconds
+        {
+            return err(
+                "dwell",
+                "need seconds ≥ 2 and 2 ≤ min_seconds ≤ max_seconds".into(),
+            );
+        }
+        if self.stability.hold_s < 3 {
+            return err(
+                "stability.hold_s",
+                "the drift test needs at least 3 seconds of hold".into(),
+            );
+        }
+        if !(self.limits.k2_max_ug_per_g2 > 0.0
+            && (0.0..=1.0).contains(&self.limits.marginal_fraction))
+        {
+            return err(
+                "limits",
+                "need k2_max_ug_per_g2 > 0 and 0 ≤ marginal_fraction ≤ 1".into(),
+            );
+        }
+
+        // Serials and their mountings.
+        let slots = station.slots();
+        let mut serials = vec![None; slots];
+        let mut fixed: Vec<Option<Mount>> = vec![None; slots];
+        for (key, serial) in &self.serials {
+            let slot: usize = key
+                .parse()
+                .ok()
+                .filter(|s| (1..=slots).contains(s))
+                .ok_or_else(|| PlanError {
+                    key: format!("serials.{key}"),
+                    problem: format!("slots are numbered 1 to {slots}"),
+                })?;
+            let (mount, bare) = match serial.split_once(':') {
+                Some((m, rest)) => match Mount::parse(m) {
+                    Some(mount) => (Some(mount), rest.trim()),
+                    None => {
+                        return err(
+                            &format!("serials.{key}"),
+                            format!("'{m}:' is not a mounting prefix; use P: or N:"),
+                        );
+                    }
+                },
+                None => (None, serial.trim()),
+            };
+            if bare.is_empty() {
+                return err(
+                    &format!("serials.{key}"),
+                    "the serial number is empty".into(),
+                );
+            }
+            serials[slot - 1] = Some(bare.to_string());
+            fixed[slot - 1] = mount;
+        }
+        if serials.iter().all(Option::is_none) {
+            return err("serials", "no instrument in the plan".into());
+        }
+        let passes: Vec<Vec<Option<Mount>>> = if !self.passes.is_empty() {
+            self.passes
+                .iter()
+                .map(|&m| {
+                    (0..slots)
+                        .map(|i| {
+                            serials[i]
+                                .as_ref()
+                                .and(fixed[i].map_or(Some(m), |f| (f == m).then_some(m)))
+                        })
+                        .collect()
+                })
+                .collect()
+        } else if serials
+            .iter()
+            .zip(&fixed)
+            .all(|(s, f)| s.is_none() || f.is_some())
+        {
+            // Every serial carries its mounting: one mixed pass.
+            vec![fixed.clone()]
+        } else {
+            vec![
+                (0..slots)
+                    .map(|i| serials[i].as_ref().and(Some(fixed[i].unwrap_or(Mount::P))))
+                    .collect(),
+            ]
+        };
+
+        // Safety: every level within the rate limit and every position within its rating.
+        let max_rate = station.centrifuge.max_rate_deg_s().map_err(|e| PlanError {
+            key: e.key,
+            problem: e.problem,
+        })?;
+        let g = station.g_local_m_s2;
+        let r0 = station.arm.radius_m;
+        for &level in &levels {
+            let w =
+                centrifuge::rate_for_acceleration_rad_s(level, r0, g).map_err(|e| PlanError {
+                    key: "levels".into(),
+                    problem: e.to_string(),
+                })?;
+            if w.to_degrees() > max_rate {
+                return err(
+                    "range_g",
+                    format!(
+                        "{level} g needs {:.1} deg/s at R0 = {r0} m, above the centrifuge's limit of {max_rate} deg/s; lower the range",
+                        w.to_degrees()
+                    ),
+                );
+            }
+            for i in 0..slots {
+                let at = level * station.drawing_radius_m(i) / r0;
+                if at > station.arm.max_g * 1.001 {
+                    return err(
+                        "range_g",
+                        format!(
+                            "{level} g puts {at:.2} g on position {} (rated {} g, arm.max_g); lower the range",
+                            i + 1,
+                            station.arm.max_g
+                        ),
+                    );
+                }
+            }
+        }
+
+        // The steps.
+        let sequence = if self.up_down {
+            points::up_down(&levels)
+        } else {
+            levels.clone()
+        };
+        let top = levels.last().copied().unwrap_or(0.0);
+        let all = |f: Fixture| {
+            serials
+                .iter()
+                .map(|s| s.as_ref().map(|_| f))
+                .collect::<Vec<_>>()
+        };
+        let mut steps = vec![
+            Step::PowerOn,
+            Step::CheckAlive,
+            Step::WarmUp {
+                seconds: self.warmup_s.max(0.0),
+            },
+            Step::Mount {
+                fixtures: all(Fixture::Up),
+            },
+            Step::Tumble { up: true },
+            Step::Mount {
+                fixtures: all(Fixture::Down),
+            },
+            Step::Tumble { up: false },
+        ];
+        for (p, pass) in passes.iter().enumerate() {
+            steps.push(Step::Mount {
+                fixtures: pass.iter().map(|m| m.map(Fixture::Arm)).collect(),
+            });
+            steps.push(Step::Radius { pass: p });
+            let mut passed_top = false;
+            for &level in &sequence {
+                let direction = if passed_top {
+                    Direction::Down
+                } else {
+                    Direction::Up
+                };
+                if level == top {
+                    passed_top = true;
+                }
+                steps.push(Step::Level {
+                    pass: p,
+                    g_nominal: level,
+                    direction,
+                });
+            }
+            steps.push(Step::Stop);
+        }
+        Ok(CompiledPlan {
+            plan: self.clone(),
+            serials,
+            passes,
+            steps,
+            order,
+        })
+    }
+}

@@ -1,0 +1,596 @@
+//! `spinbench run` and `spinbench demo`: a station config and a plan, the
+//! devices connected through the production drivers (to hardware, or to the
+//! virtual bench behind real pseudo-terminals), the engine, its journal,
+//! progress on the terminal, and the results.
+
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use spinbench_analysis::Mount;
+use spinbench_engine::event::{Event, EventSink};
+use spinbench_engine::journal::{Journal, read_journal};
+use spinbench_engine::plan::Fixture;
+use spinbench_engine::{
+    Answer, Bench, Executor, Operator, Outcome, RunOptions, RunState, RunSummary, StationConfig,
+    TestPlan, UnitRecord,
+};
+use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::{Mounting, SimConfig};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+/// Where runs are kept unless `--data` says otherwise.
+pub const DEFAULT_DATA_DIR: &str = "spinbench-data";
+
+/// The arm, power and station sections that go with the virtual bench's devices.
+pub fn sim_station_toml(bench: &RunningBench) -> String {
+    let (r0, max_rate) = bench.with_world(|w| {
+        (
+            w.config().centrifuge.arm_radius_m,
+            w.config().centrifuge.max_rate_deg_s,
+        )
+    });
+    let _ = max_rate;
+    format!(
+        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
+        bench.station_config_toml()
+    )
+}
+
+/// Connect every device of a station through the production drivers.
+pub fn connect_bench(station: &StationConfig) -> Result<Bench> {
+    let centrifuge = station.centrifuge.connect().context("centrifuge")?;
+    let modules = station
+        .fmu
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            f.connect(i)
+                .with_context(|| format!("counter module fmu[{i}]"))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let supply = |name: &str| -> Result<Box<dyn spinbench_devices::PowerSupply>> {
+        let cfg = station
+            .power_supply
+            .iter()
+            .find(|p| p.name == name)
+            .with_context(|| format!("no [[power_supply]] named '{name}'"))?;
+        cfg.connect()
+            .with_context(|| format!("power supply '{name}'"))
+    };
+    let instrument_supply = supply(&station.power.instrument_supply)?;
+    let module_supply = station
+        .power
+        .module_supply
+        .as_deref()
+        .map(supply)
+        .transpose()?;
+    Ok(Bench {
+        centrifuge,
+        modules,
+        instrument_supply,
+        module_supply,
+    })
+}
+
+/// The virtual bench's operator: remounts the instruments in the simulator,
+/// and says so.
+pub struct SimOperator<'a> {
+    bench: &'a RunningBench,
+    quiet: bool,
+}
+
+impl<'a> SimOperator<'a> {
+    /// An operator for `bench`; `quiet` does not print the prompts.
+    pub fn new(bench: &'a RunningBench, quiet: bool) -> Self {
+        SimOperator { bench, quiet }
+    }
+}
+
+impl Operator for SimOperator<'_> {
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        self.bench.with_world(|w| {
+            for (i, f) in fixtures.iter().enumerate() {
+                if let Some(f) = f {
+                    w.set_mounting(
+                        i,
+                        match f {
+                            Fixture::Up => Mounting::TumbleUp,
+                            Fixture::Down => Mounting::TumbleDown,
+                            Fixture::Arm(Mount::P) => Mounting::ArmP,
+                            Fixture::Arm(Mount::N) => Mounting::ArmN,
+                        },
+                    );
+                }
+            }
+        });
+        if !self.quiet {
+            eprintln!(
+                "\r\x1b[2K  operator prompt: {text}\n    → answered automatically: the simulator remounted the instruments"
+            );
+        }
+        Answer {
+            proceed: true,
+            by: "simulator (automatic operator)".into(),
+        }
+    }
+}
+
+/// The terminal operator: shows the prompt, waits for Enter (or `abort`).
+pub struct TerminalOperator;
+
+impl Operator for TerminalOperator {
+    fn ask(&mut self, text: &str, _fixtures: &[Option<Fixture>]) -> Answer {
+        eprintln!(
+            "\n>>> {text}\n    Press Enter when done, or type 'abort' and Enter to stop the run safely."
+        );
+        let mut line = String::new();
+        let read = std::io::stdin().read_line(&mut line);
+        let proceed = matches!(read, Ok(n) if n > 0) && !line.trim().eq_ignore_ascii_case("abort");
+        Answer {
+            proceed,
+            by: "operator at the terminal".into(),
+        }
+    }
+}
+
+/// Progress on stderr: the step, the phase, the rate.
+pub struct ProgressPrinter {
+    tty: bool,
+    step: String,
+    steps: (usize, usize),
+    last: Instant,
+    quiet: bool,
+}
+
+impl ProgressPrinter {
+    /// A printer (`quiet` prints nothing but faults).
+    pub fn new(quiet: bool) -> Self {
+        ProgressPrinter {
+            tty: std::io::stderr().is_terminal(),
+            step: String::new(),
+            steps: (0, 0),
+            last: Instant::now(),
+            quiet,
+        }
+    }
+}
+
+impl EventSink for ProgressPrinter {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        match event {
+            Event::Fault { reason } => {
+                eprintln!("\r\x1b[2K  FAULT: {reason} — bringing the station to the safe state")
+            }
+            _ if self.quiet => {}
+            Event::StepStarted { index, of, label } => {
+                self.steps = (*index + 1, *of);
+                self.step = label.clone();
+                if !self.tty {
+                    eprintln!("  [{:>3}/{}] {label}", index + 1, of);
+                }
+            }
+            Event::UnitFailed { slot, reason } => {
+                eprintln!("\r\x1b[2K  slot {}: FAILED — {reason}", slot + 1)
+            }
+            Event::Values {
+                time_s,
+                rate_deg_s,
+                on_speed,
+                ..
+            } if self.tty && self.last.elapsed() > Duration::from_millis(100) => {
+                self.last = Instant::now();
+                let (i, n) = self.steps;
+                let bar_len = 20;
+                let filled = (i * bar_len).checked_div(n).unwrap_or(0).min(bar_len);
+                eprint!(
+                    "\r\x1b[2K  [{}{}] {i}/{n} {} | t = {:.0} s | {:.2} deg/s {}",
+                    "#".repeat(filled),
+                    ".".repeat(bar_len - filled),
+                    self.step,
+                    time_s,
+                    rate_deg_s,
+                    if *on_speed { "on speed" } else { "settling" }
+                );
+            }
+            Event::RunFinished { state, reason } => {
+                eprintln!(
+                    "\r\x1b[2K  run {state:?}{}",
+                    reason
+                        .as_ref()
+                        .map(|r| format!(": {r}"))
+                        .unwrap_or_default()
+                );
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}
+
+/// A new run identifier from the clock.
+pub fn new_run_id() -> String {
+    let t = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default();
+    format!("run-{}-{:06}", t.as_secs(), t.subsec_micros())
+}
+
+/// What a run produced.
+pub struct Finished {
+    /// The run's directory.
+    pub dir: PathBuf,
+    /// The summary.
+    pub summary: RunSummary,
+}
+
+/// Run (or resume) a plan on a connected bench, journaling into `dir`.
+#[allow(clippy::too_many_arguments)]
+pub fn execute(
+    station: &StationConfig,
+    plan: &TestPlan,
+    bench: Bench,
+    operator: Box<dyn Operator + '_>,
+    dir: &Path,
+    resume: bool,
+    quiet: bool,
+    abort: Arc<AtomicBool>,
+) -> Result<Finished> {
+    let compiled = plan.compile(station)?;
+    let run_id = dir
+        .file_name()
+        .map_or_else(new_run_id, |n| n.to_string_lossy().into_owned());
+    let journal = Journal::open(dir)
+        .with_context(|| format!("{}: cannot create the run directory", dir.display()))?;
+    let past = if resume {
+        let (events, torn) = read_journal(dir).map_err(anyhow::Error::msg)?;
+        if let Some(t) = torn {
+            eprintln!("  note: {t}");
+        }
+        if events.iter().any(|e| {
+            matches!(
+                e,
+                Event::RunFinished {
+                    state: RunState::Completed,
+                    ..
+                }
+            )
+        }) {
+            bail!(
+                "{}: this run already completed; nothing to resume",
+                dir.display()
+            );
+        }
+        Some(events)
+    } else {
+        None
+    };
+    let options = RunOptions {
+        run_id,
+        abort,
+        module_silence: Duration::from_secs(5),
+    };
+    let mut executor = Executor::new(station, compiled, bench, operator, options);
+    if let Some(events) = &past {
+        executor.restore(events);
+    }
+    executor.subscribe(journal);
+    executor.subscribe(ProgressPrinter::new(quiet));
+    let summary = executor.run();
+    let results = serde_json::to_string_pretty(&summary.records)?;
+    std::fs::write(dir.join("results.json"), results)
+        .with_context(|| format!("{}: cannot write results.json", dir.display()))?;
+    Ok(Finished {
+        dir: dir.to_path_buf(),
+        summary,
+    })
+}
+
+/// One line of the demo's comparison with the truth.
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoUnit {
+    /// Serial number.
+    pub serial: String,
+    /// Slot (1-based).
+    pub slot: usize,
+    /// Mounting.
+    pub mount: Mount,
+    /// Radius found [m].
+    pub radius_m: Option<f64>,
+    /// The simulator's true radius [m].
+    pub true_radius_m: f64,
+    /// Drawing radius [m].
+    pub drawing_radius_m: f64,
+    /// Measured k2 in this mounting [µg/g²].
+    pub k2_ug_per_g2: Option<f64>,
+    /// Its 95 % interval.
+    pub k2_ci95: Option<[f64; 2]>,
+    /// The truth in the same per-mounting convention (N flips the sign).
+    pub true_k2_ug_per_g2: f64,
+    /// Measured k1 [Hz/g] in this mounting.
+    pub k1_hz_per_g: Option<f64>,
+    /// True k1 in this convention.
+    pub true_k1_hz_per_g: f64,
+    /// The instrument's k2_max [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Pass, fail or marginal.
+    pub outcome: Outcome,
+}
+
+/// Compare a finished demo run with the simulator's truth.
+pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) -> Vec<DemoUnit> {
+    let mut out = Vec::new();
+    for r in records {
+        let Some(t) = truth.instruments.get(r.slot) else {
+            continue;
+        };
+        for mount in [Mount::P, Mount::N] {
+            let fit = r
+                .analysis
+                .as_ref()
+                .and_then(|a| a.fits.get(&mount))
+                .map(|f| &f.fit);
+            if fit.is_none() && !r.radius_m.contains_key(&mount) {
+                continue;
+            }
+            let sign = mount.input_sign();
+            out.push(DemoUnit {
+                serial: r.serial.clone(),
+                slot: r.slot + 1,
+                mount,
+                radius_m: r.radius_m.get(&mount).copied(),
+                true_radius_m: match mount {
+                    Mount::P => t.position.radius_p_m,
+                    Mount::N => t.position.radius_n_m,
+                },
+                drawing_radius_m: t.position.drawing_radius_m,
+                k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
+                k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
+                true_k2_ug_per_g2: sign * t.vba.k2_ug_per_g2,
+                k1_hz_per_g: fit.map(|f| f.k1),
+                true_k1_hz_per_g: sign * t.vba.k1_hz_per_g,
+                k2_max_ug_per_g2: r.k2_max_ug_per_g2,
+                outcome: r.outcome,
+            });
+        }
+    }
+    out
+}
+
+/// The demo's plan: every slot, ±70 g (both mountings), published levels.
+pub fn demo_plan(slots: usize) -> TestPlan {
+    let serials = (1..=slots)
+        .map(|i| (i.to_string(), format!("SIM-{i:02}")))
+        .collect();
+    let mut plan = TestPlan::from_toml("serials = {}").unwrap_or_else(|_| unreachable_plan());
+    plan.name = "demo: ±70 g, mountings P and N".into();
+    plan.operator = "demo".into();
+    plan.serials = serials;
+    plan.passes = vec![Mount::P, Mount::N];
+    plan.warmup_s = 600.0;
+    plan
+}
+
+fn unreachable_plan() -> TestPlan {
+    // The literal above always parses; keep a typed fallback rather than panic.
+    TestPlan {
+        name: String::new(),
+        operator: String::new(),
+        serials: Default::default(),
+        range_g: 70.0,
+        levels: None,
+        up_down: true,
+        passes: Vec::new(),
+        warmup_s: 60.0,
+        order: 3,
+        dwell: Default::default(),
+        stability: Default::default(),
+        limits: Default::default(),
+    }
+}
+
+/// Start the virtual bench and the station config that reaches it.
+pub fn start_sim(seed: u64) -> Result<(RunningBench, StationConfig)> {
+    let sim = SimConfig {
+        seed,
+        speed: 0.0,
+        ..SimConfig::default()
+    };
+    let bench = RunningBench::start(sim, ServeOptions::default())
+        .context("cannot start the virtual bench")?;
+    let text = sim_station_toml(&bench);
+    let station = StationConfig::from_toml(&text)
+        .with_context(|| format!("the virtual bench's station config:\n{text}"))?;
+    Ok((bench, station))
+}
+
+/// `spinbench demo`.
+pub fn demo(seed: u64, json: bool, data_dir: &Path, out: &mut dyn Write) -> Result<()> {
+    let wall = Instant::now();
+    let (sim, station) = start_sim(seed)?;
+    let plan = demo_plan(station.slots());
+    if !json {
+        writeln!(
+            out,
+            "spinbench demo: a virtual bench (seed {seed}) with {} instruments on {} counter modules, a 0.8 m centrifuge,\n\
+             ±70 g in mountings P and N, in virtual time. Operator prompts are answered by the simulator.\n",
+            station.slots(),
+            station.fmu.len()
+        )?;
+        out.flush()?;
+    }
+    let bench = connect_bench(&station)?;
+    let dir = data_dir.join("runs").join(new_run_id());
+    std::fs::create_dir_all(&dir)?;
+    std::fs::write(dir.join("station.toml"), sim_station_toml(&sim))?;
+    std::fs::write(dir.join("plan.toml"), toml::to_string(&plan)?)?;
+    let operator = Box::new(SimOperator::new(&sim, json));
+    let finished = execute(
+        &station,
+        &plan,
+        bench,
+        operator,
+        &dir,
+        false,
+        json,
+        Arc::new(AtomicBool::new(false)),
+    )?;
+    let truth = sim.with_world(|w| w.truth());
+    sim.shutdown();
+    let units = compare_with_truth(&finished.summary.records, &truth);
+    std::fs::write(
+        dir.join("truth.json"),
+        serde_json::to_string_pretty(&truth)?,
+    )?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    if json {
+        let doc = serde_json::json!({
+            "run": {
+                "dir": finished.dir,
+                "state": finished.summary.state,
+                "reason": finished.summary.reason,
+                "seed": seed,
+                "virtual_duration_s": finished.summary.duration_s,
+                "wall_duration_s": wall_s,
+            },
+            "units": units,
+        });
+        serde_json::to_writer_pretty(&mut *out, &doc)?;
+        writeln!(out)?;
+    } else {
+        render_demo(out, &finished, &units, wall_s)?;
+    }
+    if finished.summary.state != RunState::Completed {
+        bail!(
+            "the demo run did not complete: {}",
+            finished.summary.reason.unwrap_or_default()
+        );
+    }
+    Ok(())
+}
+
+/// The results table of a run.
+pub fn render_records(out: &mut dyn Write, finished: &Finished) -> Result<()> {
+    let s = &finished.summary;
+    writeln!(
+        out,
+        "\nRun {:?} after {:.0} s of station time.\n",
+        s.state, s.duration_s
+    )?;
+    writeln!(
+        out,
+        "{:<10} {:>4} {:>12} {:>12} {:>24} {:>9}  reasons",
+        "serial", "slot", "R P [mm]", "R N [mm]", "k2_max [µg/g²]", "outcome"
+    )?;
+    for r in &s.records {
+        let radius = |m: Mount| {
+            r.radius_m
+                .get(&m)
+                .map_or("—".into(), |v| format!("{:.3}", v * 1e3))
+        };
+        writeln!(
+            out,
+            "{:<10} {:>4} {:>12} {:>12} {:>24} {:>9}  {}",
+            r.serial,
+            r.slot + 1,
+            radius(Mount::P),
+            radius(Mount::N),
+            r.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
+            format!("{:?}", r.outcome).to_lowercase(),
+            r.reasons.join("; ")
+        )?;
+    }
+    writeln!(
+        out,
+        "\nResults: {}/results.json; journal: {}/journal.jsonl",
+        finished.dir.display(),
+        finished.dir.display()
+    )?;
+    Ok(())
+}
+
+fn render_demo(
+    out: &mut dyn Write,
+    finished: &Finished,
+    units: &[DemoUnit],
+    wall_s: f64,
+) -> Result<()> {
+    let s = &finished.summary;
+    writeln!(
+        out,
+        "\nRun {:?} in {:.0} s of virtual time ({:.1} h), {:.1} s of wall-clock time.\n",
+        s.state,
+        s.duration_s,
+        s.duration_s / 3600.0,
+        wall_s
+    )?;
+    writeln!(
+        out,
+        "{:<7} {:>4} {:>5} | {:>10} {:>10} {:>9} | {:>22} {:>9} {:>6} | {:>8} {:>9}",
+        "serial",
+        "slot",
+        "mount",
+        "R [mm]",
+        "true R",
+        "R0 − true",
+        "k2 ± 95 % [µg/g²]",
+        "true k2",
+        "in CI",
+        "k2_max",
+        "outcome"
+    )?;
+    let (mut covered, mut total) = (0, 0);
+    for u in units {
+        let r = u.radius_m.map_or("—".into(), |r| format!("{:.3}", r * 1e3));
+        let k2 = match (u.k2_ug_per_g2, u.k2_ci95) {
+            (Some(k), Some([lo, hi])) => format!("{k:+.3} ± {:.3}", (hi - lo) / 2.0),
+            _ => "—".into(),
+        };
+        let inside = u
+            .k2_ci95
+            .map(|[lo, hi]| lo <= u.true_k2_ug_per_g2 && u.true_k2_ug_per_g2 <= hi);
+        if let Some(i) = inside {
+            total += 1;
+            covered += usize::from(i);
+        }
+        writeln!(
+            out,
+            "{:<7} {:>4} {:>5} | {:>10} {:>10.3} {:>+9.3} | {:>22} {:>+9.3} {:>6} | {:>8} {:>9}",
+            u.serial,
+            u.slot,
+            u.mount.to_string(),
+            r,
+            u.true_radius_m * 1e3,
+            (u.drawing_radius_m - u.true_radius_m) * 1e3,
+            k2,
+            u.true_k2_ug_per_g2,
+            inside.map_or("—", |i| if i { "yes" } else { "NO" }),
+            u.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
+            format!("{:?}", u.outcome).to_lowercase(),
+        )?;
+    }
+    let radius_err: Vec<f64> = units
+        .iter()
+        .filter_map(|u| u.radius_m.map(|r| (r - u.true_radius_m).abs() * 1e6))
+        .collect();
+    let r0_err: Vec<f64> = units
+        .iter()
+        .map(|u| (u.drawing_radius_m - u.true_radius_m).abs() * 1e6)
+        .collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    writeln!(
+        out,
+        "\nk2: the true value lies inside the reported 95 % interval for {covered} of {total} instrument-mountings.\n\
+         Radius: found within {:.1} µm of the truth on average; the drawing radius R0 is off by {:.1} µm on average.",
+        mean(&radius_err),
+        mean(&r0_err)
+    )?;
+    writeln!(
+        out,
+        "\nResults: {}/results.json (per-instrument records), journal.jsonl (every event), truth.json (the simulator's truth).",
+        finished.dir.display()
+    )?;
+    Ok(())
+}
