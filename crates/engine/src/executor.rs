@@ -219,6 +219,7 @@ impl<'a> Executor<'a> {
     /// after the last completed step with no point lost or repeated.
     pub fn restore(&mut self, events: &[Event]) {
         self.resumed = true;
+        let mut last_points: BTreeMap<usize, &Vec<PointRecord>> = BTreeMap::new();
         for e in events {
             match e {
                 Event::StepDone { index } => {
@@ -251,17 +252,9 @@ impl<'a> Executor<'a> {
                     }
                 }
                 Event::PointDone { step, points } => {
-                    // A point is only whole with its StepDone; a torn step is redone.
-                    let done = events
-                        .iter()
-                        .any(|x| matches!(x, Event::StepDone { index } if index == step));
-                    if done {
-                        for p in points {
-                            if let Some(u) = self.units.get_mut(p.slot) {
-                                u.points.push(p.clone());
-                            }
-                        }
-                    }
+                    // A step killed between its PointDone and StepDone is redone
+                    // and journals its point again: only the last one counts.
+                    last_points.insert(*step, points);
                 }
                 Event::UnitFailed { slot, reason } => {
                     if let Some(u) = self.units.get_mut(*slot) {
@@ -269,6 +262,16 @@ impl<'a> Executor<'a> {
                     }
                 }
                 _ => {}
+            }
+        }
+        // A point is whole only with its StepDone; a torn step is redone.
+        for (step, points) in last_points {
+            if self.completed.contains(&step) {
+                for p in points {
+                    if let Some(u) = self.units.get_mut(p.slot) {
+                        u.points.push(p.clone());
+                    }
+                }
             }
         }
     }

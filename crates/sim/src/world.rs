@@ -250,6 +250,18 @@ impl World {
             .any(|s| s.module * INSTRUMENTS_PER_MODULE + s.slot == i)
     }
 
+    /// Module `m`'s relay mask (bit i = instrument i powered), if it exists.
+    pub fn relay_mask(&self, m: usize) -> Option<u8> {
+        self.modules.get(m).map(|module| module.relay_mask)
+    }
+
+    /// Whether module `m` is streaming.
+    pub fn streaming(&self, m: usize) -> bool {
+        self.modules
+            .get(m)
+            .is_some_and(|module| module.streaming.is_some())
+    }
+
     /// Whether instrument `i` is powered: rails on and its relay closed.
     pub fn powered(&self, i: usize) -> bool {
         let m = i / INSTRUMENTS_PER_MODULE;

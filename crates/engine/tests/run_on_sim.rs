@@ -1,0 +1,367 @@
+//! The engine against the virtual bench (real pseudo-terminals, production
+//! drivers): a complete run, every safety path by fault injection, failed
+//! instruments, abort, and the refusal of a plan beyond the limits.
+
+use spinbench_analysis::Mount;
+use spinbench_devices::PowerSupply;
+use spinbench_engine::event::{Event, RunState};
+use spinbench_engine::plan::Fixture;
+use spinbench_engine::{
+    Answer, Bench, Executor, Operator, Outcome, RunOptions, RunSummary, StationConfig, TestPlan,
+};
+use spinbench_sim::config::SlotRef;
+use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::{Mounting, SimConfig};
+use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+fn station_for(bench: &RunningBench) -> StationConfig {
+    let text = format!(
+        "[arm]\nradius_m = 0.8\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
+        bench.station_config_toml()
+    );
+    StationConfig::from_toml(&text).expect("the bench's station config is valid")
+}
+
+fn small_plan() -> TestPlan {
+    TestPlan::from_toml(
+        r#"
+        range_g = 10
+        levels = [0, 1, 2, 4, 6, 8, 10]
+        passes = ["P"]
+        warmup_s = 0
+        dwell = { seconds = 3 }
+        stability = { hold_s = 3 }
+        [serials]
+        1 = "A1"
+        2 = "A2"
+        3 = "A3"
+        4 = "A4"
+        5 = "A5"
+        6 = "A6"
+        7 = "B1"
+        8 = "B2"
+        9 = "B3"
+        "#,
+    )
+    .expect("plan")
+}
+
+struct SimHands<'a>(&'a RunningBench);
+
+impl Operator for SimHands<'_> {
+    fn ask(&mut self, _text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        self.0.with_world(|w| {
+            for (i, f) in fixtures.iter().enumerate() {
+                let m = match f {
+                    Some(Fixture::Up) => Mounting::TumbleUp,
+                    Some(Fixture::Down) => Mounting::TumbleDown,
+                    Some(Fixture::Arm(Mount::P)) => Mounting::ArmP,
+                    Some(Fixture::Arm(Mount::N)) => Mounting::ArmN,
+                    None => continue,
+                };
+                w.set_mounting(i, m);
+            }
+        });
+        Answer {
+            proceed: true,
+            by: "test".into(),
+        }
+    }
+}
+
+fn connect(station: &StationConfig) -> Bench {
+    let supply = |name: &str| -> Box<dyn PowerSupply> {
+        station
+            .power_supply
+            .iter()
+            .find(|p| p.name == name)
+            .expect("supply")
+            .connect()
+            .expect("connect supply")
+    };
+    Bench {
+        centrifuge: station.centrifuge.connect().expect("centrifuge"),
+        modules: station
+            .fmu
+            .iter()
+            .enumerate()
+            .map(|(i, f)| f.connect(i).expect("fmu"))
+            .collect(),
+        instrument_supply: supply("rails"),
+        module_supply: Some(supply("logic")),
+    }
+}
+
+/// Run `plan` on a bench built from `sim`; returns the summary, the events and the bench.
+fn run(
+    sim: SimConfig,
+    plan: TestPlan,
+    abort_after_windows: Option<u64>,
+) -> (RunSummary, Vec<Event>, RunningBench) {
+    let bench = RunningBench::start(SimConfig { speed: 0.0, ..sim }, ServeOptions::default())
+        .expect("bench");
+    let station = station_for(&bench);
+    let compiled = plan.compile(&station).expect("plan fits the station");
+    let events = Arc::new(Mutex::new(Vec::new()));
+    let abort = Arc::new(AtomicBool::new(false));
+    let summary = {
+        let options = RunOptions {
+            run_id: "test".into(),
+            abort: abort.clone(),
+            module_silence: Duration::from_secs(2),
+        };
+        let mut ex = Executor::new(
+            &station,
+            compiled,
+            connect(&station),
+            Box::new(SimHands(&bench)),
+            options,
+        );
+        let sink = events.clone();
+        let mut windows = 0u64;
+        ex.subscribe(move |e: &Event| {
+            if matches!(e, Event::Values { .. }) {
+                windows += 1;
+                if abort_after_windows.is_some_and(|n| windows >= n) {
+                    abort.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
+            }
+            if let Ok(mut v) = sink.lock() {
+                v.push(e.clone());
+            }
+        });
+        ex.run()
+    };
+    let events = events.lock().map(|v| v.clone()).unwrap_or_default();
+    (summary, events, bench)
+}
+
+/// The safe state: instrument rails off, relays open (except on a module
+/// that no longer answers: its instruments are unpowered by the rails),
+/// the table commanded to stop.
+fn assert_safe_except(
+    bench: &RunningBench,
+    expect_table_stopped: bool,
+    silent_module: Option<usize>,
+) {
+    bench.with_world(|w| {
+        assert!(
+            w.rails.outputs.iter().all(|o| !o.on),
+            "instrument rails still on"
+        );
+        for m in (0..w.config().modules).filter(|m| Some(*m) != silent_module) {
+            assert_eq!(
+                w.relay_mask(m).unwrap_or(0),
+                0,
+                "module {m} relays still closed"
+            );
+        }
+        if expect_table_stopped {
+            assert!(
+                w.table.demand_rad_s == 0.0 || !w.table.rate_mode || !w.table.interlocks_closed,
+                "table still commanded to spin"
+            );
+        }
+    });
+}
+
+fn assert_safe(bench: &RunningBench, expect_table_stopped: bool) {
+    assert_safe_except(bench, expect_table_stopped, None);
+}
+
+fn reason(summary: &RunSummary) -> String {
+    summary.reason.clone().unwrap_or_default()
+}
+
+#[test]
+fn a_complete_run_measures_every_instrument() {
+    let (summary, events, bench) = run(SimConfig::default(), small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    assert_eq!(summary.records.len(), 9);
+    for r in &summary.records {
+        assert_eq!(r.points.len(), 13, "{}: {:?}", r.serial, r.reasons);
+        assert!(r.radius_m.contains_key(&Mount::P));
+        assert!(r.analysis.is_some());
+        // The outcome follows k2_max against the limit (20 µg/g², marginal above 18).
+        let k2 = r.k2_max_ug_per_g2.expect("k2_max");
+        let want = if k2 > 20.0 {
+            Outcome::Fail
+        } else if k2 > 18.0 {
+            Outcome::Marginal
+        } else {
+            Outcome::Pass
+        };
+        assert_eq!(r.outcome, want, "{}: {:?}", r.serial, r.reasons);
+    }
+    // Every point journaled once, every step once.
+    let points = events
+        .iter()
+        .filter(|e| matches!(e, Event::PointDone { .. }))
+        .count();
+    assert_eq!(points, 13);
+    assert!(events.iter().any(|e| matches!(
+        e,
+        Event::RunFinished {
+            state: RunState::Completed,
+            ..
+        }
+    )));
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn safety_centrifuge_silence_faults_into_the_safe_state() {
+    let mut sim = SimConfig::default();
+    sim.faults.centrifuge_silent_at_s = Some(40.0);
+    let (summary, _, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("centrifuge"),
+        "{}",
+        reason(&summary)
+    );
+    assert!(
+        reason(&summary).contains("no reply"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe(&bench, false);
+    bench.shutdown();
+}
+
+#[test]
+fn safety_an_open_interlock_faults_into_the_safe_state() {
+    let mut sim = SimConfig::default();
+    sim.faults.interlock_open_at_s = Some(60.0);
+    let (summary, _, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("interlocks opened"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn safety_an_over_current_trip_faults_into_the_safe_state() {
+    let mut sim = SimConfig::default();
+    sim.faults.supply_trip_at_s = Some(50.0);
+    let (summary, _, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("over-current"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn safety_a_silent_counter_module_faults_into_the_safe_state() {
+    let mut sim = SimConfig::default();
+    sim.faults.module_silent = Some((1, 45.0));
+    let (summary, _, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("counter module 2 sent no data"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe_except(&bench, true, Some(1));
+    bench.shutdown();
+}
+
+#[test]
+fn safety_a_plan_beyond_the_limits_is_refused_before_anything_moves() {
+    let bench = RunningBench::start(SimConfig::default(), ServeOptions::default()).expect("bench");
+    let mut station = station_for(&bench);
+    station.arm.max_g = 1000.0;
+    let mut plan = small_plan();
+    plan.range_g = 150.0;
+    plan.levels = None;
+    let e = plan
+        .compile(&station)
+        .expect_err("above the rate limit")
+        .to_string();
+    assert!(
+        e.contains("range_g") && e.contains("above the centrifuge's limit of 2400 deg/s"),
+        "{e}"
+    );
+    let mut tight = station.clone();
+    tight.arm.max_g = 8.0;
+    station.arm.max_g = 100.0;
+    let e = plan
+        .compile(&station)
+        .expect_err("above the fixtures' rating at 105 g")
+        .to_string();
+    assert!(e.contains("105 g") && e.contains("rated 100 g"), "{e}");
+    let e = small_plan()
+        .compile(&tight)
+        .expect_err("above the fixtures' rating")
+        .to_string();
+    assert!(e.contains("rated 8 g"), "{e}");
+    // Nothing was switched on.
+    bench.with_world(|w| assert!(w.rails.outputs.iter().all(|o| !o.on) && !w.table.rate_mode));
+    bench.shutdown();
+}
+
+#[test]
+fn dead_and_noisy_instruments_fail_and_the_others_go_on() {
+    let mut sim = SimConfig::default();
+    sim.faults.dead_instruments = vec![SlotRef { module: 0, slot: 1 }];
+    sim.faults.noisy_instruments = vec![SlotRef { module: 1, slot: 0 }];
+    let (summary, _, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let by_serial = |s: &str| {
+        summary
+            .records
+            .iter()
+            .find(|r| r.serial == s)
+            .expect("record")
+    };
+    let dead = by_serial("A2");
+    assert_eq!(dead.outcome, Outcome::Fail);
+    assert!(
+        dead.reasons.iter().any(|r| r.contains("no output")),
+        "{:?}",
+        dead.reasons
+    );
+    let noisy = by_serial("B1");
+    assert_eq!(noisy.outcome, Outcome::Fail);
+    assert!(
+        noisy.reasons.iter().any(|r| r.contains("noisy")),
+        "{:?}",
+        noisy.reasons
+    );
+    let good = by_serial("A1");
+    assert_eq!(good.points.len(), 13);
+    assert!(
+        good.analysis.is_some()
+            && good
+                .reasons
+                .iter()
+                .all(|r| !r.contains("noisy") && !r.contains("no output"))
+    );
+    bench.shutdown();
+}
+
+#[test]
+fn an_abort_ends_in_the_safe_state() {
+    let (summary, events, bench) = run(SimConfig::default(), small_plan(), Some(40));
+    assert_eq!(summary.state, RunState::Aborted, "{}", reason(&summary));
+    assert!(events.iter().any(|e| matches!(
+        e,
+        Event::RunFinished {
+            state: RunState::Aborted,
+            ..
+        }
+    )));
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
