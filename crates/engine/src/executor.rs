@@ -148,6 +148,8 @@ pub struct RunSummary {
     pub records: Vec<UnitRecord>,
     /// Station time the run took [s].
     pub duration_s: f64,
+    /// One-second windows dropped to keep the counter modules aligned in time.
+    pub dropped_windows: u64,
 }
 
 /// The executor.
@@ -167,6 +169,8 @@ pub struct Executor<'a> {
     windows: u64,
     demand_deg_s: f64,
     streaming: bool,
+    /// Windows dropped to keep the modules aligned in time.
+    dropped_windows: u64,
 }
 
 impl<'a> Executor<'a> {
@@ -207,6 +211,7 @@ impl<'a> Executor<'a> {
             windows: 0,
             demand_deg_s: 0.0,
             streaming: false,
+            dropped_windows: 0,
         }
     }
 
@@ -356,6 +361,7 @@ impl<'a> Executor<'a> {
             reason,
             records,
             duration_s: self.windows as f64,
+            dropped_windows: self.dropped_windows,
         }
     }
 
@@ -618,41 +624,55 @@ impl<'a> Executor<'a> {
         slope_ug > self.plan.plan.stability.drift_limit_ug_per_s && slope.abs() > 3.0 * se
     }
 
-    /// Each instrument's own scatter [µg]: its 1-s values in g, less the
-    /// common mode of all instruments (the median deviation in each window),
-    /// so that rate ripple and wander, which every instrument feels, do not
-    /// make a good instrument look noisy. Needs at least 3 instruments.
+    /// Each instrument's own 1-s scatter [µg], robust to what every
+    /// instrument feels: the common mode (median deviation per window) of the
+    /// instruments on the same counter module is removed when there are at
+    /// least three (their windows are the same ticks by construction), and
+    /// the scatter is estimated from successive differences (σ = std(Δ)/√2),
+    /// which ignores slow trends such as rate wander or the tail of settling.
     fn instrument_noise_ug(&self, slots: &[usize], values: &[Window]) -> BTreeMap<usize, f64> {
         let mut out = BTreeMap::new();
-        if slots.len() < 3 {
-            return out;
+        let mut by_module: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+        for &s in slots {
+            by_module
+                .entry(s / INSTRUMENTS_PER_MODULE)
+                .or_default()
+                .push(s);
         }
-        let means: BTreeMap<usize, f64> = slots
-            .iter()
-            .filter_map(|&s| {
-                let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[s]).collect();
-                (!y.is_empty()).then(|| (s, mean_std(&y).0))
-            })
-            .collect();
-        let mut residuals: BTreeMap<usize, Vec<f64>> = BTreeMap::new();
-        for w in values {
-            let dev: Vec<(usize, f64)> = means
+        for group in by_module.values() {
+            // Series in g, per slot, over the windows where every slot of the group has a value.
+            let windows: Vec<&Window> = values
                 .iter()
-                .filter_map(|(&s, &m)| w.outputs[s].map(|v| (s, (v - m) / self.k1(s))))
+                .filter(|w| group.iter().all(|&s| w.outputs[s].is_some()))
                 .collect();
-            if dev.len() < 3 {
+            if windows.len() < 3 {
                 continue;
             }
-            let mut sorted: Vec<f64> = dev.iter().map(|d| d.1).collect();
-            sorted.sort_by(f64::total_cmp);
-            let median = sorted[sorted.len() / 2];
-            for (s, d) in dev {
-                residuals.entry(s).or_default().push(d - median);
-            }
-        }
-        for (s, r) in residuals {
-            if r.len() >= 2 {
-                out.insert(s, mean_std(&r).1 * UG_PER_G);
+            let series: Vec<Vec<f64>> = group
+                .iter()
+                .map(|&s| {
+                    windows
+                        .iter()
+                        .filter_map(|w| w.outputs[s])
+                        .map(|v| v / self.k1(s))
+                        .collect()
+                })
+                .collect();
+            let common: Vec<f64> = (0..windows.len())
+                .map(|t| {
+                    if group.len() < 3 {
+                        return 0.0;
+                    }
+                    let mut dev: Vec<f64> = series.iter().map(|y| y[t] - mean_std(y).0).collect();
+                    dev.sort_by(f64::total_cmp);
+                    dev[dev.len() / 2]
+                })
+                .collect();
+            for (k, &s) in group.iter().enumerate() {
+                let own: Vec<f64> = series[k].iter().zip(&common).map(|(y, c)| y - c).collect();
+                let diffs: Vec<f64> = own.windows(2).map(|d| d[1] - d[0]).collect();
+                let (_, std_diff) = mean_std(&diffs);
+                out.insert(s, std_diff / std::f64::consts::SQRT_2 * UG_PER_G);
             }
         }
         out
@@ -830,6 +850,12 @@ impl<'a> Executor<'a> {
                 return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
             }
             for (m, value) in values.iter_mut().enumerate() {
+                // Pair each module's freshest window: an older backlog would
+                // put another moment beside the other modules' values.
+                while self.pending[m].len() > 1 {
+                    self.pending[m].pop_front();
+                    self.dropped_windows += 1;
+                }
                 if value.is_none() {
                     *value = self.pending[m].pop_front();
                 }
@@ -837,12 +863,12 @@ impl<'a> Executor<'a> {
             if values.iter().all(Option::is_some) {
                 break;
             }
+            // Drain every module on every pass: a port left unread overruns
+            // (and a simulator pacing itself on the station's reads would wait).
             for (m, value) in values.iter().enumerate() {
-                if value.is_some() || !self.pending[m].is_empty() {
-                    continue;
-                }
-                let got =
-                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(20))?;
+                let has_window = value.is_some() || !self.pending[m].is_empty();
+                let wait = Duration::from_millis(if has_window { 1 } else { 20 });
+                let got = self.bench.modules[m].receive(Instant::now() + wait)?;
                 if !got.is_empty() {
                     self.last_data[m] = Instant::now();
                 }
@@ -857,6 +883,28 @@ impl<'a> Executor<'a> {
                         seconds: silent.as_secs_f64(),
                     });
                 }
+            }
+        }
+        // Take in everything that has already arrived: after a pause the
+        // ports hold a backlog, and the windows averaged must be of the same
+        // moment as the rate polled below. Newer windows replace older ones.
+        for m in 0..modules {
+            loop {
+                let got =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_micros(300))?;
+                if got.is_empty() {
+                    break;
+                }
+                self.last_data[m] = Instant::now();
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+            }
+            if let Some(newest) = self.pending[m].pop_back() {
+                self.dropped_windows += 1 + self.pending[m].len() as u64;
+                self.pending[m].clear();
+                values[m] = Some(newest);
             }
         }
         self.windows += 1;

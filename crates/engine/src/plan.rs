@@ -126,7 +126,7 @@ pub struct StabilityConfig {
 impl Default for StabilityConfig {
     fn default() -> Self {
         StabilityConfig {
-            rate_tolerance_ppm: 100.0,
+            rate_tolerance_ppm: 20.0,
             hold_s: 5,
             drift_limit_ug_per_s: 3.0,
             max_settle_s: 180,

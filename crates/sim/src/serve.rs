@@ -24,7 +24,7 @@ use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
 /// Bytes a module may have waiting before the bench pauses (speed 0) or drops (paced).
-const MODULE_BUFFER_LIMIT: usize = 64 * 1024;
+const MODULE_BUFFER_LIMIT: usize = 8 * 1024;
 /// Fastest pace of the "as fast as read" mode, × real time.
 const MAX_SPEED: f64 = 2000.0;
 

@@ -80,6 +80,9 @@ pub struct Truth {
 struct ModuleSim {
     relay_mask: u8,
     streaming: Option<StreamMode>,
+    /// Streaming starts on this tick: the next whole second after the
+    /// command, so modules started together share one window grid.
+    stream_from_tick: u64,
     seq: u16,
     temp_seq: u16,
     inputs: [InputCounter; INPUTS_PER_MODULE],
@@ -155,6 +158,7 @@ impl World {
         let module = ModuleSim {
             relay_mask: 0,
             streaming: None,
+            stream_from_tick: 0,
             seq: 0,
             temp_seq: 0,
             inputs: [InputCounter::default(); INPUTS_PER_MODULE],
@@ -381,7 +385,10 @@ impl World {
                 continue;
             }
             let mut frames = Vec::new();
-            if let Some(mode) = module.streaming {
+            if let Some(mode) = module
+                .streaming
+                .filter(|_| self.tick >= module.stream_from_tick)
+            {
                 let message = match mode {
                     StreamMode::Gated => Message::GatedCounts {
                         seq: module.seq,
@@ -507,7 +514,9 @@ impl World {
                 ack(0)
             }
             Message::StartStreaming { mode } => {
+                let second = u64::from(TICKS_PER_SECOND);
                 module.streaming = Some(mode);
+                module.stream_from_tick = self.tick.div_ceil(second) * second;
                 ack(0)
             }
             Message::StopStreaming => {

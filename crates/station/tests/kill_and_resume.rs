@@ -1,0 +1,199 @@
+//! Crash recovery: `spinbench run --simulate` is killed (SIGKILL) at random
+//! moments and continued with `--resume`; the final points must be the same
+//! points as an uninterrupted run's (same levels, directions and slots, none
+//! lost or doubled), and every point journaled before the kill must come
+//! through unchanged.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const PLAN: &str = r#"
+range_g = 10
+levels = [0, 1, 2, 4, 6, 8, 10]
+passes = ["P", "N"]
+warmup_s = 0
+dwell = { seconds = 3 }
+stability = { hold_s = 3 }
+[serials]
+1 = "K1"
+2 = "K2"
+7 = "K7"
+"#;
+
+fn spinbench() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_spinbench"))
+}
+
+fn the_run_dir(data: &Path) -> Option<PathBuf> {
+    std::fs::read_dir(data.join("runs"))
+        .ok()?
+        .flatten()
+        .map(|e| e.path())
+        .next()
+}
+
+/// (slot, mount, g_nominal, direction) of every point, and the points themselves.
+fn points(dir: &Path) -> Vec<(u64, String, String, String, Value)> {
+    let text = std::fs::read_to_string(dir.join("results.json")).expect("results.json");
+    let records: Vec<Value> = serde_json::from_str(&text).expect("json");
+    let mut out = Vec::new();
+    for r in records {
+        for p in r["points"].as_array().cloned().unwrap_or_default() {
+            out.push((
+                p["slot"].as_u64().unwrap_or(99),
+                p["mount"].to_string(),
+                p["g_nominal"].to_string(),
+                p["direction"].to_string(),
+                p,
+            ));
+        }
+    }
+    out.sort_by(|a, b| (a.0, &a.1, &a.3, &a.2).cmp(&(b.0, &b.1, &b.3, &b.2)));
+    out
+}
+
+/// Points completed (PointDone followed by its StepDone) before the first resume.
+fn journaled_before_kill(dir: &Path) -> Vec<Value> {
+    let text = std::fs::read_to_string(dir.join("journal.jsonl")).expect("journal");
+    let mut events: Vec<Value> = Vec::new();
+    for line in text.lines() {
+        let Ok(e) = serde_json::from_str::<Value>(line) else {
+            continue;
+        };
+        if e["event"] == "run_started" && e["resumed"] == true {
+            break;
+        }
+        events.push(e);
+    }
+    let done: Vec<u64> = events
+        .iter()
+        .filter(|e| e["event"] == "step_done")
+        .filter_map(|e| e["index"].as_u64())
+        .collect();
+    events
+        .iter()
+        .filter(|e| {
+            e["event"] == "point_done" && e["step"].as_u64().is_some_and(|s| done.contains(&s))
+        })
+        .flat_map(|e| e["points"].as_array().cloned().unwrap_or_default())
+        .collect()
+}
+
+#[test]
+fn killed_runs_resume_with_no_point_lost_or_doubled() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, PLAN).expect("plan");
+
+    // The uninterrupted run, and how long it takes.
+    let data0 = dir.path().join("data0");
+    let start = Instant::now();
+    let status = spinbench()
+        .args(["run", "--simulate", "--quiet", "--seed", "5", "--data"])
+        .arg(&data0)
+        .arg(&plan)
+        .stdout(Stdio::null())
+        .status()
+        .expect("run");
+    assert!(status.success());
+    let full = start.elapsed();
+    let reference = points(&the_run_dir(&data0).expect("run dir"));
+    assert_eq!(
+        reference.len(),
+        3 * 2 * 13,
+        "3 instruments × 2 mountings × 13 points"
+    );
+
+    let mut rng = ChaCha8Rng::seed_from_u64(2026);
+    let mut resumed_trials = 0;
+    for trial in 0..12 {
+        let data = dir.path().join(format!("data{}", trial + 1));
+        let kill_after = full.mul_f64(rng.random_range(0.1..0.9));
+        let mut child = spinbench()
+            .args(["run", "--simulate", "--quiet", "--seed", "5", "--data"])
+            .arg(&data)
+            .arg(&plan)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn");
+        std::thread::sleep(kill_after);
+        let finished_already = child.try_wait().ok().flatten().is_some();
+        let _ = child.kill(); // SIGKILL
+        let _ = child.wait();
+        let Some(run_dir) = the_run_dir(&data) else {
+            continue;
+        };
+        if finished_already || !run_dir.join("journal.jsonl").exists() {
+            continue;
+        }
+        let before = journaled_before_kill(&run_dir);
+        let out = spinbench()
+            .args(["run", "--simulate", "--quiet", "--seed", "5", "--resume"])
+            .arg(&run_dir)
+            .arg(&plan)
+            .output()
+            .expect("resume");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        if stderr.contains("already completed") {
+            continue;
+        }
+        if !out.status.success() {
+            let journal =
+                std::fs::read_to_string(run_dir.join("journal.jsonl")).unwrap_or_default();
+            let telling: Vec<&str> = journal
+                .lines()
+                .filter(|l| {
+                    l.contains("unit_failed")
+                        || l.contains("run_started")
+                        || l.contains("\"fault\"")
+                })
+                .map(|l| if l.len() > 300 { &l[..300] } else { l })
+                .collect();
+            panic!(
+                "trial {trial} (killed after {kill_after:?}): resume failed: {stderr}\njournal: {telling:#?}"
+            );
+        }
+        resumed_trials += 1;
+        let got = points(&run_dir);
+        let keys =
+            |v: &[(u64, String, String, String, Value)]| -> Vec<(u64, String, String, String)> {
+                v.iter()
+                    .map(|(a, b, c, d, _)| (*a, b.clone(), c.clone(), d.clone()))
+                    .collect()
+            };
+        if keys(&got) != keys(&reference) {
+            let results = std::fs::read_to_string(run_dir.join("results.json")).unwrap_or_default();
+            let units: Vec<String> = serde_json::from_str::<Vec<Value>>(&results)
+                .unwrap_or_default()
+                .iter()
+                .map(|r| {
+                    format!(
+                        "{}: {} points, {}",
+                        r["serial"],
+                        r["points"].as_array().map_or(0, Vec::len),
+                        r["reasons"]
+                    )
+                })
+                .collect();
+            panic!(
+                "trial {trial} (killed after {kill_after:?}): different points; units: {units:#?}\nresume stderr: {stderr}"
+            );
+        }
+        for p in &before {
+            assert!(
+                got.iter().any(|g| &g.4 == p),
+                "trial {trial}: a point journaled before the kill changed or vanished: {p}"
+            );
+        }
+        let _ = Duration::ZERO;
+    }
+    assert!(
+        resumed_trials >= 10,
+        "only {resumed_trials} trials were killed mid-run"
+    );
+}
