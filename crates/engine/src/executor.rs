@@ -888,7 +888,7 @@ impl<'a> Executor<'a> {
         // Take in everything that has already arrived: after a pause the
         // ports hold a backlog, and the windows averaged must be of the same
         // moment as the rate polled below. Newer windows replace older ones.
-        for m in 0..modules {
+        for (m, value) in values.iter_mut().enumerate() {
             loop {
                 let got =
                     self.bench.modules[m].receive(Instant::now() + Duration::from_micros(300))?;
@@ -904,7 +904,7 @@ impl<'a> Executor<'a> {
             if let Some(newest) = self.pending[m].pop_back() {
                 self.dropped_windows += 1 + self.pending[m].len() as u64;
                 self.pending[m].clear();
-                values[m] = Some(newest);
+                *value = Some(newest);
             }
         }
         self.windows += 1;
