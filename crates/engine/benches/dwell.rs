@@ -92,6 +92,7 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
     let options = RunOptions {
         run_id: "bench".into(),
         abort: Arc::new(AtomicBool::new(false)),
+        pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
     };
     let summary = Executor::new(

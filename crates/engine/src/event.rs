@@ -17,6 +17,8 @@ pub enum RunState {
     Running,
     /// Waiting for the operator.
     Prompting,
+    /// Held between steps by the operator; the ports are still read.
+    Paused,
     /// Bringing the hardware to the safe state.
     Stopping,
     /// Finished normally.

@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | Idle | start | Running |
 //! | Running | operator prompt | Prompting → Running |
+//! | Running | pause (between steps) | Paused → Running on resume |
 //! | Running | last step done | Stopping → Completed |
 //! | Running, Prompting | fault (device lost, interlock, over-current, no stability) | Stopping → Faulted |
 //! | Running, Prompting | abort (Ctrl-C, operator) | Stopping → Aborted |
@@ -97,6 +98,9 @@ pub enum EngineError {
     /// The operator or Ctrl-C aborted the run.
     #[error("aborted by {0}")]
     Aborted(String),
+    /// The supply current does not match the instruments powered.
+    #[error("{0}")]
+    Power(String),
     /// An event subscriber (e.g. the journal) failed.
     #[error("{0}")]
     Sink(String),
@@ -112,6 +116,8 @@ pub struct RunOptions {
     pub run_id: String,
     /// Set to abort (Ctrl-C, operator).
     pub abort: Arc<AtomicBool>,
+    /// While set, the run holds between steps (the ports are still read).
+    pub pause: Arc<AtomicBool>,
     /// Wall-clock deadline for a counter module's silence.
     pub module_silence: Duration,
 }
@@ -384,6 +390,21 @@ impl<'a> Executor<'a> {
             if self.options.abort.load(Ordering::Relaxed) {
                 return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
             }
+            if self.options.pause.load(Ordering::Relaxed) {
+                self.set_state(RunState::Paused)?;
+                while self.options.pause.load(Ordering::Relaxed) {
+                    if self.options.abort.load(Ordering::Relaxed) {
+                        return Err(EngineError::Aborted("the operator".into()));
+                    }
+                    if self.streaming {
+                        // Keep reading (and keep the safety checks running) while held.
+                        self.next_window()?;
+                    } else {
+                        std::thread::sleep(Duration::from_millis(10));
+                    }
+                }
+                self.set_state(RunState::Running)?;
+            }
             self.emit(Event::StepStarted {
                 index,
                 of: steps.len(),
@@ -451,6 +472,16 @@ impl<'a> Executor<'a> {
                     seen[slot] += 1;
                 }
             }
+        }
+        // The instruments' total current on the +15 V rail.
+        let powered = self.plan.serials.iter().filter(|s| s.is_some()).count() as f64;
+        let expected = powered * self.station.power.instrument_current_a;
+        let amps = self.bench.instrument_supply.measure(1)?.amps;
+        if expected > 0.0 && !(0.5 * expected..=1.5 * expected).contains(&amps) {
+            return Err(EngineError::Power(format!(
+                "the instruments draw {amps:.3} A on the +15 V rail, expected about {expected:.3} A \
+                 ({powered} × power.instrument_current_a); check the relays and the wiring"
+            )));
         }
         for (slot, &count) in seen.iter().enumerate() {
             if self.live(slot) && count == 0 {

@@ -100,16 +100,29 @@ fn run(
     plan: TestPlan,
     abort_after_windows: Option<u64>,
 ) -> (RunSummary, Vec<Event>, RunningBench) {
+    run_paused(sim, plan, abort_after_windows, None)
+}
+
+/// As `run`, pausing at window `pause.0` and resuming at window `pause.1` when given.
+fn run_paused(
+    sim: SimConfig,
+    plan: TestPlan,
+    abort_after_windows: Option<u64>,
+    pause_windows: Option<(u64, u64)>,
+) -> (RunSummary, Vec<Event>, RunningBench) {
     let bench = RunningBench::start(SimConfig { speed: 0.0, ..sim }, ServeOptions::default())
         .expect("bench");
     let station = station_for(&bench);
     let compiled = plan.compile(&station).expect("plan fits the station");
     let events = Arc::new(Mutex::new(Vec::new()));
     let abort = Arc::new(AtomicBool::new(false));
+    let pause = Arc::new(AtomicBool::new(false));
+    let unpause = pause.clone();
     let summary = {
         let options = RunOptions {
             run_id: "test".into(),
             abort: abort.clone(),
+            pause: pause.clone(),
             module_silence: Duration::from_secs(2),
         };
         let mut ex = Executor::new(
@@ -124,6 +137,12 @@ fn run(
         ex.subscribe(move |e: &Event| {
             if matches!(e, Event::Values { .. }) {
                 windows += 1;
+                if let Some((at, until)) = pause_windows {
+                    unpause.store(
+                        windows >= at && windows < until,
+                        std::sync::atomic::Ordering::Relaxed,
+                    );
+                }
                 if abort_after_windows.is_some_and(|n| windows >= n) {
                     abort.store(true, std::sync::atomic::Ordering::Relaxed);
                 }
@@ -362,6 +381,64 @@ fn an_abort_ends_in_the_safe_state() {
             ..
         }
     )));
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn a_paused_run_holds_between_steps_and_then_completes() {
+    let (summary, events, bench) =
+        run_paused(SimConfig::default(), small_plan(), None, Some((5, 15)));
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let states: Vec<RunState> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::StateChanged { state } => Some(state.to_owned()),
+            _ => None,
+        })
+        .collect();
+    let paused_at = states
+        .iter()
+        .position(|s| *s == RunState::Paused)
+        .expect("the run paused");
+    assert_eq!(states.get(paused_at + 1), Some(&RunState::Running));
+    bench.shutdown();
+}
+
+#[test]
+fn a_wrong_supply_current_stops_the_run_before_any_spin() {
+    let bench = RunningBench::start(
+        SimConfig {
+            speed: 0.0,
+            ..SimConfig::default()
+        },
+        ServeOptions::default(),
+    )
+    .expect("bench");
+    let mut station = station_for(&bench);
+    // The station believes each instrument draws 0.2 A; the bench's draw 0.04 A.
+    station.power.instrument_current_a = 0.2;
+    let compiled = small_plan().compile(&station).expect("plan");
+    let options = RunOptions {
+        run_id: "current".into(),
+        abort: Arc::new(AtomicBool::new(false)),
+        pause: Arc::new(AtomicBool::new(false)),
+        module_silence: Duration::from_secs(2),
+    };
+    let summary = Executor::new(
+        &station,
+        compiled,
+        connect(&station),
+        Box::new(SimHands(&bench)),
+        options,
+    )
+    .run();
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("expected about 1.800 A"),
+        "{}",
+        reason(&summary)
+    );
     assert_safe(&bench, true);
     bench.shutdown();
 }

@@ -89,6 +89,7 @@ fn main() {
     let options = RunOptions {
         run_id: "realtime".into(),
         abort: Arc::new(AtomicBool::new(false)),
+        pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
     };
     let mut executor = Executor::new(&station, compiled, bench, Box::new(NoHands), options);

@@ -267,9 +267,11 @@ pub fn execute(
     } else {
         None
     };
+    // Pause is driven by the web UI (a later issue); the terminal has abort (Ctrl-C).
     let options = RunOptions {
         run_id,
         abort,
+        pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
     };
     let mut executor = Executor::new(station, compiled, bench, operator, options);
