@@ -7,39 +7,14 @@
 //! Run: `cargo bench -p spinbench-engine --bench dwell`
 
 use spinbench_analysis::Mount;
-use spinbench_devices::PowerSupply;
-use spinbench_engine::plan::{DwellConfig, Fixture, StabilityConfig};
-use spinbench_engine::{
-    Answer, Bench, Executor, Operator, RunOptions, RunState, StationConfig, TestPlan,
-};
+use spinbench_engine::plan::{DwellConfig, StabilityConfig};
+use spinbench_engine::sim_bench::{SimOperator, station_toml};
+use spinbench_engine::{Executor, RunOptions, RunState, StationConfig, TestPlan};
+use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::{Mounting, SimConfig};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
-
-struct Hands<'a>(&'a RunningBench);
-
-impl Operator for Hands<'_> {
-    fn ask(&mut self, _: &str, fixtures: &[Option<Fixture>]) -> Answer {
-        self.0.with_world(|w| {
-            for (i, f) in fixtures.iter().enumerate() {
-                let m = match f {
-                    Some(Fixture::Up) => Mounting::TumbleUp,
-                    Some(Fixture::Down) => Mounting::TumbleDown,
-                    Some(Fixture::Arm(Mount::N)) => Mounting::ArmN,
-                    Some(Fixture::Arm(Mount::P)) => Mounting::ArmP,
-                    None => continue,
-                };
-                w.set_mounting(i, m);
-            }
-        });
-        Answer {
-            proceed: true,
-            by: "bench".into(),
-        }
-    }
-}
 
 /// Returns (virtual seconds, mean k2 95 % half-width [µg/g²], wall seconds).
 fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f64, f64) {
@@ -53,10 +28,7 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
         ServeOptions::default(),
     )
     .expect("bench");
-    let text = format!(
-        "[arm]\nradius_m = 0.8\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
-        bench.station_config_toml()
-    );
+    let text = station_toml(&bench, "");
     let station = StationConfig::from_toml(&text).expect("station");
     let serials = (1..=12)
         .map(|i| format!("{i} = \"S{i}\""))
@@ -69,26 +41,7 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
     plan.stability = stability;
     plan.dwell = dwell;
     let compiled = plan.compile(&station).expect("compile");
-    let supply = |name: &str| -> Box<dyn PowerSupply> {
-        station
-            .power_supply
-            .iter()
-            .find(|p| p.name == name)
-            .expect("supply")
-            .connect()
-            .expect("connect")
-    };
-    let devices = Bench {
-        centrifuge: station.centrifuge.connect().expect("centrifuge"),
-        modules: station
-            .fmu
-            .iter()
-            .enumerate()
-            .map(|(i, f)| f.connect(i).expect("fmu"))
-            .collect(),
-        instrument_supply: supply("rails"),
-        module_supply: Some(supply("logic")),
-    };
+    let devices = station.connect().expect("connect");
     let options = RunOptions {
         run_id: "bench".into(),
         abort: Arc::new(AtomicBool::new(false)),
@@ -99,7 +52,7 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
         &station,
         compiled,
         devices,
-        Box::new(Hands(&bench)),
+        Box::new(SimOperator::new(&bench, true)),
         options,
     )
     .run();

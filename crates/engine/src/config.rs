@@ -2,8 +2,10 @@
 //! `[[power_supply]]` as the `devices` crate defines them), which supply
 //! feeds what, the arm, and local gravity. Errors name the key.
 
+use crate::executor::Bench;
 use serde::Deserialize;
-use spinbench_devices::config::{CentrifugeConfig, FmuConfig, PowerSupplyConfig};
+use spinbench_devices::PowerSupply;
+use spinbench_devices::config::{CentrifugeConfig, ConnectError, FmuConfig, PowerSupplyConfig};
 
 /// The whole station.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -115,6 +117,38 @@ impl StationConfig {
             .get(i)
             .copied()
             .unwrap_or(self.arm.radius_m)
+    }
+
+    /// Open every device of the station through the production drivers.
+    pub fn connect(&self) -> Result<Bench, ConnectError> {
+        let centrifuge = self.centrifuge.connect()?;
+        let modules = self
+            .fmu
+            .iter()
+            .enumerate()
+            .map(|(i, f)| f.connect(i))
+            .collect::<Result<Vec<_>, _>>()?;
+        let supply = |name: &str| -> Result<Box<dyn PowerSupply>, ConnectError> {
+            match self.power_supply.iter().find(|p| p.name == name) {
+                Some(p) => p.connect(),
+                None => Err(spinbench_devices::config::ConfigError {
+                    key: "power".into(),
+                    problem: format!("no [[power_supply]] named '{name}'"),
+                }
+                .into()),
+            }
+        };
+        Ok(Bench {
+            centrifuge,
+            modules,
+            instrument_supply: supply(&self.power.instrument_supply)?,
+            module_supply: self
+                .power
+                .module_supply
+                .as_deref()
+                .map(supply)
+                .transpose()?,
+        })
     }
 
     /// Check every value that can be checked without the hardware.

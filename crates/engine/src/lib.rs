@@ -7,7 +7,8 @@
 //!   records, an explicit table of run states;
 //! * [`event`] — the typed event stream the CLI, journal, store and UI subscribe to;
 //! * [`journal`] — the append-only, flushed journal, and reading it back for resume;
-//! * [`record`] — per-instrument records with an outcome.
+//! * [`record`] — per-instrument records with an outcome;
+//! * `sim_bench` (feature `sim`) — the virtual bench as a station: its config and its operator.
 
 pub mod config;
 pub mod event;
@@ -15,6 +16,8 @@ pub mod executor;
 pub mod journal;
 pub mod plan;
 pub mod record;
+#[cfg(feature = "sim")]
+pub mod sim_bench;
 
 pub use config::StationConfig;
 pub use event::{Event, EventSink, RunState};

@@ -3,25 +3,18 @@
 //! instruments, abort, and the refusal of a plan beyond the limits.
 
 use spinbench_analysis::Mount;
-use spinbench_devices::PowerSupply;
 use spinbench_engine::event::{Event, RunState};
-use spinbench_engine::plan::Fixture;
-use spinbench_engine::{
-    Answer, Bench, Executor, Operator, Outcome, RunOptions, RunSummary, StationConfig, TestPlan,
-};
+use spinbench_engine::sim_bench::{SimOperator, station_toml};
+use spinbench_engine::{Bench, Executor, Outcome, RunOptions, RunSummary, StationConfig, TestPlan};
+use spinbench_sim::SimConfig;
 use spinbench_sim::config::SlotRef;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::{Mounting, SimConfig};
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 fn station_for(bench: &RunningBench) -> StationConfig {
-    let text = format!(
-        "[arm]\nradius_m = 0.8\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
-        bench.station_config_toml()
-    );
-    StationConfig::from_toml(&text).expect("the bench's station config is valid")
+    StationConfig::from_toml(&station_toml(bench, "")).expect("the bench's station config is valid")
 }
 
 fn small_plan() -> TestPlan {
@@ -48,50 +41,8 @@ fn small_plan() -> TestPlan {
     .expect("plan")
 }
 
-struct SimHands<'a>(&'a RunningBench);
-
-impl Operator for SimHands<'_> {
-    fn ask(&mut self, _text: &str, fixtures: &[Option<Fixture>]) -> Answer {
-        self.0.with_world(|w| {
-            for (i, f) in fixtures.iter().enumerate() {
-                let m = match f {
-                    Some(Fixture::Up) => Mounting::TumbleUp,
-                    Some(Fixture::Down) => Mounting::TumbleDown,
-                    Some(Fixture::Arm(Mount::P)) => Mounting::ArmP,
-                    Some(Fixture::Arm(Mount::N)) => Mounting::ArmN,
-                    None => continue,
-                };
-                w.set_mounting(i, m);
-            }
-        });
-        Answer {
-            proceed: true,
-            by: "test".into(),
-        }
-    }
-}
-
 fn connect(station: &StationConfig) -> Bench {
-    let supply = |name: &str| -> Box<dyn PowerSupply> {
-        station
-            .power_supply
-            .iter()
-            .find(|p| p.name == name)
-            .expect("supply")
-            .connect()
-            .expect("connect supply")
-    };
-    Bench {
-        centrifuge: station.centrifuge.connect().expect("centrifuge"),
-        modules: station
-            .fmu
-            .iter()
-            .enumerate()
-            .map(|(i, f)| f.connect(i).expect("fmu"))
-            .collect(),
-        instrument_supply: supply("rails"),
-        module_supply: Some(supply("logic")),
-    }
+    station.connect().expect("connect the bench's devices")
 }
 
 /// Run `plan` on a bench built from `sim`; returns the summary, the events and the bench.
@@ -129,7 +80,7 @@ fn run_paused(
             &station,
             compiled,
             connect(&station),
-            Box::new(SimHands(&bench)),
+            Box::new(SimOperator::new(&bench, true)),
             options,
         );
         let sink = events.clone();
@@ -429,7 +380,7 @@ fn a_wrong_supply_current_stops_the_run_before_any_spin() {
         &station,
         compiled,
         connect(&station),
-        Box::new(SimHands(&bench)),
+        Box::new(SimOperator::new(&bench, true)),
         options,
     )
     .run();

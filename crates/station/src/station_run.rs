@@ -13,8 +13,8 @@ use spinbench_engine::{
     Answer, Bench, Executor, Operator, Outcome, RunOptions, RunState, RunSummary, StationConfig,
     TestPlan, UnitRecord,
 };
+use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::{Mounting, SimConfig};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -24,99 +24,19 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// Where runs are kept unless `--data` says otherwise.
 pub const DEFAULT_DATA_DIR: &str = "spinbench-data";
 
-/// The arm, power and station sections that go with the virtual bench's devices.
+/// The station config (TOML) that goes with the virtual bench's devices.
 pub fn sim_station_toml(bench: &RunningBench) -> String {
-    let (r0, max_rate) = bench.with_world(|w| {
-        (
-            w.config().centrifuge.arm_radius_m,
-            w.config().centrifuge.max_rate_deg_s,
-        )
-    });
-    let _ = max_rate;
-    format!(
-        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
-        bench.station_config_toml()
-    )
+    spinbench_engine::sim_bench::station_toml(bench, "")
 }
 
 /// Connect every device of a station through the production drivers.
 pub fn connect_bench(station: &StationConfig) -> Result<Bench> {
-    let centrifuge = station.centrifuge.connect().context("centrifuge")?;
-    let modules = station
-        .fmu
-        .iter()
-        .enumerate()
-        .map(|(i, f)| {
-            f.connect(i)
-                .with_context(|| format!("counter module fmu[{i}]"))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let supply = |name: &str| -> Result<Box<dyn spinbench_devices::PowerSupply>> {
-        let cfg = station
-            .power_supply
-            .iter()
-            .find(|p| p.name == name)
-            .with_context(|| format!("no [[power_supply]] named '{name}'"))?;
-        cfg.connect()
-            .with_context(|| format!("power supply '{name}'"))
-    };
-    let instrument_supply = supply(&station.power.instrument_supply)?;
-    let module_supply = station
-        .power
-        .module_supply
-        .as_deref()
-        .map(supply)
-        .transpose()?;
-    Ok(Bench {
-        centrifuge,
-        modules,
-        instrument_supply,
-        module_supply,
-    })
+    station
+        .connect()
+        .context("cannot connect the station's devices")
 }
 
-/// The virtual bench's operator: remounts the instruments in the simulator,
-/// and says so.
-pub struct SimOperator<'a> {
-    bench: &'a RunningBench,
-    quiet: bool,
-}
-
-impl<'a> SimOperator<'a> {
-    /// An operator for `bench`; `quiet` does not print the prompts.
-    pub fn new(bench: &'a RunningBench, quiet: bool) -> Self {
-        SimOperator { bench, quiet }
-    }
-}
-
-impl Operator for SimOperator<'_> {
-    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
-        self.bench.with_world(|w| {
-            for (i, f) in fixtures.iter().enumerate() {
-                if let Some(f) = f {
-                    w.set_mounting(
-                        i,
-                        match f {
-                            Fixture::Up => Mounting::TumbleUp,
-                            Fixture::Down => Mounting::TumbleDown,
-                            Fixture::Arm(Mount::P) => Mounting::ArmP,
-                            Fixture::Arm(Mount::N) => Mounting::ArmN,
-                        },
-                    );
-                }
-            }
-        });
-        if !self.quiet {
-            eprintln!(
-                "\r\x1b[2K  operator prompt: {text}\n    → answered automatically: the simulator remounted the instruments"
-            );
-        }
-        Answer {
-            proceed: true,
-            by: "simulator (automatic operator)".into(),
-        }
-    }
-}
+pub use spinbench_engine::sim_bench::SimOperator;
 
 /// The terminal operator: shows the prompt, waits for Enter (or `abort`).
 pub struct TerminalOperator;

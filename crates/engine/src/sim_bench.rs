@@ -1,0 +1,62 @@
+//! The virtual bench as a station (feature `sim`): the station sections that
+//! go with its devices, and the operator whose hands are the simulator's.
+
+use crate::executor::{Answer, Operator};
+use crate::plan::Fixture;
+use spinbench_analysis::Mount;
+use spinbench_sim::Mounting;
+use spinbench_sim::serve::RunningBench;
+
+/// A complete station config (TOML) for the bench: its arm, the power roles
+/// and its device sections; `power_extra` adds lines to `[power]`.
+pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
+    let r0 = bench.with_world(|w| w.config().centrifuge.arm_radius_m);
+    format!(
+        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{power_extra}\n{}",
+        bench.station_config_toml()
+    )
+}
+
+/// The simulator's mounting for a requested fixture.
+pub fn mounting(fixture: Fixture) -> Mounting {
+    match fixture {
+        Fixture::Up => Mounting::TumbleUp,
+        Fixture::Down => Mounting::TumbleDown,
+        Fixture::Arm(Mount::P) => Mounting::ArmP,
+        Fixture::Arm(Mount::N) => Mounting::ArmN,
+    }
+}
+
+/// Answers every prompt by remounting the instruments in the simulator.
+pub struct SimOperator<'a> {
+    bench: &'a RunningBench,
+    quiet: bool,
+}
+
+impl<'a> SimOperator<'a> {
+    /// An operator for `bench`; unless `quiet`, each prompt is shown with its automatic answer.
+    pub fn new(bench: &'a RunningBench, quiet: bool) -> Self {
+        SimOperator { bench, quiet }
+    }
+}
+
+impl Operator for SimOperator<'_> {
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        self.bench.with_world(|w| {
+            for (i, f) in fixtures.iter().enumerate() {
+                if let Some(f) = f {
+                    w.set_mounting(i, mounting(*f));
+                }
+            }
+        });
+        if !self.quiet {
+            eprintln!(
+                "\r\x1b[2K  operator prompt: {text}\n    → answered automatically: the simulator remounted the instruments"
+            );
+        }
+        Answer {
+            proceed: true,
+            by: "simulator (automatic operator)".into(),
+        }
+    }
+}
