@@ -1045,27 +1045,52 @@ impl<'a> Executor<'a> {
                 ) {
                     Ok(a) => {
                         k2_max = a.k2_max_ug_per_g2;
-                        outcome = match k2_max {
-                            Some(k2) if k2 > limits.k2_max_ug_per_g2 => {
+                        // Each figure against its limit; the outcome is the worst.
+                        let f = &a.figures;
+                        let checks = [
+                            ("|k2|", k2_max, Some(limits.k2_max_ug_per_g2), "µg/g²"),
+                            (
+                                "nonlinearity",
+                                f.nonlinearity_ppm_fs,
+                                limits.nonlinearity_max_ppm_fs,
+                                "ppm FS",
+                            ),
+                            (
+                                "|asymmetry|",
+                                f.asymmetry_ppm.map(f64::abs),
+                                limits.asymmetry_max_ppm,
+                                "ppm",
+                            ),
+                            (
+                                "|hysteresis|",
+                                f.hysteresis_ug.map(f64::abs),
+                                limits.hysteresis_max_ug,
+                                "µg",
+                            ),
+                        ];
+                        outcome = Outcome::Pass;
+                        for (name, value, limit, unit) in checks {
+                            let (Some(v), Some(l)) = (value, limit) else {
+                                continue;
+                            };
+                            if v > l {
                                 reasons.push(format!(
-                                    "|k2| {k2:.3} µg/g² above the limit {} µg/g²",
-                                    limits.k2_max_ug_per_g2
+                                    "{name} {v:.3} {unit} above the limit {l} {unit}"
                                 ));
-                                Outcome::Fail
-                            }
-                            Some(k2) if k2 > limits.marginal_fraction * limits.k2_max_ug_per_g2 => {
+                                outcome = Outcome::Fail;
+                            } else if v > limits.marginal_fraction * l {
                                 reasons.push(format!(
-                                    "|k2| {k2:.3} µg/g² within {:.0} % of the limit",
+                                    "{name} {v:.3} {unit} within {:.0} % of the limit {l} {unit}",
                                     (1.0 - limits.marginal_fraction) * 100.0
                                 ));
-                                Outcome::Marginal
+                                if outcome == Outcome::Pass {
+                                    outcome = Outcome::Marginal;
+                                }
                             }
-                            Some(_) => Outcome::Pass,
-                            None => {
-                                reasons.push("the model order has no k2".into());
-                                Outcome::Pass
-                            }
-                        };
+                        }
+                        if k2_max.is_none() {
+                            reasons.push("the model order has no k2".into());
+                        }
                         reasons.extend(a.notes.iter().cloned());
                         analysis = Some(a);
                     }

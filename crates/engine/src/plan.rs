@@ -136,13 +136,19 @@ impl Default for StabilityConfig {
     }
 }
 
-/// Pass/fail limits.
+/// Pass/fail limits, one per figure; a figure without a limit is reported only.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
     /// |k2| of the worse mounting must not exceed this [µg/g²].
     pub k2_max_ug_per_g2: f64,
-    /// Above this fraction of the limit the result is marginal.
+    /// Scale-factor nonlinearity from the best straight line [ppm FS].
+    pub nonlinearity_max_ppm_fs: Option<f64>,
+    /// |Scale-factor asymmetry| between P and N [ppm].
+    pub asymmetry_max_ppm: Option<f64>,
+    /// |Hysteresis| [µg].
+    pub hysteresis_max_ug: Option<f64>,
+    /// Above this fraction of a limit the result is marginal.
     pub marginal_fraction: f64,
 }
 
@@ -150,6 +156,9 @@ impl Default for Limits {
     fn default() -> Self {
         Limits {
             k2_max_ug_per_g2: 20.0,
+            nonlinearity_max_ppm_fs: None,
+            asymmetry_max_ppm: None,
+            hysteresis_max_ug: None,
             marginal_fraction: 0.9,
         }
     }

@@ -393,3 +393,18 @@ fn a_wrong_supply_current_stops_the_run_before_any_spin() {
     assert_safe(&bench, true);
     bench.shutdown();
 }
+
+#[test]
+fn every_figure_with_a_limit_decides_the_outcome() {
+    let mut plan = small_plan();
+    // A nonlinearity limit no instrument can meet (k2 alone bows the line by ~100 ppm FS at 10 g).
+    plan.limits.nonlinearity_max_ppm_fs = Some(0.01);
+    plan.limits.k2_max_ug_per_g2 = 1000.0;
+    let (summary, _, bench) = run(SimConfig::default(), plan, None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    for r in &summary.records {
+        assert_eq!(r.outcome, Outcome::Fail, "{}: {:?}", r.serial, r.reasons);
+        assert!(r.reasons.iter().any(|x| x.starts_with("nonlinearity") && x.contains("above the limit 0.01 ppm FS")), "{:?}", r.reasons);
+    }
+    bench.shutdown();
+}

@@ -61,6 +61,7 @@ pub struct ProgressPrinter {
     tty: bool,
     step: String,
     steps: (usize, usize),
+    phase: String,
     last: Instant,
     quiet: bool,
 }
@@ -72,6 +73,7 @@ impl ProgressPrinter {
             tty: std::io::stderr().is_terminal(),
             step: String::new(),
             steps: (0, 0),
+            phase: String::new(),
             last: Instant::now(),
             quiet,
         }
@@ -92,6 +94,7 @@ impl EventSink for ProgressPrinter {
                     eprintln!("  [{:>3}/{}] {label}", index + 1, of);
                 }
             }
+            Event::Progress { phase, done, of } => self.phase = format!("{phase} {done}/{of}"),
             Event::UnitFailed { slot, reason } => {
                 eprintln!("\r\x1b[2K  slot {}: FAILED — {reason}", slot + 1)
             }
@@ -106,10 +109,11 @@ impl EventSink for ProgressPrinter {
                 let bar_len = 20;
                 let filled = (i * bar_len).checked_div(n).unwrap_or(0).min(bar_len);
                 eprint!(
-                    "\r\x1b[2K  [{}{}] {i}/{n} {} | t = {:.0} s | {:.2} deg/s {}",
+                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}",
                     "#".repeat(filled),
                     ".".repeat(bar_len - filled),
                     self.step,
+                    self.phase,
                     time_s,
                     rate_deg_s,
                     if *on_speed { "on speed" } else { "settling" }
