@@ -241,6 +241,27 @@ pub struct CompiledPlan {
     pub order: ModelOrder,
 }
 
+impl Default for TestPlan {
+    /// The defaults of a plan file (no serials yet): 0–70 g, the published
+    /// levels up and down, mounting P, 60 s warm-up, order 3, 10-s dwell.
+    fn default() -> Self {
+        TestPlan {
+            name: default_name(),
+            operator: String::new(),
+            serials: BTreeMap::new(),
+            range_g: default_range(),
+            levels: None,
+            up_down: true,
+            passes: Vec::new(),
+            warmup_s: default_warmup(),
+            order: default_order(),
+            dwell: DwellConfig::default(),
+            stability: StabilityConfig::default(),
+            limits: Limits::default(),
+        }
+    }
+}
+
 impl TestPlan {
     /// Parse TOML text.
     pub fn from_toml(text: &str) -> Result<TestPlan, PlanError> {
@@ -484,5 +505,103 @@ impl TestPlan {
             steps,
             order,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn station(slots_modules: usize) -> StationConfig {
+        let fmu: String = (0..slots_modules)
+            .map(|i| format!("[[fmu]]\nname = \"f{i}\"\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n"))
+            .collect();
+        StationConfig::from_toml(&format!(
+            "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
+             [centrifuge]\nname = \"t\"\nmax_rate_deg_s = 2400\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n\
+             dialect = {{ kind = \"acutrol\" }}\n{fmu}\
+             [[power_supply]]\nname = \"rails\"\nchannels = 2\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n"
+        ))
+        .expect("station")
+    }
+
+    #[test]
+    fn the_default_is_what_an_empty_plan_file_means() {
+        let parsed = TestPlan::from_toml("[serials]\n1 = \"A\"").expect("plan");
+        let mut default = TestPlan::default();
+        default.serials.insert("1".into(), "A".into());
+        assert_eq!(parsed, default);
+    }
+
+    #[test]
+    fn prefixes_fix_mountings_and_passes_follow() {
+        let st = station(2);
+        let plan =
+            TestPlan::from_toml("[serials]\n1 = \"P:A\"\n2 = \"N:B\"\n7 = \"P:C\"").expect("plan");
+        let c = plan.compile(&st).expect("compile");
+        // Every serial has a prefix: one mixed pass.
+        assert_eq!(c.passes.len(), 1);
+        assert_eq!(c.passes[0][0], Some(Mount::P));
+        assert_eq!(c.passes[0][1], Some(Mount::N));
+        assert_eq!(c.passes[0][2], None);
+        assert_eq!(c.serials[1].as_deref(), Some("B"));
+        // The published table up and down: 16 levels → 31 level steps.
+        let levels = c
+            .steps
+            .iter()
+            .filter(|s| matches!(s, Step::Level { .. }))
+            .count();
+        assert_eq!(levels, 31);
+        let both =
+            TestPlan::from_toml("passes = [\"P\", \"N\"]\n[serials]\n1 = \"A\"\n2 = \"N:B\"")
+                .expect("plan");
+        let c = both.compile(&st).expect("compile");
+        assert_eq!(c.passes.len(), 2);
+        assert_eq!(c.passes[0][1], None, "an N-only serial sits out the P pass");
+        assert_eq!(c.passes[1][1], Some(Mount::N));
+    }
+
+    #[test]
+    fn bad_plans_name_the_key() {
+        let st = station(1);
+        let cases = [
+            (
+                "[serials]\n9 = \"A\"",
+                "serials.9: slots are numbered 1 to 6",
+            ),
+            (
+                "[serials]\n1 = \"X:A\"",
+                "serials.1: 'X:' is not a mounting prefix",
+            ),
+            (
+                "[serials]\n1 = \"P:\"",
+                "serials.1: the serial number is empty",
+            ),
+            (
+                "levels = [0, 1, 2]\n[serials]\n1 = \"A\"",
+                "levels: 3 levels",
+            ),
+            (
+                "levels = [0, 2, 1, 3, 4, 5]\n[serials]\n1 = \"A\"",
+                "strictly ascending",
+            ),
+            (
+                "order = 4\n[serials]\n1 = \"A\"",
+                "order: 4 is not 1, 2 or 3",
+            ),
+            ("[serials]", "serials: no instrument"),
+        ];
+        for (text, want) in cases {
+            let e = TestPlan::from_toml(text)
+                .expect("parses")
+                .compile(&st)
+                .expect_err(text)
+                .to_string();
+            assert!(e.contains(want), "{text}: {e}");
+        }
+        let e = TestPlan::from_toml("rnage_g = 5")
+            .expect_err("unknown key")
+            .to_string();
+        assert!(e.contains("rnage_g"), "{e}");
     }
 }

@@ -285,35 +285,18 @@ pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) 
     out
 }
 
-/// The demo's plan: every slot, ±70 g (both mountings), published levels.
+/// The demo's plan: every slot, ±70 g (both mountings), published levels,
+/// a 10-minute warm-up (virtual time is cheap).
 pub fn demo_plan(slots: usize) -> TestPlan {
-    let serials = (1..=slots)
-        .map(|i| (i.to_string(), format!("SIM-{i:02}")))
-        .collect();
-    let mut plan = TestPlan::from_toml("serials = {}").unwrap_or_else(|_| unreachable_plan());
-    plan.name = "demo: ±70 g, mountings P and N".into();
-    plan.operator = "demo".into();
-    plan.serials = serials;
-    plan.passes = vec![Mount::P, Mount::N];
-    plan.warmup_s = 600.0;
-    plan
-}
-
-fn unreachable_plan() -> TestPlan {
-    // The literal above always parses; keep a typed fallback rather than panic.
     TestPlan {
-        name: String::new(),
-        operator: String::new(),
-        serials: Default::default(),
-        range_g: 70.0,
-        levels: None,
-        up_down: true,
-        passes: Vec::new(),
-        warmup_s: 60.0,
-        order: 3,
-        dwell: Default::default(),
-        stability: Default::default(),
-        limits: Default::default(),
+        name: "demo: ±70 g, mountings P and N".into(),
+        operator: "demo".into(),
+        serials: (1..=slots)
+            .map(|i| (i.to_string(), format!("SIM-{i:02}")))
+            .collect(),
+        passes: vec![Mount::P, Mount::N],
+        warmup_s: 600.0,
+        ..TestPlan::default()
     }
 }
 
