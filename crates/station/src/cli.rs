@@ -76,6 +76,34 @@ pub enum Command {
         #[arg(long)]
         quiet: bool,
     },
+    /// List the runs in the store, or show one run's results.
+    Runs {
+        /// `list` or `show`.
+        #[command(subcommand)]
+        action: RunsAction,
+    },
+    /// Every run of one instrument (by serial number), with the repeatability of its scale factor.
+    Unit {
+        /// Serial number.
+        serial: String,
+        /// The store (default: spinbench-data/spinbench.db).
+        #[arg(long, default_value = "spinbench-data/spinbench.db")]
+        db: PathBuf,
+    },
+    /// Export a run's points (CSV, the input format of `spinbench analyze`).
+    Export {
+        /// Run identifier.
+        run: String,
+        /// Format (csv).
+        #[arg(long, default_value = "csv")]
+        format: String,
+        /// Write to this file instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db")]
+        db: PathBuf,
+    },
     /// Start a virtual bench (simulated centrifuge, instruments, counter
     /// modules and supplies) behind real pseudo-terminals, and print the
     /// device sections of a station config that reach it. Runs until
@@ -97,6 +125,36 @@ pub enum Command {
         #[arg(long = "for", value_name = "SECONDS")]
         run_for: Option<f64>,
     },
+}
+
+/// Actions of `spinbench runs`.
+#[derive(Debug, Subcommand)]
+pub enum RunsAction {
+    /// Every run, newest first.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db")]
+        db: PathBuf,
+    },
+    /// One run's per-instrument results.
+    Show {
+        /// Run identifier.
+        run: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db")]
+        db: PathBuf,
+    },
+}
+
+/// Open an existing store (a missing file is an error, not a new empty store).
+fn open_store(db: &Path) -> Result<spinbench_store::Store> {
+    if !db.exists() {
+        anyhow::bail!(
+            "{}: no store here; runs are stored under --data (default spinbench-data)",
+            db.display()
+        );
+    }
+    Ok(spinbench_store::Store::open(db)?)
 }
 
 /// Read and reduce a points file.
@@ -148,6 +206,109 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             quiet,
             out,
         )?,
+        Command::Runs {
+            action: RunsAction::List { db },
+        } => {
+            let store = open_store(&db)?;
+            writeln!(
+                out,
+                "{:<28} {:<10} {:>6} {:>7}  station",
+                "run", "state", "units", "points"
+            )?;
+            for r in store.runs()? {
+                writeln!(
+                    out,
+                    "{:<28} {:<10} {:>6} {:>7}  {}",
+                    r.id, r.state, r.units, r.points, r.station
+                )?;
+            }
+        }
+        Command::Runs {
+            action: RunsAction::Show { run, db },
+        } => {
+            let store = open_store(&db)?;
+            let Some(r) = store.run(&run)? else {
+                anyhow::bail!(
+                    "{}: no run '{run}' (see `spinbench runs list`)",
+                    db.display()
+                );
+            };
+            writeln!(
+                out,
+                "run {} — {} — {}{}",
+                r.id,
+                r.station,
+                r.state,
+                r.reason.map(|x| format!(": {x}")).unwrap_or_default()
+            )?;
+            for u in store.results(&run)? {
+                writeln!(
+                    out,
+                    "  slot {:>2} {:<12} {:<9} k2_max {}",
+                    u.slot + 1,
+                    u.serial,
+                    u.outcome,
+                    u.k2_max_ug_per_g2
+                        .map_or("—".into(), |k| format!("{k:.3} µg/g²"))
+                )?;
+            }
+        }
+        Command::Unit { serial, db } => {
+            let store = open_store(&db)?;
+            let history = store.unit_history(&serial)?;
+            if history.is_empty() {
+                anyhow::bail!("{}: no results for serial '{serial}'", db.display());
+            }
+            let mut k1 = Vec::new();
+            for h in &history {
+                let record: serde_json::Value =
+                    serde_json::from_str(&h.record_json).unwrap_or_default();
+                let p_k1 = record["analysis"]["fits"]["P"]["k1"].as_f64();
+                if let Some(v) = p_k1 {
+                    k1.push(v);
+                }
+                writeln!(
+                    out,
+                    "{:<28} slot {:>2} {:<9} k2_max {:>10} k1(P) {}",
+                    h.run_id,
+                    h.slot + 1,
+                    h.outcome,
+                    h.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
+                    p_k1.map_or("—".into(), |v| format!("{v:.6}"))
+                )?;
+            }
+            match spinbench_analysis::figures::repeatability_ppm(&k1) {
+                Some(r) => writeln!(
+                    out,
+                    "scale-factor repeatability over {} runs: {r:.3} ppm",
+                    k1.len()
+                )?,
+                None => writeln!(out, "scale-factor repeatability: needs at least two runs")?,
+            }
+        }
+        Command::Export {
+            run,
+            format,
+            out: file,
+            db,
+        } => {
+            if format != "csv" {
+                anyhow::bail!("--format {format}: this version exports csv");
+            }
+            let store = open_store(&db)?;
+            if store.run(&run)?.is_none() {
+                anyhow::bail!(
+                    "{}: no run '{run}' (see `spinbench runs list`)",
+                    db.display()
+                );
+            }
+            let csv = store.points_csv(&run)?;
+            match file {
+                Some(f) => std::fs::write(&f, csv)
+                    .with_context(|| format!("{}: cannot write", f.display()))?,
+                None => write!(out, "{csv}")?,
+            }
+        }
         Command::Sim {
             config,
             speed,
@@ -228,6 +389,7 @@ fn run_plan(
         bench,
         operator,
         &dir,
+        &data.join(crate::station_run::DB_FILE),
         resume.is_some(),
         quiet,
         abort,

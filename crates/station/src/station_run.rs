@@ -24,6 +24,9 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 /// Where runs are kept unless `--data` says otherwise.
 pub const DEFAULT_DATA_DIR: &str = "spinbench-data";
 
+/// The store's file inside the data directory.
+pub const DB_FILE: &str = "spinbench.db";
+
 /// The station config (TOML) that goes with the virtual bench's devices.
 pub fn sim_station_toml(bench: &RunningBench) -> String {
     spinbench_engine::sim_bench::station_toml(bench, "")
@@ -158,6 +161,7 @@ pub fn execute(
     bench: Bench,
     operator: Box<dyn Operator + '_>,
     dir: &Path,
+    db: &Path,
     resume: bool,
     quiet: bool,
     abort: Arc<AtomicBool>,
@@ -203,6 +207,8 @@ pub fn execute(
         executor.restore(events);
     }
     executor.subscribe(journal);
+    let store = spinbench_store::Store::open(db)?;
+    executor.subscribe(store.sink()?);
     executor.subscribe(ProgressPrinter::new(quiet));
     let summary = executor.run();
     let results = serde_json::to_string_pretty(&summary.records)?;
@@ -342,6 +348,7 @@ pub fn demo(seed: u64, json: bool, data_dir: &Path, out: &mut dyn Write) -> Resu
         bench,
         operator,
         &dir,
+        &data_dir.join(DB_FILE),
         false,
         json,
         Arc::new(AtomicBool::new(false)),
@@ -498,8 +505,14 @@ fn render_demo(
     )?;
     writeln!(
         out,
-        "\nResults: {}/results.json (per-instrument records), journal.jsonl (every event), truth.json (the simulator's truth).",
-        finished.dir.display()
+        "\nResults: {}/results.json (per-instrument records), journal.jsonl (every event), truth.json (the simulator's truth);\n\
+         the run is also in the store {}/spinbench.db (`spinbench runs list --db …`).",
+        finished.dir.display(),
+        finished
+            .dir
+            .parent()
+            .and_then(Path::parent)
+            .map_or_else(|| ".".into(), |p| p.display().to_string())
     )?;
     Ok(())
 }
