@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 const PLAN: &str = r#"
 range_g = 10
@@ -57,7 +57,7 @@ fn points(dir: &Path) -> Vec<(u64, String, String, String, Value)> {
 }
 
 /// Points completed (PointDone followed by its StepDone) before the first resume.
-fn journaled_before_kill(dir: &Path) -> Vec<Value> {
+fn journaled_before_kill(dir: &Path) -> Vec<(i64, Value)> {
     let text = std::fs::read_to_string(dir.join("journal.jsonl")).expect("journal");
     let mut events: Vec<Value> = Vec::new();
     for line in text.lines() {
@@ -79,7 +79,15 @@ fn journaled_before_kill(dir: &Path) -> Vec<Value> {
         .filter(|e| {
             e["event"] == "point_done" && e["step"].as_u64().is_some_and(|s| done.contains(&s))
         })
-        .flat_map(|e| e["points"].as_array().cloned().unwrap_or_default())
+        .flat_map(|e| {
+            let step = e["step"].as_i64().unwrap_or(-1);
+            e["points"]
+                .as_array()
+                .cloned()
+                .unwrap_or_default()
+                .into_iter()
+                .map(move |p| (step, p))
+        })
         .collect()
 }
 
@@ -110,6 +118,7 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
 
     let mut rng = ChaCha8Rng::seed_from_u64(2026);
     let mut resumed_trials = 0;
+    let mut stored_checks = 0;
     for trial in 0..12 {
         let data = dir.path().join(format!("data{}", trial + 1));
         let kill_after = full.mul_f64(rng.random_range(0.1..0.9));
@@ -132,6 +141,29 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
             continue;
         }
         let before = journaled_before_kill(&run_dir);
+        // Kill during write: the store opens, is sound, and holds every point the journal completed.
+        let db = data.join("spinbench.db");
+        if db.exists() {
+            let store = spinbench_store::Store::open(&db).expect("the store opens after SIGKILL");
+            assert_eq!(
+                store.integrity_check().expect("integrity check"),
+                "ok",
+                "trial {trial}"
+            );
+            let run_id = run_dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let stored = store.point_keys(&run_id).expect("keys");
+            for p in &before {
+                let key = (p.0, p.1["slot"].as_i64().unwrap_or(-1));
+                assert!(
+                    stored.contains(&key),
+                    "trial {trial}: point {key:?} completed in the journal is missing from the store"
+                );
+            }
+            stored_checks += 1;
+        }
         let out = spinbench()
             .args(["run", "--simulate", "--quiet", "--seed", "5", "--resume"])
             .arg(&run_dir)
@@ -184,14 +216,17 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
                 "trial {trial} (killed after {kill_after:?}): different points; units: {units:#?}\nresume stderr: {stderr}"
             );
         }
-        for p in &before {
+        for (_, p) in &before {
             assert!(
                 got.iter().any(|g| &g.4 == p),
                 "trial {trial}: a point journaled before the kill changed or vanished: {p}"
             );
         }
-        let _ = Duration::ZERO;
     }
+    assert!(
+        stored_checks >= 10,
+        "the store was checked after only {stored_checks} kills"
+    );
     assert!(
         resumed_trials >= 10,
         "only {resumed_trials} trials were killed mid-run"

@@ -1,4 +1,4 @@
-//! Persistence of runs in an SQLite file (WAL, synchronous commits): the
+//! Persistence of runs in an SQLite file (WAL; committed data survive a killed process): the
 //! store subscribes to the engine's event stream ([`StoreSink`]) and answers
 //! queries (runs, a run's results, every run of one serial number) and
 //! exports (a point export is valid input for `spinbench analyze`).
@@ -59,6 +59,16 @@ pub const MIGRATIONS: &[&str] = &[
         kind TEXT NOT NULL,
         json TEXT NOT NULL
     );",
+    // 2: the one-second values of every instrument (and the rate), as the engine saw them.
+    "CREATE TABLE values_1s (
+        run_id TEXT NOT NULL,
+        t_s REAL NOT NULL,
+        slot INTEGER NOT NULL,
+        output_hz REAL,
+        rate_deg_s REAL NOT NULL,
+        on_speed INTEGER NOT NULL,
+        PRIMARY KEY (run_id, t_s, slot)
+    ) WITHOUT ROWID;",
 ];
 
 /// A store operation failed; says which file and what to do.
@@ -288,6 +298,30 @@ impl Store {
         Ok(out)
     }
 
+    /// Number of one-second values stored for a run.
+    pub fn value_count(&self, run_id: &str) -> Result<i64, StoreError> {
+        self.conn
+            .query_row(
+                "SELECT COUNT(*) FROM values_1s WHERE run_id = ?1",
+                [run_id],
+                |r| r.get(0),
+            )
+            .map_err(self.err("count one-second values"))
+    }
+
+    /// The (step, slot) keys of a run's stored points.
+    pub fn point_keys(&self, run_id: &str) -> Result<Vec<(i64, i64)>, StoreError> {
+        let mut stmt = self
+            .conn
+            .prepare("SELECT step, slot FROM points WHERE run_id = ?1 ORDER BY step, slot")
+            .map_err(self.err("point keys"))?;
+        let rows = stmt
+            .query_map([run_id], |r| Ok((r.get(0)?, r.get(1)?)))
+            .map_err(self.err("point keys"))?;
+        rows.collect::<Result<_, _>>()
+            .map_err(self.err("point keys"))
+    }
+
     /// A sink that writes the events of the run to this store's file.
     pub fn sink(&self) -> Result<StoreSink, StoreError> {
         Ok(StoreSink {
@@ -328,7 +362,41 @@ impl StoreSink {
             }
         };
         match event {
-            Event::Values { .. } | Event::Progress { .. } => return Ok(()),
+            Event::Progress { .. } => return Ok(()),
+            Event::Values {
+                time_s,
+                rate_deg_s,
+                on_speed,
+                outputs_hz,
+                ..
+            } => {
+                let tx = conn
+                    .unchecked_transaction()
+                    .map_err(err("begin one-second values"))?;
+                {
+                    let mut stmt = tx
+                        .prepare_cached(
+                            "INSERT OR REPLACE INTO values_1s (run_id, t_s, slot, output_hz, rate_deg_s, on_speed)
+                             VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
+                        )
+                        .map_err(err("prepare one-second values"))?;
+                    for (slot, v) in outputs_hz.iter().enumerate() {
+                        if self.serials.get(slot).is_some_and(Option::is_some) {
+                            stmt.execute(params![
+                                self.run_id,
+                                time_s,
+                                slot as i64,
+                                v,
+                                rate_deg_s,
+                                i64::from(*on_speed)
+                            ])
+                            .map_err(err("store one-second values"))?;
+                        }
+                    }
+                }
+                tx.commit().map_err(err("commit one-second values"))?;
+                return Ok(());
+            }
             Event::RunStarted {
                 run_id,
                 station,
