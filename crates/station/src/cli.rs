@@ -352,6 +352,16 @@ fn run_plan(
     };
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("{}: cannot create the run directory", dir.display()))?;
+    // A resumed run keeps writing to its own store: <data>/spinbench.db above <data>/runs/<id>.
+    let store_path = match resume {
+        Some(d) => d
+            .parent()
+            .filter(|p| p.file_name().is_some_and(|n| n == "runs"))
+            .and_then(Path::parent)
+            .unwrap_or(data)
+            .join(crate::station_run::DB_FILE),
+        None => data.join(crate::station_run::DB_FILE),
+    };
     let sim;
     let (station, operator): (StationConfig, Box<dyn spinbench_engine::Operator + '_>) = if simulate
     {
@@ -389,7 +399,7 @@ fn run_plan(
         bench,
         operator,
         &dir,
-        &data.join(crate::station_run::DB_FILE),
+        &store_path,
         resume.is_some(),
         quiet,
         abort,

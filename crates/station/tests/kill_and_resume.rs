@@ -191,6 +191,22 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
             );
         }
         resumed_trials += 1;
+        // The resumed run finished in its own store, with each point once.
+        let store = spinbench_store::Store::open(&data.join("spinbench.db")).expect("store");
+        let run_id = run_dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        assert_eq!(
+            store.point_keys(&run_id).expect("keys").len(),
+            reference.len(),
+            "trial {trial}: points in the store"
+        );
+        assert_eq!(
+            store.run(&run_id).expect("run").map(|r| r.state),
+            Some("completed".to_string()),
+            "trial {trial}"
+        );
         let got = points(&run_dir);
         let keys =
             |v: &[(u64, String, String, String, Value)]| -> Vec<(u64, String, String, String)> {
