@@ -4,25 +4,14 @@
 //! lost or doubled), and every point journaled before the kill must come
 //! through unchanged.
 
+mod common;
+
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::Instant;
-
-const PLAN: &str = r#"
-range_g = 10
-levels = [0, 1, 2, 4, 6, 8, 10]
-passes = ["P", "N"]
-warmup_s = 0
-dwell = { seconds = 3 }
-stability = { hold_s = 3 }
-[serials]
-1 = "K1"
-2 = "K2"
-7 = "K7"
-"#;
 
 fn spinbench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spinbench"))
@@ -95,7 +84,7 @@ fn journaled_before_kill(dir: &Path) -> Vec<(i64, Value)> {
 fn killed_runs_resume_with_no_point_lost_or_doubled() {
     let dir = tempfile::tempdir().expect("tempdir");
     let plan = dir.path().join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
+    std::fs::write(&plan, common::short_plan("K")).expect("plan");
 
     // The uninterrupted run, and how long it takes.
     let data0 = dir.path().join("data0");

@@ -1,21 +1,10 @@
 //! The store: a run is written as it happens; `runs`, `unit` and `export`
 //! read it back, and `export` → `analyze` reproduces the stored fits.
 
+mod common;
+
 use serde_json::Value;
 use std::process::Command;
-
-const PLAN: &str = r#"
-range_g = 10
-levels = [0, 1, 2, 4, 6, 8, 10]
-passes = ["P", "N"]
-warmup_s = 0
-dwell = { seconds = 3 }
-stability = { hold_s = 3 }
-[serials]
-1 = "ST1"
-2 = "ST2"
-7 = "ST7"
-"#;
 
 fn spinbench(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
@@ -33,7 +22,7 @@ fn spinbench(args: &[&str]) -> (bool, String, String) {
 fn a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
     let dir = tempfile::tempdir().expect("tempdir");
     let plan = dir.path().join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
+    std::fs::write(&plan, common::short_plan("ST")).expect("plan");
     let data = dir.path().join("data");
     let (ok, _, err) = spinbench(&[
         "run",
