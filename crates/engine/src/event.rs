@@ -133,6 +133,11 @@ pub enum Event {
         /// Who answered (an operator, or the simulator).
         by: String,
     },
+    /// Something the operator should know; the run goes on.
+    Notice {
+        /// What happened and what the station did about it.
+        message: String,
+    },
     /// A fault: the run goes to the safe state.
     Fault {
         /// Why.

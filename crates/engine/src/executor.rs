@@ -313,6 +313,13 @@ impl<'a> Executor<'a> {
         Ok(())
     }
 
+    /// The sign of the instrument's scale factor from its tumble (+1 before it).
+    fn k1_sign(&self, slot: usize) -> f64 {
+        self.units[slot]
+            .cal
+            .map_or(1.0, |c| c.scale_factor.signum())
+    }
+
     fn k1(&self, slot: usize) -> f64 {
         self.units[slot]
             .cal
@@ -656,12 +663,37 @@ impl<'a> Executor<'a> {
     }
 
     /// Each instrument's own 1-s scatter [µg], robust to what every
-    /// instrument feels: the common mode (median deviation per window) of the
-    /// instruments on the same counter module is removed when there are at
-    /// least three (their windows are the same ticks by construction), and
-    /// the scatter is estimated from successive differences (σ = std(Δ)/√2),
-    /// which ignores slow trends such as rate wander or the tail of settling.
-    fn instrument_noise_ug(&self, slots: &[usize], values: &[Window]) -> BTreeMap<usize, f64> {
+    /// instrument feels: the part of the output the measured rate explains
+    /// (the applied acceleration of each window from its rate, (9)) is
+    /// removed, so the tail of the table's settling within the rate
+    /// tolerance is not taken for instrument noise; the common mode (median
+    /// deviation per window) of the instruments on the same counter module is
+    /// removed when there are at least three (their windows are the same
+    /// ticks by construction); and the scatter is estimated from successive
+    /// differences (σ = std(Δ)/√2), which ignores slow trends. A rate reading
+    /// is one instant of a ripple, so the smaller of the scatter with and
+    /// without the rate correction is taken.
+    fn instrument_noise_ug(
+        &self,
+        pass: usize,
+        slots: &[usize],
+        values: &[Window],
+    ) -> BTreeMap<usize, f64> {
+        let raw = self.scatter_ug(pass, slots, values, false);
+        let corrected = self.scatter_ug(pass, slots, values, true);
+        raw.into_iter()
+            .map(|(s, a)| (s, corrected.get(&s).map_or(a, |&b| a.min(b))))
+            .collect()
+    }
+
+    fn scatter_ug(
+        &self,
+        pass: usize,
+        slots: &[usize],
+        values: &[Window],
+        rate_corrected: bool,
+    ) -> BTreeMap<usize, f64> {
+        let g = self.station.g_local_m_s2;
         let mut out = BTreeMap::new();
         let mut by_module: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
         for &s in slots {
@@ -682,10 +714,24 @@ impl<'a> Executor<'a> {
             let series: Vec<Vec<f64>> = group
                 .iter()
                 .map(|&s| {
+                    let mount = self.plan.passes[pass][s].unwrap_or(Mount::P);
+                    let radius = self.units[s]
+                        .radius
+                        .get(&mount)
+                        .copied()
+                        .unwrap_or_else(|| self.station.drawing_radius_m(s));
                     windows
                         .iter()
-                        .filter_map(|w| w.outputs[s])
-                        .map(|v| v / self.k1(s))
+                        .filter_map(|w| {
+                            let y = w.outputs[s]? / self.k1(s);
+                            if !rate_corrected {
+                                return Some(y);
+                            }
+                            let rate = w.rate_deg_s.to_radians();
+                            // method.md (9), signed by the mounting and the scale factor.
+                            let sign = mount.input_sign() * self.k1_sign(s);
+                            Some(y - sign * rate * rate * radius / g)
+                        })
                         .collect()
                 })
                 .collect();
@@ -817,12 +863,32 @@ impl<'a> Executor<'a> {
         let slots: Vec<usize> = (0..self.units.len())
             .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
             .collect();
-        let values = self.acquire(&slots)?;
+        let noise_limit = self.plan.plan.stability.noise_limit_ug;
+        let mut table_restarts = 0;
+        let (values, own_noise) = loop {
+            let values = self.acquire(&slots)?;
+            let own_noise = self.instrument_noise_ug(pass, &slots, &values);
+            // Every instrument scattering at once is the table (the tail of
+            // its settling), not the instruments: measure the point again.
+            let noisy = |s: &usize| own_noise.get(s).is_some_and(|&n| n > noise_limit);
+            if slots.len() >= 2
+                && slots.iter().all(noisy)
+                && table_restarts < self.plan.plan.stability.max_restarts
+            {
+                table_restarts += 1;
+                self.emit(Event::Notice {
+                    message: format!(
+                        "every instrument scattered more than {noise_limit} µg together at {g_nominal} g: \
+                         the table, not the instruments; measuring the point again ({table_restarts})"
+                    ),
+                })?;
+                continue;
+            }
+            break (values, own_noise);
+        };
         let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
         let w_meas = rate.to_radians();
         let mut points = Vec::new();
-        let noise_limit = self.plan.plan.stability.noise_limit_ug;
-        let own_noise = self.instrument_noise_ug(&slots, &values);
         for slot in slots {
             let Some(mount) = self.plan.passes[pass][slot] else {
                 continue;
@@ -896,10 +962,11 @@ impl<'a> Executor<'a> {
             }
             // Drain every module on every pass: a port left unread overruns
             // (and a simulator pacing itself on the station's reads would wait).
-            for (m, value) in values.iter().enumerate() {
-                let has_window = value.is_some() || !self.pending[m].is_empty();
-                let wait = Duration::from_millis(if has_window { 1 } else { 20 });
-                let got = self.bench.modules[m].receive(Instant::now() + wait)?;
+            // Short waits: a long wait on one quiet module would leave the
+            // others unread for its length.
+            for m in 0..values.len() {
+                let got =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(1))?;
                 if !got.is_empty() {
                     self.last_data[m] = Instant::now();
                 }

@@ -25,6 +25,10 @@ use std::time::{Duration, Instant};
 
 /// Bytes a module may have waiting before the bench pauses (speed 0) or drops (paced).
 const MODULE_BUFFER_LIMIT: usize = 8 * 1024;
+/// As fast as read: bytes a module may have waiting in the bench's buffer,
+/// in one write, and unread in the kernel. Together they bound how far the
+/// module data lag the table (~0.1 s for six instruments).
+const PACED_BY_READER_BYTES: usize = 2048;
 /// Fastest pace of the "as fast as read" mode, × real time.
 const MAX_SPEED: f64 = 2000.0;
 
@@ -118,10 +122,17 @@ impl RunningBench {
         for (m, buffer) in buffers.iter().enumerate() {
             let (master, slave) = TTYPort::pair().map_err(|e| io::Error::other(e.to_string()))?;
             modules.push(Endpoint::Pty(slave.name().unwrap_or_default()));
+            // As fast as read: the writer watches what the station has not read yet.
+            let watch = if speed == 0.0 {
+                Some(watch_slave(&slave.name().unwrap_or_default())?)
+            } else {
+                None
+            };
             slaves.push(slave);
             threads.extend(serve_module(
                 m,
                 master,
+                watch,
                 world.clone(),
                 buffer.clone(),
                 stop.clone(),
@@ -367,7 +378,12 @@ fn run_clock(
                     ticks_done = due;
                 }
             }
-            thread::sleep(Duration::from_millis(1));
+            // As fast as read, the buffers are small: look again soon.
+            thread::sleep(if speed == 0.0 {
+                Duration::from_micros(200)
+            } else {
+                Duration::from_millis(1)
+            });
         }
     })
 }
@@ -387,9 +403,32 @@ fn set_nonblocking(port: &TTYPort) -> io::Result<()> {
     Ok(())
 }
 
+/// Bytes waiting in the kernel for the station to read from a pty slave.
+/// rustix wraps FIONREAD safely (nix would need an unsafe block).
+fn unread_bytes(slave: &std::fs::File) -> usize {
+    rustix::io::ioctl_fionread(slave).map_or(0, |n| usize::try_from(n).unwrap_or(usize::MAX))
+}
+
+/// The pty slave opened once more, only to watch [`unread_bytes`]; opened
+/// before any station does, so a station's exclusive open still succeeds.
+fn watch_slave(path: &str) -> io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(nix::libc::O_NOCTTY | nix::libc::O_NONBLOCK)
+        .open(path)
+}
+
+/// Serves one counter module on a pty. With `watch` (the slave end, in the
+/// as-fast-as-read mode) the writer only hands the kernel more bytes once the
+/// station has read most of what it holds: otherwise the kernel's buffer
+/// (~17 KB) would let the module data lag the table's state by about a
+/// second, and the rate the station polls would belong to another moment
+/// than the windows it reads — something real hardware never does.
 fn serve_module(
     m: usize,
     master: TTYPort,
+    watch: Option<std::fs::File>,
     world: Shared<World>,
     buffer: Shared<VecDeque<u8>>,
     stop: Arc<AtomicBool>,
@@ -429,9 +468,21 @@ fn serve_module(
     let tx = thread::spawn(move || {
         let mut chunk = Vec::with_capacity(8192);
         while !stop.load(Ordering::Relaxed) {
+            if watch
+                .as_ref()
+                .is_some_and(|w| unread_bytes(w) > PACED_BY_READER_BYTES)
+            {
+                thread::sleep(Duration::from_micros(200));
+                continue;
+            }
             {
                 let mut b = lock(&buffer);
-                let n = b.len().min(8192);
+                let limit = if watch.is_some() {
+                    PACED_BY_READER_BYTES
+                } else {
+                    8192
+                };
+                let n = b.len().min(limit);
                 chunk.clear();
                 chunk.extend(b.drain(..n));
             }
