@@ -47,6 +47,8 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
         abort: Arc::new(AtomicBool::new(false)),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
+        station_config_toml: String::new(),
+        sink_hold_limit: Duration::from_secs(600),
     };
     let summary = Executor::new(
         &station,

@@ -43,6 +43,14 @@ pub enum Event {
         plan: Box<CompiledPlan>,
         /// True when continuing from a journal.
         resumed: bool,
+        /// The station config (TOML) the run uses, as a snapshot.
+        #[serde(default)]
+        station_config: String,
+    },
+    /// The devices answered who they are (at the start of a run).
+    Identified {
+        /// Every device that answered.
+        devices: Vec<DeviceIdentity>,
     },
     /// The run's state changed.
     StateChanged {
@@ -168,4 +176,14 @@ impl<F: FnMut(&Event)> EventSink for F {
         self(event);
         Ok(())
     }
+}
+
+/// One device's identity, as it reported it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct DeviceIdentity {
+    /// What it is in the station (`centrifuge`, `fmu 1`, `instrument supply`, …).
+    pub role: String,
+    /// What it said (`*IDN?`, the controller's identification, the module's firmware id),
+    /// or why it could not say.
+    pub identity: String,
 }

@@ -8,6 +8,8 @@
 //! | Idle | start | Running |
 //! | Running | operator prompt | Prompting → Running |
 //! | Running | pause (between steps) | Paused → Running on resume |
+//! | Running, Prompting | a write fails (store, journal) | Paused → Running once it succeeds |
+//! | Paused (write failing) | hold limit passes | Stopping → Faulted |
 //! | Running | last step done | Stopping → Completed |
 //! | Running, Prompting | fault (device lost, interlock, over-current, no stability) | Stopping → Faulted |
 //! | Running, Prompting | abort (Ctrl-C, operator) | Stopping → Aborted |
@@ -17,7 +19,7 @@
 //! simulator. Data are taken only at stable speed (method.md §3.3).
 
 use crate::config::StationConfig;
-use crate::event::{Event, EventSink, RunState};
+use crate::event::{DeviceIdentity, Event, EventSink, RunState};
 use crate::plan::{CompiledPlan, Fixture, Step};
 use crate::record::{Outcome, PointRecord, UnitRecord};
 use spinbench_analysis::radius::RadiusCalibration;
@@ -120,6 +122,11 @@ pub struct RunOptions {
     pub pause: Arc<AtomicBool>,
     /// Wall-clock deadline for a counter module's silence.
     pub module_silence: Duration,
+    /// The station config's text, stored with the run as a snapshot.
+    pub station_config_toml: String,
+    /// How long a run is held while a subscriber (the store) cannot write
+    /// before it faults into the safe state.
+    pub sink_hold_limit: Duration,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -288,10 +295,118 @@ impl<'a> Executor<'a> {
     }
 
     fn emit(&mut self, event: Event) -> Result<(), EngineError> {
-        for sink in &mut self.sinks {
-            sink.emit(&event).map_err(EngineError::Sink)?;
+        for i in 0..self.sinks.len() {
+            if let Err(problem) = self.sinks[i].emit(&event) {
+                self.hold_for_sink(i, &event, problem)?;
+            }
         }
         Ok(())
+    }
+
+    /// A subscriber (the store, the journal) could not take an event: nothing
+    /// is dropped. The run is held (state Paused; the ports are still read,
+    /// the table keeps its commanded rate) and the same event is offered again
+    /// every second, until it is taken (the run goes on), the operator aborts,
+    /// or [`RunOptions::sink_hold_limit`] passes (a fault: safe state).
+    fn hold_for_sink(
+        &mut self,
+        failed: usize,
+        event: &Event,
+        problem: String,
+    ) -> Result<(), EngineError> {
+        fn tell_others(sinks: &mut [Box<dyn EventSink + '_>], failed: usize, e: &Event) {
+            for (j, sink) in sinks.iter_mut().enumerate() {
+                if j != failed {
+                    let _ = sink.emit(e);
+                }
+            }
+        }
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::Notice {
+                message: format!(
+                    "{problem}; the run is held (paused) and the write is tried again every second \
+                     — fix the database or abort"
+                ),
+            },
+        );
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::StateChanged {
+                state: RunState::Paused,
+            },
+        );
+        let held = Instant::now();
+        let mut last = problem;
+        loop {
+            if self.options.abort.load(Ordering::Relaxed) {
+                return Err(EngineError::Aborted(format!(
+                    "the operator while a write was failing ({last})"
+                )));
+            }
+            if held.elapsed() > self.options.sink_hold_limit {
+                return Err(EngineError::Sink(format!(
+                    "{last} (held {:.0} s, sink_hold_limit)",
+                    held.elapsed().as_secs_f64()
+                )));
+            }
+            self.drain_ports(Duration::from_secs(1));
+            match self.sinks[failed].emit(event) {
+                Ok(()) => break,
+                Err(e) => last = e,
+            }
+        }
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::Notice {
+                message: "the write succeeded; nothing was lost and the run goes on".into(),
+            },
+        );
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::StateChanged {
+                state: RunState::Running,
+            },
+        );
+        // The failed subscriber missed the notice; it gets the state.
+        let _ = self.sinks[failed].emit(&Event::StateChanged {
+            state: RunState::Running,
+        });
+        Ok(())
+    }
+
+    /// Read every module's port for `time` without using the data beyond
+    /// keeping each module's freshest window (a held run must not let the
+    /// ports overrun).
+    fn drain_ports(&mut self, time: Duration) {
+        let until = Instant::now() + time;
+        while Instant::now() < until {
+            for m in 0..self.bench.modules.len() {
+                let Ok(got) =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(5))
+                else {
+                    continue;
+                };
+                if !got.is_empty() {
+                    self.last_data[m] = Instant::now();
+                }
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+                while self.pending[m].len() > 1 {
+                    self.pending[m].pop_front();
+                    self.dropped_windows += 1;
+                }
+            }
+            if !self.streaming {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
     }
 
     fn set_state(&mut self, state: RunState) -> Result<(), EngineError> {
@@ -326,6 +441,36 @@ impl<'a> Executor<'a> {
             .map_or(NOMINAL_K1_HZ_PER_G, |c| c.scale_factor.abs())
     }
 
+    /// Ask every device who it is, for the run's record; a device that cannot
+    /// say is recorded with the reason (the run's own checks decide whether it can work).
+    fn identify(&mut self) -> Result<(), EngineError> {
+        let say =
+            |r: Result<String, DeviceError>| r.unwrap_or_else(|e| format!("(no answer: {e})"));
+        let mut devices = vec![DeviceIdentity {
+            role: "centrifuge".into(),
+            identity: say(self.bench.centrifuge.identify()),
+        }];
+        for (m, module) in self.bench.modules.iter_mut().enumerate() {
+            devices.push(DeviceIdentity {
+                role: format!("fmu {}", m + 1),
+                identity: say(module
+                    .status()
+                    .map(|s| format!("firmware {:#06x}", s.firmware_id))),
+            });
+        }
+        devices.push(DeviceIdentity {
+            role: "instrument supply".into(),
+            identity: say(self.bench.instrument_supply.identify()),
+        });
+        if let Some(supply) = self.bench.module_supply.as_mut() {
+            devices.push(DeviceIdentity {
+                role: "module supply".into(),
+                identity: say(supply.identify()),
+            });
+        }
+        self.emit(Event::Identified { devices })
+    }
+
     /// Run the plan to the end (or to a fault or abort) and return the records.
     pub fn run(&mut self) -> RunSummary {
         let started = self.emit(Event::RunStarted {
@@ -333,8 +478,10 @@ impl<'a> Executor<'a> {
             station: self.station.station.clone(),
             plan: Box::new(self.plan.clone()),
             resumed: self.resumed,
+            station_config: self.options.station_config_toml.clone(),
         });
         let result = started
+            .and_then(|()| self.identify())
             .and_then(|()| self.set_state(RunState::Running))
             .and_then(|()| self.execute_steps());
         let (state, reason) = match &result {

@@ -3,7 +3,7 @@
 //! instruments, abort, and the refusal of a plan beyond the limits.
 
 use spinbench_analysis::Mount;
-use spinbench_engine::event::{Event, RunState};
+use spinbench_engine::event::{Event, EventSink, RunState};
 use spinbench_engine::sim_bench::{SimOperator, station_toml};
 use spinbench_engine::{Bench, Executor, Outcome, RunOptions, RunSummary, StationConfig, TestPlan};
 use spinbench_sim::SimConfig;
@@ -75,6 +75,8 @@ fn run_paused(
             abort: abort.clone(),
             pause: pause.clone(),
             module_silence: Duration::from_secs(2),
+            station_config_toml: String::new(),
+            sink_hold_limit: Duration::from_secs(600),
         };
         let mut ex = Executor::new(
             &station,
@@ -375,6 +377,8 @@ fn a_wrong_supply_current_stops_the_run_before_any_spin() {
         abort: Arc::new(AtomicBool::new(false)),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(2),
+        station_config_toml: String::new(),
+        sink_hold_limit: Duration::from_secs(600),
     };
     let summary = Executor::new(
         &station,
@@ -407,4 +411,132 @@ fn every_figure_with_a_limit_decides_the_outcome() {
         assert!(r.reasons.iter().any(|x| x.starts_with("nonlinearity") && x.contains("above the limit 0.01 ppm FS")), "{:?}", r.reasons);
     }
     bench.shutdown();
+}
+
+/// Refuses its first `left` point events, keeps the rest.
+struct RefusingSink {
+    left: u32,
+    taken: Arc<Mutex<Vec<Event>>>,
+}
+
+impl EventSink for RefusingSink {
+    fn emit(&mut self, e: &Event) -> Result<(), String> {
+        if matches!(e, Event::PointDone { .. }) && self.left > 0 {
+            self.left -= 1;
+            return Err("store test: the server went away".into());
+        }
+        if let Ok(mut v) = self.taken.lock() {
+            v.push(e.clone());
+        }
+        Ok(())
+    }
+}
+
+/// Run `small_plan` with a subscriber that refuses its first `refusals`
+/// point events (as a store whose server went away would), beside a recorder.
+fn run_with_refusing_sink(
+    refusals: u32,
+    hold_limit: Duration,
+) -> (RunSummary, Vec<Event>, Vec<Event>) {
+    let bench = RunningBench::start(
+        SimConfig {
+            speed: 0.0,
+            ..SimConfig::default()
+        },
+        ServeOptions::default(),
+    )
+    .expect("bench");
+    let station = station_for(&bench);
+    let compiled = small_plan().compile(&station).expect("plan");
+    let options = RunOptions {
+        run_id: "refused".into(),
+        abort: Arc::new(AtomicBool::new(false)),
+        pause: Arc::new(AtomicBool::new(false)),
+        module_silence: Duration::from_secs(2),
+        station_config_toml: String::new(),
+        sink_hold_limit: hold_limit,
+    };
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let stored = Arc::new(Mutex::new(Vec::new()));
+    let summary = {
+        let mut ex = Executor::new(
+            &station,
+            compiled,
+            connect(&station),
+            Box::new(SimOperator::new(&bench, true)),
+            options,
+        );
+        let recorder = seen.clone();
+        ex.subscribe(move |e: &Event| {
+            if let Ok(mut v) = recorder.lock() {
+                v.push(e.clone());
+            }
+        });
+        ex.subscribe(RefusingSink {
+            left: refusals,
+            taken: stored.clone(),
+        });
+        ex.run()
+    };
+    assert_safe(&bench, true);
+    bench.shutdown();
+    let seen = seen.lock().map(|v| v.clone()).unwrap_or_default();
+    let stored = stored.lock().map(|v| v.clone()).unwrap_or_default();
+    (summary, seen, stored)
+}
+
+#[test]
+fn a_failed_write_holds_the_run_and_nothing_is_lost_once_it_succeeds() {
+    let (summary, seen, stored) = run_with_refusing_sink(2, Duration::from_secs(600));
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let notices: Vec<&str> = seen
+        .iter()
+        .filter_map(|e| match e {
+            Event::Notice { message } => Some(message.as_str()),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        notices
+            .iter()
+            .any(|m| m.contains("the server went away") && m.contains("held")),
+        "{notices:?}"
+    );
+    assert!(seen.contains(&Event::StateChanged {
+        state: RunState::Paused
+    }));
+    // Every point the recorder saw reached the refusing subscriber too, in the same order.
+    let points = |events: &[Event]| -> Vec<Event> {
+        events
+            .iter()
+            .filter(|e| matches!(e, Event::PointDone { .. }))
+            .cloned()
+            .collect()
+    };
+    assert!(!points(&seen).is_empty());
+    assert_eq!(
+        points(&seen),
+        points(&stored),
+        "nothing lost, nothing doubled"
+    );
+}
+
+#[test]
+fn a_write_that_keeps_failing_faults_into_the_safe_state_after_the_hold_limit() {
+    let (summary, _, stored) = run_with_refusing_sink(u32::MAX, Duration::from_secs(2));
+    assert_eq!(summary.state, RunState::Faulted);
+    assert!(
+        reason(&summary).contains("the server went away"),
+        "{}",
+        reason(&summary)
+    );
+    assert!(!stored.iter().any(|e| matches!(e, Event::PointDone { .. })));
+    // The run never claims a pass for a point the store did not take.
+    assert!(stored.iter().all(|e| !matches!(
+        e,
+        Event::RunFinished {
+            state: RunState::Completed,
+            ..
+        }
+    )));
 }

@@ -91,6 +91,8 @@ fn main() {
         abort: Arc::new(AtomicBool::new(false)),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
+        station_config_toml: String::new(),
+        sink_hold_limit: Duration::from_secs(600),
     };
     let mut executor = Executor::new(&station, compiled, bench, Box::new(NoHands), options);
     executor.subscribe(move |e: &Event| {

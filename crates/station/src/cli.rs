@@ -5,6 +5,7 @@ use crate::render::render_dataset;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use spinbench_analysis::{AnalysisOptions, DatasetAnalysis, ModelOrder, analyze_dataset};
+use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -52,6 +53,9 @@ pub enum Command {
         /// Where runs are kept.
         #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
         data: PathBuf,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
     },
     /// Run a test plan on a station (or, with --simulate, on the virtual bench).
     Run {
@@ -75,6 +79,10 @@ pub enum Command {
         /// Print only faults and the results.
         #[arg(long)]
         quiet: bool,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…);
+        /// default DATA/spinbench.db (with --resume, the run's own).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
     },
     /// List the runs in the store, or show one run's results.
     Runs {
@@ -87,8 +95,8 @@ pub enum Command {
         /// Serial number.
         serial: String,
         /// The store (default: spinbench-data/spinbench.db).
-        #[arg(long, default_value = "spinbench-data/spinbench.db")]
-        db: PathBuf,
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
     /// Export a run's points (CSV, the input format of `spinbench analyze`).
     Export {
@@ -101,8 +109,8 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
         /// The store.
-        #[arg(long, default_value = "spinbench-data/spinbench.db")]
-        db: PathBuf,
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
     /// Start a virtual bench (simulated centrifuge, instruments, counter
     /// modules and supplies) behind real pseudo-terminals, and print the
@@ -133,28 +141,38 @@ pub enum RunsAction {
     /// Every run, newest first.
     List {
         /// The store.
-        #[arg(long, default_value = "spinbench-data/spinbench.db")]
-        db: PathBuf,
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
     /// One run's per-instrument results.
     Show {
         /// Run identifier.
         run: String,
         /// The store.
-        #[arg(long, default_value = "spinbench-data/spinbench.db")]
-        db: PathBuf,
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
 }
 
+/// `--db`: a file path, or a PostgreSQL URL.
+fn parse_store(text: &str) -> Result<StoreTarget, String> {
+    if text.trim().is_empty() {
+        return Err("empty: give a file path or postgres://user@host:port/database".into());
+    }
+    Ok(StoreTarget::parse(text))
+}
+
 /// Open an existing store (a missing file is an error, not a new empty store).
-fn open_store(db: &Path) -> Result<spinbench_store::Store> {
-    if !db.exists() {
+fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
+    if let StoreTarget::File(path) = db
+        && !path.exists()
+    {
         anyhow::bail!(
-            "{}: no store here; runs are stored under --data (default spinbench-data)",
-            db.display()
+            "{}: no store here; runs are stored under --data (default spinbench-data), or give --db",
+            path.display()
         );
     }
-    Ok(spinbench_store::Store::open(db)?)
+    Ok(spinbench_store::Store::connect(db)?)
 }
 
 /// Read and reduce a points file.
@@ -187,7 +205,12 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 )?;
             }
         }
-        Command::Demo { seed, json, data } => crate::station_run::demo(seed, json, &data, out)?,
+        Command::Demo {
+            seed,
+            json,
+            data,
+            db,
+        } => crate::station_run::demo(seed, json, &data, db.as_ref(), out)?,
         Command::Run {
             plan,
             station,
@@ -196,6 +219,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             resume,
             data,
             quiet,
+            db,
         } => run_plan(
             &plan,
             station.as_deref(),
@@ -203,6 +227,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             seed,
             resume.as_deref(),
             &data,
+            db,
             quiet,
             out,
         )?,
@@ -228,10 +253,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         } => {
             let store = open_store(&db)?;
             let Some(r) = store.run(&run)? else {
-                anyhow::bail!(
-                    "{}: no run '{run}' (see `spinbench runs list`)",
-                    db.display()
-                );
+                anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
             };
             writeln!(
                 out,
@@ -257,7 +279,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             let store = open_store(&db)?;
             let history = store.unit_history(&serial)?;
             if history.is_empty() {
-                anyhow::bail!("{}: no results for serial '{serial}'", db.display());
+                anyhow::bail!("{db}: no results for serial '{serial}'");
             }
             let mut k1 = Vec::new();
             for h in &history {
@@ -297,10 +319,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             }
             let store = open_store(&db)?;
             if store.run(&run)?.is_none() {
-                anyhow::bail!(
-                    "{}: no run '{run}' (see `spinbench runs list`)",
-                    db.display()
-                );
+                anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
             }
             let csv = store.points_csv(&run)?;
             match file {
@@ -329,6 +348,7 @@ fn run_plan(
     seed: u64,
     resume: Option<&Path>,
     data: &Path,
+    db: Option<StoreTarget>,
     quiet: bool,
     out: &mut dyn Write,
 ) -> Result<()> {
@@ -353,15 +373,17 @@ fn run_plan(
     std::fs::create_dir_all(&dir)
         .with_context(|| format!("{}: cannot create the run directory", dir.display()))?;
     // A resumed run keeps writing to its own store: <data>/spinbench.db above <data>/runs/<id>.
-    let store_path = match resume {
-        Some(d) => d
-            .parent()
-            .filter(|p| p.file_name().is_some_and(|n| n == "runs"))
-            .and_then(Path::parent)
-            .unwrap_or(data)
-            .join(crate::station_run::DB_FILE),
-        None => data.join(crate::station_run::DB_FILE),
-    };
+    let store = db.unwrap_or_else(|| {
+        StoreTarget::File(match resume {
+            Some(d) => d
+                .parent()
+                .filter(|p| p.file_name().is_some_and(|n| n == "runs"))
+                .and_then(Path::parent)
+                .unwrap_or(data)
+                .join(crate::station_run::DB_FILE),
+            None => data.join(crate::station_run::DB_FILE),
+        })
+    });
     let sim;
     let (station, operator): (StationConfig, Box<dyn spinbench_engine::Operator + '_>) = if simulate
     {
@@ -399,7 +421,7 @@ fn run_plan(
         bench,
         operator,
         &dir,
-        &store_path,
+        &store,
         resume.is_some(),
         quiet,
         abort,

@@ -15,6 +15,7 @@ use spinbench_engine::{
 };
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_store::StoreTarget;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -138,12 +139,14 @@ impl EventSink for ProgressPrinter {
     }
 }
 
-/// A new run identifier from the clock.
+/// A new run identifier: the clock and 48 random bits, so that stations
+/// sharing one database never pick the same one.
 pub fn new_run_id() -> String {
     let t = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .unwrap_or_default();
-    format!("run-{}-{:06}", t.as_secs(), t.subsec_micros())
+    let random: u64 = rand::random::<u64>() & 0xffff_ffff_ffff;
+    format!("run-{}-{random:012x}", t.as_secs())
 }
 
 /// What a run produced.
@@ -162,7 +165,7 @@ pub fn execute(
     bench: Bench,
     operator: Box<dyn Operator + '_>,
     dir: &Path,
-    db: &Path,
+    db: &StoreTarget,
     resume: bool,
     quiet: bool,
     abort: Arc<AtomicBool>,
@@ -202,13 +205,16 @@ pub fn execute(
         abort,
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
+        // The run directory holds the station config the run was started with.
+        sink_hold_limit: Duration::from_secs(600),
+        station_config_toml: std::fs::read_to_string(dir.join("station.toml")).unwrap_or_default(),
     };
     let mut executor = Executor::new(station, compiled, bench, operator, options);
     if let Some(events) = &past {
         executor.restore(events);
     }
     executor.subscribe(journal);
-    let store = spinbench_store::Store::open(db)?;
+    let store = spinbench_store::Store::connect(db)?;
     executor.subscribe(store.sink()?);
     executor.subscribe(ProgressPrinter::new(quiet));
     let summary = executor.run();
@@ -323,7 +329,13 @@ pub fn start_sim(seed: u64) -> Result<(RunningBench, StationConfig)> {
 }
 
 /// `spinbench demo`.
-pub fn demo(seed: u64, json: bool, data_dir: &Path, out: &mut dyn Write) -> Result<()> {
+pub fn demo(
+    seed: u64,
+    json: bool,
+    data_dir: &Path,
+    db: Option<&StoreTarget>,
+    out: &mut dyn Write,
+) -> Result<()> {
     let wall = Instant::now();
     let (sim, station) = start_sim(seed)?;
     let plan = demo_plan(station.slots());
@@ -349,7 +361,8 @@ pub fn demo(seed: u64, json: bool, data_dir: &Path, out: &mut dyn Write) -> Resu
         bench,
         operator,
         &dir,
-        &data_dir.join(DB_FILE),
+        &db.cloned()
+            .unwrap_or_else(|| StoreTarget::File(data_dir.join(DB_FILE))),
         false,
         json,
         Arc::new(AtomicBool::new(false)),

@@ -1,10 +1,15 @@
-//! The store: a run is written as it happens; `runs`, `unit` and `export`
-//! read it back, and `export` → `analyze` reproduces the stored fits.
+//! The store, on an SQLite file and on a real PostgreSQL server
+//! (`SPINBENCH_TEST_POSTGRES`, started by `scripts/test`): a run is written as
+//! it happens; `runs`, `unit` and `export` read it back, and `export` →
+//! `analyze` reproduces the stored fits. Four stations write to one
+//! PostgreSQL at once without losing or mixing anything.
 
 mod common;
 
 use serde_json::Value;
-use std::process::Command;
+use spinbench_store::{Store, StoreTarget};
+use std::path::Path;
+use std::process::{Command, Stdio};
 
 fn spinbench(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
@@ -19,26 +24,54 @@ fn spinbench(args: &[&str]) -> (bool, String, String) {
 }
 
 #[test]
-fn a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
+fn sqlite_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let plan = dir.path().join("plan.toml");
-    std::fs::write(&plan, common::short_plan("ST")).expect("plan");
-    let data = dir.path().join("data");
-    let (ok, _, err) = spinbench(&[
-        "run",
-        "--simulate",
-        "--quiet",
-        "--seed",
-        "4",
-        "--data",
-        data.to_str().expect("utf8"),
-        plan.to_str().expect("utf8"),
-    ]);
-    assert!(ok, "{err}");
-    let db = data.join("spinbench.db");
-    let db_s = db.to_str().expect("utf8");
+    let db = dir.path().join("data").join("spinbench.db");
+    roundtrip(dir.path(), None, &StoreTarget::File(db));
+    let (ok, _, err) = spinbench(&["runs", "list", "--db", "/no/such.db"]);
+    assert!(!ok && err.contains("no store here"), "{err}");
+}
 
-    let store = spinbench_store::Store::open(&db).expect("open");
+#[test]
+fn postgres_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let url = fresh_postgres();
+    roundtrip(dir.path(), Some(&url), &StoreTarget::Postgres(url.clone()));
+}
+
+fn fresh_postgres() -> String {
+    let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database")
+}
+
+/// One simulated run into `target` (`--db url` when given, else the data directory's file).
+fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
+    let plan = dir.join("plan.toml");
+    std::fs::write(&plan, common::short_plan("ST")).expect("plan");
+    let data = dir.join("data");
+    let mut args = vec![
+        "run".to_string(),
+        "--simulate".into(),
+        "--quiet".into(),
+        "--seed".into(),
+        "4".into(),
+        "--data".into(),
+        data.display().to_string(),
+        plan.display().to_string(),
+    ];
+    if let Some(url) = db_arg {
+        args.extend(["--db".into(), url.to_string()]);
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let (ok, _, err) = spinbench(&args);
+    assert!(ok, "{err}");
+    let db_text = match target {
+        StoreTarget::File(p) => p.display().to_string(),
+        StoreTarget::Postgres(url) => url.clone(),
+    };
+    let db_s = db_text.as_str();
+
+    let store = Store::connect(target).expect("open");
     assert_eq!(store.integrity_check().expect("check"), "ok");
     assert_eq!(
         store.schema_version().expect("version"),
@@ -62,7 +95,7 @@ fn a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
     let (ok, history, _) = spinbench(&["unit", "ST2", "--db", db_s]);
     assert!(ok && history.contains(&run.id), "{history}");
 
-    let csv = dir.path().join("points.csv");
+    let csv = dir.join("points.csv");
     let (ok, _, err) = spinbench(&[
         "export",
         &run.id,
@@ -103,6 +136,76 @@ fn a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
 
     let (ok, _, err) = spinbench(&["runs", "show", "nope", "--db", db_s]);
     assert!(!ok && err.contains("no run 'nope'"), "{err}");
-    let (ok, _, err) = spinbench(&["runs", "list", "--db", "/no/such.db"]);
-    assert!(!ok && err.contains("no store here"), "{err}");
+}
+
+#[test]
+fn postgres_four_stations_write_at_once_and_nothing_is_lost_or_mixed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let url = fresh_postgres();
+    let children: Vec<_> = (1..=4)
+        .map(|k| {
+            let plan = dir.path().join(format!("plan{k}.toml"));
+            std::fs::write(&plan, common::short_plan(&format!("S{k}-"))).expect("plan");
+            let data = dir.path().join(format!("station{k}"));
+            let child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+                .args(["run", "--simulate", "--quiet", "--seed"])
+                .arg(k.to_string())
+                .arg("--data")
+                .arg(&data)
+                .args(["--db", &url])
+                .arg(&plan)
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .expect("start a station");
+            (k, data, child)
+        })
+        .collect();
+    let store = Store::connect(&StoreTarget::Postgres(url.clone())).expect("open");
+    for (k, data, child) in children {
+        let out = child.wait_with_output().expect("station");
+        assert!(
+            out.status.success(),
+            "station {k}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let run_dir = std::fs::read_dir(data.join("runs"))
+            .expect("runs")
+            .flatten()
+            .next()
+            .expect("the run's directory")
+            .path();
+        let run_id = run_dir
+            .file_name()
+            .expect("name")
+            .to_string_lossy()
+            .into_owned();
+        let run = store
+            .run(&run_id)
+            .expect("query")
+            .expect("the run is stored");
+        assert_eq!(run.state, "completed", "station {k}");
+        // Every point of the run's own record is stored, once, under this run only.
+        let records: Value = serde_json::from_str(
+            &std::fs::read_to_string(run_dir.join("results.json")).expect("results.json"),
+        )
+        .expect("json");
+        let journaled: usize = records
+            .as_array()
+            .expect("records")
+            .iter()
+            .map(|r| r["points"].as_array().map_or(0, Vec::len))
+            .sum();
+        let points = store.points(&run_id).expect("points");
+        assert_eq!(points.len(), journaled, "station {k}");
+        assert_eq!(points.len(), 3 * 2 * 13, "station {k}");
+        let prefix = format!("S{k}-");
+        assert!(
+            points.iter().all(|p| p.serial.starts_with(&prefix)),
+            "station {k}: another station's points mixed in"
+        );
+        assert!(store.value_count(&run_id).expect("values") > 0);
+        assert_eq!(store.results(&run_id).expect("results").len(), 3);
+    }
+    assert_eq!(store.runs().expect("runs").len(), 4);
 }

@@ -1,6 +1,8 @@
 //! Writing one-second values for 96 instruments through the store's event
 //! sink (one transaction per second, as the engine emits them): rows per
-//! second, and the database size per hour of test.
+//! second, and the database size per hour of test, for SQLite and (when
+//! `SPINBENCH_TEST_POSTGRES` names a server, as `scripts/test` and
+//! `scripts/postgres` provide) PostgreSQL.
 //! Prints `bench: <name> = <value> <unit>` lines.
 //!
 //! Run: `cargo bench -p spinbench-store --bench store_rate`
@@ -8,16 +10,46 @@
 use spinbench_engine::TestPlan;
 use spinbench_engine::event::{Event, EventSink};
 use spinbench_engine::plan::CompiledPlan;
+use spinbench_store::{Store, StoreTarget};
 use std::time::Instant;
 
 fn main() {
     let measuring = std::env::args().any(|a| a == "--bench");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("bench.db");
+    bench(
+        "sqlite",
+        &StoreTarget::File(file.clone()),
+        measuring,
+        &|| {
+            ["bench.db", "bench.db-wal"]
+                .iter()
+                .filter_map(|f| std::fs::metadata(dir.path().join(f)).ok())
+                .map(|m| m.len())
+                .sum()
+        },
+    );
+    match spinbench_store::testing::postgres_url() {
+        Ok(admin) => {
+            let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("database");
+            let target = StoreTarget::Postgres(url.clone());
+            bench("postgres", &target, measuring, &|| {
+                let mut c = postgres::Client::connect(&url, postgres::NoTls).expect("connect");
+                c.query_one("SELECT pg_database_size(current_database())", &[])
+                    .map(|r| r.get::<_, i64>(0) as u64)
+                    .unwrap_or(0)
+            });
+        }
+        Err(e) => println!("postgres: not measured: {e}"),
+    }
+}
+
+fn bench(name: &str, target: &StoreTarget, measuring: bool, size_bytes: &dyn Fn() -> u64) {
     let seconds = if measuring { 3600 } else { 30 };
     let instruments = 96;
-    let dir = tempfile::tempdir().expect("tempdir");
-    let db = dir.path().join("bench.db");
-    let store = spinbench_store::Store::open(&db).expect("store");
+    let store = Store::connect(target).expect("store");
     let mut sink = store.sink().expect("sink");
+    let empty = size_bytes();
     let plan = CompiledPlan {
         plan: TestPlan::default(),
         serials: (0..instruments).map(|i| Some(format!("B{i:03}"))).collect(),
@@ -30,6 +62,7 @@ fn main() {
         station: "bench".into(),
         plan: Box::new(plan),
         resumed: false,
+        station_config: String::new(),
     })
     .expect("run started");
     let start = Instant::now();
@@ -50,27 +83,23 @@ fn main() {
     let rows = store.value_count("bench").expect("count");
     assert_eq!(rows, i64::from(seconds) * instruments as i64);
     drop(sink);
-    let size: u64 = ["bench.db", "bench.db-wal"]
-        .iter()
-        .filter_map(|f| std::fs::metadata(dir.path().join(f)).ok())
-        .map(|m| m.len())
-        .sum();
+    let size = size_bytes().saturating_sub(empty);
     if !measuring {
-        println!("store bench smoke run: {rows} rows (no figures outside `cargo bench`)");
+        println!("store bench smoke run ({name}): {rows} rows (no figures outside `cargo bench`)");
         return;
     }
     let hours = f64::from(seconds) / 3600.0;
-    println!("rows: {rows} ({instruments} instruments × {seconds} s), {elapsed:.2} s");
+    println!("{name}: {rows} rows ({instruments} instruments × {seconds} s), {elapsed:.2} s");
     println!(
-        "bench: store_values_rows_per_second_96_instruments = {:.0} rows/s",
+        "bench: store_{name}_rows_per_second_96_instruments = {:.0} rows/s",
         rows as f64 / elapsed
     );
     println!(
-        "bench: store_values_realtime_margin = {:.0} x",
+        "bench: store_{name}_realtime_margin = {:.0} x",
         rows as f64 / elapsed / instruments as f64
     );
     println!(
-        "bench: store_database_size_per_hour_96_instruments = {:.1} MB",
+        "bench: store_{name}_size_per_hour_96_instruments = {:.1} MB",
         size as f64 / 1e6 / hours
     );
 }

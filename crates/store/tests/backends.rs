@@ -1,0 +1,282 @@
+//! The same store tests against an SQLite file and a real PostgreSQL server
+//! (`SPINBENCH_TEST_POSTGRES`, started by `scripts/test`; a fresh database per
+//! test). Nothing is mocked.
+
+use spinbench_analysis::{Direction, Mount};
+use spinbench_engine::TestPlan;
+use spinbench_engine::event::{DeviceIdentity, Event, EventSink, RunState};
+use spinbench_engine::plan::CompiledPlan;
+use spinbench_engine::record::{Outcome, PointRecord, UnitRecord};
+use spinbench_store::testing::{fresh_postgres_database, postgres_url};
+use spinbench_store::{MIGRATIONS, Store, StoreTarget};
+
+/// Run `check` against an SQLite file and against a fresh PostgreSQL database.
+fn on_both(check: impl Fn(&StoreTarget)) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    check(&StoreTarget::File(dir.path().join("store.db")));
+    let admin = postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = fresh_postgres_database(&admin).expect("a fresh PostgreSQL database");
+    check(&StoreTarget::Postgres(url));
+}
+
+fn plan(serials: &[&str]) -> CompiledPlan {
+    CompiledPlan {
+        plan: TestPlan::default(),
+        serials: serials.iter().map(|s| Some(s.to_string())).collect(),
+        passes: Vec::new(),
+        steps: Vec::new(),
+        order: Default::default(),
+    }
+}
+
+fn point(slot: usize, g: f64, output_hz: f64) -> PointRecord {
+    PointRecord {
+        slot,
+        mount: Mount::P,
+        g_nominal: g,
+        direction: Direction::Up,
+        g_applied: g * 1.0001,
+        rate_deg_s: 100.0 * g,
+        output_hz,
+        std_hz: 0.001,
+        n: 10,
+        time_s: [1.0, 10.0],
+    }
+}
+
+fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
+    UnitRecord {
+        slot,
+        serial: serial.into(),
+        tumble: None,
+        drawing_radius_m: 0.8,
+        radius_m: Default::default(),
+        points: Vec::new(),
+        analysis: None,
+        k2_max_ug_per_g2: Some(k2),
+        outcome: Outcome::Pass,
+        reasons: Vec::new(),
+    }
+}
+
+/// A short run's events: two instruments, three levels, one step redone.
+fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
+    let mut sink = store.sink().expect("sink");
+    let events = vec![
+        Event::RunStarted {
+            run_id: run_id.into(),
+            station: "bench 1".into(),
+            plan: Box::new(plan(serials)),
+            resumed: false,
+            station_config: "station = \"bench 1\"\n".into(),
+        },
+        Event::Identified {
+            devices: vec![DeviceIdentity {
+                role: "centrifuge".into(),
+                identity: "ACUTRONIC,X".into(),
+            }],
+        },
+        Event::Prompt {
+            text: "Mount IA up".into(),
+            fixtures: Vec::new(),
+        },
+        Event::PromptAnswered {
+            proceed: true,
+            by: "operator 李四".into(),
+        },
+        Event::RadiusDone {
+            slot: 0,
+            mount: Mount::P,
+            drawing_radius_m: 0.8,
+            radius_m: 0.8003,
+        },
+        Event::Values {
+            time_s: 1.0,
+            rate_deg_s: 10.0,
+            demand_deg_s: 10.0,
+            on_speed: true,
+            outputs_hz: vec![Some(1.5), None],
+        },
+        Event::PointDone {
+            step: 3,
+            points: vec![point(0, 0.0, 1.0), point(1, 0.0, 2.0)],
+        },
+        Event::PointDone {
+            step: 4,
+            points: vec![point(0, 5.0, 11.0), point(1, 5.0, 12.0)],
+        },
+        // Step 4 redone (after a resume): replaces, never doubles.
+        Event::PointDone {
+            step: 4,
+            points: vec![point(0, 5.0, 11.5), point(1, 5.0, 12.5)],
+        },
+        Event::UnitResult {
+            record: Box::new(record(0, serials[0], 3.25)),
+        },
+        Event::UnitResult {
+            record: Box::new(record(1, serials[1], -7.5)),
+        },
+        Event::RunFinished {
+            state: RunState::Completed,
+            reason: None,
+        },
+    ];
+    for e in &events {
+        sink.emit(e).expect("the store takes the event");
+    }
+}
+
+#[test]
+fn the_schema_is_migrated_once_and_reopening_changes_nothing() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("open");
+        assert_eq!(
+            store.schema_version().expect("version"),
+            MIGRATIONS.len() as i64
+        );
+        write_run(&store, "r1", &["A1", "A2"]);
+        drop(store);
+        let again = Store::connect(target).expect("reopen");
+        assert_eq!(
+            again.schema_version().expect("version"),
+            MIGRATIONS.len() as i64
+        );
+        assert_eq!(again.runs().expect("runs").len(), 1, "{target}");
+        assert_eq!(again.integrity_check().expect("check"), "ok");
+    });
+}
+
+#[test]
+fn a_run_is_stored_whole_and_a_redone_step_replaces_its_points() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("open");
+        write_run(&store, "r1", &["A1", "中文-7"]);
+        let run = store.run("r1").expect("query").expect("the run");
+        assert_eq!(run.state, "completed");
+        assert_eq!((run.units, run.points), (2, 4), "{target}");
+        let points = store.points("r1").expect("points");
+        let redone: Vec<f64> = points
+            .iter()
+            .filter(|p| p.step == 4)
+            .map(|p| p.output_hz)
+            .collect();
+        assert_eq!(
+            redone,
+            vec![11.5, 12.5],
+            "{target}: the redo replaced the first take"
+        );
+        assert_eq!(points[1].serial, "中文-7");
+        let results = store.results("r1").expect("results");
+        assert_eq!(results[1].k2_max_ug_per_g2, Some(-7.5));
+        assert_eq!(store.unit_history("中文-7").expect("history").len(), 1);
+        assert_eq!(store.value_count("r1").expect("values"), 2);
+        let values = store.values("r1").expect("values");
+        assert_eq!(values[0].output_hz, Some(1.5));
+        assert_eq!(
+            values[1].output_hz, None,
+            "a missing output is stored as missing"
+        );
+        let context = store.run_context("r1").expect("context").expect("the run");
+        assert_eq!(
+            context.station_config.as_deref(),
+            Some("station = \"bench 1\"\n")
+        );
+        assert!(
+            context
+                .devices_json
+                .unwrap_or_default()
+                .contains("ACUTRONIC,X")
+        );
+        assert_eq!(context.operator_actions.len(), 1);
+        assert_eq!(context.operator_actions[0].1, "operator 李四");
+        assert!(context.operator_actions[0].2.contains("Mount IA up"));
+        let radii = store.unit_radii("r1").expect("units");
+        assert_eq!(radii.len(), 1);
+        assert_eq!(
+            (
+                radii[0].slot,
+                radii[0].mount.as_str(),
+                radii[0].serial.as_str()
+            ),
+            (0, "P", "A1")
+        );
+        assert_eq!(
+            (radii[0].drawing_radius_m, radii[0].radius_m),
+            (0.8, 0.8003)
+        );
+        let csv = store.points_csv("r1").expect("csv");
+        assert_eq!(csv.lines().count(), 5, "header + 4 points:\n{csv}");
+        assert!(
+            csv.lines()
+                .nth(3)
+                .unwrap_or_default()
+                .starts_with("A1,P,5.0,5.0005,11.5,up,r1")
+        );
+    });
+}
+
+#[test]
+fn a_write_the_database_refuses_is_an_error_that_names_the_store() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("open");
+        let mut sink = store.sink().expect("sink");
+        // A point of a run that was never started: the reference to runs refuses it.
+        sink.emit(&Event::RunStarted {
+            run_id: "r1".into(),
+            station: "s".into(),
+            plan: Box::new(plan(&["A1"])),
+            resumed: false,
+            station_config: String::new(),
+        })
+        .expect("start");
+        let mut other = store.sink().expect("sink");
+        let err = other
+            .emit(&Event::PointDone {
+                step: 1,
+                points: vec![point(0, 1.0, 1.0)],
+            })
+            .expect_err("a point without its run is refused");
+        assert!(err.contains("point_done"), "{err}");
+        assert!(err.contains("store "), "{err}");
+        assert!(store.points("r1").expect("points").is_empty());
+    });
+}
+
+#[test]
+fn many_writers_at_once_keep_their_runs_apart() {
+    on_both(|target| {
+        Store::connect(target).expect("create the schema");
+        let handles: Vec<_> = (0..4)
+            .map(|k| {
+                let target = target.clone();
+                std::thread::spawn(move || {
+                    let store = Store::connect(&target).expect("open");
+                    for r in 0..3 {
+                        let id = format!("s{k}-r{r}");
+                        let a = format!("S{k}-{r}-A");
+                        let b = format!("S{k}-{r}-B");
+                        write_run(&store, &id, &[&a, &b]);
+                    }
+                })
+            })
+            .collect();
+        for h in handles {
+            h.join().expect("writer");
+        }
+        let store = Store::connect(target).expect("open");
+        let runs = store.runs().expect("runs");
+        assert_eq!(runs.len(), 12, "{target}");
+        for run in runs {
+            assert_eq!((run.units, run.points), (2, 4), "{}", run.id);
+            let prefix = format!("S{}-{}-", &run.id[1..2], &run.id[4..5]);
+            for p in store.points(&run.id).expect("points") {
+                assert!(
+                    p.serial.starts_with(&prefix),
+                    "{}: {} mixed in",
+                    run.id,
+                    p.serial
+                );
+            }
+        }
+    });
+}
