@@ -297,12 +297,28 @@ impl FmuConfig {
 
     /// Open the transport and build the driver.
     pub fn connect(&self, index: usize) -> Result<Box<dyn CounterModule>, ConnectError> {
+        self.connect_capturing(index, None)
+    }
+
+    /// As [`FmuConfig::connect`], recording every byte received into `capture`.
+    pub fn connect_capturing(
+        &self,
+        index: usize,
+        capture: Option<crate::capture::RawCapture>,
+    ) -> Result<Box<dyn CounterModule>, ConnectError> {
         self.validate(index)?;
         let transport = self.transport.open().map_err(|e| ConnectError::Open {
             device: self.name.clone(),
             error: e.to_string(),
         })?;
-        Ok(Box::new(FmuDriver::new(transport, &self.name, self.io)))
+        Ok(match capture {
+            Some(c) => Box::new(FmuDriver::new(
+                crate::capture::CaptureTransport::new(transport, c),
+                &self.name,
+                self.io,
+            )),
+            None => Box::new(FmuDriver::new(transport, &self.name, self.io)),
+        })
     }
 }
 

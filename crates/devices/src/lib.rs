@@ -13,6 +13,7 @@
 //! Bytes are encoded and decoded by the `wire` crate; nothing above this
 //! layer sees a byte.
 
+pub mod capture;
 pub mod centrifuge;
 pub mod config;
 mod error;

@@ -5,6 +5,12 @@
 use crate::executor::Bench;
 use serde::Deserialize;
 use spinbench_devices::PowerSupply;
+use spinbench_devices::capture::RawCapture;
+
+/// The raw capture file of counter module `index` (0-based) in a run's `raw` directory.
+pub fn raw_capture_file(index: usize) -> String {
+    format!("fmu-{}.gz", index + 1)
+}
 use spinbench_devices::config::{CentrifugeConfig, ConnectError, FmuConfig, PowerSupplyConfig};
 
 /// The whole station.
@@ -121,12 +127,33 @@ impl StationConfig {
 
     /// Open every device of the station through the production drivers.
     pub fn connect(&self) -> Result<Bench, ConnectError> {
+        self.connect_capturing(None)
+    }
+
+    /// As [`StationConfig::connect`], keeping the raw bytes of counter module
+    /// i in `raw_dir/fmu-<i+1>.gz` (appended; see `spinbench_devices::capture`).
+    pub fn connect_capturing(
+        &self,
+        raw_dir: Option<&std::path::Path>,
+    ) -> Result<Bench, ConnectError> {
         let centrifuge = self.centrifuge.connect()?;
         let modules = self
             .fmu
             .iter()
             .enumerate()
-            .map(|(i, f)| f.connect(i))
+            .map(|(i, f)| {
+                let capture = match raw_dir {
+                    Some(dir) => {
+                        let path = dir.join(raw_capture_file(i));
+                        Some(RawCapture::append(&path).map_err(|e| ConnectError::Open {
+                            device: f.name.clone(),
+                            error: format!("cannot open the raw capture {}: {e}", path.display()),
+                        })?)
+                    }
+                    None => None,
+                };
+                f.connect_capturing(i, capture)
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let supply = |name: &str| -> Result<Box<dyn PowerSupply>, ConnectError> {
             match self.power_supply.iter().find(|p| p.name == name) {

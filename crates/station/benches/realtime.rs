@@ -83,7 +83,7 @@ fn main() {
     let plan = TestPlan::from_toml(&format!("range_g = 25\n[serials]\n{serials}")).expect("plan");
     let mut compiled = plan.compile(&station).expect("compile");
     compiled.steps = vec![Step::PowerOn, Step::CheckAlive, Step::WarmUp { seconds }];
-    let bench = connect_bench(&station).expect("connect");
+    let bench = connect_bench(&station, None).expect("connect");
     let arrivals = Arc::new(Mutex::new(Vec::new()));
     let sink = arrivals.clone();
     let options = RunOptions {

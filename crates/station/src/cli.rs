@@ -98,11 +98,11 @@ pub enum Command {
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
     },
-    /// Export a run's points (CSV, the input format of `spinbench analyze`).
+    /// Export a run's points (the input format of `spinbench analyze`) and results.
     Export {
         /// Run identifier.
         run: String,
-        /// Format (csv).
+        /// Format: csv (points), xlsx (points and results sheets) or parquet (points).
         #[arg(long, default_value = "csv")]
         format: String,
         /// Write to this file instead of standard output.
@@ -111,6 +111,18 @@ pub enum Command {
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
+    },
+    /// Replay a run's raw counter-module bytes through the decoder and show
+    /// that they give the one-second values and points the store holds.
+    Replay {
+        /// Run identifier (a directory under DATA/runs) or a run directory.
+        run: String,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
     },
     /// Start a virtual bench (simulated centrifuge, instruments, counter
     /// modules and supplies) behind real pseudo-terminals, and print the
@@ -314,19 +326,74 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             out: file,
             db,
         } => {
-            if format != "csv" {
-                anyhow::bail!("--format {format}: this version exports csv");
-            }
+            let format = crate::export::ExportFormat::parse(&format)?;
             let store = open_store(&db)?;
             if store.run(&run)?.is_none() {
                 anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
             }
-            let csv = store.points_csv(&run)?;
-            match file {
-                Some(f) => std::fs::write(&f, csv)
-                    .with_context(|| format!("{}: cannot write", f.display()))?,
-                None => write!(out, "{csv}")?,
+            match (file, format) {
+                (Some(f), _) => crate::export::export_run(&store, &run, format, &f)?,
+                (None, crate::export::ExportFormat::Csv) => {
+                    write!(out, "{}", store.points_csv(&run)?)?
+                }
+                (None, _) => {
+                    anyhow::bail!("--out FILE is needed for xlsx and parquet (binary formats)")
+                }
             }
+        }
+        Command::Replay { run, data, db } => {
+            let given = Path::new(&run);
+            let dir = if given.join("station.toml").exists() {
+                given.to_path_buf()
+            } else {
+                data.join("runs").join(&run)
+            };
+            if !dir.is_dir() {
+                anyhow::bail!(
+                    "{}: no such run directory (give a run id under --data, or the run's directory)",
+                    dir.display()
+                );
+            }
+            let db = db.unwrap_or_else(|| {
+                StoreTarget::File(
+                    dir.parent()
+                        .and_then(Path::parent)
+                        .unwrap_or(&data)
+                        .join(crate::station_run::DB_FILE),
+                )
+            });
+            let store = open_store(&db)?;
+            let report = crate::replay::replay(&dir, &store)?;
+            for m in &report.modules {
+                writeln!(
+                    out,
+                    "module {}: {} bytes, {} frames ({} bad), {} whole one-second windows{}",
+                    m.module,
+                    m.bytes,
+                    m.frames,
+                    m.bad_frames,
+                    m.windows,
+                    if m.cut_short {
+                        " (capture cut short: read up to its last flush)"
+                    } else {
+                        ""
+                    }
+                )?;
+            }
+            writeln!(
+                out,
+                "one-second values: {} of {} stored found bit-exact in the replay",
+                report.values_matched, report.values_stored
+            )?;
+            writeln!(
+                out,
+                "points: {} of {} stored re-derived from the replayed values (largest difference {:.3e} Hz)",
+                report.points_matched, report.points_stored, report.max_point_diff_hz
+            )?;
+            if !report.all_match() {
+                anyhow::bail!("the replay does not reproduce everything the store holds");
+            }
+            writeln!(out, "the raw bytes reproduce the stored run")?;
         }
         Command::Sim {
             config,
@@ -414,7 +481,7 @@ fn run_plan(
     // Refuse a plan that cannot run before anything is switched on.
     plan.compile(&station)?;
     std::fs::write(dir.join("plan.toml"), &plan_text)?;
-    let bench = connect_bench(&station)?;
+    let bench = connect_bench(&station, Some(&dir))?;
     let finished = execute(
         &station,
         &plan,

@@ -102,6 +102,7 @@ struct RawRow {
 enum Kind {
     Csv,
     Spreadsheet,
+    Parquet,
 }
 
 /// All the points of a file, grouped by unit (and run) in order of first appearance.
@@ -128,6 +129,8 @@ pub fn read_points_file(path: &Path, sheet: Option<&str>) -> Result<PointsFile, 
     let kind = match ext.as_deref() {
         Some("xlsx" | "xlsm" | "xls" | "xlsb" | "ods") => Kind::Spreadsheet,
         Some("csv" | "txt") => Kind::Csv,
+        Some("parquet") => Kind::Parquet,
+        _ if bytes.starts_with(b"PAR1") => Kind::Parquet,
         // A zip (XLSX/ODS) or OLE (XLS) signature means a spreadsheet.
         _ if bytes.starts_with(b"PK\x03\x04") || bytes.starts_with(&[0xD0, 0xCF, 0x11, 0xE0]) => {
             Kind::Spreadsheet
@@ -137,7 +140,59 @@ pub fn read_points_file(path: &Path, sheet: Option<&str>) -> Result<PointsFile, 
     match kind {
         Kind::Csv => parse_csv(path, &bytes),
         Kind::Spreadsheet => read_spreadsheet(path, sheet),
+        Kind::Parquet => read_parquet(path),
     }
+}
+
+/// A Parquet file (as `spinbench export --format parquet` writes): its
+/// column names are the header row; row n of the data is line n + 1.
+fn read_parquet(path: &Path) -> Result<PointsFile, PointsFileError> {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::Field;
+    let err = |message: String| PointsFileError {
+        path: path.to_path_buf(),
+        location: None,
+        message,
+    };
+    let file = std::fs::File::open(path).map_err(|e| err(format!("cannot read the file: {e}")))?;
+    let reader = SerializedFileReader::new(file)
+        .map_err(|e| err(format!("not a readable Parquet file: {e}")))?;
+    let header: Vec<Cell> = reader
+        .metadata()
+        .file_metadata()
+        .schema_descr()
+        .columns()
+        .iter()
+        .map(|c| Cell::Text(c.name().to_string()))
+        .collect();
+    let mut rows = vec![RawRow {
+        number: 1,
+        cells: header,
+    }];
+    let iter = reader
+        .get_row_iter(None)
+        .map_err(|e| err(format!("cannot read the rows: {e}")))?;
+    for (i, row) in iter.enumerate() {
+        let row = row.map_err(|e| err(format!("row {}: {e}", i + 1)))?;
+        let cells = row
+            .get_column_iter()
+            .map(|(_, field)| match field {
+                Field::Null => Cell::Empty,
+                Field::Str(s) if s.trim().is_empty() => Cell::Empty,
+                Field::Str(s) => Cell::Text(s.trim().to_string()),
+                Field::Double(v) => Cell::Number(*v),
+                Field::Float(v) => Cell::Number(f64::from(*v)),
+                Field::Long(v) => Cell::Number(*v as f64),
+                Field::Int(v) => Cell::Number(f64::from(*v)),
+                other => Cell::Text(other.to_string()),
+            })
+            .collect();
+        rows.push(RawRow {
+            number: i as u64 + 2,
+            cells,
+        });
+    }
+    parse_rows(path, None, rows)
 }
 
 /// Parse CSV bytes (from `path`, which is only used in messages).

@@ -34,11 +34,17 @@ pub fn sim_station_toml(bench: &RunningBench) -> String {
 }
 
 /// Connect every device of a station through the production drivers.
-pub fn connect_bench(station: &StationConfig) -> Result<Bench> {
+/// Connect the station's devices; with `run_dir`, the counter modules' raw
+/// bytes are kept in `run_dir/raw` (for `spinbench replay`).
+pub fn connect_bench(station: &StationConfig, run_dir: Option<&Path>) -> Result<Bench> {
+    let raw = run_dir.map(|d| d.join(RAW_DIR));
     station
-        .connect()
+        .connect_capturing(raw.as_deref())
         .context("cannot connect the station's devices")
 }
+
+/// The raw byte captures of a run, inside its directory.
+pub const RAW_DIR: &str = "raw";
 
 pub use spinbench_engine::sim_bench::SimOperator;
 
@@ -349,9 +355,9 @@ pub fn demo(
         )?;
         out.flush()?;
     }
-    let bench = connect_bench(&station)?;
     let dir = data_dir.join("runs").join(new_run_id());
     std::fs::create_dir_all(&dir)?;
+    let bench = connect_bench(&station, Some(&dir))?;
     std::fs::write(dir.join("station.toml"), sim_station_toml(&sim))?;
     std::fs::write(dir.join("plan.toml"), toml::to_string(&plan)?)?;
     let operator = Box::new(SimOperator::new(&sim, json));

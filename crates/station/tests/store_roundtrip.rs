@@ -27,9 +27,32 @@ fn spinbench(args: &[&str]) -> (bool, String, String) {
 fn sqlite_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
     let dir = tempfile::tempdir().expect("tempdir");
     let db = dir.path().join("data").join("spinbench.db");
-    roundtrip(dir.path(), None, &StoreTarget::File(db));
+    roundtrip(dir.path(), None, &StoreTarget::File(db.clone()));
     let (ok, _, err) = spinbench(&["runs", "list", "--db", "/no/such.db"]);
     assert!(!ok && err.contains("no store here"), "{err}");
+
+    // A stored value that the raw bytes do not give is caught by the replay.
+    let conn = rusqlite::Connection::open(&db).expect("open");
+    // values_1s has no rowid: pick one row by its key.
+    let changed = conn
+        .execute(
+            "UPDATE values_1s SET output_hz = output_hz + 1e-6
+             WHERE (run_id, t_s, slot) = (SELECT run_id, t_s, slot FROM values_1s
+                                          WHERE output_hz IS NOT NULL LIMIT 1)",
+            [],
+        )
+        .expect("tamper");
+    assert_eq!(changed, 1);
+    drop(conn);
+    let run_dir = std::fs::read_dir(dir.path().join("data").join("runs"))
+        .expect("runs")
+        .flatten()
+        .next()
+        .expect("run")
+        .path();
+    let (ok, out, err) = spinbench(&["replay", run_dir.to_str().expect("utf8")]);
+    assert!(!ok, "{out}");
+    assert!(err.contains("does not reproduce"), "{err}");
 }
 
 #[test]
@@ -95,44 +118,60 @@ fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
     let (ok, history, _) = spinbench(&["unit", "ST2", "--db", db_s]);
     assert!(ok && history.contains(&run.id), "{history}");
 
-    let csv = dir.join("points.csv");
-    let (ok, _, err) = spinbench(&[
-        "export",
-        &run.id,
-        "--db",
-        db_s,
-        "--out",
-        csv.to_str().expect("utf8"),
-    ]);
-    assert!(ok, "{err}");
-    let (ok, json, err) = spinbench(&["analyze", csv.to_str().expect("utf8"), "--json"]);
-    assert!(ok, "{err}");
-    let analysed: Value = serde_json::from_str(&json).expect("json");
-    let mut compared = 0;
-    for stored in store.results(&run.id).expect("results") {
-        let record: Value = serde_json::from_str(&stored.record_json).expect("record");
-        let unit = analysed["units"]
-            .as_array()
-            .expect("units")
-            .iter()
-            .find(|u| u["unit"] == stored.serial.as_str())
-            .expect("unit in export");
-        for mount in ["P", "N"] {
-            for key in ["k0_g", "k1", "k2_ug_per_g2", "k3_ug_per_g3"] {
-                let a = unit["fits"][mount][key].as_f64().expect("analysed");
-                let s = record["analysis"]["fits"][mount][key]
-                    .as_f64()
-                    .expect("stored");
-                assert!(
-                    (a - s).abs() <= 1e-9 * s.abs().max(1e-9),
-                    "{} {mount} {key}: {a} vs {s}",
-                    stored.serial
-                );
-                compared += 1;
+    // Every export format is valid input for `analyze`, which reproduces the stored fits.
+    for format in ["csv", "xlsx", "parquet"] {
+        let file = dir.join(format!("points.{format}"));
+        let file_s = file.to_str().expect("utf8");
+        let (ok, _, err) = spinbench(&[
+            "export", &run.id, "--db", db_s, "--format", format, "--out", file_s,
+        ]);
+        assert!(ok, "{format}: {err}");
+        let (ok, json, err) = spinbench(&["analyze", file_s, "--json"]);
+        assert!(ok, "{format}: {err}");
+        let analysed: Value = serde_json::from_str(&json).expect("json");
+        let mut compared = 0;
+        for stored in store.results(&run.id).expect("results") {
+            let record: Value = serde_json::from_str(&stored.record_json).expect("record");
+            let unit = analysed["units"]
+                .as_array()
+                .expect("units")
+                .iter()
+                .find(|u| u["unit"] == stored.serial.as_str())
+                .expect("unit in export");
+            for mount in ["P", "N"] {
+                for key in ["k0_g", "k1", "k2_ug_per_g2", "k3_ug_per_g3"] {
+                    let a = unit["fits"][mount][key].as_f64().expect("analysed");
+                    let s = record["analysis"]["fits"][mount][key]
+                        .as_f64()
+                        .expect("stored");
+                    assert!(
+                        (a - s).abs() <= 1e-9 * s.abs().max(1e-9),
+                        "{format}: {} {mount} {key}: {a} vs {s}",
+                        stored.serial
+                    );
+                    compared += 1;
+                }
             }
         }
+        assert_eq!(compared, 3 * 2 * 4, "{format}");
     }
-    assert_eq!(compared, 3 * 2 * 4);
+
+    // The raw capture replays to exactly the stored one-second values and points.
+    let run_dir = data.join("runs").join(&run.id);
+    let (ok, replayed, err) = spinbench(&["replay", run_dir.to_str().expect("utf8"), "--db", db_s]);
+    assert!(ok, "{replayed}{err}");
+    let values = store.value_count(&run.id).expect("values");
+    assert!(values > 0);
+    assert!(
+        replayed.contains(&format!(
+            "one-second values: {values} of {values} stored found bit-exact"
+        )),
+        "{replayed}"
+    );
+    assert!(
+        replayed.contains("points: 78 of 78 stored re-derived"),
+        "{replayed}"
+    );
 
     let (ok, _, err) = spinbench(&["runs", "show", "nope", "--db", db_s]);
     assert!(!ok && err.contains("no run 'nope'"), "{err}");

@@ -329,6 +329,8 @@ pub struct PointRow {
     pub std_hz: f64,
     /// Number of one-second values.
     pub n: i64,
+    /// Times of the first and last one-second value averaged [s of the run].
+    pub time_s: [f64; 2],
 }
 
 /// One stored one-second value.
@@ -613,7 +615,7 @@ impl Store {
         let rows = self.query(
             "read points",
             "SELECT step, slot, serial, mount, g_nominal, direction, g_applied, rate_deg_s,
-                    output_hz, std_hz, n
+                    output_hz, std_hz, n, t0_s, t1_s
              FROM points WHERE run_id = $1 ORDER BY step, slot",
             &[run_id.into()],
         )?;
@@ -631,6 +633,7 @@ impl Store {
                 output_hz: r.real(8),
                 std_hz: r.real(9),
                 n: r.int(10),
+                time_s: [r.real(11), r.real(12)],
             })
             .collect())
     }
