@@ -112,6 +112,20 @@ pub enum Command {
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
     },
+    /// Write a run's report: HTML (self-contained, plots inline), XLSX and/or CSV.
+    Report {
+        /// Run identifier.
+        run: String,
+        /// html, xlsx or csv; repeat or comma-separate for several (default: all three).
+        #[arg(long, value_delimiter = ',')]
+        format: Vec<String>,
+        /// Directory for the files (default: the current directory).
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
     /// Replay a run's raw counter-module bytes through the decoder and show
     /// that they give the one-second values and points the store holds.
     Replay {
@@ -339,6 +353,31 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 (None, _) => {
                     anyhow::bail!("--out FILE is needed for xlsx and parquet (binary formats)")
                 }
+            }
+        }
+        Command::Report {
+            run,
+            format,
+            out: dir,
+            db,
+        } => {
+            use spinbench_report::ReportFormat;
+            let formats = if format.is_empty() {
+                vec![ReportFormat::Html, ReportFormat::Xlsx, ReportFormat::Csv]
+            } else {
+                format
+                    .iter()
+                    .map(|f| {
+                        ReportFormat::parse(f)
+                            .with_context(|| format!("--format {f}: use html, xlsx or csv"))
+                    })
+                    .collect::<Result<Vec<_>>>()?
+            };
+            let store = open_store(&db)?;
+            for path in spinbench_report::write_reports(&store, &run, &formats, &dir)
+                .with_context(|| format!("{db}: report of run '{run}'"))?
+            {
+                writeln!(out, "{}", path.display())?;
             }
         }
         Command::Replay { run, data, db } => {

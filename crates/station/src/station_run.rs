@@ -224,13 +224,39 @@ pub fn execute(
     executor.subscribe(store.sink()?);
     executor.subscribe(ProgressPrinter::new(quiet));
     let summary = executor.run();
+    drop(executor);
     let results = serde_json::to_string_pretty(&summary.records)?;
     std::fs::write(dir.join("results.json"), results)
         .with_context(|| format!("{}: cannot write results.json", dir.display()))?;
+    // The run's report, written at the end of every run (a failed report
+    // does not lose the run: it is in the store and can be made again).
+    use spinbench_report::ReportFormat;
+    match spinbench_report::write_reports(
+        &store,
+        &run_id_of(dir),
+        &[ReportFormat::Html, ReportFormat::Xlsx, ReportFormat::Csv],
+        dir,
+    ) {
+        Ok(files) => {
+            if !quiet {
+                for f in files {
+                    eprintln!("  report: {}", f.display());
+                }
+            }
+        }
+        Err(e) => eprintln!(
+            "  note: the report could not be written ({e}); `spinbench report RUN` makes it from the store"
+        ),
+    }
     Ok(Finished {
         dir: dir.to_path_buf(),
         summary,
     })
+}
+
+fn run_id_of(dir: &Path) -> String {
+    dir.file_name()
+        .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
 }
 
 /// One line of the demo's comparison with the truth.

@@ -156,8 +156,11 @@ fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
         assert_eq!(compared, 3 * 2 * 4, "{format}");
     }
 
-    // The raw capture replays to exactly the stored one-second values and points.
+    // The run's reports were written at its end; their numbers are the stored ones.
     let run_dir = data.join("runs").join(&run.id);
+    check_reports(&run_dir, &store, &run.id);
+
+    // The raw capture replays to exactly the stored one-second values and points.
     let (ok, replayed, err) = spinbench(&["replay", run_dir.to_str().expect("utf8"), "--db", db_s]);
     assert!(ok, "{replayed}{err}");
     let values = store.value_count(&run.id).expect("values");
@@ -247,4 +250,91 @@ fn postgres_four_stations_write_at_once_and_nothing_is_lost_or_mixed() {
         assert_eq!(store.results(&run_id).expect("results").len(), 3);
     }
     assert_eq!(store.runs().expect("runs").len(), 4);
+}
+
+/// The HTML, XLSX and CSV reports in `run_dir` against the stored results.
+fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
+    use calamine::{Data, Reader, open_workbook_auto};
+    let stored: Vec<(String, String, f64)> = store
+        .results(run_id)
+        .expect("results")
+        .iter()
+        .flat_map(|r| {
+            let record: Value = serde_json::from_str(&r.record_json).expect("record");
+            ["P", "N"]
+                .iter()
+                .filter_map(|m| {
+                    record["analysis"]["fits"][*m]["k2_ug_per_g2"]
+                        .as_f64()
+                        .map(|k2| (r.serial.clone(), m.to_string(), k2))
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    assert_eq!(stored.len(), 6, "3 instruments × 2 mountings");
+
+    // CSV: full precision, so equal.
+    let csv = std::fs::read_to_string(run_dir.join(format!("report-{run_id}.csv"))).expect("csv");
+    let mut rows = csv.lines();
+    let header: Vec<&str> = rows.next().expect("header").split(',').collect();
+    let k2_col = header
+        .iter()
+        .position(|h| *h == "k2 [µg/g²]")
+        .expect("k2 column");
+    for line in rows {
+        let cells: Vec<&str> = line.split(',').collect();
+        let (serial, mount) = (cells[0], cells[2]);
+        let k2: f64 = cells[k2_col].parse().expect("k2 number");
+        assert!(
+            stored.contains(&(serial.to_string(), mount.to_string(), k2)),
+            "csv {serial} {mount} {k2}"
+        );
+    }
+
+    // XLSX read back with calamine: numbers are numbers, equal to the store's.
+    let mut book = open_workbook_auto(run_dir.join(format!("report-{run_id}.xlsx"))).expect("xlsx");
+    assert!(
+        book.sheet_names().len() >= 2 + 3,
+        "results, points and one sheet per instrument"
+    );
+    let range = book.worksheet_range("results").expect("results sheet");
+    let mut seen = 0;
+    for row in range.rows().skip(1) {
+        let text = |c: usize| match &row[c] {
+            Data::String(s) => s.clone(),
+            other => other.to_string(),
+        };
+        let Data::Float(k2) = row[7] else {
+            panic!("k2 is not a number: {:?}", row[7]);
+        };
+        assert!(
+            stored.contains(&(text(0), text(2), k2)),
+            "xlsx {} {}",
+            text(0),
+            text(2)
+        );
+        seen += 1;
+    }
+    assert_eq!(seen, 6);
+
+    // HTML: a parseable document whose summary rows carry the stored k2 (3 decimals).
+    let html =
+        std::fs::read_to_string(run_dir.join(format!("report-{run_id}.html"))).expect("html");
+    assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
+    assert_eq!(html.matches("<svg").count(), html.matches("</svg>").count());
+    assert!(html.matches("<svg").count() >= 6, "plots inline");
+    assert!(
+        !html.contains("src=\"http"),
+        "self-contained: nothing fetched"
+    );
+    for (serial, mount, k2) in &stored {
+        let start = html
+            .find(&format!("data-serial=\"{serial}\" data-mount=\"{mount}\""))
+            .unwrap_or_else(|| panic!("summary row of {serial} {mount}"));
+        let row = &html[start..start + html[start..].find("</tr>").expect("row end")];
+        assert!(
+            row.contains(&format!("<td>{k2:.3}</td>")),
+            "{serial} {mount} k2 {k2:.3} in {row}"
+        );
+    }
 }

@@ -9,6 +9,7 @@
 
 use postgres::types::{ToSql, Type};
 use rusqlite::types::ValueRef;
+use std::collections::HashMap;
 
 /// A typed SQL value (a NULL keeps its type: PostgreSQL checks it).
 #[derive(Debug, Clone, PartialEq)]
@@ -113,8 +114,22 @@ pub type DbError = Box<dyn std::error::Error + Send + Sync>;
 pub enum Db {
     /// An SQLite file.
     Sqlite(rusqlite::Connection),
-    /// A PostgreSQL server.
-    Postgres(Box<postgres::Client>),
+    /// A PostgreSQL server, with its prepared statements by SQL text.
+    Postgres(Box<postgres::Client>, HashMap<String, postgres::Statement>),
+}
+
+/// The prepared statement for `sql`, prepared once per connection.
+fn pg_statement(
+    client: &mut postgres::Client,
+    cache: &mut HashMap<String, postgres::Statement>,
+    sql: &str,
+) -> Result<postgres::Statement, DbError> {
+    if let Some(s) = cache.get(sql) {
+        return Ok(s.clone());
+    }
+    let s = client.prepare(sql)?;
+    cache.insert(sql.to_string(), s.clone());
+    Ok(s)
 }
 
 /// `$12` → `?12` (SQLite's numbered parameters); other text unchanged.
@@ -185,7 +200,7 @@ impl Db {
     pub fn dialect(&self) -> Dialect {
         match self {
             Db::Sqlite(_) => Dialect::Sqlite,
-            Db::Postgres(_) => Dialect::Postgres,
+            Db::Postgres(..) => Dialect::Postgres,
         }
     }
 
@@ -193,7 +208,7 @@ impl Db {
     pub fn batch(&mut self, sql: &str) -> Result<(), DbError> {
         match self {
             Db::Sqlite(c) => c.execute_batch(sql)?,
-            Db::Postgres(c) => c.batch_execute(sql)?,
+            Db::Postgres(c, _) => c.batch_execute(sql)?,
         }
         Ok(())
     }
@@ -206,10 +221,10 @@ impl Db {
                 let n = stmt.execute(rusqlite::params_from_iter(sqlite_params(params)))?;
                 Ok(n as u64)
             }
-            Db::Postgres(c) => {
+            Db::Postgres(c, cache) => {
                 let boxed = pg_params(params);
                 let refs: Vec<&(dyn ToSql + Sync)> = boxed.iter().map(|b| b.as_ref()).collect();
-                let stmt = c.prepare(sql)?;
+                let stmt = pg_statement(c, cache, sql)?;
                 Ok(c.execute(&stmt, &refs)?)
             }
         }
@@ -239,10 +254,10 @@ impl Db {
                 }
                 Ok(out)
             }
-            Db::Postgres(c) => {
+            Db::Postgres(c, cache) => {
                 let boxed = pg_params(params);
                 let refs: Vec<&(dyn ToSql + Sync)> = boxed.iter().map(|b| b.as_ref()).collect();
-                let stmt = c.prepare(sql)?;
+                let stmt = pg_statement(c, cache, sql)?;
                 c.query(&stmt, &refs)?.iter().map(pg_row).collect()
             }
         }

@@ -421,7 +421,7 @@ impl Store {
                         e.into(),
                     )
                 })?;
-                Db::Postgres(Box::new(client))
+                Db::Postgres(Box::new(client), Default::default())
             }
         };
         let store = Store {

@@ -1,0 +1,590 @@
+//! Reports of a run, from the store: a self-contained HTML file (inline SVG
+//! plots, opens offline), an XLSX workbook (results, points, and one sheet of
+//! plot data per instrument; numbers as numbers, units in the headers) and
+//! CSV (the summary table).
+//!
+//! Every number comes from the stored records (the same values `spinbench
+//! runs show` prints); nothing is recomputed here.
+
+mod plots;
+
+use serde_json::Value;
+use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store, StoreError};
+use std::path::{Path, PathBuf};
+
+/// A report could not be made; says what and where.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// No such run.
+    #[error("no run '{0}' in the store (see `spinbench runs list`)")]
+    NoRun(String),
+    /// A stored record is not valid JSON.
+    #[error("the stored record of {serial} cannot be read: {problem}")]
+    Record {
+        /// Serial number.
+        serial: String,
+        /// Why.
+        problem: String,
+    },
+    /// Writing a file failed.
+    #[error("{path}: cannot write: {problem}")]
+    Write {
+        /// The file.
+        path: String,
+        /// Why.
+        problem: String,
+    },
+}
+
+/// Report formats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReportFormat {
+    /// A self-contained HTML file.
+    Html,
+    /// An XLSX workbook.
+    Xlsx,
+    /// The summary table as CSV.
+    Csv,
+}
+
+impl ReportFormat {
+    /// Parse `html`, `xlsx` or `csv`.
+    pub fn parse(text: &str) -> Option<ReportFormat> {
+        match text.to_ascii_lowercase().as_str() {
+            "html" => Some(ReportFormat::Html),
+            "xlsx" => Some(ReportFormat::Xlsx),
+            "csv" => Some(ReportFormat::Csv),
+            _ => None,
+        }
+    }
+
+    fn extension(self) -> &'static str {
+        match self {
+            ReportFormat::Html => "html",
+            ReportFormat::Xlsx => "xlsx",
+            ReportFormat::Csv => "csv",
+        }
+    }
+}
+
+/// One instrument of a run.
+#[derive(Debug, Clone)]
+pub struct UnitReport {
+    /// The stored result row.
+    pub result: ResultRow,
+    /// The whole stored record.
+    pub record: Value,
+    /// The instrument's points, in the order taken.
+    pub points: Vec<PointRow>,
+}
+
+/// Everything a run's report shows.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    /// The run.
+    pub run: RunRow,
+    /// Station config, devices, plan, operator actions.
+    pub context: RunContext,
+    /// Every instrument, in slot order.
+    pub units: Vec<UnitReport>,
+}
+
+/// Read a run's report data from the store.
+pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
+    let run = store
+        .run(run_id)?
+        .ok_or_else(|| ReportError::NoRun(run_id.to_string()))?;
+    let context = store.run_context(run_id)?.unwrap_or_default();
+    let points = store.points(run_id)?;
+    let mut units = Vec::new();
+    for result in store.results(run_id)? {
+        let record: Value =
+            serde_json::from_str(&result.record_json).map_err(|e| ReportError::Record {
+                serial: result.serial.clone(),
+                problem: e.to_string(),
+            })?;
+        let own = points
+            .iter()
+            .filter(|p| p.slot == result.slot)
+            .cloned()
+            .collect();
+        units.push(UnitReport {
+            result,
+            record,
+            points: own,
+        });
+    }
+    Ok(RunReport {
+        run,
+        context,
+        units,
+    })
+}
+
+/// One row of the summary table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SummaryRow {
+    /// Serial number.
+    pub serial: String,
+    /// Slot (1-based).
+    pub slot: i64,
+    /// P or N.
+    pub mount: String,
+    /// Radius found [m].
+    pub radius_m: Option<f64>,
+    /// Drawing radius R0 [m].
+    pub drawing_radius_m: Option<f64>,
+    /// k0 [g].
+    pub k0_g: Option<f64>,
+    /// k1 [Hz/g].
+    pub k1_hz_per_g: Option<f64>,
+    /// k2 [µg/g²].
+    pub k2_ug_per_g2: Option<f64>,
+    /// Half-width of k2's 95 % interval [µg/g²].
+    pub k2_ci95_half_ug_per_g2: Option<f64>,
+    /// k3 [µg/g³].
+    pub k3_ug_per_g3: Option<f64>,
+    /// k2_max of the instrument [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Scale-factor nonlinearity: the largest residual of (11) [ppm].
+    pub sf_nonlinearity_ppm: Option<f64>,
+    /// Asymmetry [ppm].
+    pub asymmetry_ppm: Option<f64>,
+    /// Hysteresis [µg].
+    pub hysteresis_ug: Option<f64>,
+    /// pass, marginal or fail.
+    pub outcome: String,
+    /// Why, when not a plain pass.
+    pub reasons: String,
+}
+
+/// The summary rows: one per instrument and mounting measured.
+pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
+    let mut rows = Vec::new();
+    for u in &report.units {
+        let r = &u.record;
+        let analysis = &r["analysis"];
+        let mounts: Vec<String> = match analysis["fits"].as_object() {
+            Some(fits) if !fits.is_empty() => fits.keys().cloned().collect(),
+            _ => vec![String::new()],
+        };
+        for mount in mounts {
+            let fit = &analysis["fits"][&mount];
+            let ci = &fit["ci95"]["k2_ug_per_g2"];
+            rows.push(SummaryRow {
+                serial: u.result.serial.clone(),
+                slot: u.result.slot + 1,
+                mount: mount.clone(),
+                radius_m: r["radius_m"][&mount].as_f64(),
+                drawing_radius_m: r["drawing_radius_m"].as_f64(),
+                k0_g: fit["k0_g"].as_f64(),
+                k1_hz_per_g: fit["k1"].as_f64(),
+                k2_ug_per_g2: fit["k2_ug_per_g2"].as_f64(),
+                k2_ci95_half_ug_per_g2: match (ci[0].as_f64(), ci[1].as_f64()) {
+                    (Some(a), Some(b)) => Some((b - a) / 2.0),
+                    _ => None,
+                },
+                k3_ug_per_g3: fit["k3_ug_per_g3"].as_f64(),
+                k2_max_ug_per_g2: u.result.k2_max_ug_per_g2,
+                sf_nonlinearity_ppm: analysis["scale_factor"]["residual_max_ppm"].as_f64(),
+                asymmetry_ppm: analysis["figures"]["asymmetry_ppm"].as_f64(),
+                hysteresis_ug: analysis["figures"]["hysteresis_ug"].as_f64(),
+                outcome: u.result.outcome.clone(),
+                reasons: r["reasons"]
+                    .as_array()
+                    .map(|v| {
+                        v.iter()
+                            .filter_map(Value::as_str)
+                            .collect::<Vec<_>>()
+                            .join("; ")
+                    })
+                    .unwrap_or_default(),
+            });
+        }
+    }
+    rows
+}
+
+/// The summary table's columns, with units.
+pub const SUMMARY_HEADERS: [&str; 16] = [
+    "serial",
+    "slot",
+    "mount",
+    "radius [m]",
+    "R0 [m]",
+    "k0 [g]",
+    "k1 [Hz/g]",
+    "k2 [µg/g²]",
+    "k2 ±95% [µg/g²]",
+    "k3 [µg/g³]",
+    "k2_max [µg/g²]",
+    "SF nonlinearity [ppm]",
+    "asymmetry [ppm]",
+    "hysteresis [µg]",
+    "outcome",
+    "reasons",
+];
+
+fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
+    [
+        row.radius_m,
+        row.drawing_radius_m,
+        row.k0_g,
+        row.k1_hz_per_g,
+        row.k2_ug_per_g2,
+        row.k2_ci95_half_ug_per_g2,
+        row.k3_ug_per_g3,
+        row.k2_max_ug_per_g2,
+        row.sf_nonlinearity_ppm,
+        row.asymmetry_ppm,
+        row.hysteresis_ug,
+    ]
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+/// The summary table as CSV (full precision: `{:?}` reads back to the same number).
+pub fn summary_csv(report: &RunReport) -> String {
+    let mut out = SUMMARY_HEADERS.join(",");
+    out.push('\n');
+    for row in summary(report) {
+        let mut cells = vec![
+            csv_field(&row.serial),
+            row.slot.to_string(),
+            row.mount.clone(),
+        ];
+        cells.extend(
+            numbers(&row)
+                .iter()
+                .map(|v| v.map_or(String::new(), |v| format!("{v:?}"))),
+        );
+        cells.push(row.outcome.clone());
+        cells.push(csv_field(&row.reasons));
+        out.push_str(&cells.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+/// Escape text for HTML. Five replacements: no crate needed for this.
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+        .replace('\'', "&#39;")
+}
+
+fn fmt(v: Option<f64>, decimals: usize) -> String {
+    v.map_or("—".into(), |v| format!("{v:.decimals$}"))
+}
+
+fn unix_date(t: i64) -> String {
+    // Civil date from Unix days (Howard Hinnant's algorithm): no time crate for one line.
+    let days = t.div_euclid(86_400);
+    let secs = t.rem_euclid(86_400);
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
+        secs / 3600,
+        secs % 3600 / 60
+    )
+}
+
+/// The report as one self-contained HTML document.
+pub fn html(report: &RunReport) -> String {
+    let run = &report.run;
+    let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
+    let operator = plan["operator"].as_str().unwrap_or("");
+    let mut h = String::new();
+    h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
+    h.push_str(&format!("<title>spinbench report {}</title>", esc(&run.id)));
+    h.push_str(
+        "<style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
+         table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #999;padding:2px 6px;text-align:right}\
+         th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}\
+         section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
+    );
+    h.push_str(&format!(
+        "<h1>Centrifuge test report — run {}</h1>\n<table class=\"meta\">\
+         <tr><th>station</th><td class=\"t\" id=\"station\">{}</td></tr>\
+         <tr><th>operator</th><td class=\"t\" id=\"operator\">{}</td></tr>\
+         <tr><th>started</th><td class=\"t\">{}</td></tr>\
+         <tr><th>state</th><td class=\"t\" id=\"state\">{}{}</td></tr>\
+         <tr><th>plan</th><td class=\"t\">{}</td></tr>\
+         <tr><th>software</th><td class=\"t\">spinbench {}</td></tr></table>\n",
+        esc(&run.id),
+        esc(&run.station),
+        esc(operator),
+        unix_date(run.started_at),
+        esc(&run.state),
+        run.reason
+            .as_deref()
+            .map(|r| format!(": {}", esc(r)))
+            .unwrap_or_default(),
+        esc(plan["name"].as_str().unwrap_or("")),
+        esc(&report.context.software_version),
+    ));
+    if let Some(devices) = report
+        .context
+        .devices_json
+        .as_deref()
+        .and_then(|d| serde_json::from_str::<Vec<Value>>(d).ok())
+    {
+        h.push_str(
+            "<h2>Instruments of the station</h2><table><tr><th>device</th><th>identity</th></tr>",
+        );
+        for d in devices {
+            h.push_str(&format!(
+                "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
+                esc(d["role"].as_str().unwrap_or("")),
+                esc(d["identity"].as_str().unwrap_or(""))
+            ));
+        }
+        h.push_str("</table>\n");
+    }
+    h.push_str("<h2>Summary</h2>\n<table id=\"summary\"><tr>");
+    for head in SUMMARY_HEADERS {
+        h.push_str(&format!("<th>{}</th>", esc(head)));
+    }
+    h.push_str("</tr>\n");
+    for row in summary(report) {
+        let n = numbers(&row);
+        let decimals = [6, 3, 6, 6, 3, 3, 3, 3, 1, 1, 1];
+        h.push_str(&format!(
+            "<tr data-serial=\"{}\" data-mount=\"{}\"><td class=\"t\">{}</td><td>{}</td><td>{}</td>",
+            esc(&row.serial),
+            esc(&row.mount),
+            esc(&row.serial),
+            row.slot,
+            esc(&row.mount)
+        ));
+        for (v, d) in n.iter().zip(decimals) {
+            h.push_str(&format!("<td>{}</td>", fmt(*v, d)));
+        }
+        h.push_str(&format!(
+            "<td class=\"{0}\">{0}</td><td class=\"t\">{1}</td></tr>\n",
+            esc(&row.outcome),
+            esc(&row.reasons)
+        ));
+    }
+    h.push_str("</table>\n");
+    for u in &report.units {
+        h.push_str(&format!(
+            "<section class=\"unit\"><h2>{} (slot {}) — <span class=\"{}\">{}</span></h2>\n",
+            esc(&u.result.serial),
+            u.result.slot + 1,
+            esc(&u.result.outcome),
+            esc(&u.result.outcome)
+        ));
+        for svg in [
+            plots::output_vs_g(u),
+            plots::residuals_vs_g(u),
+            plots::k1_vs_g(u),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            h.push_str("<figure>");
+            h.push_str(&svg);
+            h.push_str("</figure>\n");
+        }
+        h.push_str(
+            "<table class=\"points\"><tr><th>step</th><th>mount</th><th>level [g]</th><th>direction</th>\
+             <th>applied [g]</th><th>rate [deg/s]</th><th>output [Hz]</th><th>σ [Hz]</th><th>n</th></tr>\n",
+        );
+        for p in &u.points {
+            h.push_str(&format!(
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.6}</td><td>{:.4}</td><td>{:.6}</td><td>{:.6}</td><td>{}</td></tr>\n",
+                p.step,
+                esc(&p.mount),
+                p.g_nominal,
+                esc(&p.direction),
+                p.g_applied,
+                p.rate_deg_s,
+                p.output_hz,
+                p.std_hz,
+                p.n
+            ));
+        }
+        h.push_str("</table></section>\n");
+    }
+    if !report.context.operator_actions.is_empty() {
+        h.push_str(
+            "<h2>Operator actions</h2><table><tr><th>time</th><th>who</th><th>what</th></tr>",
+        );
+        for (t, who, what) in &report.context.operator_actions {
+            h.push_str(&format!(
+                "<tr><td>{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
+                unix_date(*t),
+                esc(who),
+                esc(what)
+            ));
+        }
+        h.push_str("</table>\n");
+    }
+    h.push_str("</body></html>\n");
+    h
+}
+
+/// The report as an XLSX workbook at `path`: `results` (the summary),
+/// `points`, and one sheet per instrument with its plot data.
+pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
+    use rust_xlsxwriter::{Format, Workbook, XlsxError};
+    let fail = |e: XlsxError| ReportError::Write {
+        path: path.display().to_string(),
+        problem: e.to_string(),
+    };
+    let mut book = Workbook::new();
+    let bold = Format::new().set_bold();
+    {
+        let sheet = book.add_worksheet().set_name("results").map_err(fail)?;
+        for (c, head) in SUMMARY_HEADERS.iter().enumerate() {
+            sheet
+                .write_string_with_format(0, c as u16, *head, &bold)
+                .map_err(fail)?;
+        }
+        for (i, row) in summary(report).iter().enumerate() {
+            let r = (i + 1) as u32;
+            sheet.write_string(r, 0, &row.serial).map_err(fail)?;
+            sheet.write_number(r, 1, row.slot as f64).map_err(fail)?;
+            sheet.write_string(r, 2, &row.mount).map_err(fail)?;
+            for (k, v) in numbers(row).iter().enumerate() {
+                if let Some(v) = v {
+                    sheet.write_number(r, 3 + k as u16, *v).map_err(fail)?;
+                }
+            }
+            sheet.write_string(r, 14, &row.outcome).map_err(fail)?;
+            sheet.write_string(r, 15, &row.reasons).map_err(fail)?;
+        }
+    }
+    let point_headers = [
+        "serial",
+        "step",
+        "mount",
+        "level [g]",
+        "direction",
+        "applied [g]",
+        "rate [deg/s]",
+        "output [Hz]",
+        "std [Hz]",
+        "n",
+    ];
+    {
+        let sheet = book.add_worksheet().set_name("points").map_err(fail)?;
+        for (c, head) in point_headers.iter().enumerate() {
+            sheet
+                .write_string_with_format(0, c as u16, *head, &bold)
+                .map_err(fail)?;
+        }
+        let mut r = 1u32;
+        for u in &report.units {
+            for p in &u.points {
+                sheet.write_string(r, 0, &u.result.serial).map_err(fail)?;
+                sheet.write_number(r, 1, p.step as f64).map_err(fail)?;
+                sheet.write_string(r, 2, &p.mount).map_err(fail)?;
+                sheet.write_number(r, 3, p.g_nominal).map_err(fail)?;
+                sheet.write_string(r, 4, &p.direction).map_err(fail)?;
+                sheet.write_number(r, 5, p.g_applied).map_err(fail)?;
+                sheet.write_number(r, 6, p.rate_deg_s).map_err(fail)?;
+                sheet.write_number(r, 7, p.output_hz).map_err(fail)?;
+                sheet.write_number(r, 8, p.std_hz).map_err(fail)?;
+                sheet.write_number(r, 9, p.n as f64).map_err(fail)?;
+                r += 1;
+            }
+        }
+    }
+    for u in &report.units {
+        // Sheet names: at most 31 characters, none of []:*?/\ .
+        let name: String = format!("{} s{}", u.result.serial, u.result.slot + 1)
+            .chars()
+            .map(|c| if "[]:*?/\\".contains(c) { '_' } else { c })
+            .take(31)
+            .collect();
+        let sheet = book.add_worksheet().set_name(&name).map_err(fail)?;
+        let heads = [
+            "mount",
+            "level [g]",
+            "input [g]",
+            "direction",
+            "output [Hz]",
+            "residual [µg]",
+        ];
+        for (c, head) in heads.iter().enumerate() {
+            sheet
+                .write_string_with_format(0, c as u16, *head, &bold)
+                .map_err(fail)?;
+        }
+        for (r, res) in (1u32..).zip(plots::residuals(u)) {
+            sheet.write_string(r, 0, &res.mount).map_err(fail)?;
+            sheet.write_number(r, 1, res.g_nominal).map_err(fail)?;
+            sheet.write_number(r, 2, res.g_input).map_err(fail)?;
+            sheet.write_string(r, 3, &res.direction).map_err(fail)?;
+            sheet.write_number(r, 4, res.output).map_err(fail)?;
+            sheet.write_number(r, 5, res.residual_ug).map_err(fail)?;
+        }
+    }
+    book.save(path).map_err(fail)
+}
+
+/// Write the run's report in each format into `dir` (created if needed);
+/// returns the files written (`report-<run>.<ext>`).
+pub fn write_reports(
+    store: &Store,
+    run_id: &str,
+    formats: &[ReportFormat],
+    dir: &Path,
+) -> Result<Vec<PathBuf>, ReportError> {
+    let report = gather(store, run_id)?;
+    std::fs::create_dir_all(dir).map_err(|e| ReportError::Write {
+        path: dir.display().to_string(),
+        problem: e.to_string(),
+    })?;
+    let mut written = Vec::new();
+    for &format in formats {
+        let path = dir.join(format!("report-{run_id}.{}", format.extension()));
+        let write = |text: String| {
+            std::fs::write(&path, text).map_err(|e| ReportError::Write {
+                path: path.display().to_string(),
+                problem: e.to_string(),
+            })
+        };
+        match format {
+            ReportFormat::Html => write(html(&report))?,
+            ReportFormat::Csv => write(summary_csv(&report))?,
+            ReportFormat::Xlsx => write_xlsx(&report, &path)?,
+        }
+        written.push(path);
+    }
+    Ok(written)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn html_text_is_escaped_and_dates_are_civil() {
+        assert_eq!(esc("<a&'\">"), "&lt;a&amp;&#39;&quot;&gt;");
+        assert_eq!(unix_date(0), "1970-01-01 00:00 UTC");
+        assert_eq!(unix_date(1_795_277_084), "2026-11-21 16:04 UTC");
+        assert_eq!(unix_date(951_782_400), "2000-02-29 00:00 UTC");
+    }
+}

@@ -1,0 +1,226 @@
+//! The per-instrument plots, drawn with plotters into SVG (vector; text as
+//! SVG text, so the browser's fonts render any script).
+
+use crate::UnitReport;
+use plotters::prelude::*;
+use serde_json::Value;
+
+const SIZE: (u32, u32) = (460, 320);
+
+/// One residual of a stored fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResidualPoint {
+    /// P or N.
+    pub mount: String,
+    /// Level [g].
+    pub g_nominal: f64,
+    /// Fit input [g] (signed by the mounting in the plots).
+    pub g_input: f64,
+    /// up, down or empty.
+    pub direction: String,
+    /// Observed output [Hz].
+    pub output: f64,
+    /// Residual [µg].
+    pub residual_ug: f64,
+}
+
+/// Every residual of the instrument's per-mounting fits.
+pub fn residuals(u: &UnitReport) -> Vec<ResidualPoint> {
+    let mut out = Vec::new();
+    if let Some(fits) = u.record["analysis"]["fits"].as_object() {
+        for (mount, fit) in fits {
+            for r in fit["residuals"].as_array().into_iter().flatten() {
+                out.push(ResidualPoint {
+                    mount: mount.clone(),
+                    g_nominal: r["g_nominal"].as_f64().unwrap_or(f64::NAN),
+                    g_input: r["g_input"].as_f64().unwrap_or(f64::NAN),
+                    direction: r["direction"].as_str().unwrap_or("").to_string(),
+                    output: r["output"].as_f64().unwrap_or(f64::NAN),
+                    residual_ug: r["residual_ug"].as_f64().unwrap_or(f64::NAN),
+                });
+            }
+        }
+    }
+    out
+}
+
+fn sign(mount: &str) -> f64 {
+    if mount == "N" { -1.0 } else { 1.0 }
+}
+
+fn range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if !lo.is_finite() {
+        return None;
+    }
+    let pad = ((hi - lo) * 0.08).max(1e-9 * hi.abs().max(1.0));
+    Some((lo - pad, hi + pad))
+}
+
+/// Draw with `f` into an SVG string; `None` if there is nothing to draw or drawing failed.
+fn svg(
+    f: impl FnOnce(&DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Option<()>,
+) -> Option<String> {
+    let mut out = String::new();
+    {
+        let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
+        root.fill(&WHITE).ok()?;
+        f(&root)?;
+        root.present().ok()?;
+    }
+    Some(out)
+}
+
+/// Output [Hz] vs applied acceleration [g], both mountings (N drawn at −g).
+pub fn output_vs_g(u: &UnitReport) -> Option<String> {
+    let pts: Vec<(f64, f64, &str)> = u
+        .points
+        .iter()
+        .map(|p| {
+            (
+                sign(&p.mount) * p.g_applied.abs(),
+                p.output_hz,
+                p.mount.as_str(),
+            )
+        })
+        .collect();
+    let x = range(pts.iter().map(|p| p.0))?;
+    let y = range(pts.iter().map(|p| p.1))?;
+    svg(|root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption("output vs applied acceleration", ("sans-serif", 16))
+            .margin(8)
+            .x_label_area_size(36)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)
+            .ok()?;
+        chart
+            .configure_mesh()
+            .x_desc("applied acceleration [g] (N at −g)")
+            .y_desc("output dF [Hz]")
+            .draw()
+            .ok()?;
+        for (mount, color) in [("P", BLUE), ("N", RED)] {
+            chart
+                .draw_series(
+                    pts.iter()
+                        .filter(|p| p.2 == mount)
+                        .map(|p| Circle::new((p.0, p.1), 3, color.filled())),
+                )
+                .ok()?
+                .label(format!("mounting {mount}"))
+                .legend(move |(x, y)| Circle::new((x, y), 3, color.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.8))
+            .draw()
+            .ok()
+    })
+}
+
+/// Fit residuals [µg] vs level [g]: up as circles, down as crosses.
+pub fn residuals_vs_g(u: &UnitReport) -> Option<String> {
+    let res = residuals(u);
+    let x = range(res.iter().map(|r| sign(&r.mount) * r.g_nominal.abs()))?;
+    let y = range(res.iter().map(|r| r.residual_ug))?;
+    svg(|root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption("fit residuals (2)", ("sans-serif", 16))
+            .margin(8)
+            .x_label_area_size(36)
+            .y_label_area_size(64)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)
+            .ok()?;
+        chart
+            .configure_mesh()
+            .x_desc("level [g] (N at −g)")
+            .y_desc("residual [µg]")
+            .draw()
+            .ok()?;
+        chart
+            .draw_series(res.iter().filter(|r| r.direction != "down").map(|r| {
+                Circle::new(
+                    (sign(&r.mount) * r.g_nominal.abs(), r.residual_ug),
+                    3,
+                    BLUE.filled(),
+                )
+            }))
+            .ok()?
+            .label("up")
+            .legend(|(x, y)| Circle::new((x, y), 3, BLUE.filled()));
+        chart
+            .draw_series(
+                res.iter().filter(|r| r.direction == "down").map(|r| {
+                    Cross::new((sign(&r.mount) * r.g_nominal.abs(), r.residual_ug), 4, RED)
+                }),
+            )
+            .ok()?
+            .label("down")
+            .legend(|(x, y)| Cross::new((x, y), 4, RED));
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.8))
+            .draw()
+            .ok()
+    })
+}
+
+/// K1(a) (10) with its fit KA + KB·a + KC·a² (11).
+pub fn k1_vs_g(u: &UnitReport) -> Option<String> {
+    let sf = &u.record["analysis"]["scale_factor"];
+    let pts: Vec<(f64, f64)> = sf["points"]
+        .as_array()?
+        .iter()
+        .filter_map(|p: &Value| Some((p["g_input"].as_f64()?, p["k1"].as_f64()?)))
+        .collect();
+    let (ka, kb, kc) = (sf["ka"].as_f64()?, sf["kb"].as_f64()?, sf["kc"].as_f64()?);
+    let x = range(pts.iter().map(|p| p.0))?;
+    let curve: Vec<(f64, f64)> = (0..=100)
+        .map(|i| {
+            let a = x.0 + (x.1 - x.0) * f64::from(i) / 100.0;
+            (a, ka + kb * a + kc * a * a)
+        })
+        .collect();
+    let y = range(pts.iter().map(|p| p.1).chain(curve.iter().map(|c| c.1)))?;
+    svg(|root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(
+                "scale factor K1(a) (10) and its fit (11)",
+                ("sans-serif", 16),
+            )
+            .margin(8)
+            .x_label_area_size(36)
+            .y_label_area_size(72)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)
+            .ok()?;
+        chart
+            .configure_mesh()
+            .x_desc("input [g]")
+            .y_desc("K1 [Hz/g]")
+            .draw()
+            .ok()?;
+        chart
+            .draw_series(pts.iter().map(|p| Circle::new(*p, 3, BLUE.filled())))
+            .ok()?
+            .label("K1(a)")
+            .legend(|(x, y)| Circle::new((x, y), 3, BLUE.filled()));
+        chart
+            .draw_series(LineSeries::new(curve, RED))
+            .ok()?
+            .label("KA + KB·a + KC·a²")
+            .legend(|(x, y)| PathElement::new(vec![(x - 8, y), (x + 8, y)], RED));
+        chart
+            .configure_series_labels()
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.8))
+            .draw()
+            .ok()
+    })
+}
