@@ -65,22 +65,7 @@ fn write_xlsx(points: &[PointRow], results: &[ResultRow], run_id: &str, out: &Pa
     let mut book = Workbook::new();
     let bold = Format::new().set_bold();
     let sheet = book.add_worksheet().set_name("points")?;
-    let headers = [
-        "unit",
-        "mount",
-        "g_nominal",
-        "g_applied",
-        "output",
-        "direction",
-        "run",
-        "step",
-        "slot",
-        "rate_deg_s",
-        "std_hz",
-        "n",
-    ];
-    debug_assert_eq!(headers, POINT_COLUMNS);
-    for (c, h) in headers.iter().enumerate() {
+    for (c, h) in POINT_COLUMNS.iter().enumerate() {
         sheet.write_string_with_format(0, c as u16, *h, &bold)?;
     }
     for (i, p) in points.iter().enumerate() {
