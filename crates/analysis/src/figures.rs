@@ -81,21 +81,27 @@ pub struct Hysteresis {
 }
 
 /// Hysteresis over every level that was visited both ascending and
-/// descending; `scale_factor(mount)` gives |k1| for the conversion to µg.
-/// `None` when no level has both directions.
+/// descending, at the same applied acceleration: the part of the up − down
+/// output difference that the two passes' applied accelerations explain
+/// (k1·Δa, the first-order term of (2)) is removed, so a table whose rate
+/// differs by a few ppm between the passes does not show as instrument
+/// hysteresis. `scale_factor(mount)` gives the mounting's k1 (output per g
+/// of applied magnitude). `None` when no level has both directions.
 pub fn hysteresis(
     points: &[Point],
     scale_factor: impl Fn(Mount) -> Option<f64>,
 ) -> Option<Hysteresis> {
     let mut worst: Option<Hysteresis> = None;
     for mount in [Mount::P, Mount::N] {
-        let Some(k1) = scale_factor(mount).map(f64::abs).filter(|k| *k > 0.0) else {
+        let Some(k1) = scale_factor(mount).filter(|k| *k != 0.0) else {
             continue;
         };
         for level in levels_of(points.iter().filter(|p| p.mount == mount)) {
-            if let (Some(up), Some(down)) = (level.output_up, level.output_down) {
+            if let (Some(up), Some(down), Some(g_up), Some(g_down)) =
+                (level.output_up, level.output_down, level.g_up, level.g_down)
+            {
                 // Express as acceleration in this mounting's input direction.
-                let ug = (up - down) / k1 * UG_PER_G;
+                let ug = ((up - down) - k1 * (g_up - g_down)) / k1.abs() * UG_PER_G;
                 if worst.is_none_or(|w| ug.abs() > w.ug.abs()) {
                     worst = Some(Hysteresis {
                         ug,
@@ -199,5 +205,29 @@ mod tests {
         let h = hysteresis(&pts, |_| Some(100.0)).expect("h");
         assert!((h.ug + 20.0).abs() < 1e-6, "{h:?}");
         assert_eq!(h.g_nominal, 5.0);
+    }
+
+    #[test]
+    fn a_table_running_faster_on_the_way_down_is_not_hysteresis() {
+        // Mounting N (k1 < 0 against |a|): the descending 40 g pass ran at
+        // 3 ppm more rate (6 ppm more g); the instrument has no hysteresis.
+        let k1 = -100.0;
+        let mut pts: Vec<Point> = [(20.0, 1.0), (40.0, 1.0), (60.0, 1.0), (40.0, 1.000_006)]
+            .into_iter()
+            .map(|(g, scale)| Point {
+                mount: Mount::N,
+                g_nominal: g,
+                g_applied: -g * scale,
+                output: k1 * g * scale,
+                direction: None,
+            })
+            .collect();
+        infer_directions(&mut pts);
+        let h = hysteresis(&pts, |_| Some(k1)).expect("h");
+        assert!(h.ug.abs() < 1e-6, "{h:?}");
+        // A real 15 µg offset of the descending pass still shows (up − down).
+        pts[3].output += 0.0015;
+        let h = hysteresis(&pts, |_| Some(k1)).expect("h");
+        assert!((h.ug + 15.0).abs() < 1e-6, "{h:?}");
     }
 }

@@ -166,6 +166,10 @@ pub struct Level {
     pub output_up: Option<f64>,
     /// Mean output of descending points, if any.
     pub output_down: Option<f64>,
+    /// Mean applied acceleration magnitude of ascending points, if any [g].
+    pub g_up: Option<f64>,
+    /// Mean applied acceleration magnitude of descending points, if any [g].
+    pub g_down: Option<f64>,
     /// Number of points at this level.
     pub count: usize,
 }
@@ -179,21 +183,24 @@ pub fn levels_of<'a>(points: impl IntoIterator<Item = &'a Point>) -> Vec<Level> 
     sorted
         .chunk_by(|a, b| a.g_nominal.abs() == b.g_nominal.abs())
         .map(|group| {
-            let pick = |d: Direction| -> Vec<f64> {
+            let pick = |d: Direction, value: fn(&Point) -> f64| -> Vec<f64> {
                 group
                     .iter()
                     .filter(|p| p.direction == Some(d))
-                    .map(|p| p.output)
+                    .map(|p| value(p))
                     .collect()
             };
+            let output = |p: &Point| p.output;
             let outputs: Vec<f64> = group.iter().map(|p| p.output).collect();
             let applied: Vec<f64> = group.iter().map(|p| p.g_magnitude()).collect();
             Level {
                 g_nominal: group[0].g_nominal.abs(),
                 g_applied: mean(&applied).unwrap_or(0.0),
                 output: mean(&outputs).unwrap_or(0.0),
-                output_up: mean(&pick(Direction::Up)),
-                output_down: mean(&pick(Direction::Down)),
+                output_up: mean(&pick(Direction::Up, output)),
+                output_down: mean(&pick(Direction::Down, output)),
+                g_up: mean(&pick(Direction::Up, Point::g_magnitude)),
+                g_down: mean(&pick(Direction::Down, Point::g_magnitude)),
                 count: group.len(),
             }
         })

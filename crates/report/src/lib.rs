@@ -1,12 +1,16 @@
-//! Reports of a run, from the store: a self-contained HTML file (inline SVG
-//! plots, opens offline), an XLSX workbook (results, points, and one sheet of
-//! plot data per instrument; numbers as numbers, units in the headers) and
-//! CSV (the summary table).
+//! Reports of a run, from the store: a PDF (rendered from Rust, vector plots,
+//! an embedded font that also covers Chinese), a self-contained HTML file
+//! (inline SVG plots, opens offline), an XLSX workbook (results, points, and
+//! one sheet of plot data per instrument; numbers as numbers, units in the
+//! headers) and CSV (the summary table).
 //!
 //! Every number comes from the stored records (the same values `spinbench
 //! runs show` prints); nothing is recomputed here.
 
+mod pdf;
 mod plots;
+
+pub use pdf::pdf;
 
 use serde_json::Value;
 use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store, StoreError};
@@ -29,6 +33,9 @@ pub enum ReportError {
         /// Why.
         problem: String,
     },
+    /// The PDF could not be rendered.
+    #[error("cannot render the PDF: {0}")]
+    Pdf(String),
     /// Writing a file failed.
     #[error("{path}: cannot write: {problem}")]
     Write {
@@ -42,6 +49,8 @@ pub enum ReportError {
 /// Report formats.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ReportFormat {
+    /// A PDF document.
+    Pdf,
     /// A self-contained HTML file.
     Html,
     /// An XLSX workbook.
@@ -51,9 +60,18 @@ pub enum ReportFormat {
 }
 
 impl ReportFormat {
-    /// Parse `html`, `xlsx` or `csv`.
+    /// Every format, as the engine writes them at the end of a run.
+    pub const ALL: [ReportFormat; 4] = [
+        ReportFormat::Pdf,
+        ReportFormat::Html,
+        ReportFormat::Xlsx,
+        ReportFormat::Csv,
+    ];
+
+    /// Parse `pdf`, `html`, `xlsx` or `csv`.
     pub fn parse(text: &str) -> Option<ReportFormat> {
         match text.to_ascii_lowercase().as_str() {
+            "pdf" => Some(ReportFormat::Pdf),
             "html" => Some(ReportFormat::Html),
             "xlsx" => Some(ReportFormat::Xlsx),
             "csv" => Some(ReportFormat::Csv),
@@ -63,6 +81,7 @@ impl ReportFormat {
 
     fn extension(self) -> &'static str {
         match self {
+            ReportFormat::Pdf => "pdf",
             ReportFormat::Html => "html",
             ReportFormat::Xlsx => "xlsx",
             ReportFormat::Csv => "csv",
@@ -228,6 +247,83 @@ pub const SUMMARY_HEADERS: [&str; 16] = [
     "reasons",
 ];
 
+/// Decimals shown for the summary's numbers (HTML and PDF), in [`numbers`] order.
+const SUMMARY_DECIMALS: [usize; 11] = [6, 3, 6, 6, 3, 3, 3, 3, 1, 1, 1];
+
+/// The point table's columns (HTML and PDF).
+const POINT_HEADERS: [&str; 9] = [
+    "step",
+    "mount",
+    "level [g]",
+    "direction",
+    "applied [g]",
+    "rate [deg/s]",
+    "output [Hz]",
+    "σ [Hz]",
+    "n",
+];
+
+/// One row of the point table, as shown.
+fn point_cells(p: &PointRow) -> [String; 9] {
+    [
+        p.step.to_string(),
+        p.mount.clone(),
+        p.g_nominal.to_string(),
+        p.direction.clone(),
+        format!("{:.6}", p.g_applied),
+        format!("{:.4}", p.rate_deg_s),
+        format!("{:.6}", p.output_hz),
+        format!("{:.6}", p.std_hz),
+        p.n.to_string(),
+    ]
+}
+
+/// The run's header block: (label, value).
+fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
+    let run = &report.run;
+    let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
+    vec![
+        ("station", run.station.clone()),
+        (
+            "operator",
+            plan["operator"].as_str().unwrap_or("").to_string(),
+        ),
+        ("started", unix_date(run.started_at)),
+        (
+            "state",
+            format!(
+                "{}{}",
+                run.state,
+                run.reason
+                    .as_deref()
+                    .map(|r| format!(": {r}"))
+                    .unwrap_or_default()
+            ),
+        ),
+        ("plan", plan["name"].as_str().unwrap_or("").to_string()),
+        (
+            "software",
+            format!("spinbench {}", report.context.software_version),
+        ),
+    ]
+}
+
+/// The station's devices and their identities, when recorded: (role, identity).
+fn devices(report: &RunReport) -> Option<Vec<(String, String)>> {
+    let devices: Vec<Value> = serde_json::from_str(report.context.devices_json.as_deref()?).ok()?;
+    Some(
+        devices
+            .iter()
+            .map(|d| {
+                (
+                    d["role"].as_str().unwrap_or("").to_string(),
+                    d["identity"].as_str().unwrap_or("").to_string(),
+                )
+            })
+            .collect(),
+    )
+}
+
 fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
     [
         row.radius_m,
@@ -311,8 +407,6 @@ fn unix_date(t: i64) -> String {
 /// The report as one self-contained HTML document.
 pub fn html(report: &RunReport) -> String {
     let run = &report.run;
-    let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
-    let operator = plan["operator"].as_str().unwrap_or("");
     let mut h = String::new();
     h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
     h.push_str(&format!("<title>spinbench report {}</title>", esc(&run.id)));
@@ -323,39 +417,25 @@ pub fn html(report: &RunReport) -> String {
          section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
     );
     h.push_str(&format!(
-        "<h1>Centrifuge test report — run {}</h1>\n<table class=\"meta\">\
-         <tr><th>station</th><td class=\"t\" id=\"station\">{}</td></tr>\
-         <tr><th>operator</th><td class=\"t\" id=\"operator\">{}</td></tr>\
-         <tr><th>started</th><td class=\"t\">{}</td></tr>\
-         <tr><th>state</th><td class=\"t\" id=\"state\">{}{}</td></tr>\
-         <tr><th>plan</th><td class=\"t\">{}</td></tr>\
-         <tr><th>software</th><td class=\"t\">spinbench {}</td></tr></table>\n",
-        esc(&run.id),
-        esc(&run.station),
-        esc(operator),
-        unix_date(run.started_at),
-        esc(&run.state),
-        run.reason
-            .as_deref()
-            .map(|r| format!(": {}", esc(r)))
-            .unwrap_or_default(),
-        esc(plan["name"].as_str().unwrap_or("")),
-        esc(&report.context.software_version),
+        "<h1>Centrifuge test report — run {}</h1>\n<table class=\"meta\">",
+        esc(&run.id)
     ));
-    if let Some(devices) = report
-        .context
-        .devices_json
-        .as_deref()
-        .and_then(|d| serde_json::from_str::<Vec<Value>>(d).ok())
-    {
+    for (label, value) in meta_rows(report) {
+        h.push_str(&format!(
+            "<tr><th>{label}</th><td class=\"t\" id=\"{label}\">{}</td></tr>",
+            esc(&value)
+        ));
+    }
+    h.push_str("</table>\n");
+    if let Some(devices) = devices(report) {
         h.push_str(
             "<h2>Instruments of the station</h2><table><tr><th>device</th><th>identity</th></tr>",
         );
-        for d in devices {
+        for (role, identity) in devices {
             h.push_str(&format!(
                 "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
-                esc(d["role"].as_str().unwrap_or("")),
-                esc(d["identity"].as_str().unwrap_or(""))
+                esc(&role),
+                esc(&identity)
             ));
         }
         h.push_str("</table>\n");
@@ -367,7 +447,6 @@ pub fn html(report: &RunReport) -> String {
     h.push_str("</tr>\n");
     for row in summary(report) {
         let n = numbers(&row);
-        let decimals = [6, 3, 6, 6, 3, 3, 3, 3, 1, 1, 1];
         h.push_str(&format!(
             "<tr data-serial=\"{}\" data-mount=\"{}\"><td class=\"t\">{}</td><td>{}</td><td>{}</td>",
             esc(&row.serial),
@@ -376,7 +455,7 @@ pub fn html(report: &RunReport) -> String {
             row.slot,
             esc(&row.mount)
         ));
-        for (v, d) in n.iter().zip(decimals) {
+        for (v, d) in n.iter().zip(SUMMARY_DECIMALS) {
             h.push_str(&format!("<td>{}</td>", fmt(*v, d)));
         }
         h.push_str(&format!(
@@ -394,35 +473,22 @@ pub fn html(report: &RunReport) -> String {
             esc(&u.result.outcome),
             esc(&u.result.outcome)
         ));
-        for svg in [
-            plots::output_vs_g(u),
-            plots::residuals_vs_g(u),
-            plots::k1_vs_g(u),
-        ]
-        .into_iter()
-        .flatten()
-        {
+        for svg in plots::UNIT_PLOTS.iter().filter_map(|p| p.svg(u)) {
             h.push_str("<figure>");
             h.push_str(&svg);
             h.push_str("</figure>\n");
         }
-        h.push_str(
-            "<table class=\"points\"><tr><th>step</th><th>mount</th><th>level [g]</th><th>direction</th>\
-             <th>applied [g]</th><th>rate [deg/s]</th><th>output [Hz]</th><th>σ [Hz]</th><th>n</th></tr>\n",
-        );
+        h.push_str("<table class=\"points\"><tr>");
+        for head in POINT_HEADERS {
+            h.push_str(&format!("<th>{}</th>", esc(head)));
+        }
+        h.push_str("</tr>\n");
         for p in &u.points {
-            h.push_str(&format!(
-                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.6}</td><td>{:.4}</td><td>{:.6}</td><td>{:.6}</td><td>{}</td></tr>\n",
-                p.step,
-                esc(&p.mount),
-                p.g_nominal,
-                esc(&p.direction),
-                p.g_applied,
-                p.rate_deg_s,
-                p.output_hz,
-                p.std_hz,
-                p.n
-            ));
+            h.push_str("<tr>");
+            for cell in point_cells(p) {
+                h.push_str(&format!("<td>{}</td>", esc(&cell)));
+            }
+            h.push_str("</tr>\n");
         }
         h.push_str("</table></section>\n");
     }
@@ -570,6 +636,12 @@ pub fn write_reports(
             ReportFormat::Html => write(html(&report))?,
             ReportFormat::Csv => write(summary_csv(&report))?,
             ReportFormat::Xlsx => write_xlsx(&report, &path)?,
+            ReportFormat::Pdf => {
+                std::fs::write(&path, pdf(&report)?).map_err(|e| ReportError::Write {
+                    path: path.display().to_string(),
+                    problem: e.to_string(),
+                })?
+            }
         }
         written.push(path);
     }

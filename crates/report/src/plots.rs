@@ -2,10 +2,12 @@
 //! SVG text, so the browser's fonts render any script).
 
 use crate::UnitReport;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use serde_json::Value;
 
-const SIZE: (u32, u32) = (460, 320);
+/// Size of every plot [px]; the PDF maps it onto its page.
+pub(crate) const SIZE: (u32, u32) = (460, 320);
 
 /// One residual of a stored fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -61,22 +63,54 @@ fn range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     Some((lo - pad, hi + pad))
 }
 
-/// Draw with `f` into an SVG string; `None` if there is nothing to draw or drawing failed.
-fn svg(
-    f: impl FnOnce(&DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Option<()>,
-) -> Option<String> {
-    let mut out = String::new();
-    {
-        let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
-        root.fill(&WHITE).ok()?;
-        f(&root)?;
-        root.present().ok()?;
+/// The three plots of an instrument's page, in order.
+pub(crate) const UNIT_PLOTS: [UnitPlot; 3] =
+    [UnitPlot::OutputVsG, UnitPlot::ResidualsVsG, UnitPlot::K1VsG];
+
+/// One of the per-instrument plots.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum UnitPlot {
+    /// Output vs applied acceleration.
+    OutputVsG,
+    /// Fit residuals vs level.
+    ResidualsVsG,
+    /// K1(a) with its fit.
+    K1VsG,
+}
+
+impl UnitPlot {
+    /// Draw the plot on any plotters backend (SVG for HTML, PDF operators
+    /// for the PDF); `None` if there is nothing to draw or drawing failed.
+    pub(crate) fn draw<DB: DrawingBackend>(
+        self,
+        u: &UnitReport,
+        root: &DrawingArea<DB, Shift>,
+    ) -> Option<()> {
+        match self {
+            UnitPlot::OutputVsG => draw_output_vs_g(u, root),
+            UnitPlot::ResidualsVsG => draw_residuals_vs_g(u, root),
+            UnitPlot::K1VsG => draw_k1_vs_g(u, root),
+        }
     }
-    Some(out)
+
+    /// The plot as an SVG document.
+    pub(crate) fn svg(self, u: &UnitReport) -> Option<String> {
+        let mut out = String::new();
+        {
+            let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
+            root.fill(&WHITE).ok()?;
+            self.draw(u, &root)?;
+            root.present().ok()?;
+        }
+        Some(out)
+    }
 }
 
 /// Output [Hz] vs applied acceleration [g], both mountings (N drawn at −g).
-pub fn output_vs_g(u: &UnitReport) -> Option<String> {
+fn draw_output_vs_g<DB: DrawingBackend>(
+    u: &UnitReport,
+    root: &DrawingArea<DB, Shift>,
+) -> Option<()> {
     let pts: Vec<(f64, f64, &str)> = u
         .points
         .iter()
@@ -90,7 +124,7 @@ pub fn output_vs_g(u: &UnitReport) -> Option<String> {
         .collect();
     let x = range(pts.iter().map(|p| p.0))?;
     let y = range(pts.iter().map(|p| p.1))?;
-    svg(|root| {
+    {
         let mut chart = ChartBuilder::on(root)
             .caption("output vs applied acceleration", ("sans-serif", 16))
             .margin(8)
@@ -121,15 +155,18 @@ pub fn output_vs_g(u: &UnitReport) -> Option<String> {
             .background_style(WHITE.mix(0.8))
             .draw()
             .ok()
-    })
+    }
 }
 
 /// Fit residuals [µg] vs level [g]: up as circles, down as crosses.
-pub fn residuals_vs_g(u: &UnitReport) -> Option<String> {
+fn draw_residuals_vs_g<DB: DrawingBackend>(
+    u: &UnitReport,
+    root: &DrawingArea<DB, Shift>,
+) -> Option<()> {
     let res = residuals(u);
     let x = range(res.iter().map(|r| sign(&r.mount) * r.g_nominal.abs()))?;
     let y = range(res.iter().map(|r| r.residual_ug))?;
-    svg(|root| {
+    {
         let mut chart = ChartBuilder::on(root)
             .caption("fit residuals (2)", ("sans-serif", 16))
             .margin(8)
@@ -163,17 +200,19 @@ pub fn residuals_vs_g(u: &UnitReport) -> Option<String> {
             .ok()?
             .label("down")
             .legend(|(x, y)| Cross::new((x, y), 4, RED));
+        // Upper left: the residuals of the top levels sit upper right.
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperLeft)
             .border_style(BLACK)
             .background_style(WHITE.mix(0.8))
             .draw()
             .ok()
-    })
+    }
 }
 
 /// K1(a) (10) with its fit KA + KB·a + KC·a² (11).
-pub fn k1_vs_g(u: &UnitReport) -> Option<String> {
+fn draw_k1_vs_g<DB: DrawingBackend>(u: &UnitReport, root: &DrawingArea<DB, Shift>) -> Option<()> {
     let sf = &u.record["analysis"]["scale_factor"];
     let pts: Vec<(f64, f64)> = sf["points"]
         .as_array()?
@@ -189,7 +228,7 @@ pub fn k1_vs_g(u: &UnitReport) -> Option<String> {
         })
         .collect();
     let y = range(pts.iter().map(|p| p.1).chain(curve.iter().map(|c| c.1)))?;
-    svg(|root| {
+    {
         let mut chart = ChartBuilder::on(root)
             .caption(
                 "scale factor K1(a) (10) and its fit (11)",
@@ -222,5 +261,5 @@ pub fn k1_vs_g(u: &UnitReport) -> Option<String> {
             .background_style(WHITE.mix(0.8))
             .draw()
             .ok()
-    })
+    }
 }

@@ -9,6 +9,11 @@ use rand_distr::{Distribution, StandardNormal};
 /// Correlation time of the rate wander [s].
 const WANDER_TAU_S: f64 = 60.0;
 
+/// Gate of the controller's rate measurement [s]: like a real controller
+/// counting encoder lines, it reports the mean rate over its last gate, not
+/// one instant of the once-per-revolution ripple.
+const RATE_GATE_S: f64 = 1.0;
+
 /// The table's state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
@@ -28,6 +33,12 @@ pub struct Table {
     pub interlock_fault: bool,
     angle_rad: f64,
     wander: f64,
+    /// The measured rate of each step within the last gate [rad/s].
+    gate: std::collections::VecDeque<f64>,
+    /// Sum of `gate`.
+    gate_sum: f64,
+    /// Steps since the start, to sum the gate afresh once per gate.
+    gate_steps: u64,
 }
 
 impl Table {
@@ -44,6 +55,9 @@ impl Table {
             interlock_fault: false,
             angle_rad: 0.0,
             wander: 0.0,
+            gate: std::collections::VecDeque::new(),
+            gate_sum: 0.0,
+            gate_steps: 0,
         }
     }
 
@@ -78,10 +92,33 @@ impl Table {
         let n: f64 = StandardNormal.sample(rng);
         self.wander +=
             -self.wander / WANDER_TAU_S * dt + sigma * (2.0 * dt / WANDER_TAU_S).sqrt() * n;
+        // The controller's gate: a running sum, summed afresh once per gate
+        // so rounding cannot accumulate over a long run.
+        let steps = ((RATE_GATE_S / dt).round() as usize).max(1);
+        let rate = self.measured_rate_rad_s();
+        self.gate.push_back(rate);
+        self.gate_sum += rate;
+        while self.gate.len() > steps {
+            self.gate_sum -= self.gate.pop_front().unwrap_or(0.0);
+        }
+        self.gate_steps += 1;
+        if self.gate_steps.is_multiple_of(steps as u64) {
+            self.gate_sum = self.gate.iter().sum();
+        }
+    }
+
+    /// The rate the controller reports [rad/s]: the mean of the measured
+    /// rate over the last [`RATE_GATE_S`].
+    pub fn reported_rate_rad_s(&self) -> f64 {
+        if self.gate.is_empty() {
+            self.measured_rate_rad_s()
+        } else {
+            self.gate_sum / self.gate.len() as f64
+        }
     }
 
     /// The instantaneous rate with ripple and wander [rad/s]: what the
-    /// instruments feel and the controller reports.
+    /// instruments feel.
     pub fn measured_rate_rad_s(&self) -> f64 {
         self.rate_rad_s * (1.0 + self.config.ripple_ppm * 1e-6 * self.angle_rad.sin() + self.wander)
     }

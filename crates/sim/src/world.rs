@@ -575,7 +575,7 @@ impl World {
         } else if is(h::READ_RATE) {
             return Some(format!(
                 "{:.6}",
-                self.table.measured_rate_rad_s().to_degrees()
+                self.table.reported_rate_rad_s().to_degrees()
             ));
         } else if is(h::INTERLOCK_QUERY) {
             return Some(
@@ -644,7 +644,7 @@ impl World {
             "ID?" => "SPINBENCH SIM-TABLE MNEMONIC 1.0".into(),
             "RATE?" => format!(
                 "RATE {:.4}",
-                spinbench_analysis::centrifuge::rad_s_to_rpm(self.table.measured_rate_rad_s())
+                spinbench_analysis::centrifuge::rad_s_to_rpm(self.table.reported_rate_rad_s())
             ),
             "ILK?" => format!("ILK {}", u8::from(self.table.interlocks_closed)),
             "ENA" if self.table.interlock_fault => "ERR interlock fault latched, send RST".into(),

@@ -116,7 +116,7 @@ pub enum Command {
     Report {
         /// Run identifier.
         run: String,
-        /// html, xlsx or csv; repeat or comma-separate for several (default: all three).
+        /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
         #[arg(long, value_delimiter = ',')]
         format: Vec<String>,
         /// Directory for the files (default: the current directory).
@@ -363,13 +363,13 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         } => {
             use spinbench_report::ReportFormat;
             let formats = if format.is_empty() {
-                vec![ReportFormat::Html, ReportFormat::Xlsx, ReportFormat::Csv]
+                ReportFormat::ALL.to_vec()
             } else {
                 format
                     .iter()
                     .map(|f| {
                         ReportFormat::parse(f)
-                            .with_context(|| format!("--format {f}: use html, xlsx or csv"))
+                            .with_context(|| format!("--format {f}: use pdf, html, xlsx or csv"))
                     })
                     .collect::<Result<Vec<_>>>()?
             };

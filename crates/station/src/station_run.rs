@@ -231,12 +231,7 @@ pub fn execute(
     // The run's report, written at the end of every run (a failed report
     // does not lose the run: it is in the store and can be made again).
     use spinbench_report::ReportFormat;
-    match spinbench_report::write_reports(
-        &store,
-        &run_id_of(dir),
-        &[ReportFormat::Html, ReportFormat::Xlsx, ReportFormat::Csv],
-        dir,
-    ) {
+    match spinbench_report::write_reports(&store, &run_id_of(dir), &ReportFormat::ALL, dir) {
         Ok(files) => {
             if !quiet {
                 for f in files {

@@ -68,9 +68,18 @@ fn fresh_postgres() -> String {
 }
 
 /// One simulated run into `target` (`--db url` when given, else the data directory's file).
+/// The round trip's operator and serial numbers: not only Latin.
+const OPERATOR: &str = "张伟";
+const SERIAL_PREFIX: &str = "加速度计-";
+
 fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
     let plan = dir.join("plan.toml");
-    std::fs::write(&plan, common::short_plan("ST")).expect("plan");
+    // Chinese serial numbers and operator: every report format must carry them.
+    let text = format!(
+        "operator = \"{OPERATOR}\"\n{}",
+        common::short_plan(SERIAL_PREFIX)
+    );
+    std::fs::write(&plan, text).expect("plan");
     let data = dir.join("data");
     let mut args = vec![
         "run".to_string(),
@@ -114,8 +123,12 @@ fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
         "{listing}{err}"
     );
     let (ok, shown, _) = spinbench(&["runs", "show", &run.id, "--db", db_s]);
-    assert!(ok && shown.contains("ST7"), "{shown}");
-    let (ok, history, _) = spinbench(&["unit", "ST2", "--db", db_s]);
+    assert!(
+        ok && shown.contains(&format!("{SERIAL_PREFIX}7")),
+        "{shown}"
+    );
+    let serial_2 = format!("{SERIAL_PREFIX}2");
+    let (ok, history, _) = spinbench(&["unit", &serial_2, "--db", db_s]);
     assert!(ok && history.contains(&run.id), "{history}");
 
     // Every export format is valid input for `analyze`, which reproduces the stored fits.
@@ -335,6 +348,55 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
         assert!(
             row.contains(&format!("<td>{k2:.3}</td>")),
             "{serial} {mount} k2 {k2:.3} in {row}"
+        );
+    }
+
+    // PDF, read by an independent reader (poppler's pdftotext, installed by
+    // scripts/test): a cover with the summary, then a page (or more) per
+    // instrument; the Chinese text is real text, and every stored k2 is in
+    // its summary row (3 decimals).
+    let pdf = run_dir.join(format!("report-{run_id}.pdf"));
+    let out = Command::new("pdftotext")
+        .args(["-layout"])
+        .arg(&pdf)
+        .arg("-")
+        .output()
+        .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).expect("utf-8 text");
+    let pages: Vec<&str> = text
+        .split('\x0c')
+        .filter(|p| !p.trim().is_empty())
+        .collect();
+    assert!(
+        pages.len() > 3,
+        "cover + 3 instruments: {} pages",
+        pages.len()
+    );
+    assert!(pages[0].contains(&format!("run {run_id}")), "{}", pages[0]);
+    assert!(pages[0].contains(OPERATOR), "operator in {}", pages[0]);
+    for (serial, mount, k2) in &stored {
+        assert!(serial.starts_with(SERIAL_PREFIX));
+        let row = pages[0]
+            .lines()
+            .find(|l| {
+                let cells: Vec<&str> = l.split_whitespace().collect();
+                cells.first() == Some(&serial.as_str()) && cells.get(2) == Some(&mount.as_str())
+            })
+            .unwrap_or_else(|| panic!("summary row of {serial} {mount} in {}", pages[0]));
+        assert!(
+            row.split_whitespace().any(|c| c == format!("{k2:.3}")),
+            "{serial} {mount} k2 {k2:.3} in {row}"
+        );
+        assert!(
+            pages[1..]
+                .iter()
+                .any(|p| p.contains(&format!("{serial} (slot"))),
+            "a page of {serial}"
         );
     }
 }
