@@ -7,10 +7,15 @@
 //! Every number comes from the stored records (the same values `spinbench
 //! runs show` prints); nothing is recomputed here.
 
+mod batch;
 mod pdf;
 mod plots;
 
-pub use pdf::pdf;
+pub use batch::{
+    BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, gather_batch,
+    write_batch_xlsx,
+};
+pub use pdf::{batch_pdf, pdf};
 
 use serde_json::Value;
 use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store, StoreError};
@@ -642,6 +647,39 @@ pub fn write_reports(
                     problem: e.to_string(),
                 })?
             }
+        }
+        written.push(path);
+    }
+    Ok(written)
+}
+
+/// Write the batch report of `run_ids` (every run when empty) in each
+/// format into `dir`; returns the files written (`batch-report.<ext>`).
+pub fn write_batch_reports(
+    store: &Store,
+    run_ids: &[String],
+    formats: &[ReportFormat],
+    dir: &Path,
+) -> Result<Vec<PathBuf>, ReportError> {
+    let batch = gather_batch(store, run_ids)?;
+    std::fs::create_dir_all(dir).map_err(|e| ReportError::Write {
+        path: dir.display().to_string(),
+        problem: e.to_string(),
+    })?;
+    let mut written = Vec::new();
+    for &format in formats {
+        let path = dir.join(format!("batch-report.{}", format.extension()));
+        let write = |bytes: Vec<u8>| {
+            std::fs::write(&path, bytes).map_err(|e| ReportError::Write {
+                path: path.display().to_string(),
+                problem: e.to_string(),
+            })
+        };
+        match format {
+            ReportFormat::Pdf => write(batch_pdf(&batch)?)?,
+            ReportFormat::Html => write(batch_html(&batch).into_bytes())?,
+            ReportFormat::Csv => write(batch_csv(&batch).into_bytes())?,
+            ReportFormat::Xlsx => write_batch_xlsx(&batch, &path)?,
         }
         written.push(path);
     }

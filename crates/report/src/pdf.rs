@@ -8,11 +8,13 @@
 //! charts into printpdf operators; printpdf's own SVG import needs its HTML
 //! layout engine, a large build) and the table layout (a few fixed columns).
 
+use crate::batch::{self, BatchReport};
 use crate::plots::{self, UNIT_PLOTS};
 use crate::{
     POINT_HEADERS, ReportError, RunReport, SUMMARY_DECIMALS, SUMMARY_HEADERS, UnitReport,
     meta_rows, numbers, point_cells, summary,
 };
+use plotters::coord::Shift;
 use plotters::prelude::{DrawingArea, IntoDrawingArea, WHITE};
 use plotters_backend::text_anchor::{HPos, VPos};
 use plotters_backend::{
@@ -262,7 +264,8 @@ impl Canvas {
     /// A table from `y_mm` down, over as many pages as it needs (the header
     /// again on each), in up to `across` blocks side by side when it is
     /// narrow enough; columns as wide as their widest cell, the last one
-    /// taking at most what is left (cut with an ellipsis).
+    /// taking at most what is left (cut with an ellipsis). Returns the y
+    /// below its last row.
     fn table(
         &mut self,
         mut y_mm: f32,
@@ -270,7 +273,7 @@ impl Canvas {
         rows: &[Vec<String>],
         size_pt: f32,
         across: usize,
-    ) {
+    ) -> f32 {
         let line_mm = size_pt / PT_PER_MM * 1.4;
         let pad_mm = 2.0;
         // Headers "name [unit]" on two lines.
@@ -376,17 +379,18 @@ impl Canvas {
             }
             y_mm += line_mm;
         }
+        y_mm
     }
 
-    /// Draw one of an instrument's plots with its top-left corner at
-    /// (`x_mm`, `y_mm`), `width_mm` wide. Returns whether anything was drawn.
+    /// Draw a plot with `draw` (a plotters chart on any backend) with its
+    /// top-left corner at (`x_mm`, `y_mm`), `width_mm` wide. Returns
+    /// whether anything was drawn.
     fn plot(
         &mut self,
-        plot: plots::UnitPlot,
-        u: &UnitReport,
         x_mm: f32,
         y_mm: f32,
         width_mm: f32,
+        draw: impl FnOnce(&DrawingArea<PdfPlotBackend<'_>, Shift>) -> Option<()>,
     ) -> bool {
         let pt_per_px = width_mm * PT_PER_MM / plots::SIZE.0 as f32;
         let backend = PdfPlotBackend {
@@ -395,11 +399,11 @@ impl Canvas {
             top_pt: from_top(y_mm),
             pt_per_px,
         };
-        let root: DrawingArea<PdfPlotBackend<'_>, _> = backend.into_drawing_area();
+        let root = backend.into_drawing_area();
         if root.fill(&WHITE).is_err() {
             return false;
         }
-        plot.draw(u, &root).is_some()
+        draw(&root).is_some()
     }
 }
 
@@ -798,9 +802,84 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
     let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
     let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
     for (k, plot) in UNIT_PLOTS.iter().enumerate() {
-        c.plot(*plot, u, MARGIN_MM + k as f32 * (width + gap), y, width);
+        c.plot(MARGIN_MM + k as f32 * (width + gap), y, width, |root| {
+            plot.draw(u, root)
+        });
     }
     y += height + 3.0;
     let rows: Vec<Vec<String>> = u.points.iter().map(|p| point_cells(p).to_vec()).collect();
     c.table(y, &POINT_HEADERS, &rows, 6.5, 2);
+}
+
+/// The batch report as PDF bytes: totals and statistics, the histograms,
+/// outliers, repeatability, then every test.
+pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
+    let mut c = Canvas::new(full_font()?);
+    c.new_page();
+    let mut y = MARGIN_MM + 6.0;
+    c.text(MARGIN_MM, y, 16.0, "Batch report", Align::Left);
+    y += 7.0;
+    let (pass, marginal, fail) = b.outcomes();
+    let serials: BTreeSet<&str> = b.tests.iter().map(|t| t.serial.as_str()).collect();
+    let totals = format!(
+        "{} runs, {} instrument tests, {} serial numbers: {pass} pass, {marginal} marginal, {fail} fail",
+        b.runs.len(),
+        b.tests.len(),
+        serials.len()
+    );
+    c.text(MARGIN_MM, y, 9.0, &totals, Align::Left);
+    if let (Some(first), Some(last)) = (b.runs.first(), b.runs.last()) {
+        y += 4.6;
+        let span = format!(
+            "runs from {} to {}",
+            crate::unix_date(first.started_at),
+            crate::unix_date(last.started_at)
+        );
+        c.text(MARGIN_MM, y, 9.0, &span, Align::Left);
+    }
+    y += 4.0;
+    let rows = batch::statistics_rows(b);
+    let bottom = c.table(y, &batch::STATISTICS_HEADERS, &rows, 7.5, 1);
+    let gap = 4.0;
+    let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
+    let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
+    let mut top = bottom + 2.0;
+    for (k, d) in b.distributions.iter().enumerate() {
+        let column = k % 3;
+        if column == 0 && k > 0 {
+            top += height + 2.0;
+        }
+        if top + height > PAGE_H_MM - MARGIN_MM - FOOTER_MM {
+            c.new_page();
+            top = MARGIN_MM;
+        }
+        c.plot(
+            MARGIN_MM + column as f32 * (width + gap),
+            top,
+            width,
+            |root| batch::draw_histogram(d, root),
+        );
+    }
+    for (title, headers, rows) in [
+        (
+            "Outliers (|robust z| > 3.5)",
+            &batch::OUTLIER_HEADERS[..],
+            batch::outlier_rows(b),
+        ),
+        (
+            "Repeatability of serial numbers tested more than once",
+            &batch::REPEAT_HEADERS[..],
+            batch::repeat_rows(b),
+        ),
+        ("Every test", &batch::TEST_HEADERS[..], batch::test_rows(b)),
+    ] {
+        c.new_page();
+        c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, title, Align::Left);
+        if rows.is_empty() {
+            c.text(MARGIN_MM, MARGIN_MM + 12.0, 9.0, "none", Align::Left);
+        } else {
+            c.table(MARGIN_MM + 8.0, headers, &rows, 7.0, 1);
+        }
+    }
+    finish(c, "spinbench batch report", "spinbench batch report")
 }

@@ -112,10 +112,25 @@ pub enum Command {
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
     },
-    /// Write a run's report: HTML (self-contained, plots inline), XLSX and/or CSV.
+    /// Write a run's report: PDF, HTML (self-contained, plots inline), XLSX and/or CSV.
     Report {
         /// Run identifier.
         run: String,
+        /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
+        #[arg(long, value_delimiter = ',')]
+        format: Vec<String>,
+        /// Directory for the files (default: the current directory).
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Write the batch report of many runs: distributions of k2 and the
+    /// scale-factor figures, outliers, repeatability of serials tested more than once.
+    BatchReport {
+        /// Run identifiers (default: every run in the store).
+        runs: Vec<String>,
         /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
         #[arg(long, value_delimiter = ',')]
         format: Vec<String>,
@@ -361,21 +376,24 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             out: dir,
             db,
         } => {
-            use spinbench_report::ReportFormat;
-            let formats = if format.is_empty() {
-                ReportFormat::ALL.to_vec()
-            } else {
-                format
-                    .iter()
-                    .map(|f| {
-                        ReportFormat::parse(f)
-                            .with_context(|| format!("--format {f}: use pdf, html, xlsx or csv"))
-                    })
-                    .collect::<Result<Vec<_>>>()?
-            };
+            let formats = report_formats(&format)?;
             let store = open_store(&db)?;
             for path in spinbench_report::write_reports(&store, &run, &formats, &dir)
                 .with_context(|| format!("{db}: report of run '{run}'"))?
+            {
+                writeln!(out, "{}", path.display())?;
+            }
+        }
+        Command::BatchReport {
+            runs,
+            format,
+            out: dir,
+            db,
+        } => {
+            let formats = report_formats(&format)?;
+            let store = open_store(&db)?;
+            for path in spinbench_report::write_batch_reports(&store, &runs, &formats, &dir)
+                .with_context(|| format!("{db}: batch report"))?
             {
                 writeln!(out, "{}", path.display())?;
             }
@@ -597,4 +615,19 @@ fn run_sim(
     }
     bench.shutdown();
     Ok(())
+}
+
+/// The report formats of `--format` (all four when none is given).
+fn report_formats(given: &[String]) -> Result<Vec<spinbench_report::ReportFormat>> {
+    use spinbench_report::ReportFormat;
+    if given.is_empty() {
+        return Ok(ReportFormat::ALL.to_vec());
+    }
+    given
+        .iter()
+        .map(|f| {
+            ReportFormat::parse(f)
+                .with_context(|| format!("--format {f}: use pdf, html, xlsx or csv"))
+        })
+        .collect()
 }

@@ -56,6 +56,135 @@ fn sqlite_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
 }
 
 #[test]
+fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twice() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("BATCH-")).expect("plan");
+    let data = dir.path().join("data");
+    for seed in ["5", "6"] {
+        let (ok, _, err) = spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--seed",
+            seed,
+            "--data",
+            data.to_str().expect("utf8"),
+            plan.to_str().expect("utf8"),
+        ]);
+        assert!(ok, "{err}");
+    }
+    let db = data.join("spinbench.db");
+    let db_s = db.to_str().expect("utf8");
+    let out = dir.path().join("batch");
+    let (ok, listing, err) = spinbench(&[
+        "batch-report",
+        "--out",
+        out.to_str().expect("utf8"),
+        "--db",
+        db_s,
+    ]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        listing.lines().count(),
+        4,
+        "pdf, html, xlsx, csv: {listing}"
+    );
+
+    // What the store holds: full-range k2 and K1 of each test.
+    let store = Store::connect(&StoreTarget::File(db.clone())).expect("store");
+    let mut stored: Vec<(String, String, f64, f64)> = Vec::new();
+    for run in store.runs().expect("runs") {
+        for r in store.results(&run.id).expect("results") {
+            let record: Value = serde_json::from_str(&r.record_json).expect("record");
+            let full = &record["analysis"]["full_range"];
+            stored.push((
+                run.id.clone(),
+                r.serial.clone(),
+                full["k2_ug_per_g2"].as_f64().expect("k2"),
+                full["k1"].as_f64().expect("k1"),
+            ));
+        }
+    }
+    assert_eq!(stored.len(), 6, "3 serials × 2 runs");
+
+    // CSV: every test, full precision.
+    let csv = std::fs::read_to_string(out.join("batch-report.csv")).expect("csv");
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(rows.len(), 6);
+    for row in &rows {
+        let k2: f64 = row[4].parse().expect("k2");
+        assert!(
+            stored
+                .iter()
+                .any(|(run, serial, k, _)| run == row[0] && serial == row[2] && *k == k2),
+            "{row:?}"
+        );
+    }
+
+    // XLSX: the repeatability sheet has each serial once, with the scale-factor
+    // repeatability of method.md §3.4 from the stored K1 values.
+    use calamine::{Data, Reader, open_workbook_auto};
+    let mut book = open_workbook_auto(out.join("batch-report.xlsx")).expect("xlsx");
+    let sheet = book.worksheet_range("repeatability").expect("sheet");
+    let mut repeats = 0;
+    for row in sheet.rows().skip(1) {
+        let serial = row[0].to_string();
+        let k1: Vec<f64> = stored
+            .iter()
+            .filter(|s| s.1 == serial)
+            .map(|s| s.3)
+            .collect();
+        assert_eq!(row[1], Data::Float(2.0), "{serial} tested twice");
+        let want = spinbench_analysis::figures::repeatability_ppm(&k1).expect("two values");
+        let Data::Float(got) = row[4] else {
+            panic!("repeatability is not a number: {:?}", row[4]);
+        };
+        assert!(
+            (got - want).abs() <= 1e-9 * want.abs().max(1.0),
+            "{got} vs {want}"
+        );
+        repeats += 1;
+    }
+    assert_eq!(repeats, 3);
+    let stats = book.worksheet_range("statistics").expect("statistics");
+    let k2_row = stats
+        .rows()
+        .find(|r| r[0] == Data::String("k2".into()))
+        .expect("k2 statistics");
+    let mean = stored.iter().map(|s| s.2).sum::<f64>() / 6.0;
+    let Data::Float(got) = k2_row[3] else {
+        panic!("mean is not a number")
+    };
+    assert!((got - mean).abs() < 1e-9, "k2 mean {got} vs {mean}");
+
+    // PDF (pdftotext) and HTML carry the same.
+    let text = Command::new("pdftotext")
+        .args(["-layout"])
+        .arg(out.join("batch-report.pdf"))
+        .arg("-")
+        .output()
+        .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("Batch report") && text.contains("2 runs, 6 instrument tests"),
+        "{text}"
+    );
+    for (_, serial, k2, _) in &stored {
+        assert!(
+            text.contains(&format!("{k2:.3}")),
+            "{serial} k2 {k2:.3} in the PDF"
+        );
+    }
+    let html = std::fs::read_to_string(out.join("batch-report.html")).expect("html");
+    assert!(html.contains("<table id=\"repeats\">") && html.matches("<svg").count() >= 5);
+}
+
+#[test]
 fn postgres_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {
     let dir = tempfile::tempdir().expect("tempdir");
     let url = fresh_postgres();

@@ -1,0 +1,100 @@
+//! Reports of a 96-instrument run: a virtual bench with 16 counter modules
+//! runs a short test (levels to 20 g, mounting P) through the production
+//! engine into an SQLite store; then every report format is written again
+//! from the store and timed, and the batch report over the run too.
+//! Prints `bench: <name> = <value> <unit>` lines.
+//!
+//! Run: `cargo bench -p spinbench-station --bench report`
+
+use spinbench_engine::sim_bench::SimOperator;
+use spinbench_engine::{StationConfig, TestPlan};
+use spinbench_report::ReportFormat;
+use spinbench_sim::SimConfig;
+use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_station::station_run::{connect_bench, execute, sim_station_toml};
+use spinbench_store::{Store, StoreTarget};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+fn main() {
+    let measuring = std::env::args().any(|a| a == "--bench");
+    let modules = if measuring { 16 } else { 1 };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = RunningBench::start(
+        SimConfig {
+            seed: 11,
+            speed: 0.0,
+            modules,
+            ..SimConfig::default()
+        },
+        ServeOptions::default(),
+    )
+    .expect("virtual bench");
+    let station = StationConfig::from_toml(&sim_station_toml(&sim)).expect("station config");
+    let slots = station.slots();
+    let serials: String = (1..=slots)
+        .map(|i| format!("{i} = \"R{i:03}\"\n"))
+        .collect();
+    let plan = TestPlan::from_toml(&format!(
+        "operator = \"bench\"\nrange_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\n\
+         warmup_s = 0\ndwell = {{ seconds = 3 }}\nstability = {{ hold_s = 3 }}\n[serials]\n{serials}"
+    ))
+    .expect("plan");
+    let run_dir = dir.path().join("runs").join("bench-run");
+    let db = StoreTarget::File(dir.path().join("spinbench.db"));
+    let started = Instant::now();
+    let finished = execute(
+        &station,
+        &plan,
+        connect_bench(&station, Some(&run_dir)).expect("connect"),
+        Box::new(SimOperator::new(&sim, true)),
+        &run_dir,
+        &db,
+        false,
+        true,
+        Arc::new(AtomicBool::new(false)),
+    )
+    .expect("run");
+    sim.shutdown();
+    let run_s = started.elapsed().as_secs_f64();
+    let store = Store::connect(&db).expect("store");
+    let run_id = "bench-run";
+    assert_eq!(store.results(run_id).expect("results").len(), slots);
+    println!(
+        "{slots} instruments: the simulated run took {run_s:.1} s ({:?})",
+        finished.summary.state
+    );
+    let out = dir.path().join("reports");
+    let mut total = 0.0;
+    for format in ReportFormat::ALL {
+        let t = Instant::now();
+        let files =
+            spinbench_report::write_reports(&store, run_id, &[format], &out).expect("report");
+        let s = t.elapsed().as_secs_f64();
+        total += s;
+        let bytes: u64 = files
+            .iter()
+            .filter_map(|f| std::fs::metadata(f).ok())
+            .map(|m| m.len())
+            .sum();
+        let name = format!("{format:?}").to_lowercase();
+        if measuring {
+            println!("bench: report_{name}_{slots}_instruments = {s:.3} s");
+            println!(
+                "bench: report_{name}_{slots}_instruments_size = {:.2} MB",
+                bytes as f64 / 1e6
+            );
+        } else {
+            println!("{name}: {bytes} bytes (no figures outside `cargo bench`)");
+        }
+    }
+    let t = Instant::now();
+    spinbench_report::write_batch_reports(&store, &[], &ReportFormat::ALL, &out)
+        .expect("batch report");
+    let batch_s = t.elapsed().as_secs_f64();
+    if measuring {
+        println!("bench: report_all_formats_{slots}_instruments = {total:.3} s");
+        println!("bench: batch_report_all_formats_{slots}_instruments = {batch_s:.3} s");
+    }
+}
