@@ -251,6 +251,18 @@ impl StationConfig {
                 ),
             );
         }
+        let draw_a = self.slots() as f64 * self.power.instrument_current_a;
+        if self.power.rail_current_limit_a < draw_a {
+            return err(
+                "power.rail_current_limit_a",
+                format!(
+                    "{} A is below what {} instruments draw ({draw_a:.2} A at power.instrument_current_a = {} A): the supply would trip at power-on",
+                    self.power.rail_current_limit_a,
+                    self.slots(),
+                    self.power.instrument_current_a
+                ),
+            );
+        }
         Ok(())
     }
 }

@@ -141,6 +141,15 @@ pub enum Event {
         /// Who answered (an operator, or the simulator).
         by: String,
     },
+    /// Every few seconds: the hardware's health for the status panel.
+    Health {
+        /// Instrument supply outputs 1 and 2: (volts, amperes).
+        supply: Vec<(f64, f64)>,
+        /// Interlocks closed (the table may move).
+        interlocks_closed: bool,
+        /// Each counter module's link and window counters.
+        modules: Vec<ModuleHealth>,
+    },
     /// Something the operator should know; the run goes on.
     Notice {
         /// What happened and what the station did about it.
@@ -176,6 +185,21 @@ impl<F: FnMut(&Event)> EventSink for F {
         self(event);
         Ok(())
     }
+}
+
+/// A counter module's counters since the run's start.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct ModuleHealth {
+    /// Valid frames decoded.
+    pub frames: u64,
+    /// Frames rejected for a bad CRC.
+    pub bad_crc: u64,
+    /// Frames rejected for a bad tail byte.
+    pub bad_tail: u64,
+    /// Ticks lost in sequence gaps.
+    pub lost_ticks: u64,
+    /// Times the port was reopened.
+    pub reconnects: u64,
 }
 
 /// One device's identity, as it reported it.

@@ -19,7 +19,7 @@
 //! simulator. Data are taken only at stable speed (method.md §3.3).
 
 use crate::config::StationConfig;
-use crate::event::{DeviceIdentity, Event, EventSink, RunState};
+use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState};
 use crate::plan::{CompiledPlan, Fixture, Step};
 use crate::record::{Outcome, PointRecord, UnitRecord};
 use spinbench_analysis::radius::RadiusCalibration;
@@ -1158,10 +1158,36 @@ impl<'a> Executor<'a> {
             return Err(EngineError::InterlockOpen);
         }
         if self.windows.is_multiple_of(5) {
-            let volts = self.bench.instrument_supply.measure(1)?.volts;
-            if volts < 0.5 * self.station.power.rail_volts {
-                return Err(EngineError::SupplyTripped { volts });
+            let first = self.bench.instrument_supply.measure(1)?;
+            if first.volts < 0.5 * self.station.power.rail_volts {
+                return Err(EngineError::SupplyTripped { volts: first.volts });
             }
+            let second = self.bench.instrument_supply.measure(2)?;
+            let modules = self
+                .bench
+                .modules
+                .iter()
+                .zip(&self.accumulators)
+                .map(|(module, acc)| {
+                    let link = module.link_stats();
+                    ModuleHealth {
+                        frames: link.decoder.frames,
+                        bad_crc: link.decoder.bad_crc,
+                        bad_tail: link.decoder.bad_tail,
+                        lost_ticks: acc.stats().lost_ticks,
+                        reconnects: link.reconnects,
+                    }
+                })
+                .collect();
+            // Spinning, they were just read closed; at rest an unreadable
+            // interlock shows as open.
+            let interlocks_closed = self.demand_deg_s != 0.0
+                || self.bench.centrifuge.read_interlocks().unwrap_or(false);
+            self.emit(Event::Health {
+                supply: vec![(first.volts, first.amps), (second.volts, second.amps)],
+                interlocks_closed,
+                modules,
+            })?;
         }
         let slots = self.units.len();
         let mut outputs = vec![None; slots];

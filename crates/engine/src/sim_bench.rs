@@ -10,9 +10,20 @@ use spinbench_sim::serve::RunningBench;
 /// A complete station config (TOML) for the bench: its arm, the power roles
 /// and its device sections; `power_extra` adds lines to `[power]`.
 pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
-    let r0 = bench.with_world(|w| w.config().centrifuge.arm_radius_m);
+    let (r0, instruments) =
+        bench.with_world(|w| (w.config().centrifuge.arm_radius_m, w.config().modules * 6));
+    // The rails' limit: the default 0.5 A, or a quarter above what a bigger bench draws.
+    let limit = if power_extra.contains("rail_current_limit_a") {
+        String::new()
+    } else {
+        let draw_a = instruments as f64 * 0.04;
+        format!(
+            "rail_current_limit_a = {}\n",
+            ((draw_a * 1.25 * 10.0).ceil() / 10.0).max(0.5)
+        )
+    };
     format!(
-        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{power_extra}\n{}",
+        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{}",
         bench.station_config_toml()
     )
 }

@@ -41,6 +41,9 @@ pub enum ReportError {
     /// The PDF could not be rendered.
     #[error("cannot render the PDF: {0}")]
     Pdf(String),
+    /// The workbook could not be made.
+    #[error("cannot make the XLSX workbook: {0}")]
+    Xlsx(String),
     /// Writing a file failed.
     #[error("{path}: cannot write: {problem}")]
     Write {
@@ -518,32 +521,38 @@ pub fn html(report: &RunReport) -> String {
 /// The report as an XLSX workbook at `path`: `results` (the summary),
 /// `points`, and one sheet per instrument with its plot data.
 pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
-    use rust_xlsxwriter::{Format, Workbook, XlsxError};
-    let fail = |e: XlsxError| ReportError::Write {
+    let bytes = xlsx(report).map_err(|e| ReportError::Write {
         path: path.display().to_string(),
         problem: e.to_string(),
-    };
+    })?;
+    std::fs::write(path, bytes).map_err(|e| ReportError::Write {
+        path: path.display().to_string(),
+        problem: e.to_string(),
+    })
+}
+
+/// The XLSX workbook's bytes.
+fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
+    use rust_xlsxwriter::{Format, Workbook};
     let mut book = Workbook::new();
     let bold = Format::new().set_bold();
     {
-        let sheet = book.add_worksheet().set_name("results").map_err(fail)?;
+        let sheet = book.add_worksheet().set_name("results")?;
         for (c, head) in SUMMARY_HEADERS.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (i, row) in summary(report).iter().enumerate() {
             let r = (i + 1) as u32;
-            sheet.write_string(r, 0, &row.serial).map_err(fail)?;
-            sheet.write_number(r, 1, row.slot as f64).map_err(fail)?;
-            sheet.write_string(r, 2, &row.mount).map_err(fail)?;
+            sheet.write_string(r, 0, &row.serial)?;
+            sheet.write_number(r, 1, row.slot as f64)?;
+            sheet.write_string(r, 2, &row.mount)?;
             for (k, v) in numbers(row).iter().enumerate() {
                 if let Some(v) = v {
-                    sheet.write_number(r, 3 + k as u16, *v).map_err(fail)?;
+                    sheet.write_number(r, 3 + k as u16, *v)?;
                 }
             }
-            sheet.write_string(r, 14, &row.outcome).map_err(fail)?;
-            sheet.write_string(r, 15, &row.reasons).map_err(fail)?;
+            sheet.write_string(r, 14, &row.outcome)?;
+            sheet.write_string(r, 15, &row.reasons)?;
         }
     }
     let point_headers = [
@@ -559,25 +568,23 @@ pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
         "n",
     ];
     {
-        let sheet = book.add_worksheet().set_name("points").map_err(fail)?;
+        let sheet = book.add_worksheet().set_name("points")?;
         for (c, head) in point_headers.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         let mut r = 1u32;
         for u in &report.units {
             for p in &u.points {
-                sheet.write_string(r, 0, &u.result.serial).map_err(fail)?;
-                sheet.write_number(r, 1, p.step as f64).map_err(fail)?;
-                sheet.write_string(r, 2, &p.mount).map_err(fail)?;
-                sheet.write_number(r, 3, p.g_nominal).map_err(fail)?;
-                sheet.write_string(r, 4, &p.direction).map_err(fail)?;
-                sheet.write_number(r, 5, p.g_applied).map_err(fail)?;
-                sheet.write_number(r, 6, p.rate_deg_s).map_err(fail)?;
-                sheet.write_number(r, 7, p.output_hz).map_err(fail)?;
-                sheet.write_number(r, 8, p.std_hz).map_err(fail)?;
-                sheet.write_number(r, 9, p.n as f64).map_err(fail)?;
+                sheet.write_string(r, 0, &u.result.serial)?;
+                sheet.write_number(r, 1, p.step as f64)?;
+                sheet.write_string(r, 2, &p.mount)?;
+                sheet.write_number(r, 3, p.g_nominal)?;
+                sheet.write_string(r, 4, &p.direction)?;
+                sheet.write_number(r, 5, p.g_applied)?;
+                sheet.write_number(r, 6, p.rate_deg_s)?;
+                sheet.write_number(r, 7, p.output_hz)?;
+                sheet.write_number(r, 8, p.std_hz)?;
+                sheet.write_number(r, 9, p.n as f64)?;
                 r += 1;
             }
         }
@@ -589,7 +596,7 @@ pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
             .map(|c| if "[]:*?/\\".contains(c) { '_' } else { c })
             .take(31)
             .collect();
-        let sheet = book.add_worksheet().set_name(&name).map_err(fail)?;
+        let sheet = book.add_worksheet().set_name(&name)?;
         let heads = [
             "mount",
             "level [g]",
@@ -599,20 +606,47 @@ pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
             "residual [µg]",
         ];
         for (c, head) in heads.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (r, res) in (1u32..).zip(plots::residuals(u)) {
-            sheet.write_string(r, 0, &res.mount).map_err(fail)?;
-            sheet.write_number(r, 1, res.g_nominal).map_err(fail)?;
-            sheet.write_number(r, 2, res.g_input).map_err(fail)?;
-            sheet.write_string(r, 3, &res.direction).map_err(fail)?;
-            sheet.write_number(r, 4, res.output).map_err(fail)?;
-            sheet.write_number(r, 5, res.residual_ug).map_err(fail)?;
+            sheet.write_string(r, 0, &res.mount)?;
+            sheet.write_number(r, 1, res.g_nominal)?;
+            sheet.write_number(r, 2, res.g_input)?;
+            sheet.write_string(r, 3, &res.direction)?;
+            sheet.write_number(r, 4, res.output)?;
+            sheet.write_number(r, 5, res.residual_ug)?;
         }
     }
-    book.save(path).map_err(fail)
+    book.save_to_buffer()
+}
+
+/// The run's report in one format, as bytes (for a download).
+pub fn render(report: &RunReport, format: ReportFormat) -> Result<Vec<u8>, ReportError> {
+    match format {
+        ReportFormat::Pdf => pdf(report),
+        ReportFormat::Html => Ok(html(report).into_bytes()),
+        ReportFormat::Csv => Ok(summary_csv(report).into_bytes()),
+        ReportFormat::Xlsx => xlsx(report).map_err(|e| ReportError::Xlsx(e.to_string())),
+    }
+}
+
+impl ReportFormat {
+    /// The MIME type of the format.
+    pub fn mime(self) -> &'static str {
+        match self {
+            ReportFormat::Pdf => "application/pdf",
+            ReportFormat::Html => "text/html; charset=utf-8",
+            ReportFormat::Xlsx => {
+                "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"
+            }
+            ReportFormat::Csv => "text/csv; charset=utf-8",
+        }
+    }
+
+    /// The file name extension of the format.
+    pub fn ext(self) -> &'static str {
+        self.extension()
+    }
 }
 
 /// Write the run's report in each format into `dir` (created if needed);

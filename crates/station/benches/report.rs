@@ -11,7 +11,7 @@ use spinbench_engine::{StationConfig, TestPlan};
 use spinbench_report::ReportFormat;
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_station::station_run::{connect_bench, execute, sim_station_toml};
+use spinbench_station::station_run::{RunControl, connect_bench, execute, sim_station_toml};
 use spinbench_store::{Store, StoreTarget};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -53,7 +53,7 @@ fn main() {
         &db,
         false,
         true,
-        Arc::new(AtomicBool::new(false)),
+        RunControl::abort_only(Arc::new(AtomicBool::new(false))),
     )
     .expect("run");
     sim.shutdown();

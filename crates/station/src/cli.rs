@@ -174,6 +174,60 @@ pub enum Command {
         #[arg(long = "for", value_name = "SECONDS")]
         run_for: Option<f64>,
     },
+    /// Serve the station's web UI and HTTP API (loopback by default): status,
+    /// live curves, run control and prompts, new runs, history and reports.
+    Serve {
+        /// Station config (TOML).
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run on the virtual bench instead of hardware.
+        #[arg(long)]
+        simulate: bool,
+        /// The virtual bench's time: 1 = real time, N = N× faster, 0 = as fast as read.
+        #[arg(long, default_value_t = 1.0)]
+        sim_speed: f64,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Address to listen on (port 0: any free port).
+        #[arg(long, default_value = "127.0.0.1:8080")]
+        bind: std::net::SocketAddr,
+        /// Where runs and plans are kept.
+        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Manage the web UI's users (the first admin is made here).
+    User {
+        /// What to do.
+        #[command(subcommand)]
+        action: UserAction,
+    },
+}
+
+/// Actions of `spinbench user`.
+#[derive(Debug, Subcommand)]
+pub enum UserAction {
+    /// Add a user; the password is read from standard input (one line) or
+    /// from the environment variable SPINBENCH_PASSWORD.
+    Add {
+        /// Login name.
+        name: String,
+        /// operator, engineer or admin.
+        #[arg(long, default_value = "operator")]
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// List the users.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
 }
 
 /// Actions of `spinbench runs`.
@@ -398,6 +452,75 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 writeln!(out, "{}", path.display())?;
             }
         }
+        Command::Serve {
+            station,
+            simulate,
+            sim_speed,
+            seed,
+            bind,
+            data,
+            db,
+        } => {
+            let db =
+                db.unwrap_or_else(|| StoreTarget::File(data.join(crate::station_run::DB_FILE)));
+            std::fs::create_dir_all(&data)
+                .with_context(|| format!("{}: cannot create the data directory", data.display()))?;
+            crate::web::serve(
+                crate::web::ServeArgs {
+                    station,
+                    simulate,
+                    sim_speed,
+                    seed,
+                    bind,
+                    data,
+                    db,
+                },
+                out,
+            )?;
+        }
+        Command::User { action } => match action {
+            UserAction::Add { name, role, db } => {
+                use crate::web::auth;
+                let role = auth::Role::parse(&role)
+                    .with_context(|| format!("--role {role}: use operator, engineer or admin"))?;
+                let password = match std::env::var("SPINBENCH_PASSWORD") {
+                    Ok(p) => p,
+                    Err(_) => {
+                        eprintln!("password for {name} (one line on standard input):");
+                        let mut line = String::new();
+                        std::io::stdin()
+                            .read_line(&mut line)
+                            .context("cannot read the password")?;
+                        line.trim_end_matches(['\r', '\n']).to_string()
+                    }
+                };
+                auth::check_new_user(&name, &password).map_err(anyhow::Error::msg)?;
+                if let StoreTarget::File(path) = &db
+                    && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+                {
+                    std::fs::create_dir_all(dir)
+                        .with_context(|| format!("{}: cannot create", dir.display()))?;
+                }
+                let store = spinbench_store::Store::connect(&db)?;
+                if store.user(&name)?.is_some() {
+                    anyhow::bail!("user '{name}' exists in {db}");
+                }
+                let hash = auth::hash_password(&password).map_err(anyhow::Error::msg)?;
+                store.add_user(&name, role.as_str(), &hash)?;
+                store.audit(
+                    "spinbench (command line)",
+                    "add user",
+                    &format!("{name} ({})", role.as_str()),
+                )?;
+                writeln!(out, "user {name} added as {} in {db}", role.as_str())?;
+            }
+            UserAction::List { db } => {
+                let store = open_store(&db)?;
+                for u in store.users()? {
+                    writeln!(out, "{:<24} {}", u.name, u.role)?;
+                }
+            }
+        },
         Command::Replay { run, data, db } => {
             let given = Path::new(&run);
             let dir = if given.join("station.toml").exists() {
@@ -548,7 +671,7 @@ fn run_plan(
         &store,
         resume.is_some(),
         quiet,
-        abort,
+        crate::station_run::RunControl::abort_only(abort),
     )?;
     crate::station_run::render_records(out, &finished)?;
     if finished.summary.state != spinbench_engine::RunState::Completed {

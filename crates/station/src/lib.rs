@@ -5,7 +5,8 @@
 //! * [`points_file`] — reading averaged points from CSV and spreadsheets;
 //! * [`render`] — the human-readable output of `spinbench analyze`;
 //! * [`replay`] — `spinbench replay`: a run's raw bytes through the decoder again, checked against the store;
-//! * [`station_run`] — `spinbench run` and `spinbench demo`: devices, engine, journal, results.
+//! * [`station_run`] — `spinbench run` and `spinbench demo`: devices, engine, journal, results;
+//! * [`web`] — `spinbench serve`: the web UI and the HTTP API.
 
 pub mod cli;
 pub mod export;
@@ -13,3 +14,4 @@ pub mod points_file;
 pub mod render;
 pub mod replay;
 pub mod station_run;
+pub mod web;

@@ -163,6 +163,37 @@ pub struct Finished {
     pub summary: RunSummary,
 }
 
+/// How a run is steered from outside and who else hears its events.
+pub struct RunControl {
+    /// Set to abort (Ctrl-C, the web UI).
+    pub abort: Arc<AtomicBool>,
+    /// While set, the run holds between steps (the web UI's pause).
+    pub pause: Arc<AtomicBool>,
+    /// More subscribers to the event stream (the web UI's hub).
+    pub sinks: Vec<Box<dyn EventSink + Send>>,
+}
+
+impl RunControl {
+    /// Abort only (the terminal's Ctrl-C); no pause, no other subscriber.
+    pub fn abort_only(abort: Arc<AtomicBool>) -> RunControl {
+        RunControl {
+            abort,
+            pause: Arc::new(AtomicBool::new(false)),
+            sinks: Vec::new(),
+        }
+    }
+}
+
+/// A boxed subscriber, passed on (a `Box<dyn EventSink>` is not itself one:
+/// the closure impl of `EventSink` would overlap).
+struct BoxedSink(Box<dyn EventSink + Send>);
+
+impl EventSink for BoxedSink {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        self.0.emit(event)
+    }
+}
+
 /// Run (or resume) a plan on a connected bench, journaling into `dir`.
 #[allow(clippy::too_many_arguments)]
 pub fn execute(
@@ -174,7 +205,7 @@ pub fn execute(
     db: &StoreTarget,
     resume: bool,
     quiet: bool,
-    abort: Arc<AtomicBool>,
+    control: RunControl,
 ) -> Result<Finished> {
     let compiled = plan.compile(station)?;
     let run_id = dir
@@ -205,11 +236,10 @@ pub fn execute(
     } else {
         None
     };
-    // Pause is driven by the web UI (a later issue); the terminal has abort (Ctrl-C).
     let options = RunOptions {
         run_id,
-        abort,
-        pause: Arc::new(AtomicBool::new(false)),
+        abort: control.abort,
+        pause: control.pause,
         module_silence: Duration::from_secs(5),
         // The run directory holds the station config the run was started with.
         sink_hold_limit: Duration::from_secs(600),
@@ -223,6 +253,9 @@ pub fn execute(
     let store = spinbench_store::Store::connect(db)?;
     executor.subscribe(store.sink()?);
     executor.subscribe(ProgressPrinter::new(quiet));
+    for sink in control.sinks {
+        executor.subscribe(BoxedSink(sink));
+    }
     let summary = executor.run();
     drop(executor);
     let results = serde_json::to_string_pretty(&summary.records)?;
@@ -392,7 +425,7 @@ pub fn demo(
             .unwrap_or_else(|| StoreTarget::File(data_dir.join(DB_FILE))),
         false,
         json,
-        Arc::new(AtomicBool::new(false)),
+        RunControl::abort_only(Arc::new(AtomicBool::new(false))),
     )?;
     let truth = sim.with_world(|w| w.truth());
     sim.shutdown();

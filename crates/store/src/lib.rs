@@ -11,6 +11,9 @@
 //! an advisory lock, so stations starting together migrate once).
 
 pub mod db;
+mod users;
+
+pub use users::{AuditRow, UserRow};
 
 use db::{Db, DbError, Dialect, Row, Value};
 use spinbench_engine::event::{Event, EventSink};
@@ -140,6 +143,35 @@ pub const MIGRATIONS: &[Migration] = &[
         at BIGINT NOT NULL,
         who TEXT NOT NULL,
         action TEXT NOT NULL
+    );",
+    },
+    Migration {
+        what: "users of the web UI (role, password hash) and the audit log of their actions",
+        sqlite: "CREATE TABLE users (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL,
+        password_hash TEXT NOT NULL,
+        created_at INTEGER NOT NULL
+    );
+    CREATE TABLE audit (
+        seq INTEGER PRIMARY KEY AUTOINCREMENT,
+        at INTEGER NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL,
+        detail TEXT NOT NULL
+    );",
+        postgres: "CREATE TABLE users (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL,
+        password_hash TEXT NOT NULL,
+        created_at BIGINT NOT NULL
+    );
+    CREATE TABLE audit (
+        seq BIGSERIAL PRIMARY KEY,
+        at BIGINT NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL,
+        detail TEXT NOT NULL
     );",
     },
 ];

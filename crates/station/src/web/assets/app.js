@@ -1,0 +1,381 @@
+// The station page: a thin client of the JSON API (see /api/openapi.json)
+// and of the live event stream (/api/events, server-sent events).
+"use strict";
+
+const state = {
+  session: null,
+  status: null,
+  slots: 0,
+  serials: [],
+  history: [],        // per slot: [[t, value], ...]
+  rate: [],           // [[t, rate], ...]
+  values: 0,          // one-second events received
+  dirty: false,
+  events: null,
+  runId: null,
+  answeredAt: 0,      // when the operator last answered a prompt (ms)
+};
+const KEEP_S = 300;
+const $ = (id) => document.getElementById(id);
+
+function show(message, ok) {
+  const m = $("message");
+  m.textContent = message;
+  m.className = ok ? "ok" : "";
+  m.hidden = !message;
+}
+
+async function api(method, path, body) {
+  const headers = {};
+  if (state.session) headers["X-CSRF-Token"] = state.session.csrf;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  const r = await fetch(path, {
+    method, headers, credentials: "same-origin",
+    body: body === undefined ? undefined : (typeof body === "string" ? body : JSON.stringify(body)),
+  });
+  const text = await r.text();
+  let data = null;
+  try { data = text ? JSON.parse(text) : null; } catch (_) { data = text; }
+  if (!r.ok) throw new Error((data && data.error) || (r.status + " " + r.statusText));
+  return data;
+}
+
+function route() {
+  const page = (location.hash || "#status").slice(1);
+  const loggedIn = !!state.session;
+  for (const id of ["login", "status", "run", "new", "history", "users"]) {
+    $(id).hidden = loggedIn ? id !== page : id !== "login";
+  }
+  $("nav").hidden = !loggedIn;
+  $("logout-button").hidden = !loggedIn;
+  for (const a of document.querySelectorAll("nav a")) a.classList.toggle("active", a.getAttribute("href") === "#" + page);
+  if (!loggedIn) return;
+  if (page === "new") loadPlans();
+  if (page === "history") loadHistory();
+  if (page === "users") loadUsers();
+  if (page === "run") draw();
+}
+
+async function start() {
+  window.addEventListener("hashchange", route);
+  $("login-form").addEventListener("submit", login);
+  $("logout-button").addEventListener("click", logout);
+  $("new-form").addEventListener("submit", startRun);
+  $("plan-select").addEventListener("change", fillSerials);
+  $("prompt-done").addEventListener("click", () => answer(true));
+  $("prompt-abort").addEventListener("click", () => answer(false));
+  $("pause-button").addEventListener("click", () => control("pause"));
+  $("resume-button").addEventListener("click", () => control("resume"));
+  $("abort-button").addEventListener("click", () => { if (confirm("Abort the run? The station stops safely.")) control("abort"); });
+  $("user-form").addEventListener("submit", addUser);
+  $("unit-form").addEventListener("submit", findUnit);
+  setInterval(() => { if (state.dirty && !$("run").hidden) draw(); }, 250);
+  setInterval(refreshStatus, 2000);
+  try { state.session = await api("GET", "/api/session"); } catch (_) { state.session = null; }
+  afterLogin();
+}
+
+function afterLogin() {
+  $("who").textContent = state.session ? state.session.user + " (" + state.session.role + ")" : "";
+  $("nav-users").hidden = !(state.session && state.session.role === "admin");
+  route();
+  if (state.session) { connect(); refreshStatus(); }
+}
+
+async function login(ev) {
+  ev.preventDefault();
+  try {
+    state.session = await api("POST", "/api/login", { user: $("login-user").value, password: $("login-password").value });
+    $("login-password").value = "";
+    show("");
+    if (!location.hash || location.hash === "#login") location.hash = "#status";
+    afterLogin();
+  } catch (e) { show(e.message); }
+}
+
+async function logout() {
+  try { await api("POST", "/api/logout"); } catch (_) { /* the session is gone either way */ }
+  state.session = null;
+  if (state.events) { state.events.close(); state.events = null; }
+  afterLogin();
+}
+
+// ---- live data -------------------------------------------------------------
+
+function connect() {
+  if (state.events) return;
+  // EventSource reconnects by itself and sends Last-Event-ID: the server replays what was missed.
+  const es = new EventSource("/api/events");
+  state.events = es;
+  const on = (name, f) => es.addEventListener(name, (m) => { try { f(JSON.parse(m.data)); } catch (e) { console.error(e); } });
+  on("run_started", (e) => {
+    state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
+    state.history = state.serials.map(() => []); state.rate = []; state.values = 0;
+    $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
+  });
+  on("values", (e) => {
+    if (state.history.length !== e.outputs_hz.length) state.history = e.outputs_hz.map(() => []);
+    e.outputs_hz.forEach((v, i) => { if (v !== null) push(state.history[i], [e.time_s, v]); });
+    push(state.rate, [e.time_s, e.rate_deg_s]);
+    state.values += 1;
+    $("curves").dataset.values = String(state.values);
+    state.dirty = true;
+  });
+  on("state_changed", (e) => setRunState(e.state));
+  on("step_started", (e) => { $("progress").textContent = "step " + (e.index + 1) + " of " + e.of + ": " + e.label; });
+  on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + " — " + e.phase + " " + e.done + "/" + e.of + " s"; });
+  on("prompt", (e) => { $("prompt-text").textContent = e.text; $("prompt").hidden = false; });
+  on("prompt_answered", () => { $("prompt").hidden = true; });
+  on("notice", (e) => show(e.message));
+  on("fault", (e) => show("Fault: " + e.reason));
+  on("run_finished", (e) => {
+    setRunState(e.state + (e.reason ? ": " + e.reason : ""));
+    $("prompt").hidden = true;
+    if (state.runId) showReports($("run-reports"), state.runId);
+    refreshStatus();
+  });
+  on("health", () => refreshStatus());
+}
+
+function push(list, item) {
+  list.push(item);
+  const cut = item[0] - KEEP_S;
+  while (list.length && list[0][0] < cut) list.shift();
+}
+
+function setRunState(text) { $("run-state").textContent = text; $("st-state").textContent = text; }
+
+async function refreshStatus() {
+  if (!state.session) return;
+  let s;
+  try { s = await api("GET", "/api/status"); } catch (_) { return; }
+  state.status = s;
+  const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
+  $("st-station").textContent = s.station + (s.simulated ? " (virtual bench)" : "");
+  $("st-run").textContent = s.run_id || "none";
+  $("st-state").textContent = s.state || "idle";
+  $("st-rate").textContent = fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")";
+  $("st-g").textContent = fix(s.g_at_r0, 4) + " g";
+  $("st-stable").textContent = s.on_speed === null || s.on_speed === undefined ? "—" : (s.on_speed ? "stable" : "not stable");
+  $("st-interlocks").textContent = s.interlocks_closed === null || s.interlocks_closed === undefined ? "—" : (s.interlocks_closed ? "closed" : "OPEN");
+  $("st-supply").textContent = (s.supply || []).map((o, i) => "out " + (i + 1) + ": " + o[0].toFixed(2) + " V " + o[1].toFixed(3) + " A").join("; ") || "—";
+  const body = $("st-modules").tBodies[0];
+  body.textContent = "";
+  (s.modules || []).forEach((m, i) => {
+    const tr = body.insertRow();
+    [i + 1, m.frames, m.bad_crc, m.bad_tail, m.lost_ticks, m.reconnects].forEach((v) => { tr.insertCell().textContent = v; });
+  });
+  $("st-notices").textContent = "";
+  for (const n of s.notices || []) { const li = document.createElement("li"); li.textContent = n; $("st-notices").appendChild(li); }
+  if (s.run_id) { $("run-id").textContent = s.run_id; state.runId = s.run_id; }
+  for (const b of ["pause-button", "resume-button", "abort-button"]) $(b).disabled = !s.active;
+  if (s.state) $("run-state").textContent = s.state;
+  // A status fetched before an answer arrived still shows the old prompt: wait for the next.
+  if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = s.prompt; $("prompt").hidden = false; }
+  else if (s.active && !s.prompt) $("prompt").hidden = true;
+  const eta = s.eta_s ? (s.eta_s < 120 ? ", about " + Math.round(s.eta_s) + " s to go" : ", about " + Math.round(s.eta_s / 60) + " min to go") : "";
+  if (s.step) $("progress").textContent = "step " + (s.step[0] + 1) + " of " + s.step[1] + ": " + s.step[2]
+    + (s.progress ? " — " + s.progress[0] + " " + s.progress[1] + "/" + s.progress[2] + " s" : "") + eta;
+}
+
+function draw() {
+  state.dirty = false;
+  const c = $("curves"), g = c.getContext("2d");
+  g.clearRect(0, 0, c.width, c.height);
+  g.font = "11px sans-serif";
+  const strip = 80;
+  cell(g, 0, 0, c.width, strip, state.rate, "rate", "deg/s", "#b00");
+  // Only the slots that hold an instrument in this run.
+  const slots = state.history.map((_, i) => i).filter((i) => state.serials[i] || state.history[i].length);
+  const n = slots.length;
+  if (!n) { g.fillStyle = "#333"; g.fillText("waiting for a run's one-second values…", 20, strip + 30); return; }
+  const cols = Math.ceil(Math.sqrt(n * c.width / (c.height - strip)));
+  const rows = Math.ceil(n / cols);
+  const w = c.width / cols, h = (c.height - strip) / rows;
+  slots.forEach((slot, k) => {
+    const label = "slot " + (slot + 1) + " " + (state.serials[slot] || "");
+    cell(g, (k % cols) * w, strip + Math.floor(k / cols) * h, w, h, state.history[slot], label, "Hz", "#1d3557");
+  });
+}
+
+function cell(g, x, y, w, h, pts, label, unit, color) {
+  g.strokeStyle = "#ddd"; g.strokeRect(x + 1, y + 1, w - 2, h - 2);
+  g.fillStyle = "#333"; g.fillText(label, x + 4, y + 12);
+  if (pts.length) {
+    const now = pts[pts.length - 1][1].toFixed(4) + " " + unit;
+    g.fillText(now, x + w - 6 - g.measureText(now).width, y + 12);
+  }
+  if (pts.length < 2) return;
+  let lo = Infinity, hi = -Infinity;
+  for (const p of pts) { if (p[1] < lo) lo = p[1]; if (p[1] > hi) hi = p[1]; }
+  if (hi === lo) { hi += 1e-9; lo -= 1e-9; }
+  const t1 = pts[pts.length - 1][0], t0 = t1 - KEEP_S;
+  g.strokeStyle = color; g.beginPath();
+  pts.forEach((p, k) => {
+    const px = x + 2 + (w - 4) * (p[0] - t0) / KEEP_S;
+    const py = y + h - 3 - (h - 18) * (p[1] - lo) / (hi - lo);
+    if (k === 0) g.moveTo(px, py); else g.lineTo(px, py);
+  });
+  g.stroke();
+}
+
+// ---- actions ---------------------------------------------------------------
+
+async function answer(proceed) {
+  state.answeredAt = Date.now();
+  $("prompt").hidden = true;
+  try { await api("POST", "/api/run/prompt", { proceed }); show(""); } catch (e) { show(e.message); }
+}
+
+async function control(what) {
+  try { await api("POST", "/api/run/" + what); show(what + ": done", true); } catch (e) { show(e.message); }
+}
+
+let plans = [];
+async function loadPlans() {
+  try {
+    const r = await api("GET", "/api/plans");
+    plans = r.plans; state.slots = r.slots;
+    const sel = $("plan-select"), keep = sel.value;
+    sel.textContent = "";
+    for (const p of plans) {
+      const o = document.createElement("option");
+      o.value = p.name; o.textContent = p.name + (p.title ? " — " + p.title : "") + (p.problem ? " (invalid)" : "");
+      sel.appendChild(o);
+    }
+    if (keep) sel.value = keep;
+    fillSerials();
+  } catch (e) { show(e.message); }
+}
+
+function fillSerials() {
+  const plan = plans.find((p) => p.name === $("plan-select").value);
+  const box = $("serials");
+  box.textContent = "";
+  for (let i = 1; i <= state.slots; i++) {
+    const label = document.createElement("label");
+    label.textContent = "slot " + i + " ";
+    const input = document.createElement("input");
+    input.id = "serial-" + i;
+    input.pattern = "^([PN]:)?\\s*[^\\s:].*$|^[^:]*$";
+    input.title = "a serial number, optionally prefixed P: or N:";
+    input.value = plan && plan.serials[String(i)] ? plan.serials[String(i)] : "";
+    label.appendChild(input);
+    box.appendChild(label);
+  }
+}
+
+async function startRun(ev) {
+  ev.preventDefault();
+  const serials = {};
+  for (let i = 1; i <= state.slots; i++) {
+    const v = $("serial-" + i).value.trim();
+    if (v) {
+      const colon = v.indexOf(":");
+      if (colon >= 0 && !/^[PN]$/.test(v.slice(0, colon).trim())) { show("slot " + i + ": '" + v.slice(0, colon) + ":' is not a mounting prefix; use P: or N:"); return; }
+      serials[String(i)] = v;
+    }
+  }
+  if (!Object.keys(serials).length) { show("enter at least one serial number"); return; }
+  try {
+    const r = await api("POST", "/api/runs", { plan: $("plan-select").value, serials });
+    show("run " + r.run_id + " started", true);
+    location.hash = "#run";
+  } catch (e) { show(e.message); }
+}
+
+function fmtTime(t) { return new Date(t * 1000).toISOString().replace("T", " ").slice(0, 16) + " UTC"; }
+
+async function loadHistory() {
+  try {
+    const runs = await api("GET", "/api/runs");
+    const body = $("runs-table").tBodies[0];
+    body.textContent = "";
+    for (const r of runs) {
+      const tr = body.insertRow();
+      const a = document.createElement("a");
+      a.href = "#history"; a.textContent = r.id;
+      a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
+      tr.insertCell().appendChild(a);
+      [fmtTime(r.started_at), r.state + (r.reason ? ": " + r.reason : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
+    }
+  } catch (e) { show(e.message); }
+}
+
+async function showRun(id) {
+  try {
+    const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
+    const box = $("run-detail");
+    box.textContent = "";
+    const h = document.createElement("h3"); h.textContent = "Run " + r.id + " — " + r.state; box.appendChild(h);
+    showReports(box, r.id);
+    const t = document.createElement("table");
+    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "±95 %", "k2_max", "outcome", "reasons"];
+    t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = x; return th; }));
+    const f = (v, d) => v === null ? "—" : Number(v).toFixed(d);
+    for (const u of r.results) {
+      const tr = t.insertRow();
+      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), u.outcome, u.reasons]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
+    }
+    box.appendChild(t);
+  } catch (e) { show(e.message); }
+}
+
+function showReports(box, id) {
+  const p = document.createElement("p");
+  p.className = "reports";
+  p.append("Report: ");
+  for (const f of ["pdf", "html", "xlsx", "csv"]) {
+    const a = document.createElement("a");
+    a.href = "/api/runs/" + encodeURIComponent(id) + "/report/" + f;
+    a.id = "report-" + f; a.textContent = f.toUpperCase(); a.download = "report-" + id + "." + f;
+    p.append(a, " ");
+  }
+  box.appendChild(p);
+}
+
+async function findUnit(ev) {
+  ev.preventDefault();
+  const box = $("unit-result");
+  box.textContent = "";
+  try {
+    const r = await api("GET", "/api/units/" + encodeURIComponent($("unit-serial").value.trim()));
+    const ul = document.createElement("ul");
+    for (const t of r.tests) {
+      const li = document.createElement("li");
+      li.textContent = t.run_id + " slot " + t.slot + ": " + t.outcome + ", k2_max " + (t.k2_max_ug_per_g2 === null ? "—" : t.k2_max_ug_per_g2.toFixed(3)) + " µg/g²";
+      ul.appendChild(li);
+    }
+    box.appendChild(ul);
+  } catch (e) { show(e.message); }
+}
+
+async function loadUsers() {
+  try {
+    const users = await api("GET", "/api/users");
+    const body = $("users-table").tBodies[0];
+    body.textContent = "";
+    for (const u of users) {
+      const tr = body.insertRow();
+      tr.insertCell().textContent = u.name; tr.insertCell().textContent = u.role;
+      const b = document.createElement("button"); b.textContent = "Remove";
+      b.addEventListener("click", async () => { try { await api("DELETE", "/api/users/" + encodeURIComponent(u.name)); loadUsers(); } catch (e) { show(e.message); } });
+      tr.insertCell().appendChild(b);
+    }
+    const audit = await api("GET", "/api/audit");
+    const ab = $("audit-table").tBodies[0];
+    ab.textContent = "";
+    for (const a of audit) { const tr = ab.insertRow(); [fmtTime(a.at), a.who, a.action, a.detail].forEach((v) => { tr.insertCell().textContent = v; }); }
+  } catch (e) { show(e.message); }
+}
+
+async function addUser(ev) {
+  ev.preventDefault();
+  try {
+    await api("POST", "/api/users", { name: $("user-name").value, role: $("user-role").value, password: $("user-password").value });
+    $("user-password").value = ""; show("user added", true); loadUsers();
+  } catch (e) { show(e.message); }
+}
+
+start();

@@ -1,0 +1,217 @@
+//! Users, roles, sessions and CSRF for the web UI.
+//!
+//! Passwords are hashed with Argon2id (memory-hard; the `argon2` crate's
+//! defaults: 19 MiB, 2 passes). A login opens a session: a random 256-bit
+//! token in a cookie that is `HttpOnly` (no script reads it) and
+//! `SameSite=Strict` (no other site sends it), and a second random token
+//! for CSRF that every state-changing request must echo in the
+//! `X-CSRF-Token` header. Sessions live in memory: a restart logs everyone out.
+
+use argon2::Argon2;
+use argon2::password_hash::{PasswordHash, PasswordHasher, PasswordVerifier, SaltString};
+use serde::Serialize;
+use std::collections::HashMap;
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// The session cookie's name.
+pub const SESSION_COOKIE: &str = "spinbench_session";
+/// The header that carries the CSRF token.
+pub const CSRF_HEADER: &str = "x-csrf-token";
+/// A session ends after this long without a request.
+const IDLE_LIMIT: Duration = Duration::from_secs(12 * 3600);
+
+/// What a user may do; each role may do everything the ones before it may.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// Runs tests: start, answer prompts, pause, resume, abort; reads everything.
+    Operator,
+    /// Also edits plans and the station config.
+    Engineer,
+    /// Also manages users and reads the audit log.
+    Admin,
+}
+
+impl Role {
+    /// Parse `operator`, `engineer` or `admin`.
+    pub fn parse(text: &str) -> Option<Role> {
+        match text {
+            "operator" => Some(Role::Operator),
+            "engineer" => Some(Role::Engineer),
+            "admin" => Some(Role::Admin),
+            _ => None,
+        }
+    }
+
+    /// The role's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Operator => "operator",
+            Role::Engineer => "engineer",
+            Role::Admin => "admin",
+        }
+    }
+}
+
+/// Hash a password (Argon2id, random salt) into a PHC string.
+pub fn hash_password(password: &str) -> Result<String, String> {
+    let salt: [u8; 16] = rand::random();
+    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
+    Argon2::default()
+        .hash_password(password.as_bytes(), &salt)
+        .map(|h| h.to_string())
+        .map_err(|e| e.to_string())
+}
+
+/// Whether `password` matches the stored `hash` (false for a malformed hash).
+pub fn verify_password(password: &str, hash: &str) -> bool {
+    PasswordHash::new(hash).is_ok_and(|h| {
+        Argon2::default()
+            .verify_password(password.as_bytes(), &h)
+            .is_ok()
+    })
+}
+
+/// Check a new user's name and password; the problem in words.
+pub fn check_new_user(name: &str, password: &str) -> Result<(), String> {
+    if name.is_empty()
+        || name.len() > 64
+        || !name
+            .chars()
+            .all(|c| c.is_alphanumeric() || "._-@".contains(c))
+    {
+        return Err(format!(
+            "user name '{name}': 1 to 64 letters, digits or . _ - @"
+        ));
+    }
+    if password.chars().count() < 8 {
+        return Err("the password needs at least 8 characters".into());
+    }
+    Ok(())
+}
+
+/// A logged-in user.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Session {
+    /// User name.
+    pub user: String,
+    /// Role.
+    pub role: Role,
+    /// The CSRF token the browser must echo.
+    pub csrf: String,
+    #[serde(skip)]
+    last_seen: Instant,
+}
+
+fn random_token() -> String {
+    let bytes: [u8; 32] = rand::random();
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The open sessions.
+#[derive(Default)]
+pub struct Sessions {
+    by_token: Mutex<HashMap<String, Session>>,
+}
+
+impl Sessions {
+    /// Open a session; returns its cookie token and the session.
+    pub fn open(&self, user: &str, role: Role) -> (String, Session) {
+        let token = random_token();
+        let session = Session {
+            user: user.to_string(),
+            role,
+            csrf: random_token(),
+            last_seen: Instant::now(),
+        };
+        let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
+        map.retain(|_, s| s.last_seen.elapsed() < IDLE_LIMIT);
+        map.insert(token.clone(), session.clone());
+        (token, session)
+    }
+
+    /// The session of a cookie token, if open (and mark it used).
+    pub fn get(&self, token: &str) -> Option<Session> {
+        let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
+        let session = map.get_mut(token)?;
+        if session.last_seen.elapsed() >= IDLE_LIMIT {
+            map.remove(token);
+            return None;
+        }
+        session.last_seen = Instant::now();
+        Some(session.clone())
+    }
+
+    /// Close a session.
+    pub fn close(&self, token: &str) {
+        self.by_token
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(token);
+    }
+
+    /// Close every session of a user (deleted, or the role changed).
+    pub fn close_user(&self, user: &str) {
+        self.by_token
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .retain(|_, s| s.user != user);
+    }
+}
+
+/// The session token in a `Cookie` header, if any.
+pub fn session_token(cookie_header: &str) -> Option<String> {
+    cookie::Cookie::split_parse(cookie_header)
+        .flatten()
+        .find(|c| c.name() == SESSION_COOKIE)
+        .map(|c| c.value().to_string())
+}
+
+/// The `Set-Cookie` value that opens (or, with `None`, ends) a session.
+pub fn session_cookie(token: Option<&str>) -> String {
+    match token {
+        Some(t) => format!("{SESSION_COOKIE}={t}; HttpOnly; SameSite=Strict; Path=/"),
+        None => format!("{SESSION_COOKIE}=; HttpOnly; SameSite=Strict; Path=/; Max-Age=0"),
+    }
+}
+
+/// Compare two tokens in time that does not depend on where they differ.
+pub fn same_token(a: &str, b: &str) -> bool {
+    a.len() == b.len()
+        && a.bytes()
+            .zip(b.bytes())
+            .fold(0u8, |acc, (x, y)| acc | (x ^ y))
+            == 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_password_verifies_against_its_hash_only() {
+        let hash = hash_password("correct horse").expect("hash");
+        assert!(hash.starts_with("$argon2id$"), "{hash}");
+        assert!(verify_password("correct horse", &hash));
+        assert!(!verify_password("correct horsf", &hash));
+        assert!(!verify_password("correct horse", "not a hash"));
+        // Salted: the same password hashes differently.
+        assert_ne!(hash, hash_password("correct horse").expect("hash"));
+    }
+
+    #[test]
+    fn cookies_tokens_and_names() {
+        assert_eq!(
+            session_token("a=1; spinbench_session=abc; b=2").as_deref(),
+            Some("abc")
+        );
+        assert_eq!(session_token("a=1"), None);
+        assert!(session_cookie(Some("t")).contains("HttpOnly; SameSite=Strict"));
+        assert!(same_token("abc", "abc") && !same_token("abc", "abd") && !same_token("a", "ab"));
+        assert!(check_new_user("op_1", "12345678").is_ok());
+        assert!(check_new_user("bad name", "12345678").is_err());
+        assert!(check_new_user("ok", "short").is_err());
+        assert!(Role::Admin > Role::Engineer && Role::Engineer > Role::Operator);
+    }
+}

@@ -1,0 +1,270 @@
+//! The event hub: the web UI's subscription to the engine's event stream.
+//! The engine's thread publishes every event here (through [`HubSink`]);
+//! the hub numbers them, keeps the current run's log (so a browser that
+//! reconnects catches up from its `Last-Event-ID`), keeps a status snapshot
+//! for the status panel, and broadcasts to every connected browser.
+
+use serde::Serialize;
+use serde_json::Value;
+use spinbench_engine::event::{Event, EventSink, ModuleHealth};
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex, MutexGuard};
+use tokio::sync::broadcast;
+
+/// One-second value events kept for catching up (the curves' window).
+const VALUES_KEPT: usize = 900;
+/// Other events kept for catching up (a whole run's prompts, points, notices).
+const OTHERS_KEPT: usize = 20_000;
+
+/// One published event.
+#[derive(Debug)]
+pub struct HubEvent {
+    /// Sequence number (the SSE `id`), increasing over the server's life.
+    pub seq: u64,
+    /// The event's name (`values`, `prompt`, …).
+    pub kind: String,
+    /// The event as JSON.
+    pub json: String,
+}
+
+/// What the status panel shows, kept current from the events.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct StatusSnapshot {
+    /// The run on the station, if any was started since the server began.
+    pub run_id: Option<String>,
+    /// Its state (`running`, `prompting`, `paused`, `completed`, …).
+    pub state: Option<String>,
+    /// Current step: index (0-based), of, label.
+    pub step: Option<(usize, usize, String)>,
+    /// Settling or averaging at a level: phase, done, of.
+    pub progress: Option<(String, u32, u32)>,
+    /// Measured rate [deg/s].
+    pub rate_deg_s: Option<f64>,
+    /// Demanded rate [deg/s].
+    pub demand_deg_s: Option<f64>,
+    /// Applied acceleration at the mean drawing radius [g].
+    pub g_at_r0: Option<f64>,
+    /// Rate within tolerance.
+    pub on_speed: Option<bool>,
+    /// Supply outputs: (volts, amperes).
+    pub supply: Vec<(f64, f64)>,
+    /// Interlocks closed.
+    pub interlocks_closed: Option<bool>,
+    /// Counter-module counters.
+    pub modules: Vec<ModuleHealth>,
+    /// The prompt waiting for an answer.
+    pub prompt: Option<String>,
+    /// The last notices (newest last).
+    pub notices: Vec<String>,
+    /// Why the run stopped, when it faulted or was aborted.
+    pub reason: Option<String>,
+    /// Points taken.
+    pub points: usize,
+    /// Seconds since the run started (wall clock).
+    pub elapsed_s: f64,
+    /// Estimated seconds to the end (from the steps done so far).
+    pub eta_s: Option<f64>,
+    /// Instruments in the run (slots).
+    pub slots: usize,
+    /// Serial number per slot.
+    pub serials: Vec<Option<String>>,
+}
+
+struct HubState {
+    next_seq: u64,
+    values: VecDeque<Arc<HubEvent>>,
+    others: VecDeque<Arc<HubEvent>>,
+    status: StatusSnapshot,
+    started: Option<std::time::Instant>,
+}
+
+/// The hub; share it in an `Arc`.
+pub struct Hub {
+    state: Mutex<HubState>,
+    tx: broadcast::Sender<Arc<HubEvent>>,
+    /// Mean drawing radius of the station's fixtures [m], for g at R0.
+    r0_m: f64,
+    g_local_m_s2: f64,
+}
+
+impl Hub {
+    /// A hub for a station whose fixtures sit at `r0_m` on average.
+    pub fn new(r0_m: f64, g_local_m_s2: f64) -> Hub {
+        let (tx, _) = broadcast::channel(4096);
+        Hub {
+            state: Mutex::new(HubState {
+                next_seq: 1,
+                values: VecDeque::new(),
+                others: VecDeque::new(),
+                status: StatusSnapshot::default(),
+                started: None,
+            }),
+            tx,
+            r0_m,
+            g_local_m_s2,
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, HubState> {
+        // A panic elsewhere while holding the lock leaves data that is still
+        // consistent enough to show; carry on with it.
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Subscribe to new events (subscribe before reading the backlog, so
+    /// nothing falls between).
+    pub fn subscribe(&self) -> broadcast::Receiver<Arc<HubEvent>> {
+        self.tx.subscribe()
+    }
+
+    /// Events after `seq` still kept, in order.
+    pub fn since(&self, seq: u64) -> Vec<Arc<HubEvent>> {
+        let state = self.lock();
+        let mut out: Vec<Arc<HubEvent>> = state
+            .values
+            .iter()
+            .chain(state.others.iter())
+            .filter(|e| e.seq > seq)
+            .cloned()
+            .collect();
+        out.sort_by_key(|e| e.seq);
+        out
+    }
+
+    /// The status panel's data now.
+    pub fn status(&self) -> StatusSnapshot {
+        let state = self.lock();
+        let mut status = state.status.clone();
+        if let Some(t) = state.started {
+            status.elapsed_s = t.elapsed().as_secs_f64();
+            if let Some((index, of, _)) = &status.step
+                && *index > 0
+                && status.state.as_deref().is_some_and(|s| s != "completed")
+            {
+                status.eta_s =
+                    Some(status.elapsed_s / *index as f64 * (*of as f64 - *index as f64));
+            }
+        }
+        status
+    }
+
+    /// Publish a message of the server's own (not from the engine), e.g. a
+    /// run that could not start.
+    pub fn publish_notice(&self, message: &str) {
+        self.publish(&Event::Notice {
+            message: message.to_string(),
+        });
+    }
+
+    /// Publish one engine event.
+    pub fn publish(&self, event: &Event) {
+        let json = serde_json::to_string(event).unwrap_or_else(|e| {
+            serde_json::json!({"event": "notice", "message": format!("an event could not be shown: {e}")})
+                .to_string()
+        });
+        let kind = serde_json::from_str::<Value>(&json)
+            .ok()
+            .and_then(|v| v["event"].as_str().map(str::to_string))
+            .unwrap_or_default();
+        let mut state = self.lock();
+        let seq = state.next_seq;
+        state.next_seq += 1;
+        let hub_event = Arc::new(HubEvent { seq, kind, json });
+        self.update_status(&mut state, event);
+        if matches!(event, Event::Values { .. }) {
+            state.values.push_back(hub_event.clone());
+            while state.values.len() > VALUES_KEPT {
+                state.values.pop_front();
+            }
+        } else {
+            state.others.push_back(hub_event.clone());
+            while state.others.len() > OTHERS_KEPT {
+                state.others.pop_front();
+            }
+        }
+        drop(state);
+        // No browser connected is not an error.
+        let _ = self.tx.send(hub_event);
+    }
+
+    fn update_status(&self, state: &mut HubState, event: &Event) {
+        let s = &mut state.status;
+        match event {
+            Event::RunStarted { run_id, plan, .. } => {
+                // A new run: the log starts again (earlier runs are in the store).
+                let keep_seq = state.next_seq;
+                state.values.clear();
+                state.others.clear();
+                state.next_seq = keep_seq;
+                state.started = Some(std::time::Instant::now());
+                *s = StatusSnapshot {
+                    run_id: Some(run_id.clone()),
+                    state: Some("running".into()),
+                    slots: plan.serials.len(),
+                    serials: plan.serials.clone(),
+                    ..StatusSnapshot::default()
+                };
+            }
+            Event::StateChanged { state: st } => {
+                s.state = serde_json::to_value(st)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string));
+            }
+            Event::StepStarted { index, of, label } => {
+                s.step = Some((*index, *of, label.clone()));
+                s.progress = None;
+            }
+            Event::Progress { phase, done, of } => s.progress = Some((phase.clone(), *done, *of)),
+            Event::Values {
+                rate_deg_s,
+                demand_deg_s,
+                on_speed,
+                ..
+            } => {
+                s.rate_deg_s = Some(*rate_deg_s);
+                s.demand_deg_s = Some(*demand_deg_s);
+                s.on_speed = Some(*on_speed);
+                let w = rate_deg_s.to_radians();
+                s.g_at_r0 = Some(w * w * self.r0_m / self.g_local_m_s2);
+            }
+            Event::Health {
+                supply,
+                interlocks_closed,
+                modules,
+            } => {
+                s.supply = supply.clone();
+                s.interlocks_closed = Some(*interlocks_closed);
+                s.modules = modules.clone();
+            }
+            Event::Prompt { text, .. } => s.prompt = Some(text.clone()),
+            Event::PromptAnswered { .. } => s.prompt = None,
+            Event::PointDone { .. } => s.points += 1,
+            Event::Notice { message } => {
+                s.notices.push(message.clone());
+                if s.notices.len() > 5 {
+                    s.notices.remove(0);
+                }
+            }
+            Event::Fault { reason } => s.reason = Some(reason.clone()),
+            Event::RunFinished { state: st, reason } => {
+                s.state = serde_json::to_value(st)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string));
+                s.reason = reason.clone();
+                s.prompt = None;
+                s.eta_s = None;
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The engine-side subscriber that publishes into a [`Hub`].
+pub struct HubSink(pub Arc<Hub>);
+
+impl EventSink for HubSink {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        self.0.publish(event);
+        Ok(())
+    }
+}

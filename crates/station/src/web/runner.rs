@@ -1,0 +1,299 @@
+//! Runs started from the web UI: one at a time, each on its own thread
+//! through the same [`execute`] as `spinbench run`, with [`WebOperator`]
+//! answering prompts from the browser (or the MES) and the hub hearing
+//! every event.
+
+use super::hub::{Hub, HubSink};
+use crate::station_run::{RunControl, connect_bench, execute, new_run_id};
+use spinbench_engine::plan::Fixture;
+use spinbench_engine::sim_bench::SimOperator;
+use spinbench_engine::{Answer, Operator, StationConfig, TestPlan};
+use spinbench_sim::serve::RunningBench;
+use spinbench_store::StoreTarget;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Duration;
+
+/// The prompt between the engine's thread (waiting) and the web (answering).
+#[derive(Default)]
+pub struct PromptSlot {
+    state: Mutex<(Option<String>, Option<Answer>)>,
+    answered: Condvar,
+}
+
+impl PromptSlot {
+    fn lock(&self) -> MutexGuard<'_, (Option<String>, Option<Answer>)> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The prompt waiting for an answer.
+    pub fn pending(&self) -> Option<String> {
+        self.lock().0.clone()
+    }
+
+    /// Answer the waiting prompt; false when none waits.
+    pub fn answer(&self, answer: Answer) -> bool {
+        let mut state = self.lock();
+        if state.0.is_none() {
+            return false;
+        }
+        state.0 = None;
+        state.1 = Some(answer);
+        self.answered.notify_all();
+        true
+    }
+}
+
+/// Answers the engine's prompts with what a user sends through the web; on
+/// the virtual bench the simulator then remounts the instruments as asked.
+pub struct WebOperator {
+    slot: Arc<PromptSlot>,
+    abort: Arc<AtomicBool>,
+    sim: Option<&'static RunningBench>,
+}
+
+impl Operator for WebOperator {
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        {
+            let mut state = self.slot.lock();
+            state.0 = Some(text.to_string());
+            state.1 = None;
+        }
+        let answer = loop {
+            let state = self.slot.lock();
+            let (mut state, _) = self
+                .slot
+                .answered
+                .wait_timeout(state, Duration::from_millis(200))
+                .unwrap_or_else(|e| e.into_inner());
+            if let Some(answer) = state.1.take() {
+                break answer;
+            }
+            if self.abort.load(Ordering::Relaxed) {
+                state.0 = None;
+                break Answer {
+                    proceed: false,
+                    by: "abort while waiting for the operator".into(),
+                };
+            }
+        };
+        if answer.proceed
+            && let Some(sim) = self.sim
+        {
+            // The simulator plays the operator's hands.
+            SimOperator::new(sim, true).ask(text, fixtures);
+        }
+        answer
+    }
+}
+
+/// The run the web started and still tracks.
+pub struct ActiveRun {
+    /// Run identifier.
+    pub run_id: String,
+    /// Who started it.
+    pub started_by: String,
+    abort: Arc<AtomicBool>,
+    pause: Arc<AtomicBool>,
+    prompt: Arc<PromptSlot>,
+    finished: Arc<AtomicBool>,
+}
+
+/// Why a run could not be started.
+#[derive(Debug)]
+pub enum StartError {
+    /// A run is active.
+    Busy(String),
+    /// The plan (or its serials) cannot run on this station.
+    Invalid(String),
+    /// The hardware could not be reached.
+    Hardware(String),
+}
+
+/// Starts and steers the web's runs.
+pub struct Runner {
+    station: StationConfig,
+    station_toml: String,
+    sim: Option<&'static RunningBench>,
+    data_dir: PathBuf,
+    db: StoreTarget,
+    hub: Arc<Hub>,
+    active: Mutex<Option<ActiveRun>>,
+}
+
+impl Runner {
+    /// A runner for `station` (on the virtual bench `sim`, when given).
+    pub fn new(
+        station: StationConfig,
+        station_toml: String,
+        sim: Option<&'static RunningBench>,
+        data_dir: PathBuf,
+        db: StoreTarget,
+        hub: Arc<Hub>,
+    ) -> Runner {
+        Runner {
+            station,
+            station_toml,
+            sim,
+            data_dir,
+            db,
+            hub,
+            active: Mutex::new(None),
+        }
+    }
+
+    /// The station config.
+    pub fn station(&self) -> &StationConfig {
+        &self.station
+    }
+
+    /// The station config's text.
+    pub fn station_toml(&self) -> &str {
+        &self.station_toml
+    }
+
+    /// True on the virtual bench.
+    pub fn simulated(&self) -> bool {
+        self.sim.is_some()
+    }
+
+    fn lock(&self) -> MutexGuard<'_, Option<ActiveRun>> {
+        self.active.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The active run's id (a finished run is no longer active).
+    pub fn active(&self) -> Option<String> {
+        self.lock()
+            .as_ref()
+            .filter(|a| !a.finished.load(Ordering::Relaxed))
+            .map(|a| a.run_id.clone())
+    }
+
+    /// Start `plan` (checked against the station first); returns the run id.
+    pub fn start(&self, plan: TestPlan, plan_text: &str, by: &str) -> Result<String, StartError> {
+        let mut active = self.lock();
+        if let Some(a) = active.as_ref()
+            && !a.finished.load(Ordering::Relaxed)
+        {
+            return Err(StartError::Busy(a.run_id.clone()));
+        }
+        plan.compile(&self.station)
+            .map_err(|e| StartError::Invalid(e.to_string()))?;
+        let run_id = new_run_id();
+        let dir = self.data_dir.join("runs").join(&run_id);
+        std::fs::create_dir_all(&dir)
+            .and_then(|()| std::fs::write(dir.join("station.toml"), &self.station_toml))
+            .and_then(|()| std::fs::write(dir.join("plan.toml"), plan_text))
+            .map_err(|e| {
+                StartError::Hardware(format!(
+                    "{}: cannot write the run directory: {e}",
+                    dir.display()
+                ))
+            })?;
+        let bench = connect_bench(&self.station, Some(&dir))
+            .map_err(|e| StartError::Hardware(format!("{e:#}")))?;
+        let abort = Arc::new(AtomicBool::new(false));
+        let pause = Arc::new(AtomicBool::new(false));
+        let prompt = Arc::new(PromptSlot::default());
+        let finished = Arc::new(AtomicBool::new(false));
+        let operator = WebOperator {
+            slot: prompt.clone(),
+            abort: abort.clone(),
+            sim: self.sim,
+        };
+        let control = RunControl {
+            abort: abort.clone(),
+            pause: pause.clone(),
+            sinks: vec![Box::new(HubSink(self.hub.clone()))],
+        };
+        let (station, db, hub, done) = (
+            self.station.clone(),
+            self.db.clone(),
+            self.hub.clone(),
+            finished.clone(),
+        );
+        std::thread::Builder::new()
+            .name(format!("run {run_id}"))
+            .spawn(move || {
+                let result = execute(
+                    &station,
+                    &plan,
+                    bench,
+                    Box::new(operator),
+                    &dir,
+                    &db,
+                    false,
+                    true,
+                    control,
+                );
+                if let Err(e) = result {
+                    hub.publish_notice(&format!("the run could not go on: {e:#}"));
+                }
+                done.store(true, Ordering::Relaxed);
+            })
+            .map_err(|e| StartError::Hardware(format!("cannot start the run's thread: {e}")))?;
+        *active = Some(ActiveRun {
+            run_id: run_id.clone(),
+            started_by: by.to_string(),
+            abort,
+            pause,
+            prompt,
+            finished,
+        });
+        Ok(run_id)
+    }
+
+    fn with_active<T>(&self, f: impl FnOnce(&ActiveRun) -> T) -> Result<T, String> {
+        let active = self.lock();
+        match active.as_ref() {
+            Some(a) if !a.finished.load(Ordering::Relaxed) => Ok(f(a)),
+            _ => Err("no run is active".into()),
+        }
+    }
+
+    /// Answer the active run's prompt.
+    pub fn answer(&self, proceed: bool, by: &str) -> Result<String, String> {
+        self.with_active(|a| {
+            a.prompt
+                .answer(Answer {
+                    proceed,
+                    by: by.to_string(),
+                })
+                .then(|| a.run_id.clone())
+                .ok_or_else(|| "no prompt is waiting for an answer".to_string())
+        })?
+    }
+
+    /// The prompt the active run waits on.
+    pub fn prompt(&self) -> Option<String> {
+        self.with_active(|a| a.prompt.pending()).ok().flatten()
+    }
+
+    /// Hold (true) or resume (false) the active run.
+    pub fn pause(&self, on: bool) -> Result<String, String> {
+        self.with_active(|a| {
+            a.pause.store(on, Ordering::Relaxed);
+            a.run_id.clone()
+        })
+    }
+
+    /// Abort the active run (the engine brings the station to its safe state).
+    pub fn abort(&self) -> Result<String, String> {
+        self.with_active(|a| {
+            a.abort.store(true, Ordering::Relaxed);
+            a.run_id.clone()
+        })
+    }
+
+    /// Abort whatever runs and wait for it to reach the safe state (server shutdown).
+    pub fn shutdown(&self) {
+        let _ = self.abort();
+        for _ in 0..300 {
+            if self.active().is_none() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}

@@ -1,0 +1,203 @@
+//! A `spinbench serve --simulate` in a child process, and a small JSON
+//! client for its API (cookie and CSRF token kept like a browser keeps them).
+
+// Shared by the API and the browser tests; each uses a part.
+#![allow(dead_code)]
+
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+
+/// A running server; killed when dropped.
+pub struct Server {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Add a user through the command line (as the first admin is made).
+pub fn add_user(data: &Path, name: &str, role: &str, password: &str) {
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["user", "add", name, "--role", role, "--db"])
+        .arg(data.join("spinbench.db"))
+        .env("SPINBENCH_PASSWORD", password)
+        .output()
+        .expect("spinbench user add");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Start `spinbench serve --simulate` on a free loopback port.
+pub fn serve(data: &Path, sim_speed: &str) -> Server {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args([
+            "serve",
+            "--simulate",
+            "--sim-speed",
+            sim_speed,
+            "--bind",
+            "127.0.0.1:0",
+            "--data",
+        ])
+        .arg(data)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::inherit())
+        .spawn()
+        .expect("spinbench serve");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut lines = BufReader::new(stdout).lines();
+    let base = loop {
+        let line = lines
+            .next()
+            .expect("the server said where it listens")
+            .expect("a line");
+        if let Some(rest) = line.split("http://").nth(1) {
+            let addr = rest.split('/').next().expect("address");
+            break format!("http://{addr}");
+        }
+    };
+    // Keep reading its output so it never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines {});
+    Server { child, base }
+}
+
+/// A client with a session (after `login`).
+pub struct Client {
+    agent: ureq::Agent,
+    base: String,
+    /// The session cookie (`name=value`).
+    pub cookie: Option<String>,
+    /// The CSRF token.
+    pub csrf: Option<String>,
+}
+
+/// A response: status, `Set-Cookie`, content type, body text.
+#[derive(Debug)]
+pub struct Reply {
+    /// HTTP status.
+    pub status: u16,
+    /// The `Set-Cookie` header, if any.
+    pub set_cookie: Option<String>,
+    /// The `Content-Type` header.
+    pub content_type: String,
+    /// The body.
+    pub body: Vec<u8>,
+}
+
+impl Reply {
+    /// The body as JSON (Null if it is not).
+    pub fn json(&self) -> Value {
+        serde_json::from_slice(&self.body).unwrap_or(Value::Null)
+    }
+}
+
+impl Client {
+    /// A client without a session.
+    pub fn new(server: &Server) -> Client {
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .build()
+            .into();
+        Client {
+            agent,
+            base: server.base.clone(),
+            cookie: None,
+            csrf: None,
+        }
+    }
+
+    /// Log in; panics unless it succeeds.
+    pub fn login(server: &Server, user: &str, password: &str) -> Client {
+        let mut c = Client::new(server);
+        let r = c.send(
+            "POST",
+            "/api/login",
+            Some(&serde_json::json!({"user": user, "password": password}).to_string()),
+        );
+        assert_eq!(r.status, 200, "login {user}: {:?}", r.json());
+        let cookie = r.set_cookie.clone().expect("a session cookie");
+        c.cookie = Some(cookie.split(';').next().unwrap_or("").to_string());
+        c.csrf = r.json()["csrf"].as_str().map(str::to_string);
+        c
+    }
+
+    /// Send a request (with the cookie and CSRF token, when held).
+    pub fn send(&mut self, method: &str, path: &str, body: Option<&str>) -> Reply {
+        self.send_with(method, path, body, true)
+    }
+
+    /// Send a request; `csrf` false leaves the token out.
+    pub fn send_with(&mut self, method: &str, path: &str, body: Option<&str>, csrf: bool) -> Reply {
+        let url = format!("{}{}", self.base, path);
+        let mut request = ureq::http::Request::builder().method(method).uri(&url);
+        if let Some(c) = &self.cookie {
+            request = request.header("Cookie", c);
+        }
+        if csrf && let Some(t) = &self.csrf {
+            request = request.header("X-CSRF-Token", t);
+        }
+        if body.is_some() {
+            request = request.header("Content-Type", "application/json");
+        }
+        let request = request
+            .body(body.unwrap_or("").as_bytes().to_vec())
+            .expect("request");
+        let mut response = self.agent.run(request).expect("the server answers");
+        let header = |name: &str| {
+            response
+                .headers()
+                .get(name)
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_string)
+        };
+        let set_cookie = header("set-cookie");
+        let content_type = header("content-type").unwrap_or_default();
+        let status = response.status().as_u16();
+        let body = response
+            .body_mut()
+            .with_config()
+            .limit(200_000_000)
+            .read_to_vec()
+            .unwrap_or_default();
+        Reply {
+            status,
+            set_cookie,
+            content_type,
+            body,
+        }
+    }
+
+    /// GET and the JSON body (asserting the status).
+    pub fn get_json(&mut self, path: &str, status: u16) -> Value {
+        let r = self.send("GET", path, None);
+        assert_eq!(r.status, status, "GET {path}: {:?}", r.json());
+        r.json()
+    }
+
+    /// Poll `/api/status` until `done` holds (at most `seconds`).
+    pub fn wait_status(&mut self, seconds: u64, done: impl Fn(&Value) -> bool) -> Value {
+        let until = std::time::Instant::now() + std::time::Duration::from_secs(seconds);
+        loop {
+            let s = self.get_json("/api/status", 200);
+            if done(&s) {
+                return s;
+            }
+            assert!(
+                std::time::Instant::now() < until,
+                "status did not arrive in {seconds} s: {s}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(100));
+        }
+    }
+}

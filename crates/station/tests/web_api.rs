@@ -1,0 +1,444 @@
+//! The HTTP API of `spinbench serve --simulate`, every endpoint, including
+//! its refusals: not logged in, wrong role, missing CSRF token, bad input,
+//! a run already active; and a whole run driven through the API as a line's
+//! MES would: start, answer the prompts, pause, resume, results, reports,
+//! the live event stream with catch-up, the audit log.
+
+#[path = "common/web.rs"]
+mod web;
+
+use serde_json::{Value, json};
+use spinbench_station::web::api::API_ROUTES;
+use std::io::{BufRead, BufReader};
+use web::{Client, add_user, serve};
+
+const PLAN: &str = r#"name = "api test"
+range_g = 6
+levels = [0, 1, 2, 3, 4, 6]
+passes = ["P", "N"]
+warmup_s = 0
+dwell = { seconds = 3 }
+stability = { hold_s = 3 }
+[serials]
+1 = "API-1"
+2 = "API-2"
+"#;
+
+fn concrete(path: &str) -> String {
+    path.replace("{name}", "short")
+        .replace("{id}", "no-such-run")
+        .replace("{format}", "pdf")
+        .replace("{serial}", "API-1")
+}
+
+#[test]
+fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = serve(dir.path(), "0");
+    let mut anon = Client::new(&server);
+    let doc = anon.get_json("/api/openapi.json", 200);
+    assert_eq!(doc["openapi"], "3.0.3");
+    let mut documented: Vec<(String, String)> = Vec::new();
+    for (path, ops) in doc["paths"].as_object().expect("paths") {
+        for method in ops.as_object().expect("operations").keys() {
+            documented.push((method.clone(), path.clone()));
+        }
+    }
+    let mut routed: Vec<(String, String)> = API_ROUTES
+        .iter()
+        .map(|(m, p)| (m.to_string(), p.to_string()))
+        .collect();
+    documented.sort();
+    routed.sort();
+    assert_eq!(
+        documented, routed,
+        "the OpenAPI document and the router differ"
+    );
+
+    for (method, path) in API_ROUTES {
+        let public = ["/api/openapi.json", "/api/login"].contains(&path);
+        if public {
+            continue;
+        }
+        let r = anon.send(&method.to_uppercase(), &concrete(path), Some("{}"));
+        assert_eq!(
+            r.status,
+            401,
+            "{method} {path} without a session: {:?}",
+            r.json()
+        );
+        assert!(
+            r.json()["error"]
+                .as_str()
+                .is_some_and(|e| e.contains("login")),
+            "{method} {path}: the error says what to do"
+        );
+    }
+    // Login: bad bodies and bad credentials.
+    assert_eq!(
+        anon.send("POST", "/api/login", Some("not json")).status,
+        400
+    );
+    let r = anon.send(
+        "POST",
+        "/api/login",
+        Some(&json!({"user": "nobody", "password": "whatever1"}).to_string()),
+    );
+    assert_eq!(r.status, 401);
+    // The page and its files are served with a content security policy.
+    let page = anon.send("GET", "/", None);
+    assert_eq!(page.status, 200);
+    assert!(String::from_utf8_lossy(&page.body).contains("<canvas id=\"curves\""));
+    assert_eq!(anon.send("GET", "/app.js", None).status, 200);
+}
+
+#[test]
+fn roles_csrf_users_plans_and_the_audit_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    let server = serve(dir.path(), "0");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+
+    // The session cookie is HttpOnly and SameSite=Strict.
+    let mut probe = Client::new(&server);
+    let r = probe.send(
+        "POST",
+        "/api/login",
+        Some(&json!({"user": "admin", "password": "admin-password"}).to_string()),
+    );
+    let cookie = r.set_cookie.expect("cookie");
+    assert!(
+        cookie.contains("HttpOnly") && cookie.contains("SameSite=Strict"),
+        "{cookie}"
+    );
+    // Wrong password.
+    let r = probe.send(
+        "POST",
+        "/api/login",
+        Some(&json!({"user": "admin", "password": "wrong-password"}).to_string()),
+    );
+    assert_eq!(r.status, 401);
+
+    // A state change without the CSRF token is refused.
+    let body = json!({"name": "op", "role": "operator", "password": "op-password"}).to_string();
+    assert_eq!(
+        admin
+            .send_with("POST", "/api/users", Some(&body), false)
+            .status,
+        403
+    );
+    assert_eq!(admin.send("POST", "/api/users", Some(&body)).status, 201);
+    assert_eq!(
+        admin.send("POST", "/api/users", Some(&body)).status,
+        409,
+        "taken"
+    );
+    let bad_role = json!({"name": "x", "role": "boss", "password": "long-enough"}).to_string();
+    assert_eq!(
+        admin.send("POST", "/api/users", Some(&bad_role)).status,
+        400
+    );
+    let short = json!({"name": "x", "role": "operator", "password": "short"}).to_string();
+    assert_eq!(admin.send("POST", "/api/users", Some(&short)).status, 400);
+    let bad_name =
+        json!({"name": "a b", "role": "operator", "password": "long-enough"}).to_string();
+    assert_eq!(
+        admin.send("POST", "/api/users", Some(&bad_name)).status,
+        400
+    );
+    let eng = json!({"name": "eng", "role": "engineer", "password": "eng-password"}).to_string();
+    assert_eq!(admin.send("POST", "/api/users", Some(&eng)).status, 201);
+    let users = admin.get_json("/api/users", 200);
+    assert_eq!(users.as_array().map(Vec::len), Some(3));
+    assert!(
+        !users.to_string().contains("argon2"),
+        "password hashes never leave the server"
+    );
+
+    let mut op = Client::login(&server, "op", "op-password");
+    let mut engineer = Client::login(&server, "eng", "eng-password");
+    assert_eq!(op.get_json("/api/session", 200)["role"], "operator");
+    // Wrong role.
+    assert_eq!(op.send("GET", "/api/users", None).status, 403);
+    assert_eq!(op.send("GET", "/api/audit", None).status, 403);
+    assert_eq!(op.send("DELETE", "/api/users/eng", None).status, 403);
+    assert_eq!(op.send("PUT", "/api/plans/mine", Some(PLAN)).status, 403);
+    assert_eq!(engineer.send("GET", "/api/users", None).status, 403);
+    // Plans: an engineer saves them, checked first.
+    assert_eq!(
+        engineer.send("PUT", "/api/plans/api", Some(PLAN)).status,
+        200
+    );
+    let r = engineer.send("PUT", "/api/plans/api", Some("range_g = 'x'"));
+    assert_eq!(r.status, 400, "{:?}", r.json());
+    let r = engineer.send("PUT", "/api/plans/bad", Some("[serials]\n99 = \"X\"\n"));
+    assert_eq!(r.status, 400);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("serials.99"))
+    );
+    assert_eq!(
+        engineer.send("PUT", "/api/plans/..%2Fx", Some(PLAN)).status,
+        400
+    );
+    let plans = op.get_json("/api/plans", 200);
+    assert!(
+        plans["plans"]
+            .as_array()
+            .is_some_and(|p| p.iter().any(|p| p["name"] == "api"))
+    );
+    assert!(op.get_json("/api/station", 200)["slots"].as_u64() >= Some(6));
+
+    // Removing users.
+    assert_eq!(
+        admin.send("DELETE", "/api/users/admin", None).status,
+        409,
+        "not yourself"
+    );
+    assert_eq!(admin.send("DELETE", "/api/users/ghost", None).status, 404);
+    assert_eq!(admin.send("DELETE", "/api/users/eng", None).status, 204);
+    assert_eq!(
+        engineer.send("GET", "/api/session", None).status,
+        401,
+        "a removed user's session ends"
+    );
+    // Log out.
+    assert_eq!(op.send("POST", "/api/logout", None).status, 204);
+    assert_eq!(op.send("GET", "/api/status", None).status, 401);
+
+    // Every action is in the audit log with who did it.
+    let log = admin.get_json("/api/audit", 200);
+    let entries: Vec<(String, String)> = log
+        .as_array()
+        .expect("entries")
+        .iter()
+        .map(|e| {
+            (
+                e["who"].as_str().unwrap_or("").to_string(),
+                e["action"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect();
+    for want in [
+        ("admin", "login"),
+        ("admin", "login refused"),
+        ("admin", "add user"),
+        ("eng", "save plan"),
+        ("admin", "remove user"),
+        ("op", "logout"),
+        ("spinbench (command line)", "add user"),
+    ] {
+        assert!(
+            entries.contains(&(want.0.to_string(), want.1.to_string())),
+            "{want:?} in {entries:?}"
+        );
+    }
+}
+
+#[test]
+fn a_run_through_the_api_from_start_to_report() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("api.toml"), PLAN).expect("plan");
+    let server = serve(dir.path(), "0");
+    let mut op = Client::login(&server, "op", "op-password");
+
+    // Nothing to steer yet.
+    for path in [
+        "/api/run/prompt",
+        "/api/run/pause",
+        "/api/run/resume",
+        "/api/run/abort",
+    ] {
+        let r = op.send("POST", path, Some(r#"{"proceed": true}"#));
+        assert_eq!(r.status, 409, "{path}: {:?}", r.json());
+    }
+    // Bad input.
+    let start = |plan: &str, serials: Value| json!({"plan": plan, "serials": serials}).to_string();
+    let r = op.send("POST", "/api/runs", Some(&start("nope", json!({}))));
+    assert_eq!(r.status, 400);
+    let r = op.send(
+        "POST",
+        "/api/runs",
+        Some(&start("api", json!({"1": "X:API-1"}))),
+    );
+    assert_eq!(r.status, 400);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("mounting prefix"))
+    );
+    let r = op.send(
+        "POST",
+        "/api/runs",
+        Some(&start("api", json!({"99": "API-9"}))),
+    );
+    assert_eq!(r.status, 400);
+    assert_eq!(op.send("POST", "/api/runs", Some("{")).status, 400);
+
+    // Start; a second start is refused while it runs.
+    let r = op.send(
+        "POST",
+        "/api/runs",
+        Some(&start("api", json!({"1": "API-1", "2": "API-2"}))),
+    );
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let run_id = r.json()["run_id"].as_str().expect("run id").to_string();
+    let r = op.send("POST", "/api/runs", Some(&start("api", json!({}))));
+    assert_eq!(r.status, 409);
+
+    // Answer every prompt; pause and resume once on the way.
+    let mut prompts = 0;
+    let mut paused = false;
+    loop {
+        let s = op.wait_status(120, |s| {
+            s["prompt"].is_string() || s["active"].is_null() && s["run_id"] == run_id.as_str()
+        });
+        if s["active"].is_null() {
+            break;
+        }
+        if !paused {
+            assert_eq!(op.send("POST", "/api/run/pause", None).status, 200);
+            assert_eq!(op.send("POST", "/api/run/resume", None).status, 200);
+            paused = true;
+        }
+        let r = op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+        assert_eq!(r.status, 200, "{:?}", r.json());
+        prompts += 1;
+        assert!(prompts < 10, "too many prompts");
+    }
+    assert!(prompts >= 3, "tumble up, tumble down, remount: {prompts}");
+    let s = op.get_json("/api/status", 200);
+    assert_eq!(s["state"], "completed", "{s}");
+    assert_eq!(
+        op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#))
+            .status,
+        409
+    );
+
+    // Results and reports.
+    let run = op.get_json(&format!("/api/runs/{run_id}"), 200);
+    assert_eq!(run["state"], "completed");
+    assert_eq!(
+        run["results"].as_array().map(Vec::len),
+        Some(4),
+        "2 instruments × 2 mountings"
+    );
+    assert!(run["results"][0]["k2_ug_per_g2"].is_number());
+    let r = op.send("GET", &format!("/api/runs/{run_id}/report/pdf"), None);
+    assert_eq!(r.status, 200);
+    assert_eq!(r.content_type, "application/pdf");
+    assert!(r.body.starts_with(b"%PDF"));
+    let r = op.send("GET", &format!("/api/runs/{run_id}/report/csv"), None);
+    assert!(String::from_utf8_lossy(&r.body).contains("API-2"));
+    assert_eq!(
+        op.send("GET", &format!("/api/runs/{run_id}/report/doc"), None)
+            .status,
+        400
+    );
+    assert_eq!(op.send("GET", "/api/runs/no-such-run", None).status, 404);
+    assert_eq!(
+        op.send("GET", "/api/runs/no-such-run/report/pdf", None)
+            .status,
+        404
+    );
+    let runs = op.get_json("/api/runs", 200);
+    assert_eq!(runs[0]["id"], run_id.as_str());
+    let unit = op.get_json("/api/units/API-1", 200);
+    assert_eq!(unit["tests"][0]["run_id"], run_id.as_str());
+    assert_eq!(op.send("GET", "/api/units/NOBODY", None).status, 404);
+
+    // The event stream: everything from the start, numbered; a reconnect
+    // with Last-Event-ID gets only what came after.
+    let (ids, kinds) = read_events(&server.base, op.cookie.as_deref(), None, "run_finished");
+    assert!(ids.windows(2).all(|w| w[0] < w[1]), "ids increase");
+    for kind in [
+        "run_started",
+        "prompt",
+        "prompt_answered",
+        "values",
+        "point_done",
+        "health",
+    ] {
+        assert!(kinds.iter().any(|k| k == kind), "{kind} in the stream");
+    }
+    let middle = ids[ids.len() / 2];
+    let (later, _) = read_events(
+        &server.base,
+        op.cookie.as_deref(),
+        Some(middle),
+        "run_finished",
+    );
+    assert!(
+        later.first().is_some_and(|&first| first > middle),
+        "catch-up starts after {middle}"
+    );
+
+    // The audit log has the operator's actions.
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    let log = admin.get_json("/api/audit", 200).to_string();
+    for action in ["start run", "answer prompt: done", "pause", "resume"] {
+        assert!(log.contains(action), "{action} in the audit log");
+    }
+}
+
+#[test]
+fn an_abort_from_the_api_ends_the_run_safely() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("api.toml"), PLAN).expect("plan");
+    let server = serve(dir.path(), "0");
+    let mut op = Client::login(&server, "op", "op-password");
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "api"}"#));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    op.wait_status(60, |s| s["prompt"].is_string());
+    assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
+    let s = op.wait_status(60, |s| s["active"].is_null());
+    assert_eq!(s["state"], "aborted", "{s}");
+}
+
+/// Read the event stream until an event of kind `until`; (ids, kinds).
+fn read_events(
+    base: &str,
+    cookie: Option<&str>,
+    last: Option<u64>,
+    until: &str,
+) -> (Vec<u64>, Vec<String>) {
+    let agent: ureq::Agent = ureq::Agent::config_builder()
+        .http_status_as_error(false)
+        .build()
+        .into();
+    let mut request = agent.get(format!("{base}/api/events"));
+    if let Some(c) = cookie {
+        request = request.header("Cookie", c);
+    }
+    if let Some(id) = last {
+        request = request.header("Last-Event-ID", id.to_string());
+    }
+    let response = request.call().expect("events");
+    assert_eq!(response.status().as_u16(), 200);
+    let reader = BufReader::new(response.into_body().into_reader());
+    let (mut ids, mut kinds) = (Vec::new(), Vec::new());
+    for line in reader.lines() {
+        let line = line.expect("a line");
+        if let Some(id) = line
+            .strip_prefix("id: ")
+            .or_else(|| line.strip_prefix("id:"))
+        {
+            ids.push(id.trim().parse().expect("numeric id"));
+        } else if let Some(kind) = line
+            .strip_prefix("event: ")
+            .or_else(|| line.strip_prefix("event:"))
+        {
+            kinds.push(kind.trim().to_string());
+            if kind.trim() == until {
+                break;
+            }
+        }
+    }
+    (ids, kinds)
+}

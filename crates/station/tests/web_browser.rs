@@ -1,0 +1,163 @@
+//! End to end in a real browser (headless Chromium through chromedriver)
+//! against `spinbench serve --simulate`: log in, start a run from the form,
+//! see the live curves move, answer the operator prompts, see the run
+//! finish and download its report. Screenshots go to
+//! `target/tmp/web-browser/` for a person to look at.
+
+#[path = "common/web.rs"]
+mod web;
+#[path = "common/webdriver.rs"]
+mod webdriver;
+
+use serde_json::Value;
+use std::time::{Duration, Instant};
+use webdriver::Browser;
+
+const PLAN: &str = r#"name = "browser test"
+range_g = 6
+levels = [0, 1, 2, 3, 4, 6]
+passes = ["P", "N"]
+warmup_s = 0
+dwell = { seconds = 3 }
+stability = { hold_s = 3 }
+[serials]
+1 = "WEB-1"
+"#;
+
+#[test]
+fn an_operator_runs_a_test_in_the_browser() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    web::add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), PLAN).expect("plan");
+    // 20× real time: a few seconds per level, so the curves visibly move.
+    let server = web::serve(dir.path(), "20");
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    std::fs::create_dir_all(&shots).expect("screenshot dir");
+
+    let b = Browser::start();
+    b.go(&server.base);
+    b.wait_for(
+        10,
+        "the login form",
+        "return !document.getElementById('login').hidden",
+    );
+    b.type_into("#login-user", "op");
+    b.type_into("#login-password", "op-password");
+    b.click("#login-button");
+    b.wait_for(
+        10,
+        "the status page",
+        "return !document.getElementById('status').hidden",
+    );
+    assert_eq!(
+        b.script("return document.getElementById('who').textContent"),
+        Value::String("op (operator)".into())
+    );
+
+    // The new-run form: the plan, serial numbers per slot (a wrong prefix is refused).
+    b.click("#nav-new");
+    b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
+    b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
+    b.type_into("#serial-2", "X:WEB-2");
+    b.click("#start-button");
+    b.wait_for(
+        5,
+        "the prefix refusal",
+        "return document.getElementById('message').textContent.includes('mounting prefix')",
+    );
+    b.type_into("#serial-2", "N:WEB-2");
+    b.screenshot(&shots.join("1-new-run.png"));
+    b.click("#start-button");
+    b.wait_for(
+        10,
+        "the run screen",
+        "return !document.getElementById('run').hidden",
+    );
+
+    // Answer every prompt; watch the curves move in between.
+    let mut prompts = 0;
+    let mut moved = false;
+    let until = Instant::now() + Duration::from_secs(240);
+    loop {
+        assert!(Instant::now() < until, "the run did not finish in time");
+        let state = b.script("return document.getElementById('run-state').textContent");
+        if state.as_str().is_some_and(|s| s.starts_with("completed")) {
+            break;
+        }
+        let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
+        if prompt_shown == Value::Bool(true) {
+            if prompts == 0 {
+                b.screenshot(&shots.join("2-prompt.png"));
+            }
+            b.click("#prompt-done");
+            prompts += 1;
+            std::thread::sleep(Duration::from_millis(300));
+            continue;
+        }
+        // After the remount onto the arm the table spins level by level.
+        if !moved && prompts >= 3 {
+            let count = |b: &Browser| {
+                b.script("return Number(document.getElementById('curves').dataset.values)")
+                    .as_u64()
+                    .unwrap_or(0)
+            };
+            let before = count(&b);
+            std::thread::sleep(Duration::from_millis(1500));
+            let after = count(&b);
+            if after > before && before > 0 {
+                moved = true;
+                b.screenshot(&shots.join("3-live-curves.png"));
+            }
+            continue;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    assert!(
+        prompts >= 3,
+        "tumble up, tumble down, remount: {prompts} prompts answered"
+    );
+    assert!(moved, "the live curves moved while the run went on");
+    // The curves are drawn: pixels on the canvas are not all blank.
+    let inked = b.script(
+        "const c = document.getElementById('curves'); const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
+         let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++; return n;",
+    );
+    assert!(
+        inked.as_u64().unwrap_or(0) > 1000,
+        "ink on the canvas: {inked}"
+    );
+
+    // The report downloads from the finished run's links.
+    b.wait_for(
+        10,
+        "the report links",
+        "return !!document.getElementById('report-pdf')",
+    );
+    b.screenshot(&shots.join("4-finished.png"));
+    let got = b.script_async(
+        "const done = arguments[0]; fetch(document.getElementById('report-pdf').href)\
+         .then(r => r.arrayBuffer().then(buf => done([r.status, r.headers.get('content-type'), buf.byteLength, \
+         String.fromCharCode(...new Uint8Array(buf.slice(0, 4)))])))\
+         .catch(e => done(String(e)));",
+    );
+    assert_eq!(got[0], 200, "{got}");
+    assert_eq!(got[1], "application/pdf");
+    assert!(got[2].as_u64().unwrap_or(0) > 10_000, "{got}");
+    assert_eq!(got[3], "%PDF");
+
+    // History shows the run with its results.
+    b.click("#nav-history");
+    b.wait_for(
+        10,
+        "the runs table",
+        "return document.querySelectorAll('#runs-table tbody tr').length > 0",
+    );
+    b.click("#runs-table tbody tr a");
+    b.wait_for(
+        10,
+        "the results",
+        "return document.getElementById('run-detail').textContent.includes('WEB-2')",
+    );
+    b.screenshot(&shots.join("5-history.png"));
+}

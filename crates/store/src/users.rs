@@ -1,0 +1,163 @@
+//! Users of the web UI and the audit log: who may do what, and who did what.
+//! The store keeps password hashes only (the station hashes; see
+//! `spinbench_station::web::auth`).
+
+use crate::db::Value;
+use crate::{Store, StoreError, now_s};
+
+/// One user.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UserRow {
+    /// Login name.
+    pub name: String,
+    /// `operator`, `engineer` or `admin`.
+    pub role: String,
+    /// The password's hash (PHC string).
+    pub password_hash: String,
+    /// When the user was created [Unix s].
+    pub created_at: i64,
+}
+
+/// One entry of the audit log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct AuditRow {
+    /// Sequence number.
+    pub seq: i64,
+    /// When [Unix s].
+    pub at: i64,
+    /// Who (a user name, or `spinbench` for the command line).
+    pub who: String,
+    /// What (`login`, `start run`, `answer prompt`, …).
+    pub action: String,
+    /// The details (run id, serials, the answer, …).
+    pub detail: String,
+}
+
+impl Store {
+    /// Add a user; an error when the name is taken.
+    pub fn add_user(&self, name: &str, role: &str, password_hash: &str) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "INSERT INTO users (name, role, password_hash, created_at) VALUES ($1, $2, $3, $4)",
+                &[
+                    name.into(),
+                    role.into(),
+                    password_hash.into(),
+                    Value::Int(Some(now_s())),
+                ],
+            )
+            .map(|_| ())
+            .map_err(self.err(&format!("add user '{name}' (is the name taken?)")))
+    }
+
+    /// Change a user's password hash and/or role; false when there is no such user.
+    pub fn update_user(
+        &self,
+        name: &str,
+        role: Option<&str>,
+        password_hash: Option<&str>,
+    ) -> Result<bool, StoreError> {
+        let mut changed = 0;
+        if let Some(role) = role {
+            changed = self
+                .db
+                .borrow_mut()
+                .execute(
+                    "UPDATE users SET role = $1 WHERE name = $2",
+                    &[role.into(), name.into()],
+                )
+                .map_err(self.err(&format!("change the role of '{name}'")))?;
+        }
+        if let Some(hash) = password_hash {
+            changed = self
+                .db
+                .borrow_mut()
+                .execute(
+                    "UPDATE users SET password_hash = $1 WHERE name = $2",
+                    &[hash.into(), name.into()],
+                )
+                .map_err(self.err(&format!("change the password of '{name}'")))?;
+        }
+        Ok(changed > 0)
+    }
+
+    /// Remove a user; false when there was none.
+    pub fn delete_user(&self, name: &str) -> Result<bool, StoreError> {
+        self.db
+            .borrow_mut()
+            .execute("DELETE FROM users WHERE name = $1", &[name.into()])
+            .map(|n| n > 0)
+            .map_err(self.err(&format!("delete user '{name}'")))
+    }
+
+    /// One user.
+    pub fn user(&self, name: &str) -> Result<Option<UserRow>, StoreError> {
+        Ok(self
+            .query(
+                "read a user",
+                "SELECT name, role, password_hash, created_at FROM users WHERE name = $1",
+                &[name.into()],
+            )?
+            .first()
+            .map(user_row))
+    }
+
+    /// Every user, by name.
+    pub fn users(&self) -> Result<Vec<UserRow>, StoreError> {
+        Ok(self
+            .query(
+                "list users",
+                "SELECT name, role, password_hash, created_at FROM users ORDER BY name",
+                &[],
+            )?
+            .iter()
+            .map(user_row)
+            .collect())
+    }
+
+    /// Record that `who` did `action`.
+    pub fn audit(&self, who: &str, action: &str, detail: &str) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
+                &[
+                    Value::Int(Some(now_s())),
+                    who.into(),
+                    action.into(),
+                    detail.into(),
+                ],
+            )
+            .map(|_| ())
+            .map_err(self.err("write the audit log"))
+    }
+
+    /// The newest `limit` audit entries, newest first.
+    pub fn audit_log(&self, limit: i64) -> Result<Vec<AuditRow>, StoreError> {
+        Ok(self
+            .query(
+                "read the audit log",
+                "SELECT seq, at, who, action, detail FROM audit ORDER BY seq DESC LIMIT $1",
+                &[Value::Int(Some(limit))],
+            )?
+            .iter()
+            .map(|r| AuditRow {
+                seq: r.int(0),
+                at: r.int(1),
+                who: r.text(2),
+                action: r.text(3),
+                detail: r.text(4),
+            })
+            .collect())
+    }
+}
+
+fn user_row(r: &crate::db::Row) -> UserRow {
+    UserRow {
+        name: r.text(0),
+        role: r.text(1),
+        password_hash: r.text(2),
+        created_at: r.int(3),
+    }
+}
