@@ -356,11 +356,16 @@ pub fn fit_mounting(
 
 /// The two-sided 95 % Student-t quantile t(0.975, dof); `None` for dof = 0.
 pub fn student_t_975(dof: usize) -> Option<f64> {
-    if dof == 0 {
+    student_t_quantile(0.975, dof)
+}
+
+/// The Student-t quantile t(p, dof); `None` for dof = 0 or p outside (0, 1).
+pub fn student_t_quantile(p: f64, dof: usize) -> Option<f64> {
+    if dof == 0 || !(p > 0.0 && p < 1.0) {
         return None;
     }
     let dist = StudentsT::new(0.0, 1.0, dof as f64).ok()?;
-    Some(dist.inverse_cdf(0.975))
+    Some(dist.inverse_cdf(p))
 }
 
 #[cfg(test)]

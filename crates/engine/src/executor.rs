@@ -706,6 +706,17 @@ impl<'a> Executor<'a> {
         let st = self.plan.plan.stability;
         let dwell = self.plan.plan.dwell;
         let mut restarts = 0;
+        // The slope test runs on every instrument at once: its critical t
+        // keeps the chance that noise alone holds the station at 1 % per
+        // look (Bonferroni over the instruments; at least 3). With one
+        // fixed t = 3 and 96 instruments, some instrument's noise looked
+        // like drift nearly every second and a level never settled.
+        let looks = slots.len().max(1) as f64;
+        let t_crit = spinbench_analysis::model::student_t_quantile(
+            1.0 - 0.01 / looks / 2.0,
+            (st.hold_s as usize).saturating_sub(2),
+        )
+        .map_or(3.0, |t| t.max(3.0));
         'settle: loop {
             // Settle: the rate on speed for the hold time, then no output drifting.
             let mut hold: Vec<Window> = Vec::new();
@@ -724,7 +735,10 @@ impl<'a> Executor<'a> {
                     hold.clear();
                 }
                 if hold.len() >= st.hold_s as usize {
-                    let drifting = slots.iter().copied().find(|&s| self.drifting(s, &hold));
+                    let drifting = slots
+                        .iter()
+                        .copied()
+                        .find(|&s| self.drifting(s, &hold, t_crit));
                     match drifting {
                         None => break,
                         Some(_) => {
@@ -783,8 +797,8 @@ impl<'a> Executor<'a> {
         (rate_deg_s - d).abs() <= tol
     }
 
-    /// The slope test: a significant drift above the limit.
-    fn drifting(&self, slot: usize, hold: &[Window]) -> bool {
+    /// The slope test: a drift above the limit and significant at `t_crit`.
+    fn drifting(&self, slot: usize, hold: &[Window], t_crit: f64) -> bool {
         let y: Vec<f64> = hold.iter().filter_map(|w| w.outputs[slot]).collect();
         if y.len() < 3 {
             return false;
@@ -806,7 +820,7 @@ impl<'a> Executor<'a> {
             .sum();
         let se = (rss / (n - 2.0) / sxx).sqrt();
         let slope_ug = slope.abs() / self.k1(slot) * UG_PER_G;
-        slope_ug > self.plan.plan.stability.drift_limit_ug_per_s && slope.abs() > 3.0 * se
+        slope_ug > self.plan.plan.stability.drift_limit_ug_per_s && slope.abs() > t_crit * se
     }
 
     /// Each instrument's own 1-s scatter [µg], robust to what every

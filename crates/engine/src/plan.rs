@@ -113,7 +113,9 @@ pub struct StabilityConfig {
     pub rate_tolerance_ppm: f64,
     /// Seconds the rate must stay on speed before data are taken.
     pub hold_s: u32,
-    /// Largest acceptable drift of an output over the hold [µg/s] (a slope test).
+    /// Largest acceptable drift of an output over the hold [µg/s] (a slope
+    /// test; the slope must also be significant, at a 1 % chance per look
+    /// over all the instruments that noise alone stops the settling).
     pub drift_limit_ug_per_s: f64,
     /// Longest wait for stability at a level before the run faults [s].
     pub max_settle_s: u32,

@@ -38,7 +38,7 @@ fn main() {
         .collect();
     let plan = TestPlan::from_toml(&format!(
         "operator = \"bench\"\nrange_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\n\
-         warmup_s = 0\ndwell = {{ seconds = 3 }}\nstability = {{ hold_s = 3 }}\n[serials]\n{serials}"
+         warmup_s = 600\ndwell = {{ seconds = 3 }}\nstability = {{ hold_s = 3 }}\n[serials]\n{serials}"
     ))
     .expect("plan");
     let run_dir = dir.path().join("runs").join("bench-run");
@@ -64,6 +64,12 @@ fn main() {
     println!(
         "{slots} instruments: the simulated run took {run_s:.1} s ({:?})",
         finished.summary.state
+    );
+    assert_eq!(
+        finished.summary.state,
+        spinbench_engine::RunState::Completed,
+        "{:?}",
+        finished.summary.reason
     );
     let out = dir.path().join("reports");
     let mut total = 0.0;

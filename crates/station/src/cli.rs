@@ -186,6 +186,9 @@ pub enum Command {
         /// The virtual bench's time: 1 = real time, N = N× faster, 0 = as fast as read.
         #[arg(long, default_value_t = 1.0)]
         sim_speed: f64,
+        /// The virtual bench's configuration (TOML, as for `spinbench sim --config`).
+        #[arg(long)]
+        sim_config: Option<PathBuf>,
         /// Seed of the virtual bench.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -456,6 +459,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             station,
             simulate,
             sim_speed,
+            sim_config,
             seed,
             bind,
             data,
@@ -470,6 +474,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                     station,
                     simulate,
                     sim_speed,
+                    sim_config,
                     seed,
                     bind,
                     data,

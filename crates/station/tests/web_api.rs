@@ -188,7 +188,15 @@ fn roles_csrf_users_plans_and_the_audit_log() {
             .as_array()
             .is_some_and(|p| p.iter().any(|p| p["name"] == "api"))
     );
-    assert!(op.get_json("/api/station", 200)["slots"].as_u64() >= Some(6));
+    let station = op.get_json("/api/station", 200);
+    assert!(station["slots"].as_u64() >= Some(6));
+    // The station config: an engineer's edit is checked; the virtual bench's is its own.
+    let toml = station["toml"].as_str().expect("toml").to_string();
+    assert_eq!(op.send("PUT", "/api/station", Some(&toml)).status, 403);
+    let r = engineer.send("PUT", "/api/station", Some("[arm]\nradius_m = -1\n"));
+    assert_eq!(r.status, 400, "{:?}", r.json());
+    let r = engineer.send("PUT", "/api/station", Some(&toml));
+    assert_eq!(r.status, 409, "{:?}", r.json());
 
     // Removing users.
     assert_eq!(

@@ -30,8 +30,9 @@ fn an_operator_runs_a_test_in_the_browser() {
     web::add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(dir.path().join("plans").join("browser.toml"), PLAN).expect("plan");
-    // 20× real time: a few seconds per level, so the curves visibly move.
-    let server = web::serve(dir.path(), "20");
+    // 10× real time: a few seconds per level, so the curves visibly move,
+    // and light enough for a debug build on a loaded 2-core machine.
+    let server = web::serve(dir.path(), "10");
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 

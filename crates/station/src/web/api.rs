@@ -136,7 +136,7 @@ pub fn router(app: App) -> Router {
         .route("/api/events", get(events))
         .route("/api/plans", get(plans))
         .route("/api/plans/{name}", put(save_plan))
-        .route("/api/station", get(station))
+        .route("/api/station", get(station).put(save_station))
         .route("/api/runs", get(runs).post(start_run))
         .route("/api/runs/{id}", get(run))
         .route("/api/runs/{id}/report/{format}", get(report))
@@ -152,7 +152,7 @@ pub fn router(app: App) -> Router {
 }
 
 /// Every route of the API, as (method, path) — the OpenAPI document must list exactly these.
-pub const API_ROUTES: [(&str, &str); 22] = [
+pub const API_ROUTES: [(&str, &str); 23] = [
     ("get", "/api/openapi.json"),
     ("post", "/api/login"),
     ("post", "/api/logout"),
@@ -162,6 +162,7 @@ pub const API_ROUTES: [(&str, &str); 22] = [
     ("get", "/api/plans"),
     ("put", "/api/plans/{name}"),
     ("get", "/api/station"),
+    ("put", "/api/station"),
     ("get", "/api/runs"),
     ("post", "/api/runs"),
     ("get", "/api/runs/{id}"),
@@ -286,7 +287,7 @@ async fn status(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::J
     status["active"] = json!(app.runner.active());
     status["prompt"] = json!(app.runner.prompt());
     status["simulated"] = json!(app.runner.simulated());
-    status["station"] = json!(app.runner.station().station);
+    status["station"] = json!(app.runner.station().0.station);
     Ok(axum::Json(status))
 }
 
@@ -391,7 +392,7 @@ async fn plans(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Js
     }
     out.sort_by(|a, b| a["name"].as_str().cmp(&b["name"].as_str()));
     Ok(axum::Json(
-        json!({ "slots": app.runner.station().slots(), "plans": out }),
+        json!({ "slots": app.runner.station().0.slots(), "plans": out }),
     ))
 }
 
@@ -410,7 +411,7 @@ async fn save_plan(
     let text =
         std::str::from_utf8(&body).map_err(|_| ApiError::bad("the plan is not UTF-8 text"))?;
     let plan = TestPlan::from_toml(text).map_err(|e| ApiError::bad(e.to_string()))?;
-    plan.compile(app.runner.station())
+    plan.compile(&app.runner.station().0)
         .map_err(|e| ApiError::bad(format!("the plan cannot run on this station: {e}")))?;
     let path = app.plans_dir.join(format!("{name}.toml"));
     std::fs::write(&path, text)
@@ -421,13 +422,42 @@ async fn save_plan(
 
 async fn station(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Json<Value>> {
     authorize(&app, &headers, Role::Operator, false)?;
-    let s = app.runner.station();
+    let (s, text) = app.runner.station();
     Ok(axum::Json(json!({
         "name": s.station,
         "slots": s.slots(),
         "simulated": app.runner.simulated(),
-        "toml": app.runner.station_toml(),
+        "toml": text,
     })))
+}
+
+async fn save_station(
+    State(app): State<App>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let text = std::str::from_utf8(&body)
+        .map_err(|_| ApiError::bad("the station config is not UTF-8 text"))?;
+    let config = spinbench_engine::StationConfig::from_toml(text)
+        .map_err(|e| ApiError::bad(e.to_string()))?;
+    let Some(path) = &app.station_path else {
+        return Err(ApiError::conflict(
+            "the virtual bench's station config is made from its devices; change the bench with --sim-config",
+        ));
+    };
+    app.runner
+        .set_station(config, text.to_string())
+        .map_err(ApiError::conflict)?;
+    std::fs::write(path, text)
+        .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
+    audit(
+        &app,
+        &session.user,
+        "save station config",
+        &path.display().to_string(),
+    )?;
+    Ok(axum::Json(json!({ "saved": true })))
 }
 
 #[derive(Deserialize)]

@@ -23,7 +23,8 @@ pub struct HubEvent {
     pub seq: u64,
     /// The event's name (`values`, `prompt`, …).
     pub kind: String,
-    /// The event as JSON.
+    /// The event as JSON, with `published_ms` (Unix milliseconds when the
+    /// hub got it) added, so a client can measure how late it arrives.
     pub json: String,
 }
 
@@ -166,6 +167,13 @@ impl Hub {
             .ok()
             .and_then(|v| v["event"].as_str().map(str::to_string))
             .unwrap_or_default();
+        let published_ms = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_millis());
+        let json = match json.strip_suffix('}') {
+            Some(head) => format!("{head},\"published_ms\":{published_ms}}}"),
+            None => json,
+        };
         let mut state = self.lock();
         let seq = state.next_seq;
         state.next_seq += 1;

@@ -36,6 +36,8 @@ pub struct AppState {
     pub runner: runner::Runner,
     /// Where test plans are kept (`<data>/plans/*.toml`).
     pub plans_dir: PathBuf,
+    /// The station config file an engineer's edit is saved to (none on the virtual bench).
+    pub station_path: Option<PathBuf>,
 }
 
 /// How `spinbench serve` was asked to run.
@@ -46,6 +48,8 @@ pub struct ServeArgs {
     pub simulate: bool,
     /// The virtual bench's speed (1 = real time, 0 = as fast as read).
     pub sim_speed: f64,
+    /// The virtual bench's configuration (TOML), if not the default.
+    pub sim_config: Option<PathBuf>,
     /// Seed of the virtual bench.
     pub seed: u64,
     /// Address to listen on.
@@ -72,10 +76,18 @@ stability = { hold_s = 3 }
 /// Start the server and serve until Ctrl-C; then abort any run into the safe state.
 pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     let (station_toml, sim) = if args.simulate {
+        let base = match &args.sim_config {
+            Some(p) => {
+                let text = std::fs::read_to_string(p)
+                    .with_context(|| format!("{}: cannot read the bench config", p.display()))?;
+                SimConfig::from_toml(&text).with_context(|| p.display().to_string())?
+            }
+            None => SimConfig::default(),
+        };
         let config = SimConfig {
             seed: args.seed,
             speed: args.sim_speed,
-            ..SimConfig::default()
+            ..base
         };
         let bench = RunningBench::start(config, ServeOptions::default())
             .context("cannot start the virtual bench")?;
@@ -125,6 +137,11 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         hub,
         runner,
         plans_dir,
+        station_path: if args.simulate {
+            None
+        } else {
+            args.station.clone()
+        },
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -113,8 +113,8 @@ pub enum StartError {
 
 /// Starts and steers the web's runs.
 pub struct Runner {
-    station: StationConfig,
-    station_toml: String,
+    /// The station config and its text (an engineer may replace them between runs).
+    station: Mutex<(StationConfig, String)>,
     sim: Option<&'static RunningBench>,
     data_dir: PathBuf,
     db: StoreTarget,
@@ -133,8 +133,7 @@ impl Runner {
         hub: Arc<Hub>,
     ) -> Runner {
         Runner {
-            station,
-            station_toml,
+            station: Mutex::new((station, station_toml)),
             sim,
             data_dir,
             db,
@@ -143,14 +142,27 @@ impl Runner {
         }
     }
 
-    /// The station config.
-    pub fn station(&self) -> &StationConfig {
-        &self.station
+    /// The station config and its text.
+    pub fn station(&self) -> (StationConfig, String) {
+        self.station
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
-    /// The station config's text.
-    pub fn station_toml(&self) -> &str {
-        &self.station_toml
+    /// Replace the station config (refused while a run is active).
+    pub fn set_station(&self, station: StationConfig, text: String) -> Result<(), String> {
+        let active = self.lock();
+        if let Some(a) = active.as_ref()
+            && !a.finished.load(Ordering::Relaxed)
+        {
+            return Err(format!(
+                "run {} is active; change the station after it",
+                a.run_id
+            ));
+        }
+        *self.station.lock().unwrap_or_else(|e| e.into_inner()) = (station, text);
+        Ok(())
     }
 
     /// True on the virtual bench.
@@ -178,12 +190,13 @@ impl Runner {
         {
             return Err(StartError::Busy(a.run_id.clone()));
         }
-        plan.compile(&self.station)
+        let (station, station_toml) = self.station();
+        plan.compile(&station)
             .map_err(|e| StartError::Invalid(e.to_string()))?;
         let run_id = new_run_id();
         let dir = self.data_dir.join("runs").join(&run_id);
         std::fs::create_dir_all(&dir)
-            .and_then(|()| std::fs::write(dir.join("station.toml"), &self.station_toml))
+            .and_then(|()| std::fs::write(dir.join("station.toml"), &station_toml))
             .and_then(|()| std::fs::write(dir.join("plan.toml"), plan_text))
             .map_err(|e| {
                 StartError::Hardware(format!(
@@ -191,7 +204,7 @@ impl Runner {
                     dir.display()
                 ))
             })?;
-        let bench = connect_bench(&self.station, Some(&dir))
+        let bench = connect_bench(&station, Some(&dir))
             .map_err(|e| StartError::Hardware(format!("{e:#}")))?;
         let abort = Arc::new(AtomicBool::new(false));
         let pause = Arc::new(AtomicBool::new(false));
@@ -207,12 +220,7 @@ impl Runner {
             pause: pause.clone(),
             sinks: vec![Box::new(HubSink(self.hub.clone()))],
         };
-        let (station, db, hub, done) = (
-            self.station.clone(),
-            self.db.clone(),
-            self.hub.clone(),
-            finished.clone(),
-        );
+        let (db, hub, done) = (self.db.clone(), self.hub.clone(), finished.clone());
         std::thread::Builder::new()
             .name(format!("run {run_id}"))
             .spawn(move || {
