@@ -63,8 +63,23 @@ pub struct Answer {
 
 /// Whoever answers prompts: the terminal, the web UI, or the simulator.
 pub trait Operator {
-    /// Ask the operator to do `text` (mount the instruments as `fixtures`).
+    /// Ask the operator to do `text` (mount the instruments as `fixtures`)
+    /// and wait for the answer.
     fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer;
+
+    /// Put the question without waiting, when this operator can be polled:
+    /// the engine then keeps reading the counter modules (nothing overruns
+    /// while a person walks to the centrifuge) and calls
+    /// [`poll_answer`](Self::poll_answer). The default asks and waits.
+    fn post(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Option<Answer> {
+        Some(self.ask(text, fixtures))
+    }
+
+    /// The answer to the posted question, waiting at most `wait`.
+    fn poll_answer(&mut self, wait: Duration) -> Option<Answer> {
+        let _ = wait;
+        None
+    }
 }
 
 /// Why a run ended early.
@@ -679,7 +694,19 @@ impl<'a> Executor<'a> {
             text: text.clone(),
             fixtures: fixtures.to_vec(),
         })?;
-        let answer = self.operator.ask(&text, fixtures);
+        let mut answer = self.operator.post(&text, fixtures);
+        while answer.is_none() {
+            if self.options.abort.load(Ordering::Relaxed) {
+                return Err(EngineError::Aborted("the operator (abort)".into()));
+            }
+            // Keep the ports read while the person works.
+            self.drain_ports(Duration::from_millis(100));
+            answer = self.operator.poll_answer(Duration::from_millis(50));
+        }
+        let answer = answer.unwrap_or(Answer {
+            proceed: false,
+            by: "nobody".into(),
+        });
         self.emit(Event::PromptAnswered {
             proceed: answer.proceed,
             by: answer.by.clone(),

@@ -524,83 +524,77 @@ pub fn batch_html(b: &BatchReport) -> String {
     h
 }
 
+/// The batch report in one format, as bytes.
+pub fn render_batch(b: &BatchReport, format: crate::ReportFormat) -> Result<Vec<u8>, ReportError> {
+    use crate::ReportFormat;
+    match format {
+        ReportFormat::Pdf => crate::batch_pdf(b),
+        ReportFormat::Html => Ok(batch_html(b).into_bytes()),
+        ReportFormat::Csv => Ok(batch_csv(b).into_bytes()),
+        ReportFormat::Xlsx => batch_xlsx(b).map_err(|e| ReportError::Xlsx(e.to_string())),
+    }
+}
+
 /// The batch report as an XLSX workbook: `tests`, `statistics`, `repeatability`.
-pub fn write_batch_xlsx(b: &BatchReport, path: &std::path::Path) -> Result<(), ReportError> {
-    use rust_xlsxwriter::{Format, Workbook, XlsxError};
-    let fail = |e: XlsxError| ReportError::Write {
-        path: path.display().to_string(),
-        problem: e.to_string(),
-    };
+fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
+    use rust_xlsxwriter::{Format, Workbook};
     let mut book = Workbook::new();
     let bold = Format::new().set_bold();
     {
-        let sheet = book.add_worksheet().set_name("tests").map_err(fail)?;
+        let sheet = book.add_worksheet().set_name("tests")?;
         for (c, head) in TEST_HEADERS.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (r, t) in (1u32..).zip(&b.tests) {
-            sheet.write_string(r, 0, &t.run_id).map_err(fail)?;
-            sheet
-                .write_string(r, 1, unix_date(t.started_at))
-                .map_err(fail)?;
-            sheet.write_string(r, 2, &t.serial).map_err(fail)?;
-            sheet.write_string(r, 3, &t.outcome).map_err(fail)?;
+            sheet.write_string(r, 0, &t.run_id)?;
+            sheet.write_string(r, 1, unix_date(t.started_at))?;
+            sheet.write_string(r, 2, &t.serial)?;
+            sheet.write_string(r, 3, &t.outcome)?;
             for (k, v) in test_numbers(t).iter().enumerate() {
                 if let Some(v) = v {
-                    sheet.write_number(r, 4 + k as u16, *v).map_err(fail)?;
+                    sheet.write_number(r, 4 + k as u16, *v)?;
                 }
             }
         }
     }
     {
-        let sheet = book.add_worksheet().set_name("statistics").map_err(fail)?;
+        let sheet = book.add_worksheet().set_name("statistics")?;
         for (c, head) in STATISTICS_HEADERS.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (r, d) in (1u32..).zip(&b.distributions) {
-            sheet.write_string(r, 0, d.name).map_err(fail)?;
-            sheet.write_string(r, 1, d.unit).map_err(fail)?;
-            sheet.write_number(r, 2, d.n as f64).map_err(fail)?;
+            sheet.write_string(r, 0, d.name)?;
+            sheet.write_string(r, 1, d.unit)?;
+            sheet.write_number(r, 2, d.n as f64)?;
             for (k, v) in [d.mean, d.std, d.min, d.median, d.max].iter().enumerate() {
-                sheet.write_number(r, 3 + k as u16, *v).map_err(fail)?;
+                sheet.write_number(r, 3 + k as u16, *v)?;
             }
-            sheet
-                .write_number(r, 8, d.outliers.len() as f64)
-                .map_err(fail)?;
+            sheet.write_number(r, 8, d.outliers.len() as f64)?;
         }
     }
     {
-        let sheet = book
-            .add_worksheet()
-            .set_name("repeatability")
-            .map_err(fail)?;
+        let sheet = book.add_worksheet().set_name("repeatability")?;
         for (c, head) in REPEAT_HEADERS.iter().enumerate() {
-            sheet
-                .write_string_with_format(0, c as u16, *head, &bold)
-                .map_err(fail)?;
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (r, rep) in (1u32..).zip(&b.repeats) {
-            sheet.write_string(r, 0, &rep.serial).map_err(fail)?;
-            sheet.write_number(r, 1, rep.tests as f64).map_err(fail)?;
+            sheet.write_string(r, 0, &rep.serial)?;
+            sheet.write_number(r, 1, rep.tests as f64)?;
             let values: Vec<String> = rep
                 .k2_max_ug_per_g2
                 .iter()
                 .map(|v| format!("{v}"))
                 .collect();
-            sheet.write_string(r, 2, values.join(" ")).map_err(fail)?;
+            sheet.write_string(r, 2, values.join(" "))?;
             if let Some(v) = rep.k2_max_spread {
-                sheet.write_number(r, 3, v).map_err(fail)?;
+                sheet.write_number(r, 3, v)?;
             }
             if let Some(v) = rep.k1_repeatability_ppm {
-                sheet.write_number(r, 4, v).map_err(fail)?;
+                sheet.write_number(r, 4, v)?;
             }
         }
     }
-    book.save(path).map_err(fail)
+    book.save_to_buffer()
 }
 
 #[cfg(test)]

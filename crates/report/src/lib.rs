@@ -13,7 +13,7 @@ mod plots;
 
 pub use batch::{
     BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, gather_batch,
-    write_batch_xlsx,
+    render_batch,
 };
 pub use pdf::{batch_pdf, pdf};
 
@@ -658,33 +658,9 @@ pub fn write_reports(
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let report = gather(store, run_id)?;
-    std::fs::create_dir_all(dir).map_err(|e| ReportError::Write {
-        path: dir.display().to_string(),
-        problem: e.to_string(),
-    })?;
-    let mut written = Vec::new();
-    for &format in formats {
-        let path = dir.join(format!("report-{run_id}.{}", format.extension()));
-        let write = |text: String| {
-            std::fs::write(&path, text).map_err(|e| ReportError::Write {
-                path: path.display().to_string(),
-                problem: e.to_string(),
-            })
-        };
-        match format {
-            ReportFormat::Html => write(html(&report))?,
-            ReportFormat::Csv => write(summary_csv(&report))?,
-            ReportFormat::Xlsx => write_xlsx(&report, &path)?,
-            ReportFormat::Pdf => {
-                std::fs::write(&path, pdf(&report)?).map_err(|e| ReportError::Write {
-                    path: path.display().to_string(),
-                    problem: e.to_string(),
-                })?
-            }
-        }
-        written.push(path);
-    }
-    Ok(written)
+    write_files(dir, &format!("report-{run_id}"), formats, |f| {
+        render(&report, f)
+    })
 }
 
 /// Write the batch report of `run_ids` (every run when empty) in each
@@ -696,25 +672,25 @@ pub fn write_batch_reports(
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let batch = gather_batch(store, run_ids)?;
-    std::fs::create_dir_all(dir).map_err(|e| ReportError::Write {
-        path: dir.display().to_string(),
+    write_files(dir, "batch-report", formats, |f| render_batch(&batch, f))
+}
+
+/// `dir/<stem>.<ext>` for each format, from `render`.
+fn write_files(
+    dir: &Path,
+    stem: &str,
+    formats: &[ReportFormat],
+    render: impl Fn(ReportFormat) -> Result<Vec<u8>, ReportError>,
+) -> Result<Vec<PathBuf>, ReportError> {
+    let failed = |path: &Path, e: std::io::Error| ReportError::Write {
+        path: path.display().to_string(),
         problem: e.to_string(),
-    })?;
+    };
+    std::fs::create_dir_all(dir).map_err(|e| failed(dir, e))?;
     let mut written = Vec::new();
     for &format in formats {
-        let path = dir.join(format!("batch-report.{}", format.extension()));
-        let write = |bytes: Vec<u8>| {
-            std::fs::write(&path, bytes).map_err(|e| ReportError::Write {
-                path: path.display().to_string(),
-                problem: e.to_string(),
-            })
-        };
-        match format {
-            ReportFormat::Pdf => write(batch_pdf(&batch)?)?,
-            ReportFormat::Html => write(batch_html(&batch).into_bytes())?,
-            ReportFormat::Csv => write(batch_csv(&batch).into_bytes())?,
-            ReportFormat::Xlsx => write_batch_xlsx(&batch, &path)?,
-        }
+        let path = dir.join(format!("{stem}.{}", format.extension()));
+        std::fs::write(&path, render(format)?).map_err(|e| failed(&path, e))?;
         written.push(path);
     }
     Ok(written)

@@ -19,6 +19,10 @@ use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+#[path = "common/cpu.rs"]
+mod cpu;
+use cpu::cpu_seconds;
+
 struct NoHands;
 
 impl Operator for NoHands {
@@ -28,24 +32,6 @@ impl Operator for NoHands {
             by: "bench".into(),
         }
     }
-}
-
-/// CPU seconds used by this process so far (user + system), from /proc.
-fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit_once(')')
-        .map_or("", |(_, rest)| rest)
-        .split_whitespace()
-        .collect();
-    // Fields 14 and 15 (utime, stime) are the 12th and 13th after the command name; clock ticks of 1/100 s.
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    (ticks(11) + ticks(12)) / 100.0
 }
 
 fn main() {
@@ -102,11 +88,11 @@ fn main() {
             v.push(Instant::now());
         }
     });
-    let cpu0 = cpu_seconds();
+    let cpu0 = cpu_seconds("self");
     let wall0 = Instant::now();
     let summary = executor.run();
     let wall = wall0.elapsed().as_secs_f64();
-    let cpu = cpu_seconds() - cpu0;
+    let cpu = cpu_seconds("self") - cpu0;
     let _ = sim.kill();
     let _ = sim.wait();
     assert_eq!(summary.state, RunState::Completed, "{:?}", summary.reason);

@@ -16,25 +16,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
+#[path = "common/cpu.rs"]
+mod cpu;
+use cpu::cpu_seconds;
+
 fn spinbench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_spinbench"))
-}
-
-/// CPU seconds used by process `pid` so far (user + system), from /proc.
-fn cpu_seconds(pid: u32) -> f64 {
-    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
-    let fields: Vec<&str> = stat
-        .rsplit_once(')')
-        .map_or("", |(_, rest)| rest)
-        .split_whitespace()
-        .collect();
-    let ticks = |i: usize| {
-        fields
-            .get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(0.0)
-    };
-    (ticks(11) + ticks(12)) / 100.0
 }
 
 fn agent() -> ureq::Agent {
@@ -174,9 +161,9 @@ fn main() {
     std::thread::sleep(Duration::from_secs(if measuring { 8 } else { 2 }));
 
     let cpu = |seconds: f64| {
-        let (c0, t0) = (cpu_seconds(pid), Instant::now());
+        let (c0, t0) = (cpu_seconds(&pid.to_string()), Instant::now());
         std::thread::sleep(Duration::from_secs_f64(seconds));
-        (cpu_seconds(pid) - c0) / t0.elapsed().as_secs_f64() * 100.0
+        (cpu_seconds(&pid.to_string()) - c0) / t0.elapsed().as_secs_f64() * 100.0
     };
     let idle_cpu = cpu(window_s);
 

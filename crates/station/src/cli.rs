@@ -433,13 +433,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             out: dir,
             db,
         } => {
-            let formats = report_formats(&format)?;
             let store = open_store(&db)?;
-            for path in spinbench_report::write_reports(&store, &run, &formats, &dir)
-                .with_context(|| format!("{db}: report of run '{run}'"))?
-            {
-                writeln!(out, "{}", path.display())?;
-            }
+            let files =
+                spinbench_report::write_reports(&store, &run, &report_formats(&format)?, &dir)
+                    .with_context(|| format!("{db}: report of run '{run}'"))?;
+            print_paths(out, &files)?;
         }
         Command::BatchReport {
             runs,
@@ -447,13 +445,15 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             out: dir,
             db,
         } => {
-            let formats = report_formats(&format)?;
             let store = open_store(&db)?;
-            for path in spinbench_report::write_batch_reports(&store, &runs, &formats, &dir)
-                .with_context(|| format!("{db}: batch report"))?
-            {
-                writeln!(out, "{}", path.display())?;
-            }
+            let files = spinbench_report::write_batch_reports(
+                &store,
+                &runs,
+                &report_formats(&format)?,
+                &dir,
+            )
+            .with_context(|| format!("{db}: batch report"))?;
+            print_paths(out, &files)?;
         }
         Command::Serve {
             station,
@@ -758,4 +758,12 @@ fn report_formats(given: &[String]) -> Result<Vec<spinbench_report::ReportFormat
                 .with_context(|| format!("--format {f}: use pdf, html, xlsx or csv"))
         })
         .collect()
+}
+
+/// One path per line.
+fn print_paths(out: &mut dyn Write, paths: &[PathBuf]) -> Result<()> {
+    for path in paths {
+        writeln!(out, "{}", path.display())?;
+    }
+    Ok(())
 }

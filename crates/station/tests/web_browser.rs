@@ -109,6 +109,21 @@ fn an_operator_runs_a_test_in_the_browser() {
             if after > before && before > 0 {
                 moved = true;
                 b.screenshot(&shots.join("3-live-curves.png"));
+                // The status panel while the table spins.
+                b.click("#nav-status");
+                b.wait_for(
+                    10,
+                    "the status rate",
+                    "return document.getElementById('st-rate').textContent.includes('deg/s')",
+                );
+                std::thread::sleep(Duration::from_millis(2500));
+                b.screenshot(&shots.join("3b-status.png"));
+                b.click("#nav-run");
+                b.wait_for(
+                    10,
+                    "the run screen again",
+                    "return !document.getElementById('run').hidden",
+                );
             }
             continue;
         }

@@ -51,40 +51,56 @@ pub struct WebOperator {
     slot: Arc<PromptSlot>,
     abort: Arc<AtomicBool>,
     sim: Option<&'static RunningBench>,
+    /// The question posted, for the simulator's hands.
+    asked: Option<(String, Vec<Option<Fixture>>)>,
 }
 
 impl Operator for WebOperator {
     fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
-        {
-            let mut state = self.slot.lock();
-            state.0 = Some(text.to_string());
-            state.1 = None;
+        if let Some(answer) = self.post(text, fixtures) {
+            return answer;
         }
-        let answer = loop {
-            let state = self.slot.lock();
-            let (mut state, _) = self
-                .slot
-                .answered
-                .wait_timeout(state, Duration::from_millis(200))
-                .unwrap_or_else(|e| e.into_inner());
-            if let Some(answer) = state.1.take() {
-                break answer;
+        loop {
+            if let Some(answer) = self.poll_answer(Duration::from_millis(200)) {
+                return answer;
             }
-            if self.abort.load(Ordering::Relaxed) {
+        }
+    }
+
+    fn post(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Option<Answer> {
+        let mut state = self.slot.lock();
+        state.0 = Some(text.to_string());
+        state.1 = None;
+        self.asked = Some((text.to_string(), fixtures.to_vec()));
+        None
+    }
+
+    fn poll_answer(&mut self, wait: Duration) -> Option<Answer> {
+        let state = self.slot.lock();
+        let (mut state, _) = self
+            .slot
+            .answered
+            .wait_timeout(state, wait)
+            .unwrap_or_else(|e| e.into_inner());
+        let answer = match state.1.take() {
+            Some(answer) => answer,
+            None if self.abort.load(Ordering::Relaxed) => {
                 state.0 = None;
-                break Answer {
+                Answer {
                     proceed: false,
                     by: "abort while waiting for the operator".into(),
-                };
+                }
             }
+            None => return None,
         };
+        drop(state);
         if answer.proceed
-            && let Some(sim) = self.sim
+            && let (Some(sim), Some((text, fixtures))) = (self.sim, self.asked.take())
         {
             // The simulator plays the operator's hands.
-            SimOperator::new(sim, true).ask(text, fixtures);
+            SimOperator::new(sim, true).ask(&text, &fixtures);
         }
-        answer
+        Some(answer)
     }
 }
 
@@ -214,6 +230,7 @@ impl Runner {
             slot: prompt.clone(),
             abort: abort.clone(),
             sim: self.sim,
+            asked: None,
         };
         let control = RunControl {
             abort: abort.clone(),

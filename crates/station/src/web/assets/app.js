@@ -151,7 +151,7 @@ async function refreshStatus() {
   try { s = await api("GET", "/api/status"); } catch (_) { return; }
   state.status = s;
   const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
-  $("st-station").textContent = s.station + (s.simulated ? " (virtual bench)" : "");
+  $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (virtual bench)" : "");
   $("st-run").textContent = s.run_id || "none";
   $("st-state").textContent = s.state || "idle";
   $("st-rate").textContent = fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")";
