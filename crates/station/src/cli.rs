@@ -660,7 +660,7 @@ fn run_plan(
         std::fs::write(dir.join("station.toml"), &text)?;
         (
             StationConfig::from_toml(&text).with_context(|| p.display().to_string())?,
-            Box::new(TerminalOperator),
+            Box::new(TerminalOperator::default()),
         )
     };
     // Refuse a plan that cannot run before anything is switched on.

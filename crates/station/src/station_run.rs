@@ -49,19 +49,64 @@ pub const RAW_DIR: &str = "raw";
 pub use spinbench_engine::sim_bench::SimOperator;
 
 /// The terminal operator: shows the prompt, waits for Enter (or `abort`).
-pub struct TerminalOperator;
+/// Standard input is read on its own thread, so the engine keeps reading
+/// the counter modules while the operator works at the centrifuge.
+#[derive(Default)]
+pub struct TerminalOperator {
+    lines: Option<std::sync::mpsc::Receiver<Option<String>>>,
+}
 
-impl Operator for TerminalOperator {
-    fn ask(&mut self, text: &str, _fixtures: &[Option<Fixture>]) -> Answer {
-        eprintln!(
-            "\n>>> {text}\n    Press Enter when done, or type 'abort' and Enter to stop the run safely."
-        );
-        let mut line = String::new();
-        let read = std::io::stdin().read_line(&mut line);
-        let proceed = matches!(read, Ok(n) if n > 0) && !line.trim().eq_ignore_ascii_case("abort");
+impl TerminalOperator {
+    fn answer_of(line: Option<String>) -> Answer {
+        let proceed = line
+            .as_deref()
+            .is_some_and(|l| !l.trim().eq_ignore_ascii_case("abort"));
         Answer {
             proceed,
             by: "operator at the terminal".into(),
+        }
+    }
+}
+
+impl Operator for TerminalOperator {
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        if let Some(answer) = self.post(text, fixtures) {
+            return answer;
+        }
+        loop {
+            if let Some(answer) = self.poll_answer(Duration::from_millis(500)) {
+                return answer;
+            }
+        }
+    }
+
+    fn post(&mut self, text: &str, _fixtures: &[Option<Fixture>]) -> Option<Answer> {
+        eprintln!(
+            "\n>>> {text}\n    Press Enter when done, or type 'abort' and Enter to stop the run safely."
+        );
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let read = std::io::stdin().read_line(&mut line);
+            // End of input (or an unreadable terminal) is no "done".
+            let _ = tx.send(matches!(read, Ok(n) if n > 0).then_some(line));
+        });
+        self.lines = Some(rx);
+        None
+    }
+
+    fn poll_answer(&mut self, wait: Duration) -> Option<Answer> {
+        let rx = self.lines.as_ref()?;
+        match rx.recv_timeout(wait) {
+            Ok(line) => {
+                self.lines = None;
+                Some(Self::answer_of(line))
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => None,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                self.lines = None;
+                Some(Self::answer_of(None))
+            }
         }
     }
 }
