@@ -140,6 +140,9 @@ impl Client {
     /// Send a request; `csrf` false leaves the token out.
     pub fn send_with(&mut self, method: &str, path: &str, body: Option<&str>, csrf: bool) -> Reply {
         let url = format!("{}{}", self.base, path);
+        // A GET or DELETE carries no body (a server may close a connection
+        // whose body it did not read, and the pool would reuse it).
+        let body = body.filter(|_| !matches!(method, "GET" | "DELETE"));
         let mut request = ureq::http::Request::builder().method(method).uri(&url);
         if let Some(c) = &self.cookie {
             request = request.header("Cookie", c);
@@ -153,7 +156,10 @@ impl Client {
         let request = request
             .body(body.unwrap_or("").as_bytes().to_vec())
             .expect("request");
-        let mut response = self.agent.run(request).expect("the server answers");
+        let mut response = self
+            .agent
+            .run(request)
+            .unwrap_or_else(|e| panic!("{method} {path}: the server does not answer: {e}"));
         let header = |name: &str| {
             response
                 .headers()
