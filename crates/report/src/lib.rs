@@ -555,18 +555,8 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
             sheet.write_string(r, 15, &row.reasons)?;
         }
     }
-    let point_headers = [
-        "serial",
-        "step",
-        "mount",
-        "level [g]",
-        "direction",
-        "applied [g]",
-        "rate [deg/s]",
-        "output [Hz]",
-        "std [Hz]",
-        "n",
-    ];
+    // The point table's columns, after the serial number.
+    let point_headers: Vec<&str> = std::iter::once("serial").chain(POINT_HEADERS).collect();
     {
         let sheet = book.add_worksheet().set_name("points")?;
         for (c, head) in point_headers.iter().enumerate() {

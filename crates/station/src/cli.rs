@@ -116,30 +116,18 @@ pub enum Command {
     Report {
         /// Run identifier.
         run: String,
-        /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
-        #[arg(long, value_delimiter = ',')]
-        format: Vec<String>,
-        /// Directory for the files (default: the current directory).
-        #[arg(long, default_value = ".")]
-        out: PathBuf,
-        /// The store.
-        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
-        db: StoreTarget,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
     },
     /// Write the batch report of many runs: distributions of k2 and the
     /// scale-factor figures, outliers, repeatability of serials tested more than once.
     BatchReport {
         /// Run identifiers (default: every run in the store).
         runs: Vec<String>,
-        /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
-        #[arg(long, value_delimiter = ',')]
-        format: Vec<String>,
-        /// Directory for the files (default: the current directory).
-        #[arg(long, default_value = ".")]
-        out: PathBuf,
-        /// The store.
-        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
-        db: StoreTarget,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
     },
     /// Replay a run's raw counter-module bytes through the decoder and show
     /// that they give the one-second values and points the store holds.
@@ -231,6 +219,20 @@ pub enum UserAction {
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
     },
+}
+
+/// Where reports go, in which formats, from which store.
+#[derive(Debug, clap::Args)]
+pub struct ReportOutput {
+    /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
+    #[arg(long, value_delimiter = ',')]
+    format: Vec<String>,
+    /// Directory for the files (default: the current directory).
+    #[arg(long, default_value = ".")]
+    out: PathBuf,
+    /// The store.
+    #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+    db: StoreTarget,
 }
 
 /// Actions of `spinbench runs`.
@@ -427,32 +429,22 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 }
             }
         }
-        Command::Report {
-            run,
-            format,
-            out: dir,
-            db,
-        } => {
-            let store = open_store(&db)?;
+        Command::Report { run, output: o } => {
+            let store = open_store(&o.db)?;
             let files =
-                spinbench_report::write_reports(&store, &run, &report_formats(&format)?, &dir)
-                    .with_context(|| format!("{db}: report of run '{run}'"))?;
+                spinbench_report::write_reports(&store, &run, &report_formats(&o.format)?, &o.out)
+                    .with_context(|| format!("{}: report of run '{run}'", o.db))?;
             print_paths(out, &files)?;
         }
-        Command::BatchReport {
-            runs,
-            format,
-            out: dir,
-            db,
-        } => {
-            let store = open_store(&db)?;
+        Command::BatchReport { runs, output: o } => {
+            let store = open_store(&o.db)?;
             let files = spinbench_report::write_batch_reports(
                 &store,
                 &runs,
-                &report_formats(&format)?,
-                &dir,
+                &report_formats(&o.format)?,
+                &o.out,
             )
-            .with_context(|| format!("{db}: batch report"))?;
+            .with_context(|| format!("{}: batch report", o.db))?;
             print_paths(out, &files)?;
         }
         Command::Serve {
