@@ -60,6 +60,11 @@ fn an_operator_runs_a_test_in_the_browser() {
     b.click("#nav-new");
     b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
     b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
+    assert_eq!(
+        b.script("return document.getElementById('plan-editor').hidden"),
+        Value::Bool(true),
+        "an operator does not get the plan editor"
+    );
     b.type_into("#serial-2", "X:WEB-2");
     b.click("#start-button");
     b.wait_for(
@@ -176,4 +181,58 @@ fn an_operator_runs_a_test_in_the_browser() {
         "return document.getElementById('run-detail').textContent.includes('WEB-2')",
     );
     b.screenshot(&shots.join("5-history.png"));
+}
+
+#[test]
+fn an_engineer_saves_a_plan_in_the_browser() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    web::add_user(dir.path(), "eng", "engineer", "eng-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), PLAN).expect("plan");
+    let server = web::serve(dir.path(), "0");
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    std::fs::create_dir_all(&shots).expect("screenshot dir");
+
+    let b = Browser::start();
+    b.go(&server.base);
+    b.wait_for(
+        10,
+        "the login form",
+        "return !document.getElementById('login').hidden",
+    );
+    b.type_into("#login-user", "eng");
+    b.type_into("#login-password", "eng-password");
+    b.click("#login-button");
+    b.wait_for(
+        10,
+        "the status page",
+        "return !document.getElementById('status').hidden",
+    );
+    b.click("#nav-new");
+    b.wait_for(10, "the plan editor", "return !document.getElementById('plan-editor').hidden && document.getElementById('plan-text').value.includes('range_g')");
+    // A plan that cannot run is refused with the key named; a good one is saved and offered.
+    b.type_into("#plan-name", "edited");
+    b.script("document.getElementById('plan-text').value = 'range_g = 6\\nlevels = [0, 1, 2]\\n[serials]\\n1 = \"E-1\"\\n';");
+    b.click("#plan-save");
+    b.wait_for(
+        10,
+        "the refusal",
+        "return document.getElementById('message').textContent.includes('levels')",
+    );
+    b.script(&format!(
+        "document.getElementById('plan-text').value = {};",
+        serde_json::to_string(&PLAN.replace("browser test", "edited in the browser"))
+            .expect("json")
+    ));
+    b.click("#plan-save");
+    b.wait_for(10, "the saved plan", "return Array.from(document.querySelectorAll('#plan-select option')).some(o => o.value === 'edited')");
+    b.screenshot(&shots.join("6-engineer-plan.png"));
+    let saved =
+        std::fs::read_to_string(dir.path().join("plans").join("edited.toml")).expect("saved plan");
+    assert!(saved.contains("edited in the browser"), "{saved}");
+    // The virtual bench's station config is shown but not editable.
+    assert_eq!(
+        b.script("return document.getElementById('station-save').disabled"),
+        Value::Bool(true)
+    );
 }

@@ -28,7 +28,7 @@ function show(message, ok) {
 async function api(method, path, body) {
   const headers = {};
   if (state.session) headers["X-CSRF-Token"] = state.session.csrf;
-  if (body !== undefined) headers["Content-Type"] = "application/json";
+  if (body !== undefined) headers["Content-Type"] = typeof body === "string" ? "text/plain; charset=utf-8" : "application/json";
   const r = await fetch(path, {
     method, headers, credentials: "same-origin",
     body: body === undefined ? undefined : (typeof body === "string" ? body : JSON.stringify(body)),
@@ -69,6 +69,8 @@ async function start() {
   $("abort-button").addEventListener("click", () => { if (confirm("Abort the run? The station stops safely.")) control("abort"); });
   $("user-form").addEventListener("submit", addUser);
   $("unit-form").addEventListener("submit", findUnit);
+  $("plan-save").addEventListener("click", savePlan);
+  $("station-save").addEventListener("click", saveStation);
   setInterval(() => { if (state.dirty && !$("run").hidden) draw(); }, 250);
   setInterval(refreshStatus, 2000);
   try { state.session = await api("GET", "/api/session"); } catch (_) { state.session = null; }
@@ -245,11 +247,38 @@ async function loadPlans() {
     }
     if (keep) sel.value = keep;
     fillSerials();
+    const editor = state.session.role !== "operator";
+    $("plan-editor").hidden = !editor;
+    if (editor) {
+      const st = await api("GET", "/api/station");
+      $("station-text").value = st.toml;
+      $("station-text").disabled = st.simulated;
+      $("station-save").disabled = st.simulated;
+      $("station-save").title = st.simulated ? "the virtual bench's config is made from its devices" : "";
+    }
   } catch (e) { show(e.message); }
+}
+
+async function savePlan(ev) {
+  ev.preventDefault();
+  const name = $("plan-name").value.trim();
+  try {
+    await api("PUT", "/api/plans/" + encodeURIComponent(name), $("plan-text").value);
+    show("plan " + name + " saved", true);
+    await loadPlans();
+    $("plan-select").value = name;
+    fillSerials();
+  } catch (e) { show(e.message); }
+}
+
+async function saveStation(ev) {
+  ev.preventDefault();
+  try { await api("PUT", "/api/station", $("station-text").value); show("station config saved", true); } catch (e) { show(e.message); }
 }
 
 function fillSerials() {
   const plan = plans.find((p) => p.name === $("plan-select").value);
+  if (plan) { $("plan-name").value = plan.name; $("plan-text").value = plan.text; }
   const box = $("serials");
   box.textContent = "";
   for (let i = 1; i <= state.slots; i++) {
