@@ -165,30 +165,9 @@ pub enum Command {
     /// Serve the station's web UI and HTTP API (loopback by default): status,
     /// live curves, run control and prompts, new runs, history and reports.
     Serve {
-        /// Station config (TOML).
-        #[arg(long)]
-        station: Option<PathBuf>,
-        /// Run on the virtual bench instead of hardware.
-        #[arg(long)]
-        simulate: bool,
-        /// The virtual bench's time: 1 = real time, N = N× faster, 0 = as fast as read.
-        #[arg(long, default_value_t = 1.0)]
-        sim_speed: f64,
-        /// The virtual bench's configuration (TOML, as for `spinbench sim --config`).
-        #[arg(long)]
-        sim_config: Option<PathBuf>,
-        /// Seed of the virtual bench.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Address to listen on (port 0: any free port).
-        #[arg(long, default_value = "127.0.0.1:8080")]
-        bind: std::net::SocketAddr,
-        /// Where runs and plans are kept.
-        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
-        data: PathBuf,
-        /// The store (default DATA/spinbench.db).
-        #[arg(long, value_parser = parse_store)]
-        db: Option<StoreTarget>,
+        /// Where and how to serve.
+        #[command(flatten)]
+        args: crate::web::ServeArgs,
     },
     /// Manage the web UI's users (the first admin is made here).
     User {
@@ -255,7 +234,7 @@ pub enum RunsAction {
 }
 
 /// `--db`: a file path, or a PostgreSQL URL.
-fn parse_store(text: &str) -> Result<StoreTarget, String> {
+pub(crate) fn parse_store(text: &str) -> Result<StoreTarget, String> {
     if text.trim().is_empty() {
         return Err("empty: give a file path or postgres://user@host:port/database".into());
     }
@@ -447,34 +426,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             .with_context(|| format!("{}: batch report", o.db))?;
             print_paths(out, &files)?;
         }
-        Command::Serve {
-            station,
-            simulate,
-            sim_speed,
-            sim_config,
-            seed,
-            bind,
-            data,
-            db,
-        } => {
-            let db =
-                db.unwrap_or_else(|| StoreTarget::File(data.join(crate::station_run::DB_FILE)));
-            std::fs::create_dir_all(&data)
-                .with_context(|| format!("{}: cannot create the data directory", data.display()))?;
-            crate::web::serve(
-                crate::web::ServeArgs {
-                    station,
-                    simulate,
-                    sim_speed,
-                    sim_config,
-                    seed,
-                    bind,
-                    data,
-                    db,
-                },
-                out,
-            )?;
-        }
+        Command::Serve { args } => crate::web::serve(args, out)?,
         Command::User { action } => match action {
             UserAction::Add { name, role, db } => {
                 use crate::web::auth;

@@ -37,20 +37,7 @@ fn an_operator_runs_a_test_in_the_browser() {
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 
     let b = Browser::start();
-    b.go(&server.base);
-    b.wait_for(
-        10,
-        "the login form",
-        "return !document.getElementById('login').hidden",
-    );
-    b.type_into("#login-user", "op");
-    b.type_into("#login-password", "op-password");
-    b.click("#login-button");
-    b.wait_for(
-        10,
-        "the status page",
-        "return !document.getElementById('status').hidden",
-    );
+    log_in(&b, &server.base, "op", "op-password");
     assert_eq!(
         b.script("return document.getElementById('who').textContent"),
         Value::String("op (operator)".into())
@@ -194,20 +181,7 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 
     let b = Browser::start();
-    b.go(&server.base);
-    b.wait_for(
-        10,
-        "the login form",
-        "return !document.getElementById('login').hidden",
-    );
-    b.type_into("#login-user", "eng");
-    b.type_into("#login-password", "eng-password");
-    b.click("#login-button");
-    b.wait_for(
-        10,
-        "the status page",
-        "return !document.getElementById('status').hidden",
-    );
+    log_in(&b, &server.base, "eng", "eng-password");
     b.click("#nav-new");
     b.wait_for(10, "the plan editor", "return !document.getElementById('plan-editor').hidden && document.getElementById('plan-text').value.includes('range_g')");
     // A plan that cannot run is refused with the key named; a good one is saved and offered.
@@ -234,5 +208,23 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     assert_eq!(
         b.script("return document.getElementById('station-save').disabled"),
         Value::Bool(true)
+    );
+}
+
+/// Open the page and log in through its form; waits for the status page.
+fn log_in(b: &Browser, base: &str, user: &str, password: &str) {
+    b.go(base);
+    b.wait_for(
+        10,
+        "the login form",
+        "return !document.getElementById('login').hidden",
+    );
+    b.type_into("#login-user", user);
+    b.type_into("#login-password", password);
+    b.click("#login-button");
+    b.wait_for(
+        10,
+        "the status page",
+        "return !document.getElementById('status').hidden",
     );
 }

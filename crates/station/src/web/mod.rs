@@ -40,24 +40,33 @@ pub struct AppState {
     pub station_path: Option<PathBuf>,
 }
 
-/// How `spinbench serve` was asked to run.
+/// How `spinbench serve` was asked to run (its command-line options).
+#[derive(Debug, clap::Args)]
 pub struct ServeArgs {
-    /// Station config file (not with `simulate`).
+    /// Station config (TOML).
+    #[arg(long)]
     pub station: Option<PathBuf>,
-    /// Run on the virtual bench.
+    /// Run on the virtual bench instead of hardware.
+    #[arg(long)]
     pub simulate: bool,
-    /// The virtual bench's speed (1 = real time, 0 = as fast as read).
+    /// The virtual bench's time: 1 = real time, N = N× faster, 0 = as fast as read.
+    #[arg(long, default_value_t = 1.0)]
     pub sim_speed: f64,
-    /// The virtual bench's configuration (TOML), if not the default.
+    /// The virtual bench's configuration (TOML, as for `spinbench sim --config`).
+    #[arg(long)]
     pub sim_config: Option<PathBuf>,
     /// Seed of the virtual bench.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Address to listen on.
+    /// Address to listen on (port 0: any free port).
+    #[arg(long, default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
-    /// Data directory (runs, plans).
+    /// Where runs and plans are kept.
+    #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
     pub data: PathBuf,
-    /// The store.
-    pub db: StoreTarget,
+    /// The store (default DATA/spinbench.db).
+    #[arg(long, value_parser = crate::cli::parse_store)]
+    pub db: Option<StoreTarget>,
 }
 
 /// The plan a fresh data directory starts with, so a new station has one to run.
@@ -75,6 +84,12 @@ stability = { hold_s = 3 }
 
 /// Start the server and serve until Ctrl-C; then abort any run into the safe state.
 pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
+    std::fs::create_dir_all(&args.data)
+        .with_context(|| format!("{}: cannot create the data directory", args.data.display()))?;
+    let db = args
+        .db
+        .clone()
+        .unwrap_or_else(|| StoreTarget::File(args.data.join(crate::station_run::DB_FILE)));
     let (station_toml, sim) = if args.simulate {
         let base = match &args.sim_config {
             Some(p) => {
@@ -112,7 +127,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     if std::fs::read_dir(&plans_dir).map_or(true, |mut d| d.next().is_none()) {
         std::fs::write(plans_dir.join("short.toml"), EXAMPLE_PLAN)?;
     }
-    let store = Store::connect(&args.db)?;
+    let store = Store::connect(&db)?;
     if store.users()?.is_empty() {
         writeln!(
             out,
@@ -127,12 +142,12 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         station_toml,
         sim,
         args.data.clone(),
-        args.db.clone(),
+        db.clone(),
         hub.clone(),
     );
     let state = Arc::new(AppState {
         store: Mutex::new(store),
-        db: args.db.clone(),
+        db: db.clone(),
         sessions: auth::Sessions::default(),
         hub,
         runner,
@@ -161,7 +176,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             "station hardware"
         },
         args.data.display(),
-        args.db
+        db
     )?;
     out.flush()?;
     let app = api::router(state.clone());
