@@ -35,6 +35,9 @@ use std::time::{Duration, Instant};
 
 /// Scale factor assumed before the tumble has measured it [Hz/g].
 const NOMINAL_K1_HZ_PER_G: f64 = 100.0;
+/// Who aborted, when the abort flag was set (Ctrl-C at the terminal, or the web UI).
+const ABORTED_BY: &str = "an operator's abort (Ctrl-C or the web UI)";
+
 /// A table counts as at rest below this rate [deg/s].
 const AT_REST_DEG_S: f64 = 0.05;
 /// Resonator frequencies outside this range mean a dead or miswired input [Hz].
@@ -560,13 +563,13 @@ impl<'a> Executor<'a> {
                 continue;
             }
             if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
+                return Err(EngineError::Aborted(ABORTED_BY.into()));
             }
             if self.options.pause.load(Ordering::Relaxed) {
                 self.set_state(RunState::Paused)?;
                 while self.options.pause.load(Ordering::Relaxed) {
                     if self.options.abort.load(Ordering::Relaxed) {
-                        return Err(EngineError::Aborted("the operator".into()));
+                        return Err(EngineError::Aborted(ABORTED_BY.into()));
                     }
                     if self.streaming {
                         // Keep reading (and keep the safety checks running) while held.
@@ -700,7 +703,7 @@ impl<'a> Executor<'a> {
         let mut answer = self.operator.post(&text, fixtures);
         while answer.is_none() {
             if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted("the operator (abort)".into()));
+                return Err(EngineError::Aborted(ABORTED_BY.into()));
             }
             // Keep the ports read while the person works.
             self.drain_ports(Duration::from_millis(100));
@@ -1135,7 +1138,7 @@ impl<'a> Executor<'a> {
         let mut values: Vec<Option<WindowValue>> = vec![None; modules];
         loop {
             if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted("the operator (Ctrl-C)".into()));
+                return Err(EngineError::Aborted(ABORTED_BY.into()));
             }
             for (m, value) in values.iter_mut().enumerate() {
                 // Pair each module's freshest window: an older backlog would
