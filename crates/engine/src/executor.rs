@@ -734,8 +734,10 @@ impl<'a> Executor<'a> {
         Ok(())
     }
 
-    /// Wait for stability, then average; returns the dwell's windows.
-    fn acquire(&mut self, slots: &[usize]) -> Result<Vec<Window>, EngineError> {
+    /// Wait for stability, then average; returns the dwell's windows. An
+    /// instrument whose output keeps drifting while the rate holds (and the
+    /// others settle) fails and leaves `slots`; the others go on.
+    fn acquire(&mut self, slots: &mut Vec<usize>) -> Result<Vec<Window>, EngineError> {
         let st = self.plan.plan.stability;
         let dwell = self.plan.plan.dwell;
         let mut restarts = 0;
@@ -754,6 +756,8 @@ impl<'a> Executor<'a> {
             // Settle: the rate on speed for the hold time, then no output drifting.
             let mut hold: Vec<Window> = Vec::new();
             let mut waited = 0;
+            // The instruments the last full hold found drifting.
+            let mut drifting: Vec<usize> = Vec::new();
             loop {
                 let w = self.next_window()?;
                 waited += 1;
@@ -768,18 +772,32 @@ impl<'a> Executor<'a> {
                     hold.clear();
                 }
                 if hold.len() >= st.hold_s as usize {
-                    let drifting = slots
+                    drifting = slots
                         .iter()
                         .copied()
-                        .find(|&s| self.drifting(s, &hold, t_crit));
-                    match drifting {
-                        None => break,
-                        Some(_) => {
-                            hold.remove(0);
-                        }
+                        .filter(|&s| self.drifting(s, &hold, t_crit))
+                        .collect();
+                    if drifting.is_empty() {
+                        break;
                     }
+                    hold.remove(0);
                 }
                 if waited > st.max_settle_s {
+                    if !drifting.is_empty() && drifting.len() < slots.len() {
+                        for &s in &drifting {
+                            self.fail_unit(
+                                s,
+                                format!(
+                                    "its output kept drifting for {} s at {:.3} deg/s (more than stability.drift_limit_ug_per_s = {} µg/s)",
+                                    st.max_settle_s, self.demand_deg_s, st.drift_limit_ug_per_s
+                                ),
+                            )?;
+                        }
+                        slots.retain(|s| !drifting.contains(s));
+                        drifting.clear();
+                        waited = 0;
+                        continue;
+                    }
                     return Err(EngineError::NotStable(format!(
                         "no stable speed and outputs within {} s at {:.3} deg/s (stability.max_settle_s)",
                         st.max_settle_s, self.demand_deg_s
@@ -961,8 +979,8 @@ impl<'a> Executor<'a> {
 
     fn tumble(&mut self, up: bool) -> Result<(), EngineError> {
         self.command_rate(0.0)?;
-        let slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
-        let values = self.acquire(&slots)?;
+        let mut slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
+        let values = self.acquire(&mut slots)?;
         for slot in slots {
             let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
             if y.is_empty() {
@@ -1004,10 +1022,10 @@ impl<'a> Executor<'a> {
         let w = centrifuge::rate_for_acceleration_rad_s(1.0, r0, g)
             .map_err(|e| EngineError::NotStable(e.to_string()))?;
         self.command_rate(w.to_degrees())?;
-        let slots: Vec<usize> = (0..self.units.len())
+        let mut slots: Vec<usize> = (0..self.units.len())
             .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
             .collect();
-        let values = self.acquire(&slots)?;
+        let values = self.acquire(&mut slots)?;
         let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
         let w_meas = rate.to_radians();
         for slot in slots {
@@ -1054,13 +1072,13 @@ impl<'a> Executor<'a> {
         let w = centrifuge::rate_for_acceleration_rad_s(g_nominal, r0, g)
             .map_err(|e| EngineError::NotStable(e.to_string()))?;
         self.command_rate(w.to_degrees())?;
-        let slots: Vec<usize> = (0..self.units.len())
+        let mut slots: Vec<usize> = (0..self.units.len())
             .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
             .collect();
         let noise_limit = self.plan.plan.stability.noise_limit_ug;
         let mut table_restarts = 0;
         let (values, own_noise) = loop {
-            let values = self.acquire(&slots)?;
+            let values = self.acquire(&mut slots)?;
             let own_noise = self.instrument_noise_ug(pass, &slots, &values);
             // Every instrument scattering at once is the table (the tail of
             // its settling), not the instruments: measure the point again.

@@ -540,3 +540,56 @@ fn a_write_that_keeps_failing_faults_into_the_safe_state_after_the_hold_limit() 
         }
     )));
 }
+
+#[test]
+fn an_instrument_that_never_settles_fails_and_the_others_go_on() {
+    let mut sim = SimConfig::default();
+    sim.faults.drifting_instruments = vec![SlotRef { module: 1, slot: 1 }];
+    sim.faults.drift_ug_per_s = 200.0;
+    let plan = TestPlan::from_toml(
+        r#"
+        range_g = 10
+        levels = [0, 1, 2, 4, 6, 8, 10]
+        passes = ["P"]
+        warmup_s = 0
+        dwell = { seconds = 3 }
+        stability = { hold_s = 5, max_settle_s = 60 }
+        [serials]
+        1 = "A1"
+        2 = "A2"
+        7 = "B1"
+        8 = "B2"
+        "#,
+    )
+    .expect("plan");
+    let (summary, _, bench) = run(sim, plan, None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let drifting = summary
+        .records
+        .iter()
+        .find(|r| r.serial == "B2")
+        .expect("record");
+    assert_eq!(drifting.outcome, Outcome::Fail);
+    assert!(
+        drifting.reasons.iter().any(|r| r.contains("kept drifting")),
+        "{:?}",
+        drifting.reasons
+    );
+    for serial in ["A1", "A2", "B1"] {
+        let r = summary
+            .records
+            .iter()
+            .find(|r| r.serial == serial)
+            .expect("record");
+        assert!(
+            r.analysis.is_some() && !r.points.is_empty(),
+            "{serial}: {:?}",
+            r.reasons
+        );
+        assert!(
+            r.reasons.iter().all(|x| !x.contains("drifting")),
+            "{serial}"
+        );
+    }
+    bench.shutdown();
+}

@@ -180,6 +180,10 @@ pub struct FaultConfig {
     pub noisy_instruments: Vec<SlotRef>,
     /// Noise multiplier of noisy instruments (default 1000 if zero).
     pub noisy_factor: f64,
+    /// Instruments whose output drifts for ever (a bad unit that never settles).
+    pub drifting_instruments: Vec<SlotRef>,
+    /// Drift of drifting instruments [µg/s] (default 200 if zero).
+    pub drift_ug_per_s: f64,
     /// The centrifuge controller stops answering at this time [s].
     pub centrifuge_silent_at_s: Option<f64>,
     /// The interlocks open at this time [s].
@@ -271,6 +275,7 @@ impl SimConfig {
             .dead_instruments
             .iter()
             .chain(&self.faults.noisy_instruments)
+            .chain(&self.faults.drifting_instruments)
         {
             if s.module >= self.modules || s.slot >= 6 {
                 return err(

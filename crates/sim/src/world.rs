@@ -445,7 +445,17 @@ impl World {
         );
         let temp_offset = temp - (self.config.ambient_c + pc.self_heating_c);
         let warmup = pc.warmup_ug * 1e-6 * (-since / pc.warmup_tau_s).exp();
-        let (f1, f2) = v.resonators(a, cross, temp_offset, warmup);
+        let (mut f1, mut f2) = v.resonators(a, cross, temp_offset, warmup);
+        if self.is(&self.config.faults.drifting_instruments, i) {
+            let rate = match self.config.faults.drift_ug_per_s {
+                r if r != 0.0 => r,
+                _ => 200.0,
+            };
+            // dF = f1 − f2 moves by k1·(drift·t), split over the two resonators.
+            let drift_hz = v.truth.k1_hz_per_g * rate * 1e-6 * now;
+            f1 += drift_hz / 2.0;
+            f2 -= drift_hz / 2.0;
+        }
         // White frequency noise: σ per 1-s value → σ·√400 per tick, split over the two resonators.
         let mut noise_ug = v.truth.noise_ug;
         if self.is(&self.config.faults.noisy_instruments, i) {
