@@ -257,7 +257,11 @@ async fn login(State(app): State<App>, body: Bytes) -> ApiResult<Response> {
     Ok(response)
 }
 
-async fn logout(State(app): State<App>, headers: HeaderMap) -> ApiResult<Response> {
+// Handlers of a POST or DELETE without a body of their own still take it
+// (`_body`): a body left unread makes the server close the connection, and a
+// client that pooled it fails its next request.
+
+async fn logout(State(app): State<App>, headers: HeaderMap, _body: Bytes) -> ApiResult<Response> {
     let session = authorize(&app, &headers, Role::Operator, true)?;
     if let Some(token) = headers
         .get(header::COOKIE)
@@ -561,15 +565,27 @@ async fn control(
     Ok(axum::Json(json!({ "run_id": run_id })))
 }
 
-async fn pause(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Json<Value>> {
+async fn pause(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
     control(&app, &headers, "pause", |r| r.pause(true)).await
 }
 
-async fn resume(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Json<Value>> {
+async fn resume(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
     control(&app, &headers, "resume", |r| r.pause(false)).await
 }
 
-async fn abort(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Json<Value>> {
+async fn abort(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
     control(&app, &headers, "abort", |r| r.abort()).await
 }
 
@@ -740,6 +756,7 @@ async fn delete_user(
     State(app): State<App>,
     headers: HeaderMap,
     Path(name): Path<String>,
+    _body: Bytes,
 ) -> ApiResult<StatusCode> {
     let session = authorize(&app, &headers, Role::Admin, true)?;
     if name == session.user {
