@@ -518,20 +518,8 @@ pub fn html(report: &RunReport) -> String {
     h
 }
 
-/// The report as an XLSX workbook at `path`: `results` (the summary),
-/// `points`, and one sheet per instrument with its plot data.
-pub fn write_xlsx(report: &RunReport, path: &Path) -> Result<(), ReportError> {
-    let bytes = xlsx(report).map_err(|e| ReportError::Write {
-        path: path.display().to_string(),
-        problem: e.to_string(),
-    })?;
-    std::fs::write(path, bytes).map_err(|e| ReportError::Write {
-        path: path.display().to_string(),
-        problem: e.to_string(),
-    })
-}
-
-/// The XLSX workbook's bytes.
+/// The report as an XLSX workbook: `results` (the summary), `points`, and
+/// one sheet per instrument with its plot data.
 fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     use rust_xlsxwriter::{Format, Workbook};
     let mut book = Workbook::new();

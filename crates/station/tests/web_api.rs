@@ -12,17 +12,10 @@ use spinbench_station::web::api::API_ROUTES;
 use std::io::{BufRead, BufReader};
 use web::{Client, add_user, serve};
 
-const PLAN: &str = r#"name = "api test"
-range_g = 6
-levels = [0, 1, 2, 3, 4, 6]
-passes = ["P", "N"]
-warmup_s = 0
-dwell = { seconds = 3 }
-stability = { hold_s = 3 }
-[serials]
-1 = "API-1"
-2 = "API-2"
-"#;
+/// A short test plan (±6 g, both mountings).
+fn plan() -> String {
+    web::short_plan("api test", &["API-1", "API-2"])
+}
 
 fn concrete(path: &str) -> String {
     path.replace("{name}", "short")
@@ -162,11 +155,11 @@ fn roles_csrf_users_plans_and_the_audit_log() {
     assert_eq!(op.send("GET", "/api/users", None).status, 403);
     assert_eq!(op.send("GET", "/api/audit", None).status, 403);
     assert_eq!(op.send("DELETE", "/api/users/eng", None).status, 403);
-    assert_eq!(op.send("PUT", "/api/plans/mine", Some(PLAN)).status, 403);
+    assert_eq!(op.send("PUT", "/api/plans/mine", Some(&plan())).status, 403);
     assert_eq!(engineer.send("GET", "/api/users", None).status, 403);
     // Plans: an engineer saves them, checked first.
     assert_eq!(
-        engineer.send("PUT", "/api/plans/api", Some(PLAN)).status,
+        engineer.send("PUT", "/api/plans/api", Some(&plan())).status,
         200
     );
     let r = engineer.send("PUT", "/api/plans/api", Some("range_g = 'x'"));
@@ -179,7 +172,9 @@ fn roles_csrf_users_plans_and_the_audit_log() {
             .is_some_and(|e| e.contains("serials.99"))
     );
     assert_eq!(
-        engineer.send("PUT", "/api/plans/..%2Fx", Some(PLAN)).status,
+        engineer
+            .send("PUT", "/api/plans/..%2Fx", Some(&plan()))
+            .status,
         400
     );
     let plans = op.get_json("/api/plans", 200);
@@ -250,7 +245,7 @@ fn a_run_through_the_api_from_start_to_report() {
     add_user(dir.path(), "admin", "admin", "admin-password");
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    std::fs::write(dir.path().join("plans").join("api.toml"), PLAN).expect("plan");
+    std::fs::write(dir.path().join("plans").join("api.toml"), plan()).expect("plan");
     let server = serve(dir.path(), "0");
     let mut op = Client::login(&server, "op", "op-password");
 
@@ -398,7 +393,7 @@ fn an_abort_from_the_api_ends_the_run_safely() {
     let dir = tempfile::tempdir().expect("tempdir");
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    std::fs::write(dir.path().join("plans").join("api.toml"), PLAN).expect("plan");
+    std::fs::write(dir.path().join("plans").join("api.toml"), plan()).expect("plan");
     let server = serve(dir.path(), "0");
     let mut op = Client::login(&server, "op", "op-password");
     let r = op.send("POST", "/api/runs", Some(r#"{"plan": "api"}"#));

@@ -13,23 +13,17 @@ use serde_json::Value;
 use std::time::{Duration, Instant};
 use webdriver::Browser;
 
-const PLAN: &str = r#"name = "browser test"
-range_g = 6
-levels = [0, 1, 2, 3, 4, 6]
-passes = ["P", "N"]
-warmup_s = 0
-dwell = { seconds = 3 }
-stability = { hold_s = 3 }
-[serials]
-1 = "WEB-1"
-"#;
+/// A short test plan (±6 g, both mountings).
+fn plan() -> String {
+    web::short_plan("browser test", &["WEB-1"])
+}
 
 #[test]
 fn an_operator_runs_a_test_in_the_browser() {
     let dir = tempfile::tempdir().expect("tempdir");
     web::add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    std::fs::write(dir.path().join("plans").join("browser.toml"), PLAN).expect("plan");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), plan()).expect("plan");
     // 10× real time: a few seconds per level, so the curves visibly move,
     // and light enough for a debug build on a loaded 2-core machine.
     let server = web::serve(dir.path(), "10");
@@ -175,7 +169,7 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     let dir = tempfile::tempdir().expect("tempdir");
     web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    std::fs::write(dir.path().join("plans").join("browser.toml"), PLAN).expect("plan");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), plan()).expect("plan");
     let server = web::serve(dir.path(), "0");
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
     std::fs::create_dir_all(&shots).expect("screenshot dir");
@@ -195,7 +189,7 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     );
     b.script(&format!(
         "document.getElementById('plan-text').value = {};",
-        serde_json::to_string(&PLAN.replace("browser test", "edited in the browser"))
+        serde_json::to_string(&plan().replace("browser test", "edited in the browser"))
             .expect("json")
     ));
     b.click("#plan-save");

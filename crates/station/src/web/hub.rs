@@ -159,21 +159,19 @@ impl Hub {
 
     /// Publish one engine event.
     pub fn publish(&self, event: &Event) {
-        let json = serde_json::to_string(event).unwrap_or_else(|e| {
+        // One serialisation: the event's tag is its kind, and the time it
+        // reached the hub goes in beside its fields.
+        let mut value = serde_json::to_value(event).unwrap_or_else(|e| {
             serde_json::json!({"event": "notice", "message": format!("an event could not be shown: {e}")})
-                .to_string()
         });
-        let kind = serde_json::from_str::<Value>(&json)
-            .ok()
-            .and_then(|v| v["event"].as_str().map(str::to_string))
-            .unwrap_or_default();
+        let kind = value["event"].as_str().unwrap_or_default().to_string();
         let published_ms = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_millis());
-        let json = match json.strip_suffix('}') {
-            Some(head) => format!("{head},\"published_ms\":{published_ms}}}"),
-            None => json,
-        };
+        if let Some(fields) = value.as_object_mut() {
+            fields.insert("published_ms".into(), Value::from(published_ms as u64));
+        }
+        let json = value.to_string();
         let mut state = self.lock();
         let seq = state.next_seq;
         state.next_seq += 1;

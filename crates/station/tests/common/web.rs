@@ -9,6 +9,19 @@ use std::io::{BufRead, BufReader};
 use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
+/// A short plan (±6 g in both mountings, 3 s dwell) named `title`, with
+/// `serials` in slots 1, 2, ….
+pub fn short_plan(title: &str, serials: &[&str]) -> String {
+    let mut text = format!(
+        "name = \"{title}\"\nrange_g = 6\nlevels = [0, 1, 2, 3, 4, 6]\npasses = [\"P\", \"N\"]\n\
+         warmup_s = 0\ndwell = {{ seconds = 3 }}\nstability = {{ hold_s = 3 }}\n[serials]\n"
+    );
+    for (i, serial) in serials.iter().enumerate() {
+        text.push_str(&format!("{} = \"{serial}\"\n", i + 1));
+    }
+    text
+}
+
 /// A running server; killed when dropped.
 pub struct Server {
     child: Child,
