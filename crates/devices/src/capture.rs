@@ -5,8 +5,12 @@
 //! [`CaptureTransport`] wraps any transport and copies every byte it reads
 //! into a [`RawCapture`]: a gzip stream flushed (sync flush) at least once a
 //! second, so a killed process leaves a readable file that lacks at most the
-//! last second. Each opening appends a new gzip member (a resumed run adds to
-//! the same file); [`read_capture`] reads every member in turn.
+//! last second. Each opening of a run's capture writes a new segment file
+//! (`fmu-1.gz`, then `fmu-1.2.gz`, … for each resume, see
+//! [`RawCapture::new_segment`]), so a process killed mid-member leaves a
+//! torn tail that hides nothing written after it; [`read_capture`] reads one
+//! file (every member, up to a torn tail) and [`segments`] lists a capture's
+//! files in order.
 
 use crate::transport::Transport;
 use flate2::Compression;
@@ -14,8 +18,11 @@ use flate2::read::MultiGzDecoder;
 use flate2::write::GzEncoder;
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+/// Most segments (openings) of one capture.
+const MAX_SEGMENTS: usize = 10_000;
 
 /// How often the compressed stream is flushed to the file.
 const FLUSH_EVERY: Duration = Duration::from_secs(1);
@@ -27,7 +34,59 @@ pub struct RawCapture {
     bytes: u64,
 }
 
+/// Segment `n` (1-based) of the capture whose first file is `first`:
+/// `fmu-1.gz` → `fmu-1.gz`, `fmu-1.2.gz`, `fmu-1.3.gz`, …
+pub fn segment_path(first: &Path, n: usize) -> PathBuf {
+    if n <= 1 {
+        return first.to_path_buf();
+    }
+    let name = first
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let (stem, ext) = match name.strip_suffix(".gz") {
+        Some(stem) => (stem.to_string(), ".gz"),
+        None => (name, ""),
+    };
+    first.with_file_name(format!("{stem}.{n}{ext}"))
+}
+
+/// The existing segment files of the capture whose first file is `first`, in order.
+pub fn segments(first: &Path) -> Vec<PathBuf> {
+    (1..)
+        .map(|n| segment_path(first, n))
+        .take_while(|p| p.exists())
+        .collect()
+}
+
 impl RawCapture {
+    /// Open the next unused segment of the capture whose first file is
+    /// `first` (created with its directory if needed): each opening (a
+    /// new run, each resume) writes a file of its own.
+    pub fn new_segment(first: &Path) -> io::Result<RawCapture> {
+        if let Some(dir) = first.parent() {
+            std::fs::create_dir_all(dir)?;
+        }
+        for n in 1..=MAX_SEGMENTS {
+            let path = segment_path(first, n);
+            match OpenOptions::new().write(true).create_new(true).open(&path) {
+                Ok(file) => {
+                    return Ok(RawCapture {
+                        encoder: GzEncoder::new(file, Compression::fast()),
+                        last_flush: Instant::now(),
+                        bytes: 0,
+                    });
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+                Err(e) => return Err(e),
+            }
+        }
+        Err(io::Error::other(format!(
+            "{}: {MAX_SEGMENTS} capture segments exist already",
+            first.display()
+        )))
+    }
+
     /// Open `path` for appending (created with its directory if needed).
     pub fn append(path: &Path) -> io::Result<RawCapture> {
         if let Some(dir) = path.parent() {
@@ -123,6 +182,17 @@ impl<T: Transport> Transport for CaptureTransport<T> {
     fn reopen(&mut self) -> io::Result<()> {
         self.inner.reopen()
     }
+
+    fn flush_capture(&mut self) -> io::Result<()> {
+        if self.failed.is_some() {
+            return Ok(());
+        }
+        let flushed = self.capture.flush();
+        if let Err(e) = &flushed {
+            self.failed = Some(e.to_string());
+        }
+        flushed
+    }
 }
 
 /// Read a whole capture file (every gzip member, in order). A file cut
@@ -180,6 +250,26 @@ mod tests {
         std::mem::forget(c);
         let (bytes, _) = read_capture(&path);
         assert_eq!(bytes, b"flushed bytes");
+        let _ = std::fs::remove_dir_all(dir);
+    }
+
+    #[test]
+    fn a_killed_opening_hides_nothing_of_the_next_one() {
+        let dir = tempfile_dir().join("segments");
+        let _ = std::fs::remove_dir_all(&dir);
+        let first = dir.join("fmu-1.gz");
+        let mut killed = RawCapture::new_segment(&first).expect("open");
+        killed.record(b"before the kill ").expect("record");
+        killed.flush().expect("flush");
+        killed.record(b"never flushed").expect("record");
+        std::mem::forget(killed);
+        let mut resumed = RawCapture::new_segment(&first).expect("open again");
+        resumed.record(b"after the resume").expect("record");
+        drop(resumed);
+        let files = segments(&first);
+        assert_eq!(files, vec![first.clone(), dir.join("fmu-1.2.gz")]);
+        let all: Vec<u8> = files.iter().flat_map(|f| read_capture(f).0).collect();
+        assert_eq!(all, b"before the kill after the resume");
         let _ = std::fs::remove_dir_all(dir);
     }
 

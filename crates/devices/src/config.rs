@@ -26,6 +26,9 @@ use spinbench_wire::fmu::{self, SerialFraming, StreamMode};
 use std::io;
 use std::time::{Duration, Instant};
 
+/// Highest centrifuge rate limit a config may give [deg/s] (100 rev/s).
+pub const MAX_RATE_DEG_S: f64 = 36_000.0;
+
 /// A configuration that cannot work; names the key and says what to do.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{key}: {problem}")]
@@ -87,6 +90,9 @@ impl<T: Transport + ?Sized> Transport for Box<T> {
     }
     fn reopen(&mut self) -> io::Result<()> {
         (**self).reopen()
+    }
+    fn flush_capture(&mut self) -> io::Result<()> {
+        (**self).flush_capture()
     }
 }
 
@@ -150,8 +156,10 @@ impl CentrifugeConfig {
                 ));
             }
         };
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(err(format!("must be a positive rate, got {rate} deg/s")));
+        if !(rate.is_finite() && rate > 0.0 && rate <= MAX_RATE_DEG_S) {
+            return Err(err(format!(
+                "must be a positive rate up to {MAX_RATE_DEG_S} deg/s (MAX_RATE_DEG_S), got {rate} deg/s"
+            )));
         }
         Ok(rate)
     }
@@ -159,6 +167,7 @@ impl CentrifugeConfig {
     /// Check everything that can be checked without the hardware.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.max_rate_deg_s()?;
+        self.io.validate("centrifuge")?;
         if let DialectConfig::Line(line) = &self.dialect {
             LineDialect::new((**line).clone()).map_err(|e| ConfigError {
                 key: format!("centrifuge.dialect.{}", e.key),
@@ -268,12 +277,25 @@ impl FmuConfig {
                 problem: format!("{} is not 1 to 6", self.instruments),
             });
         }
-        if !(self.reference_hz.is_finite() && self.reference_hz > 0.0) {
+        if !(self.reference_hz.is_finite() && self.reference_hz > 0.0 && self.reference_hz <= 1e10)
+        {
             return Err(ConfigError {
                 key: key("reference_hz"),
-                problem: "must be a positive frequency".into(),
+                problem: "must be a positive frequency up to 10 GHz".into(),
             });
         }
+        if !(self.temperature_frames_per_s.is_finite()
+            && (0.0..=100.0).contains(&self.temperature_frames_per_s))
+        {
+            return Err(ConfigError {
+                key: key("temperature_frames_per_s"),
+                problem: format!(
+                    "{} is outside 0 to 100 frames per second",
+                    self.temperature_frames_per_s
+                ),
+            });
+        }
+        self.io.validate(&format!("fmu[{index}]"))?;
         if let TransportConfig::Serial(s) = &self.transport {
             let framing = SerialFraming {
                 data_bits: s.data_bits,
@@ -343,6 +365,17 @@ fn default_channels() -> u8 {
 }
 
 impl PowerSupplyConfig {
+    /// Check what can be checked without the supply (section `index`, 0-based).
+    pub fn validate(&self, index: usize) -> Result<(), ConfigError> {
+        if !(1..=16).contains(&self.channels) {
+            return Err(ConfigError {
+                key: format!("power_supply[{index}].channels"),
+                problem: format!("{} is not 1 to 16", self.channels),
+            });
+        }
+        self.io.validate(&format!("power_supply[{index}]"))
+    }
+
     /// Open the transport and build the driver.
     pub fn connect(&self) -> Result<Box<dyn PowerSupply>, ConnectError> {
         if self.channels == 0 {

@@ -39,6 +39,12 @@ pub trait CounterModule: Send {
     fn receive(&mut self, deadline: Instant) -> Result<Vec<Message>, DeviceError>;
     /// The link's counters.
     fn link_stats(&self) -> LinkStats;
+
+    /// Put every byte received so far into the raw capture's file, if the
+    /// module's bytes are captured: the engine calls it before it publishes
+    /// a second's values, so a killed process never leaves a stored value
+    /// whose bytes are not in the capture.
+    fn flush_capture(&mut self) {}
 }
 
 /// The FMU driver.
@@ -171,6 +177,12 @@ impl<T: Transport> FmuDriver<T> {
 }
 
 impl<T: Transport> CounterModule for FmuDriver<T> {
+    fn flush_capture(&mut self) {
+        // A failed capture is recorded by the capture itself and never
+        // stops the measurement (the store keeps the one-second values).
+        let _ = self.transport.flush_capture();
+    }
+
     fn status(&mut self) -> Result<StatusReply, DeviceError> {
         match self.command(Message::StatusRequest, Wait::Status)? {
             Some(s) => Ok(s),

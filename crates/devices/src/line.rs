@@ -28,6 +28,34 @@ fn default_retries() -> u32 {
     2
 }
 
+/// Longest deadline of one attempt [ms] (one minute).
+pub const MAX_TIMEOUT_MS: u64 = 60_000;
+/// Most retries of one command.
+pub const MAX_RETRIES: u32 = 20;
+
+impl IoPolicy {
+    /// Check the deadline and the retries against their bounds; the error
+    /// names the key under `section`.
+    pub fn validate(&self, section: &str) -> Result<(), crate::config::ConfigError> {
+        if !(1..=MAX_TIMEOUT_MS).contains(&self.timeout_ms) {
+            return Err(crate::config::ConfigError {
+                key: format!("{section}.io.timeout_ms"),
+                problem: format!(
+                    "{} ms is outside 1 to {MAX_TIMEOUT_MS} ms (MAX_TIMEOUT_MS)",
+                    self.timeout_ms
+                ),
+            });
+        }
+        if self.retries > MAX_RETRIES {
+            return Err(crate::config::ConfigError {
+                key: format!("{section}.io.retries"),
+                problem: format!("{} is above {MAX_RETRIES} (MAX_RETRIES)", self.retries),
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Default for IoPolicy {
     fn default() -> Self {
         IoPolicy {

@@ -21,6 +21,12 @@ pub trait Transport: Send {
     fn discard_input(&mut self) -> io::Result<()>;
     /// Close and open again, e.g. after a USB adapter disappeared and returned.
     fn reopen(&mut self) -> io::Result<()>;
+
+    /// Put every byte read so far into the raw capture's file, where this
+    /// transport keeps one (see `capture`); nothing otherwise.
+    fn flush_capture(&mut self) -> io::Result<()> {
+        Ok(())
+    }
 }
 
 fn remaining(deadline: Instant) -> io::Result<Duration> {

@@ -44,7 +44,7 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
     let devices = station.connect().expect("connect");
     let options = RunOptions {
         run_id: "bench".into(),
-        abort: Arc::new(AtomicBool::new(false)),
+        abort: spinbench_engine::AbortFlag::new(),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
         station_config_toml: String::new(),
@@ -86,9 +86,9 @@ fn main() {
     let range = if measuring { 70.0 } else { 25.0 };
     // The published practice: wait a fixed 30 s after each rate command, then 10 one-second values.
     let published = StabilityConfig {
-        rate_tolerance_ppm: 1e6,
+        rate_tolerance_ppm: 10_000.0,
         hold_s: 30,
-        drift_limit_ug_per_s: 1e9,
+        drift_limit_ug_per_s: 1e6,
         ..StabilityConfig::default()
     };
     let fixed = DwellConfig {

@@ -13,6 +13,17 @@ pub fn raw_capture_file(index: usize) -> String {
 }
 use spinbench_devices::config::{CentrifugeConfig, ConnectError, FmuConfig, PowerSupplyConfig};
 
+/// Line and column (1-based) of byte `offset` in `text`.
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = text.get(..offset.min(text.len())).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before
+        .rsplit('\n')
+        .next()
+        .map_or(1, |l| l.chars().count() + 1);
+    (line, column)
+}
+
 /// The whole station.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -103,7 +114,10 @@ impl StationConfig {
         let config: StationConfig = toml::from_str(text).map_err(|e| StationConfigError {
             key: e.span().map_or_else(
                 || "(file)".into(),
-                |s| format!("at bytes {}..{}", s.start, s.end),
+                |s| {
+                    let (line, column) = line_column(text, s.start);
+                    format!("line {line}, column {column}")
+                },
             ),
             problem: e.message().to_string(),
         })?;
@@ -145,10 +159,15 @@ impl StationConfig {
                 let capture = match raw_dir {
                     Some(dir) => {
                         let path = dir.join(raw_capture_file(i));
-                        Some(RawCapture::append(&path).map_err(|e| ConnectError::Open {
-                            device: f.name.clone(),
-                            error: format!("cannot open the raw capture {}: {e}", path.display()),
-                        })?)
+                        Some(
+                            RawCapture::new_segment(&path).map_err(|e| ConnectError::Open {
+                                device: f.name.clone(),
+                                error: format!(
+                                    "cannot open the raw capture {}: {e}",
+                                    path.display()
+                                ),
+                            })?,
+                        )
                     }
                     None => None,
                 };
@@ -186,6 +205,58 @@ impl StationConfig {
                 problem,
             })
         };
+        use crate::bounds::*;
+        let at = |key: &str| {
+            let key = key.to_string();
+            move |problem: String| StationConfigError { key, problem }
+        };
+        if self.station.chars().count() > MAX_NAME_CHARS {
+            return err(
+                "station",
+                format!(
+                    "'{}': at most {MAX_NAME_CHARS} characters",
+                    shown(&self.station)
+                ),
+            );
+        }
+        check_positive(self.arm.radius_m, MAX_ARM_RADIUS_M, "m", "MAX_ARM_RADIUS_M")
+            .map_err(at("arm.radius_m"))?;
+        check_positive(self.arm.max_g, MAX_ARM_G, "g", "MAX_ARM_G").map_err(at("arm.max_g"))?;
+        if self.fmu.len() > MAX_MODULES {
+            return err(
+                "fmu",
+                format!(
+                    "{} modules; at most {MAX_MODULES} (MAX_MODULES)",
+                    self.fmu.len()
+                ),
+            );
+        }
+        if self.arm.position_radius_m.len() > self.slots() {
+            return err(
+                "arm.position_radius_m",
+                format!(
+                    "{} radii for {} slots",
+                    self.arm.position_radius_m.len(),
+                    self.slots()
+                ),
+            );
+        }
+        check_positive(self.power.rail_volts, MAX_RAIL_V, "V", "MAX_RAIL_V")
+            .map_err(at("power.rail_volts"))?;
+        check_positive(
+            self.power.rail_current_limit_a,
+            MAX_RAIL_A,
+            "A",
+            "MAX_RAIL_A",
+        )
+        .map_err(at("power.rail_current_limit_a"))?;
+        check_positive(
+            self.power.instrument_current_a,
+            MAX_INSTRUMENT_A,
+            "A",
+            "MAX_INSTRUMENT_A",
+        )
+        .map_err(at("power.instrument_current_a"))?;
         if !(self.g_local_m_s2 > 9.7 && self.g_local_m_s2 < 9.9) {
             return err(
                 "g_local_m_s2",
@@ -225,6 +296,12 @@ impl StationConfig {
         })?;
         for (i, f) in self.fmu.iter().enumerate() {
             f.validate(i).map_err(|e| StationConfigError {
+                key: e.key,
+                problem: e.problem,
+            })?;
+        }
+        for (i, p) in self.power_supply.iter().enumerate() {
+            p.validate(i).map_err(|e| StationConfigError {
                 key: e.key,
                 problem: e.problem,
             })?;

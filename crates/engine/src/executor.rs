@@ -18,6 +18,7 @@
 //! the same code runs against hardware and against a faster-than-real-time
 //! simulator. Data are taken only at stable speed (method.md §3.3).
 
+use crate::abort::AbortFlag;
 use crate::config::StationConfig;
 use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState};
 use crate::plan::{CompiledPlan, Fixture, Step};
@@ -26,7 +27,7 @@ use spinbench_analysis::radius::RadiusCalibration;
 use spinbench_analysis::tumble::TumbleCalibration;
 use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
 use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
-use spinbench_devices::{Centrifuge, CounterModule, DeviceError, PowerSupply};
+use spinbench_devices::{Centrifuge, CounterModule, DeviceError, DeviceErrorKind, PowerSupply};
 use spinbench_wire::fmu::{INSTRUMENTS_PER_MODULE, WindowAccumulator, WindowConfig, WindowValue};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::Arc;
@@ -35,8 +36,13 @@ use std::time::{Duration, Instant};
 
 /// Scale factor assumed before the tumble has measured it [Hz/g].
 const NOMINAL_K1_HZ_PER_G: f64 = 100.0;
-/// Who aborted, when the abort flag was set (Ctrl-C at the terminal, or the web UI).
-const ABORTED_BY: &str = "an operator's abort (Ctrl-C or the web UI)";
+
+/// What every screen and record says when the centrifuge did not confirm its stop.
+pub const STOP_NOT_CONFIRMED: &str = "stop not confirmed: check the centrifuge";
+/// Times the stop is commanded at the end of a run before it counts as unconfirmed.
+const STOP_ATTEMPTS: usize = 3;
+/// How often an unconfirmed stop is commanded again, for as long as the process lives.
+const STOP_RETRY: Duration = Duration::from_secs(2);
 
 /// A table counts as at rest below this rate [deg/s].
 const AT_REST_DEG_S: f64 = 0.05;
@@ -134,8 +140,8 @@ pub enum EngineError {
 pub struct RunOptions {
     /// Run identifier.
     pub run_id: String,
-    /// Set to abort (Ctrl-C, operator).
-    pub abort: Arc<AtomicBool>,
+    /// Set to abort (Ctrl-C or a signal ending the process, the operator).
+    pub abort: AbortFlag,
     /// While set, the run holds between steps (the ports are still read).
     pub pause: Arc<AtomicBool>,
     /// Wall-clock deadline for a counter module's silence.
@@ -181,6 +187,10 @@ pub struct RunSummary {
     pub duration_s: f64,
     /// One-second windows dropped to keep the counter modules aligned in time.
     pub dropped_windows: u64,
+    /// The centrifuge controller acknowledged the stop at the end of the run.
+    /// When false the reason says [`STOP_NOT_CONFIRMED`], and a thread keeps
+    /// commanding the stop for as long as the process lives.
+    pub stop_confirmed: bool,
 }
 
 /// The executor.
@@ -204,6 +214,8 @@ pub struct Executor<'a> {
     dropped_windows: u64,
     /// The instrument supply's output 1 at its last safety check: (volts, amperes).
     supply_first: (f64, f64),
+    /// The controller acknowledged the last stop command.
+    stop_confirmed: bool,
 }
 
 impl<'a> Executor<'a> {
@@ -246,6 +258,7 @@ impl<'a> Executor<'a> {
             streaming: false,
             dropped_windows: 0,
             supply_first: (0.0, 0.0),
+            stop_confirmed: false,
         }
     }
 
@@ -259,8 +272,15 @@ impl<'a> Executor<'a> {
     pub fn restore(&mut self, events: &[Event]) {
         self.resumed = true;
         let mut last_points: BTreeMap<usize, &Vec<PointRecord>> = BTreeMap::new();
+        // Station time goes on from where the journal ends, so the resumed
+        // run's one-second values never take the times of the first's.
+        let mut last_time_s: f64 = 0.0;
         for e in events {
             match e {
+                Event::Values { time_s, .. } => {
+                    last_time_s = last_time_s.max(*time_s);
+                }
+
                 Event::StepDone { index } => {
                     self.completed.insert(*index);
                 }
@@ -291,6 +311,9 @@ impl<'a> Executor<'a> {
                     }
                 }
                 Event::PointDone { step, points } => {
+                    for p in points.iter() {
+                        last_time_s = last_time_s.max(p.time_s[1]);
+                    }
                     // A step killed between its PointDone and StepDone is redone
                     // and journals its point again: only the last one counts.
                     last_points.insert(*step, points);
@@ -303,6 +326,9 @@ impl<'a> Executor<'a> {
                 _ => {}
             }
         }
+        if last_time_s.is_finite() && last_time_s > 0.0 {
+            self.windows = last_time_s.ceil() as u64;
+        }
         // A point is whole only with its StepDone; a torn step is redone.
         for (step, points) in last_points {
             if self.completed.contains(&step) {
@@ -312,6 +338,15 @@ impl<'a> Executor<'a> {
                     }
                 }
             }
+        }
+    }
+
+    /// Go on counting station time after `time_s` (on resume: the last
+    /// one-second value the store holds of the run), so no value of the
+    /// resumed run takes the time of one already stored.
+    pub fn continue_time_after(&mut self, time_s: f64) {
+        if time_s.is_finite() && time_s > 0.0 {
+            self.windows = self.windows.max(time_s.ceil() as u64);
         }
     }
 
@@ -362,7 +397,7 @@ impl<'a> Executor<'a> {
         let held = Instant::now();
         let mut last = problem;
         loop {
-            if self.options.abort.load(Ordering::Relaxed) {
+            if self.options.abort.is_set() {
                 return Err(EngineError::Aborted(format!(
                     "the operator while a write was failing ({last})"
                 )));
@@ -505,7 +540,7 @@ impl<'a> Executor<'a> {
             .and_then(|()| self.identify())
             .and_then(|()| self.set_state(RunState::Running))
             .and_then(|()| self.execute_steps());
-        let (state, reason) = match &result {
+        let (mut state, reason) = match &result {
             Ok(()) => (RunState::Completed, None),
             Err(EngineError::Aborted(_)) => (
                 RunState::Aborted,
@@ -518,6 +553,18 @@ impl<'a> Executor<'a> {
         }
         let _ = self.set_state(RunState::Stopping);
         let safe_problems = self.safe_state();
+        if !self.stop_confirmed {
+            let _ = self.emit(Event::Fault {
+                reason: safe_problems[0].clone(),
+            });
+            let centrifuge =
+                std::mem::replace(&mut self.bench.centrifuge, Box::new(HandedToStopKeeper));
+            keep_stopping(centrifuge);
+            if state == RunState::Completed {
+                state = RunState::Faulted;
+            }
+        }
+        let complete = result.is_ok();
         let reason = match (reason, safe_problems.is_empty()) {
             (r, true) => r,
             (Some(r), false) => Some(format!(
@@ -526,7 +573,7 @@ impl<'a> Executor<'a> {
             )),
             (None, false) => Some(format!("while making safe: {}", safe_problems.join("; "))),
         };
-        let records = self.records();
+        let records = self.records(complete, reason.as_deref());
         for r in &records {
             let _ = self.emit(Event::UnitResult {
                 record: Box::new(r.clone()),
@@ -543,6 +590,7 @@ impl<'a> Executor<'a> {
             records,
             duration_s: self.windows as f64,
             dropped_windows: self.dropped_windows,
+            stop_confirmed: self.stop_confirmed,
         }
     }
 
@@ -562,14 +610,14 @@ impl<'a> Executor<'a> {
             if !needed {
                 continue;
             }
-            if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted(ABORTED_BY.into()));
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
             }
             if self.options.pause.load(Ordering::Relaxed) {
                 self.set_state(RunState::Paused)?;
                 while self.options.pause.load(Ordering::Relaxed) {
-                    if self.options.abort.load(Ordering::Relaxed) {
-                        return Err(EngineError::Aborted(ABORTED_BY.into()));
+                    if self.options.abort.is_set() {
+                        return Err(EngineError::Aborted(self.options.abort.by()));
                     }
                     if self.streaming {
                         // Keep reading (and keep the safety checks running) while held.
@@ -702,8 +750,8 @@ impl<'a> Executor<'a> {
         })?;
         let mut answer = self.operator.post(&text, fixtures);
         while answer.is_none() {
-            if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted(ABORTED_BY.into()));
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
             }
             // Keep the ports read while the person works.
             self.drain_ports(Duration::from_millis(100));
@@ -1155,8 +1203,8 @@ impl<'a> Executor<'a> {
         let modules = self.bench.modules.len();
         let mut values: Vec<Option<WindowValue>> = vec![None; modules];
         loop {
-            if self.options.abort.load(Ordering::Relaxed) {
-                return Err(EngineError::Aborted(ABORTED_BY.into()));
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
             }
             for (m, value) in values.iter_mut().enumerate() {
                 // Pair each module's freshest window: an older backlog would
@@ -1281,6 +1329,12 @@ impl<'a> Executor<'a> {
             resonators,
         };
         let on_speed = self.on_speed(rate);
+        // The raw bytes of this second reach the capture's file before its
+        // values reach the store: replay can check every stored value, even
+        // of a run killed and resumed.
+        for module in &mut self.bench.modules {
+            module.flush_capture();
+        }
         self.emit(Event::Values {
             time_s: window.time_s,
             rate_deg_s: rate,
@@ -1292,16 +1346,46 @@ impl<'a> Executor<'a> {
     }
 
     /// Controlled stop, streaming off, relays open, supplies off. Every
-    /// action is tried; the problems are returned.
+    /// action is tried; the problems are returned. The stop is commanded up
+    /// to [`STOP_ATTEMPTS`] times; when the controller never acknowledges
+    /// it, the first problem is [`STOP_NOT_CONFIRMED`] and `stop_confirmed`
+    /// stays false (the caller keeps commanding it, see [`keep_stopping`]).
     fn safe_state(&mut self) -> Vec<String> {
         let mut problems = Vec::new();
+        let mut last_stop_error = None;
+        self.stop_confirmed = false;
+        for attempt in 0..STOP_ATTEMPTS {
+            // Confirmed: the stop was sent and the controller answers after
+            // it (a dialect whose stop has no acknowledgement would
+            // otherwise "succeed" into a controller that hears nothing).
+            match stop_and_confirm(self.bench.centrifuge.as_mut()) {
+                Ok(()) => {
+                    self.stop_confirmed = true;
+                    break;
+                }
+                Err(e) => {
+                    last_stop_error = Some(e.to_string());
+                    if attempt + 1 < STOP_ATTEMPTS {
+                        std::thread::sleep(Duration::from_millis(200));
+                    }
+                }
+            }
+        }
+        if !self.stop_confirmed {
+            problems.push(format!(
+                "{STOP_NOT_CONFIRMED} (the controller did not acknowledge the stop after {STOP_ATTEMPTS} tries: {}; \
+                 the station keeps commanding it while this program runs)",
+                last_stop_error.unwrap_or_default()
+            ));
+        }
         let mut note = |r: Result<(), DeviceError>| {
             if let Err(e) = r {
                 problems.push(e.to_string());
             }
         };
-        note(self.bench.centrifuge.stop());
-        note(self.bench.centrifuge.disarm());
+        if self.stop_confirmed {
+            note(self.bench.centrifuge.disarm());
+        }
         for m in &mut self.bench.modules {
             if self.streaming {
                 note(m.stop());
@@ -1315,8 +1399,32 @@ impl<'a> Executor<'a> {
         problems
     }
 
-    /// Fit every instrument and give each its record and outcome.
-    fn records(&self) -> Vec<UnitRecord> {
+    /// The steps of the plan that measure `slot` (tumble, radius, levels
+    /// of the passes it takes part in) and were not all done.
+    fn steps_left(&self, slot: usize) -> usize {
+        self.plan
+            .steps
+            .iter()
+            .enumerate()
+            .filter(|(_, step)| match step {
+                Step::Tumble { .. } => true,
+                Step::Radius { pass } | Step::Level { pass, .. } => self
+                    .plan
+                    .passes
+                    .get(*pass)
+                    .and_then(|p| p.get(slot))
+                    .is_some_and(Option::is_some),
+                _ => false,
+            })
+            .filter(|(index, _)| !self.completed.contains(index))
+            .count()
+    }
+
+    /// Fit every instrument and give each its record and outcome. An
+    /// instrument whose part of the plan was not completed (`run_complete`
+    /// false, and steps of its left) is [`Outcome::Incomplete`]: its points
+    /// are fitted and kept, but never graded pass or fail.
+    fn records(&self, run_complete: bool, run_reason: Option<&str>) -> Vec<UnitRecord> {
         let limits = self.plan.plan.limits;
         let mut out = Vec::new();
         for (slot, u) in self.units.iter().enumerate() {
@@ -1327,26 +1435,41 @@ impl<'a> Executor<'a> {
             let mut analysis = None;
             let mut k2_max = None;
             let mut outcome = Outcome::Fail;
-            if let Some(f) = &u.failed {
+            let left = if run_complete || u.failed.is_some() {
+                0
+            } else {
+                self.steps_left(slot)
+            };
+            if left > 0 {
+                outcome = Outcome::Incomplete;
+                reasons.push(format!(
+                    "incomplete: the run ended with {left} of this instrument's measuring steps not done ({})",
+                    run_reason.unwrap_or("no reason recorded")
+                ));
+                if !u.points.is_empty()
+                    && let Ok(a) = analyze_unit(
+                        &UnitPoints {
+                            unit: serial.clone(),
+                            run: None,
+                            points: point_list(&u.points),
+                        },
+                        AnalysisOptions {
+                            order: self.plan.order,
+                        },
+                    )
+                {
+                    k2_max = a.k2_max_ug_per_g2;
+                    analysis = Some(a);
+                }
+            } else if let Some(f) = &u.failed {
                 reasons.push(f.clone());
             } else if u.points.is_empty() {
                 reasons.push("no points were taken".into());
             } else {
-                let points: Vec<Point> = u
-                    .points
-                    .iter()
-                    .map(|p| Point {
-                        mount: p.mount,
-                        g_nominal: p.g_nominal,
-                        g_applied: p.g_applied,
-                        output: p.output_hz,
-                        direction: Some(p.direction),
-                    })
-                    .collect();
                 let input = UnitPoints {
                     unit: serial.clone(),
                     run: None,
-                    points,
+                    points: point_list(&u.points),
                 };
                 match analyze_unit(
                     &input,
@@ -1423,6 +1546,108 @@ impl<'a> Executor<'a> {
         }
         out
     }
+}
+
+/// The executor's stand-in for a centrifuge whose controller was handed to
+/// [`keep_stopping`]: every command says where it went.
+struct HandedToStopKeeper;
+
+impl Centrifuge for HandedToStopKeeper {
+    fn identify(&mut self) -> Result<String, DeviceError> {
+        Err(self.refuse("*IDN?"))
+    }
+    fn arm(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("arm"))
+    }
+    fn reset_interlocks(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("reset interlocks"))
+    }
+    fn set_rate(&mut self, _rate_deg_s: f64) -> Result<(), DeviceError> {
+        Err(self.refuse("set rate"))
+    }
+    fn read_rate(&mut self) -> Result<f64, DeviceError> {
+        Err(self.refuse("read rate"))
+    }
+    fn read_interlocks(&mut self) -> Result<bool, DeviceError> {
+        Err(self.refuse("read interlocks"))
+    }
+    fn stop(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("stop"))
+    }
+    fn disarm(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("disarm"))
+    }
+}
+
+impl HandedToStopKeeper {
+    fn refuse(&self, command: &str) -> DeviceError {
+        DeviceError {
+            device: "centrifuge".into(),
+            command: command.into(),
+            kind: DeviceErrorKind::Rejected(format!(
+                "{STOP_NOT_CONFIRMED}; the controller is being sent the stop until it answers"
+            )),
+        }
+    }
+}
+
+/// Command the stop and read the rate back: the stop counts as confirmed
+/// only when the controller answers after it.
+fn stop_and_confirm(centrifuge: &mut dyn Centrifuge) -> Result<(), DeviceError> {
+    centrifuge.stop()?;
+    centrifuge.read_rate().map(|_| ())
+}
+
+/// Keep commanding the stop of a centrifuge whose controller did not
+/// acknowledge it, every [`STOP_RETRY`], on a thread of its own, for as
+/// long as the process lives (or until it is acknowledged, said on stderr).
+pub fn keep_stopping(mut centrifuge: Box<dyn Centrifuge>) {
+    UNCONFIRMED_STOPS.fetch_add(1, Ordering::SeqCst);
+    let spawned = std::thread::Builder::new()
+        .name("centrifuge stop keeper".into())
+        .spawn(move || {
+            let since = Instant::now();
+            loop {
+                std::thread::sleep(STOP_RETRY);
+                if stop_and_confirm(centrifuge.as_mut()).is_ok() {
+                    let _ = centrifuge.disarm();
+                    UNCONFIRMED_STOPS.fetch_sub(1, Ordering::SeqCst);
+                    eprintln!(
+                        "  centrifuge: the stop was acknowledged {:.0} s after the run ended",
+                        since.elapsed().as_secs_f64()
+                    );
+                    return;
+                }
+            }
+        });
+    if let Err(e) = spawned {
+        eprintln!(
+            "  {STOP_NOT_CONFIRMED}: cannot start the thread that keeps commanding the stop: {e}"
+        );
+    }
+}
+
+/// Centrifuges of this process whose stop is still being commanded.
+static UNCONFIRMED_STOPS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// How many centrifuges of this process have a stop not yet acknowledged
+/// (a program about to exit waits while this is above zero).
+pub fn unconfirmed_stops() -> usize {
+    UNCONFIRMED_STOPS.load(Ordering::SeqCst)
+}
+
+/// The analysis' points of a unit's records.
+fn point_list(records: &[PointRecord]) -> Vec<Point> {
+    records
+        .iter()
+        .map(|p| Point {
+            mount: p.mount,
+            g_nominal: p.g_nominal,
+            g_applied: p.g_applied,
+            output: p.output_hz,
+            direction: Some(p.direction),
+        })
+        .collect()
 }
 
 fn mean_std(y: &[f64]) -> (f64, f64) {

@@ -1,5 +1,7 @@
 //! The middle layer: everything between the drivers and the operator.
 //!
+//! * [`abort`] — the abort request a run watches, with who or what asked;
+//! * [`bounds`] — the named bounds every number from outside is checked against;
 //! * [`config`] — the station config (TOML), validated with errors that name the key;
 //! * [`plan`] — test plans (TOML) compiled into a list of steps (a plan is
 //!   data), refused before anything moves if any level exceeds a limit;
@@ -10,6 +12,8 @@
 //! * [`record`] — per-instrument records with an outcome;
 //! * `sim_bench` (feature `sim`) — the virtual bench as a station: its config and its operator.
 
+pub mod abort;
+pub mod bounds;
 pub mod config;
 pub mod event;
 pub mod executor;
@@ -19,6 +23,7 @@ pub mod record;
 #[cfg(feature = "sim")]
 pub mod sim_bench;
 
+pub use abort::AbortFlag;
 pub use config::StationConfig;
 pub use event::{Event, EventSink, RunState};
 pub use executor::{Answer, Bench, EngineError, Executor, Operator, RunOptions, RunSummary};

@@ -31,7 +31,7 @@ pub struct PointRecord {
     pub time_s: [f64; 2],
 }
 
-/// Pass, fail or marginal.
+/// Pass, fail, marginal, or incomplete (never graded).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
@@ -41,6 +41,9 @@ pub enum Outcome {
     Marginal,
     /// Outside the limits, dead, noisy, or not measurable.
     Fail,
+    /// The run ended (aborted, faulted) before this instrument's part of
+    /// the plan was done: not graded, the reasons say why.
+    Incomplete,
 }
 
 /// Everything the station found for one instrument.
@@ -63,7 +66,7 @@ pub struct UnitRecord {
     pub analysis: Option<UnitAnalysis>,
     /// The larger |k2| of the mountings [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
-    /// Pass, fail or marginal.
+    /// Pass, fail, marginal or incomplete.
     pub outcome: Outcome,
     /// Why, when not a plain pass.
     pub reasons: Vec<String>,

@@ -66,7 +66,7 @@ fn run_paused(
     let station = station_for(&bench);
     let compiled = plan.compile(&station).expect("plan fits the station");
     let events = Arc::new(Mutex::new(Vec::new()));
-    let abort = Arc::new(AtomicBool::new(false));
+    let abort = spinbench_engine::AbortFlag::new();
     let pause = Arc::new(AtomicBool::new(false));
     let unpause = pause.clone();
     let summary = {
@@ -97,7 +97,7 @@ fn run_paused(
                     );
                 }
                 if abort_after_windows.is_some_and(|n| windows >= n) {
-                    abort.store(true, std::sync::atomic::Ordering::Relaxed);
+                    abort.request("the test");
                 }
             }
             if let Ok(mut v) = sink.lock() {
@@ -188,8 +188,33 @@ fn a_complete_run_measures_every_instrument() {
 fn safety_centrifuge_silence_faults_into_the_safe_state() {
     let mut sim = SimConfig::default();
     sim.faults.centrifuge_silent_at_s = Some(40.0);
-    let (summary, _, bench) = run(sim, small_plan(), None);
+    let (summary, events, bench) = run(sim, small_plan(), None);
     assert_eq!(summary.state, RunState::Faulted);
+    // The stop cannot be confirmed: the record and every screen say so.
+    assert!(!summary.stop_confirmed);
+    assert!(
+        reason(&summary).contains(spinbench_engine::executor::STOP_NOT_CONFIRMED),
+        "{}",
+        reason(&summary)
+    );
+    assert!(events.iter().any(|e| matches!(e, Event::Fault { reason }
+        if reason.starts_with(spinbench_engine::executor::STOP_NOT_CONFIRMED))));
+    for r in &summary.records {
+        assert_eq!(r.outcome, Outcome::Incomplete, "{}", r.serial);
+    }
+    // The stop goes on being commanded; once the controller answers again
+    // it is acknowledged and the table is commanded to rest.
+    assert!(spinbench_engine::executor::unconfirmed_stops() >= 1);
+    bench.with_world(|w| w.end_centrifuge_silence());
+    let until = std::time::Instant::now() + Duration::from_secs(20);
+    while spinbench_engine::executor::unconfirmed_stops() > 0 {
+        assert!(
+            std::time::Instant::now() < until,
+            "the stop was not commanded again once the controller answered"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    assert_safe(&bench, true);
     assert!(
         reason(&summary).contains("centrifuge"),
         "{}",
@@ -327,6 +352,28 @@ fn dead_and_noisy_instruments_fail_and_the_others_go_on() {
 fn an_abort_ends_in_the_safe_state() {
     let (summary, events, bench) = run(SimConfig::default(), small_plan(), Some(40));
     assert_eq!(summary.state, RunState::Aborted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("the test"),
+        "{}",
+        reason(&summary)
+    );
+    // Nothing of an unfinished plan is graded pass or fail.
+    assert!(!summary.records.is_empty());
+    for r in &summary.records {
+        assert_eq!(
+            r.outcome,
+            Outcome::Incomplete,
+            "{}: {:?}",
+            r.serial,
+            r.reasons
+        );
+        assert!(
+            r.reasons.iter().any(|x| x.starts_with("incomplete:")),
+            "{:?}",
+            r.reasons
+        );
+    }
+    assert!(summary.stop_confirmed);
     assert!(events.iter().any(|e| matches!(
         e,
         Event::RunFinished {
@@ -374,7 +421,7 @@ fn a_wrong_supply_current_stops_the_run_before_any_spin() {
     let compiled = small_plan().compile(&station).expect("plan");
     let options = RunOptions {
         run_id: "current".into(),
-        abort: Arc::new(AtomicBool::new(false)),
+        abort: spinbench_engine::AbortFlag::new(),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(2),
         station_config_toml: String::new(),
@@ -450,7 +497,7 @@ fn run_with_refusing_sink(
     let compiled = small_plan().compile(&station).expect("plan");
     let options = RunOptions {
         run_id: "refused".into(),
-        abort: Arc::new(AtomicBool::new(false)),
+        abort: spinbench_engine::AbortFlag::new(),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(2),
         station_config_toml: String::new(),

@@ -349,11 +349,7 @@ fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
 }
 
 fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
+    spinbench_store::csv_text_field(s)
 }
 
 /// The summary table as CSV (full precision: `{:?}` reads back to the same number).

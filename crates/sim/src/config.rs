@@ -192,6 +192,11 @@ pub struct FaultConfig {
     pub supply_trip_at_s: Option<f64>,
 }
 
+/// Fastest virtual time (× real time).
+pub const MAX_SPEED: f64 = 1e6;
+/// Latest time a fault may be scheduled at [s] (one year of simulated time).
+pub const MAX_FAULT_TIME_S: f64 = 3.2e7;
+
 /// A configuration the bench cannot run; names the key.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("sim config: {key}: {problem}")]
@@ -269,6 +274,136 @@ impl SimConfig {
             if !(0.0..=1.0).contains(&p) {
                 return err(key, format!("must be a probability 0 to 1, got {p}"));
             }
+        }
+        // Every other number: finite, of the right sign, within a named bound.
+        let p = &self.instruments;
+        let c = &self.centrifuge;
+        let bounded = [
+            ("speed", self.speed, 0.0, MAX_SPEED),
+            ("ambient_c", self.ambient_c, -100.0, 200.0),
+            ("reference_hz", self.reference_hz, 1.0, 1e10),
+            ("g_local_m_s2", self.g_local_m_s2, 9.7, 9.9),
+            ("centrifuge.arm_radius_m", c.arm_radius_m, 0.0, 10.0),
+            (
+                "centrifuge.radius_scatter_mm",
+                c.radius_scatter_mm,
+                0.0,
+                100.0,
+            ),
+            (
+                "centrifuge.proof_mass_offset_mm",
+                c.proof_mass_offset_mm,
+                -100.0,
+                100.0,
+            ),
+            ("centrifuge.max_rate_deg_s", c.max_rate_deg_s, 0.0, 36_000.0),
+            (
+                "centrifuge.max_accel_deg_s2",
+                c.max_accel_deg_s2,
+                0.0,
+                36_000.0,
+            ),
+            ("centrifuge.loop_natural_hz", c.loop_natural_hz, 0.0, 50.0),
+            ("centrifuge.loop_damping", c.loop_damping, 0.0, 10.0),
+            ("centrifuge.ripple_ppm", c.ripple_ppm, 0.0, 1e5),
+            ("centrifuge.wander_ppm", c.wander_ppm, 0.0, 1e5),
+            ("instruments.resonator_hz", p.resonator_hz, 100.0, 1e7),
+            ("instruments.k0_max_g", p.k0_max_g, 0.0, 100.0),
+            ("instruments.k3_max_ug_per_g3", p.k3_max_ug_per_g3, 0.0, 1e6),
+            (
+                "instruments.cross_axis_max_ug_per_g",
+                p.cross_axis_max_ug_per_g,
+                0.0,
+                1e6,
+            ),
+            ("instruments.noise_ug", p.noise_ug, 0.0, 1e6),
+            (
+                "instruments.bias_walk_ug_per_sqrt_h",
+                p.bias_walk_ug_per_sqrt_h,
+                0.0,
+                1e6,
+            ),
+            (
+                "instruments.temp_coeff_ug_per_c",
+                p.temp_coeff_ug_per_c,
+                -1e6,
+                1e6,
+            ),
+            (
+                "instruments.self_heating_c",
+                p.self_heating_c,
+                -100.0,
+                100.0,
+            ),
+            ("instruments.warmup_tau_s", p.warmup_tau_s, 0.0, 1e6),
+            ("instruments.warmup_ug", p.warmup_ug, -1e6, 1e6),
+            ("instruments.current_a", p.current_a, 0.0, 1.0),
+            ("faults.noisy_factor", self.faults.noisy_factor, 0.0, 1e9),
+            (
+                "faults.drift_ug_per_s",
+                self.faults.drift_ug_per_s,
+                0.0,
+                1e9,
+            ),
+        ];
+        for (key, v, lo, hi) in bounded {
+            if !(v.is_finite() && (lo..=hi).contains(&v)) {
+                return err(key, format!("{v} is outside {lo} to {hi}"));
+            }
+        }
+        for (i, v) in p.k1_hz_per_g.iter().chain(&p.k2_abs_ug_per_g2).enumerate() {
+            if !(v.is_finite() && (0.0..=1e6).contains(v)) {
+                let key = if i < 2 {
+                    "instruments.k1_hz_per_g"
+                } else {
+                    "instruments.k2_abs_ug_per_g2"
+                };
+                return err(key, format!("{v} is outside 0 to 1000000"));
+            }
+        }
+        if p.k2_abs_ug_per_g2[0] > p.k2_abs_ug_per_g2[1] {
+            return err(
+                "instruments.k2_abs_ug_per_g2",
+                "must be a range [low, high] with low ≤ high".into(),
+            );
+        }
+        let times = [
+            (
+                "faults.module_silent",
+                self.faults.module_silent.map(|(_, t)| t),
+            ),
+            (
+                "faults.centrifuge_silent_at_s",
+                self.faults.centrifuge_silent_at_s,
+            ),
+            (
+                "faults.interlock_open_at_s",
+                self.faults.interlock_open_at_s,
+            ),
+            ("faults.supply_trip_at_s", self.faults.supply_trip_at_s),
+        ];
+        for (key, t) in times {
+            if let Some(t) = t
+                && !(t.is_finite() && (0.0..=MAX_FAULT_TIME_S).contains(&t))
+            {
+                return err(
+                    key,
+                    format!(
+                        "{t} s is not a time from 0 to {MAX_FAULT_TIME_S} s (MAX_FAULT_TIME_S)"
+                    ),
+                );
+            }
+        }
+        if let Some((module, _)) = self.faults.module_silent
+            && module >= self.modules
+        {
+            return err(
+                "faults.module_silent",
+                format!(
+                    "module {module} does not exist (modules are numbered 0 to {})",
+                    self.modules - 1
+                ),
+            );
         }
         for s in self
             .faults

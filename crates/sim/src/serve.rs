@@ -338,6 +338,31 @@ fn control_command(world: &mut World, line: &str) -> Option<String> {
     })
 }
 
+/// How long a thread that found nothing to do sleeps: 200 µs at first,
+/// doubling up to 20 ms while it stays idle, back to 200 µs on progress.
+struct IdleBackoff(Duration);
+
+impl Default for IdleBackoff {
+    fn default() -> Self {
+        IdleBackoff(IdleBackoff::SHORTEST)
+    }
+}
+
+impl IdleBackoff {
+    const SHORTEST: Duration = Duration::from_micros(200);
+    const LONGEST: Duration = Duration::from_millis(20);
+
+    /// The next sleep, after a round that made progress or not.
+    fn next(&mut self, progressed: bool) -> Duration {
+        self.0 = if progressed {
+            Self::SHORTEST
+        } else {
+            (self.0 * 2).min(Self::LONGEST)
+        };
+        self.0
+    }
+}
+
 fn run_clock(
     world: Shared<World>,
     buffers: Vec<Shared<VecDeque<u8>>>,
@@ -349,6 +374,7 @@ fn run_clock(
         let start = Instant::now();
         let pace = if speed > 0.0 { speed } else { MAX_SPEED };
         let mut ticks_done: u64 = 0;
+        let mut idle = IdleBackoff::default();
         while !stop.load(Ordering::Relaxed) {
             let due = (start.elapsed().as_secs_f64() * pace / TICK_S) as u64;
             let mut stepped = 0;
@@ -378,9 +404,10 @@ fn run_clock(
                     ticks_done = due;
                 }
             }
-            // As fast as read, the buffers are small: look again soon.
+            // As fast as read, the buffers are small: look again soon, but
+            // back off while nobody reads (an idle station must not cost a core).
             thread::sleep(if speed == 0.0 {
-                Duration::from_micros(200)
+                idle.next(stepped > 0)
             } else {
                 Duration::from_millis(1)
             });
@@ -467,14 +494,16 @@ fn serve_module(
     });
     let tx = thread::spawn(move || {
         let mut chunk = Vec::with_capacity(8192);
+        let mut idle = IdleBackoff::default();
         while !stop.load(Ordering::Relaxed) {
             if watch
                 .as_ref()
                 .is_some_and(|w| unread_bytes(w) > PACED_BY_READER_BYTES)
             {
-                thread::sleep(Duration::from_micros(200));
+                thread::sleep(idle.next(false));
                 continue;
             }
+            idle.next(true);
             {
                 let mut b = lock(&buffer);
                 let limit = if watch.is_some() {

@@ -234,6 +234,13 @@ impl World {
         }
     }
 
+    /// The centrifuge controller answers again (a silence fault ends, e.g.
+    /// its cable is plugged back in).
+    pub fn end_centrifuge_silence(&mut self) {
+        self.config.faults.centrifuge_silent_at_s = None;
+        self.centrifuge_silent = false;
+    }
+
     /// Mount every instrument the same way.
     pub fn set_all_mountings(&mut self, mounting: Mounting) {
         for v in &mut self.instruments {

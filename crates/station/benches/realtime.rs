@@ -74,7 +74,7 @@ fn main() {
     let sink = arrivals.clone();
     let options = RunOptions {
         run_id: "realtime".into(),
-        abort: Arc::new(AtomicBool::new(false)),
+        abort: spinbench_engine::AbortFlag::new(),
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(5),
         station_config_toml: String::new(),

@@ -13,8 +13,6 @@ use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
 use spinbench_station::station_run::{RunControl, connect_bench, execute, sim_station_toml};
 use spinbench_store::{Store, StoreTarget};
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 fn main() {
@@ -53,7 +51,7 @@ fn main() {
         &db,
         false,
         true,
-        RunControl::abort_only(Arc::new(AtomicBool::new(false))),
+        RunControl::abort_only(spinbench_engine::AbortFlag::new()),
     )
     .expect("run");
     sim.shutdown();

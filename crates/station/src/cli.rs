@@ -105,9 +105,13 @@ pub enum Command {
         /// Format: csv (points), xlsx (points and results sheets) or parquet (points).
         #[arg(long, default_value = "csv")]
         format: String,
-        /// Write to this file instead of standard output.
+        /// Write to this file instead of standard output (an existing file
+        /// only with --force; never the store or a run's own files).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Replace an existing --out file.
+        #[arg(long)]
+        force: bool,
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
@@ -241,7 +245,8 @@ pub(crate) fn parse_store(text: &str) -> Result<StoreTarget, String> {
     Ok(StoreTarget::parse(text))
 }
 
-/// Open an existing store (a missing file is an error, not a new empty store).
+/// Open an existing store to read it (a missing file is an error, not a
+/// new empty store; a read-only file or disk can be read).
 fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
     if let StoreTarget::File(path) = db
         && !path.exists()
@@ -251,7 +256,7 @@ fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
             path.display()
         );
     }
-    Ok(spinbench_store::Store::connect(db)?)
+    Ok(spinbench_store::Store::open_read_only(db)?)
 }
 
 /// Read and reduce a points file.
@@ -391,9 +396,13 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             run,
             format,
             out: file,
+            force,
             db,
         } => {
             let format = crate::export::ExportFormat::parse(&format)?;
+            if let Some(f) = &file {
+                crate::export::check_out_path(f, &db, force)?;
+            }
             let store = open_store(&db)?;
             if store.run(&run)?.is_none() {
                 anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
@@ -552,16 +561,17 @@ fn run_plan(
         SimOperator, TerminalOperator, connect_bench, execute, new_run_id, sim_station_toml,
         start_sim,
     };
-    use spinbench_engine::{StationConfig, TestPlan};
-    use std::sync::Arc;
-    use std::sync::atomic::{AtomicBool, Ordering};
+    use spinbench_engine::{AbortFlag, StationConfig, TestPlan};
     let plan_text = std::fs::read_to_string(plan_path)
         .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
     let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_path.display().to_string())?;
-    let abort = Arc::new(AtomicBool::new(false));
-    let flag = abort.clone();
-    // Ctrl-C: the engine stops the table and switches everything off.
-    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    // SIGINT, SIGTERM, SIGHUP: the engine stops the table, switches
+    // everything off and records the signal.
+    let abort = AbortFlag::new();
+    crate::signals::abort_on_termination_signals(abort.clone())?;
+    if let Some(d) = resume {
+        crate::station_run::check_resume(d, &plan)?;
+    }
     let dir = match resume {
         Some(d) => d.to_path_buf(),
         None => data.join("runs").join(new_run_id()),
@@ -608,8 +618,16 @@ fn run_plan(
         )
     };
     // Refuse a plan that cannot run before anything is switched on.
-    plan.compile(&station)?;
-    std::fs::write(dir.join("plan.toml"), &plan_text)?;
+    if let Err(e) = plan.compile(&station) {
+        if resume.is_none() {
+            // Nothing ran: leave no run directory behind.
+            let _ = std::fs::remove_dir_all(&dir);
+        }
+        return Err(e.into());
+    }
+    if resume.is_none() {
+        std::fs::write(dir.join("plan.toml"), &plan_text)?;
+    }
     let bench = connect_bench(&station, Some(&dir))?;
     let finished = execute(
         &station,
@@ -623,6 +641,7 @@ fn run_plan(
         crate::station_run::RunControl::abort_only(abort),
     )?;
     crate::station_run::render_records(out, &finished)?;
+    crate::signals::wait_for_unconfirmed_stops();
     if finished.summary.state != spinbench_engine::RunState::Completed {
         anyhow::bail!(
             "the run ended {:?}: {}",
@@ -632,6 +651,9 @@ fn run_plan(
     }
     Ok(())
 }
+
+/// Longest `spinbench sim --for` [s].
+const MAX_SIM_FOR_S: f64 = 1e7;
 
 /// `spinbench sim`: start a virtual bench and print how to reach it.
 fn run_sim(
@@ -657,9 +679,11 @@ fn run_sim(
     }
     sim_config.validate()?;
     if let Some(seconds) = run_for
-        && !(seconds.is_finite() && seconds >= 0.0)
+        && !(seconds.is_finite() && (0.0..=MAX_SIM_FOR_S).contains(&seconds))
     {
-        anyhow::bail!("--for {seconds}: expected a number of seconds ≥ 0");
+        anyhow::bail!(
+            "--for {seconds}: expected seconds from 0 to {MAX_SIM_FOR_S} (about 115 days; leave --for out to run until interrupted)"
+        );
     }
     let bench = RunningBench::start(
         sim_config,

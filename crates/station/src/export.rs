@@ -5,7 +5,7 @@
 //! (Snappy-compressed), readable by `analyze` and by any data tool.
 
 use anyhow::{Context, Result, bail};
-use spinbench_store::{PointRow, ResultRow, Store};
+use spinbench_store::{PointRow, ResultRow, Store, StoreTarget};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -246,5 +246,60 @@ fn write_parquet(points: &[PointRow], run_id: &str, out: &Path) -> Result<()> {
     }
     group.close()?;
     writer.close()?;
+    Ok(())
+}
+
+/// Refuse an `export --out` path that would destroy something: an existing
+/// file (unless `force`), and never, even with `force`, the store itself
+/// (or its WAL and shared-memory files), another SQLite database, or a file
+/// inside a run directory (its journal, capture, plan or reports).
+pub fn check_out_path(out: &Path, db: &StoreTarget, force: bool) -> Result<()> {
+    let shown = out.display();
+    if out.is_dir() {
+        bail!("--out {shown}: is a directory; give a file name");
+    }
+    // Compare real paths: `d/./spinbench.db` and a symbolic link are the store too.
+    let real = |p: &Path| -> Option<std::path::PathBuf> {
+        match std::fs::canonicalize(p) {
+            Ok(r) => Some(r),
+            Err(_) => {
+                let parent = p.parent().filter(|d| !d.as_os_str().is_empty())?;
+                Some(std::fs::canonicalize(parent).ok()?.join(p.file_name()?))
+            }
+        }
+    };
+    let target = real(out);
+    if let (StoreTarget::File(store), Some(target)) = (db, &target) {
+        for suffix in ["", "-wal", "-shm", "-journal"] {
+            let mut name = store.as_os_str().to_owned();
+            name.push(suffix);
+            if real(Path::new(&name)).as_ref() == Some(target) {
+                bail!("--out {shown}: that is the store{suffix} itself; export to another file");
+            }
+        }
+    }
+    if let Some(target) = &target
+        && target
+            .ancestors()
+            .skip(1)
+            .any(|dir| dir.join(spinbench_engine::journal::JOURNAL_FILE).is_file())
+    {
+        bail!(
+            "--out {shown}: inside a run directory (its records are never overwritten); export elsewhere"
+        );
+    }
+    if out.exists() {
+        let mut head = [0u8; 16];
+        let is_database = std::fs::File::open(out)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut head))
+            .is_ok()
+            && head.starts_with(b"SQLite format 3\0");
+        if is_database {
+            bail!("--out {shown}: is an SQLite database; export to another file");
+        }
+        if !force {
+            bail!("--out {shown}: exists; give --force to replace it, or another file name");
+        }
+    }
     Ok(())
 }

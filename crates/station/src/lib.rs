@@ -13,5 +13,6 @@ pub mod export;
 pub mod points_file;
 pub mod render;
 pub mod replay;
+pub mod signals;
 pub mod station_run;
 pub mod web;

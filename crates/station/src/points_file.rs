@@ -263,6 +263,11 @@ fn read_spreadsheet(path: &Path, sheet: Option<&str>) -> Result<PointsFile, Poin
             .cloned()
             .ok_or_else(|| err("the workbook has no sheets".into()))?,
     };
+    // XLSX is read cell by cell, by the cells that exist: a sheet's declared
+    // size (one cell at XFD1048576 makes it 17 billion cells) is never allocated.
+    if let calamine::Sheets::Xlsx(xlsx) = &mut workbook {
+        return read_xlsx_cells(path, xlsx, &name);
+    }
     let range = workbook
         .worksheet_range(&name)
         .map_err(|e| err(format!("cannot read sheet '{name}': {e}")))?;
@@ -279,10 +284,7 @@ fn read_spreadsheet(path: &Path, sheet: Option<&str>) -> Result<PointsFile, Poin
                     Data::Empty => Cell::Empty,
                     Data::Int(v) => Cell::Number(*v as f64),
                     Data::Float(v) => Cell::Number(*v),
-                    Data::String(s) if s.trim().is_empty() => Cell::Empty,
-                    Data::String(s) | Data::DateTimeIso(s) | Data::DurationIso(s) => {
-                        Cell::Text(s.trim().to_string())
-                    }
+                    Data::String(s) | Data::DateTimeIso(s) | Data::DurationIso(s) => text_cell(s),
                     Data::Bool(b) => Cell::Text(b.to_string()),
                     Data::DateTime(dt) => Cell::Text(dt.to_string()),
                     Data::Error(e) => Cell::Error(e.to_string()),
@@ -291,6 +293,81 @@ fn read_spreadsheet(path: &Path, sheet: Option<&str>) -> Result<PointsFile, Poin
         })
         .collect();
     parse_rows(path, Some(&name), rows)
+}
+
+/// A text cell, trimmed; blank text is an empty cell.
+fn text_cell(s: &str) -> Cell {
+    match s.trim() {
+        "" => Cell::Empty,
+        t => Cell::Text(t.to_string()),
+    }
+}
+
+/// Most cells read from one sheet (far above any points file).
+const MAX_SHEET_CELLS: usize = 10_000_000;
+
+/// The rows of an XLSX sheet from the cells that exist, in the order stored.
+fn read_xlsx_cells<RS: std::io::Read + std::io::Seek>(
+    path: &Path,
+    xlsx: &mut calamine::Xlsx<RS>,
+    name: &str,
+) -> Result<PointsFile, PointsFileError> {
+    use calamine::DataRef;
+    let err = |message: String| PointsFileError {
+        path: path.to_path_buf(),
+        location: None,
+        message,
+    };
+    let mut reader = xlsx
+        .worksheet_cells_reader(name)
+        .map_err(|e| err(format!("cannot read sheet '{name}': {e}")))?;
+    let mut rows: std::collections::BTreeMap<u32, Vec<(u32, Cell)>> = Default::default();
+    let mut count = 0usize;
+    while let Some(cell) = reader
+        .next_cell()
+        .map_err(|e| err(format!("cannot read sheet '{name}': {e}")))?
+    {
+        let (row, column) = cell.get_position();
+        let value = match cell.get_value() {
+            DataRef::Empty => continue,
+            DataRef::Int(v) => Cell::Number(*v as f64),
+            DataRef::Float(v) => Cell::Number(*v),
+            DataRef::String(s) | DataRef::DateTimeIso(s) | DataRef::DurationIso(s) => text_cell(s),
+            DataRef::SharedString(s) => text_cell(s),
+            DataRef::Bool(b) => Cell::Text(b.to_string()),
+            DataRef::DateTime(dt) => Cell::Text(dt.to_string()),
+            DataRef::Error(e) => Cell::Error(e.to_string()),
+        };
+        if value == Cell::Empty {
+            continue;
+        }
+        count += 1;
+        if count > MAX_SHEET_CELLS {
+            return Err(err(format!(
+                "sheet '{name}' has more than {MAX_SHEET_CELLS} cells; a points file has one row per point"
+            )));
+        }
+        rows.entry(row).or_default().push((column, value));
+    }
+    let rows = rows
+        .into_iter()
+        .map(|(row, cells)| {
+            let width = cells
+                .iter()
+                .map(|(c, _)| *c as usize + 1)
+                .max()
+                .unwrap_or(0);
+            let mut line = vec![Cell::Empty; width];
+            for (c, value) in cells {
+                line[c as usize] = value;
+            }
+            RawRow {
+                number: u64::from(row) + 1,
+                cells: line,
+            }
+        })
+        .collect();
+    parse_rows(path, Some(name), rows)
 }
 
 /// Spreadsheet column letters for a 0-based index (0 → A, 26 → AA).
@@ -306,6 +383,9 @@ fn column_letters(mut index: usize) -> String {
     letters.reverse();
     String::from_utf8_lossy(&letters).into_owned()
 }
+
+/// Longest serial number read from a points file [characters].
+const MAX_UNIT_CHARS: usize = 200;
 
 /// Column indices of the known columns.
 struct Columns {
@@ -355,6 +435,9 @@ fn parse_rows(
 
     // Header: names are trimmed and compared without case.
     let mut names: Vec<Option<String>> = Vec::with_capacity(header.cells.len());
+    // First column of each name: duplicates found in one pass, not by a
+    // search per column (a header of many columns must not be quadratic).
+    let mut first_of: std::collections::HashMap<String, usize> = Default::default();
     for (i, cell) in header.cells.iter().enumerate() {
         let name = match cell {
             Cell::Text(t) => Some(t.trim().to_ascii_lowercase()),
@@ -362,7 +445,7 @@ fn parse_rows(
             Cell::Empty | Cell::Error(_) => None,
         };
         if let Some(n) = &name
-            && let Some(first) = names.iter().position(|m| m.as_deref() == Some(n.as_str()))
+            && let Some(&first) = first_of.get(n.as_str())
         {
             return Err(fail(
                 Some(at(header.number, Some((i, n)))),
@@ -375,9 +458,12 @@ fn parse_rows(
                 ),
             ));
         }
+        if let Some(n) = &name {
+            first_of.insert(n.clone(), i);
+        }
         names.push(name);
     }
-    let find = |name: &str| names.iter().position(|n| n.as_deref() == Some(name));
+    let find = |name: &str| first_of.get(name).copied();
     let missing: Vec<&str> = REQUIRED_COLUMNS
         .iter()
         .copied()
@@ -472,6 +558,19 @@ fn parse_rows(
                 "expected a unit serial number, the cell is empty".into(),
             )
         })?;
+        // A serial written by `export` as '=… (a guard against CSV formula
+        // injection) reads back as itself.
+        let unit = spinbench_store::csv_text_unguarded(&unit).to_string();
+        if unit.chars().count() > MAX_UNIT_CHARS {
+            return Err(fail(
+                loc(columns.unit, "unit"),
+                format!(
+                    "a serial number of {} characters ('{}'); at most {MAX_UNIT_CHARS}",
+                    unit.chars().count(),
+                    unit.chars().take(40).collect::<String>()
+                ),
+            ));
+        }
         let mount_text = text(columns.mount, "mount")?.unwrap_or_default();
         let mount = Mount::parse(&mount_text).ok_or_else(|| {
             fail(

@@ -9,7 +9,7 @@
 //! dwell (`t0..t1`).
 
 use anyhow::{Context, Result};
-use spinbench_devices::capture::read_capture;
+use spinbench_devices::capture::{read_capture, segments as capture_segments};
 use spinbench_engine::StationConfig;
 use spinbench_engine::config::raw_capture_file;
 use spinbench_store::Store;
@@ -130,41 +130,51 @@ pub fn replay(run_dir: &Path, store: &Store) -> Result<ReplayReport> {
                 m + 1
             );
         }
-        let (bytes, cut) = read_capture(&path);
-        let mut decoder = FrameDecoder::new();
-        let mut accumulator = WindowAccumulator::new(WindowConfig {
-            mode: fmu.mode.into(),
-            reference_hz: fmu.reference_hz,
-            ..WindowConfig::default()
-        });
+        // One segment per opening (the run and each resume): each is a
+        // stream of its own, decoded from a fresh decoder as the station did.
         let mut windows = ReplayedWindows::default();
-        let mut whole = 0;
-        decoder.decode(&bytes, |frame| {
-            let Ok(message) = Message::decode(frame) else {
-                return;
-            };
-            for w in accumulator.push(&message) {
-                if w.is_complete() {
-                    whole += 1;
-                    // The engine stores dF only from whole windows; so does the replay.
-                    windows.add(
-                        w.instruments
-                            .iter()
-                            .map(|i| i.df_hz.map(f64::to_bits))
-                            .collect(),
-                    );
-                }
-            }
-        });
-        let stats = decoder.stats();
-        modules.push(ModuleReplay {
+        let mut module = ModuleReplay {
             module: m + 1,
-            bytes: bytes.len() as u64,
-            frames: stats.frames,
-            bad_frames: stats.bad_crc + stats.bad_tail,
-            windows: whole,
-            cut_short: cut.is_some(),
-        });
+            bytes: 0,
+            frames: 0,
+            bad_frames: 0,
+            windows: 0,
+            cut_short: false,
+        };
+        for segment in capture_segments(&path) {
+            let (bytes, cut) = read_capture(&segment);
+            let mut decoder = FrameDecoder::new();
+            let mut accumulator = WindowAccumulator::new(WindowConfig {
+                mode: fmu.mode.into(),
+                reference_hz: fmu.reference_hz,
+                ..WindowConfig::default()
+            });
+            let mut whole = 0;
+            decoder.decode(&bytes, |frame| {
+                let Ok(message) = Message::decode(frame) else {
+                    return;
+                };
+                for w in accumulator.push(&message) {
+                    if w.is_complete() {
+                        whole += 1;
+                        // The engine stores dF only from whole windows; so does the replay.
+                        windows.add(
+                            w.instruments
+                                .iter()
+                                .map(|i| i.df_hz.map(f64::to_bits))
+                                .collect(),
+                        );
+                    }
+                }
+            });
+            let stats = decoder.stats();
+            module.bytes += bytes.len() as u64;
+            module.frames += stats.frames;
+            module.bad_frames += stats.bad_crc + stats.bad_tail;
+            module.windows += whole;
+            module.cut_short |= cut.is_some();
+        }
+        modules.push(module);
         replayed.push(windows);
     }
 

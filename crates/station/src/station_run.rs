@@ -10,8 +10,8 @@ use spinbench_engine::event::{Event, EventSink};
 use spinbench_engine::journal::{Journal, read_journal};
 use spinbench_engine::plan::Fixture;
 use spinbench_engine::{
-    Answer, Bench, Executor, Operator, Outcome, RunOptions, RunState, RunSummary, StationConfig,
-    TestPlan, UnitRecord,
+    AbortFlag, Answer, Bench, Executor, Operator, Outcome, RunOptions, RunState, RunSummary,
+    StationConfig, TestPlan, UnitRecord,
 };
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
@@ -210,8 +210,8 @@ pub struct Finished {
 
 /// How a run is steered from outside and who else hears its events.
 pub struct RunControl {
-    /// Set to abort (Ctrl-C, the web UI).
-    pub abort: Arc<AtomicBool>,
+    /// Set to abort (a termination signal, the web UI), naming who asked.
+    pub abort: AbortFlag,
     /// While set, the run holds between steps (the web UI's pause).
     pub pause: Arc<AtomicBool>,
     /// More subscribers to the event stream (the web UI's hub).
@@ -220,7 +220,7 @@ pub struct RunControl {
 
 impl RunControl {
     /// Abort only (the terminal's Ctrl-C); no pause, no other subscriber.
-    pub fn abort_only(abort: Arc<AtomicBool>) -> RunControl {
+    pub fn abort_only(abort: AbortFlag) -> RunControl {
         RunControl {
             abort,
             pause: Arc::new(AtomicBool::new(false)),
@@ -237,6 +237,86 @@ impl EventSink for BoxedSink {
     fn emit(&mut self, event: &Event) -> Result<(), String> {
         self.0.emit(event)
     }
+}
+
+/// Check that `dir` is a run that can be resumed with `plan`: it holds a
+/// journal that starts a run and the plan the run was started with, and
+/// `plan` is that very plan. Refuses otherwise, naming what differs, so two
+/// tests are never merged into one record.
+pub fn check_resume(dir: &Path, plan: &TestPlan) -> Result<()> {
+    use spinbench_engine::journal::JOURNAL_FILE;
+    if !dir.is_dir() {
+        bail!("--resume {}: no such run directory", dir.display());
+    }
+    let plan_path = dir.join("plan.toml");
+    if !dir.join(JOURNAL_FILE).is_file() || !plan_path.is_file() {
+        bail!(
+            "--resume {}: not a run directory (it has no {JOURNAL_FILE} and plan.toml); give the directory of the run to continue, under DATA/runs",
+            dir.display()
+        );
+    }
+    let (events, _) = read_journal(dir).map_err(anyhow::Error::msg)?;
+    if !events.iter().any(|e| matches!(e, Event::RunStarted { .. })) {
+        bail!(
+            "--resume {}: its journal never started a run; start a new run instead",
+            dir.display()
+        );
+    }
+    let text = std::fs::read_to_string(&plan_path)
+        .with_context(|| format!("{}: cannot read the run's plan", plan_path.display()))?;
+    let own = TestPlan::from_toml(&text).with_context(|| plan_path.display().to_string())?;
+    let differences = plan_differences(&own, plan);
+    if !differences.is_empty() {
+        bail!(
+            "--resume {}: the plan given is not the run's own plan ({}); resume with {} or start a new run",
+            dir.display(),
+            differences.join("; "),
+            plan_path.display()
+        );
+    }
+    Ok(())
+}
+
+/// The keys in which two plans differ, with both values ("range_g: 70 in the run, 10 given").
+pub fn plan_differences(run: &TestPlan, given: &TestPlan) -> Vec<String> {
+    fn walk(prefix: &str, a: &toml::Value, b: &toml::Value, out: &mut Vec<String>) {
+        let shown = |v: &toml::Value| spinbench_engine::bounds::shown(&v.to_string());
+        match (a, b) {
+            (toml::Value::Table(x), toml::Value::Table(y)) => {
+                let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+                for k in keys {
+                    let key = if prefix.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{prefix}.{k}")
+                    };
+                    match (x.get(k), y.get(k)) {
+                        (Some(va), Some(vb)) => walk(&key, va, vb, out),
+                        (Some(va), None) => {
+                            out.push(format!("{key}: {} in the run, none given", shown(va)))
+                        }
+                        (None, Some(vb)) => {
+                            out.push(format!("{key}: none in the run, {} given", shown(vb)))
+                        }
+                        (None, None) => {}
+                    }
+                }
+            }
+            _ if a != b => out.push(format!(
+                "{prefix}: {} in the run, {} given",
+                shown(a),
+                shown(b)
+            )),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    match (toml::Value::try_from(run), toml::Value::try_from(given)) {
+        (Ok(a), Ok(b)) => walk("", &a, &b, &mut out),
+        _ if run != given => out.push("the plans differ".into()),
+        _ => {}
+    }
+    out
 }
 
 /// Run (or resume) a plan on a connected bench, journaling into `dir`.
@@ -290,12 +370,15 @@ pub fn execute(
         sink_hold_limit: Duration::from_secs(600),
         station_config_toml: std::fs::read_to_string(dir.join("station.toml")).unwrap_or_default(),
     };
+    let store = spinbench_store::Store::connect(db)?;
     let mut executor = Executor::new(station, compiled, bench, operator, options);
     if let Some(events) = &past {
         executor.restore(events);
+        if let Some(t) = store.last_value_time_s(&run_id_of(dir))? {
+            executor.continue_time_after(t);
+        }
     }
     executor.subscribe(journal);
-    let store = spinbench_store::Store::connect(db)?;
     executor.subscribe(store.sink()?);
     executor.subscribe(ProgressPrinter::new(quiet));
     for sink in control.sinks {
@@ -460,6 +543,8 @@ pub fn demo(
     std::fs::write(dir.join("station.toml"), sim_station_toml(&sim))?;
     std::fs::write(dir.join("plan.toml"), toml::to_string(&plan)?)?;
     let operator = Box::new(SimOperator::new(&sim, json));
+    let abort = AbortFlag::new();
+    crate::signals::abort_on_termination_signals(abort.clone())?;
     let finished = execute(
         &station,
         &plan,
@@ -470,7 +555,7 @@ pub fn demo(
             .unwrap_or_else(|| StoreTarget::File(data_dir.join(DB_FILE))),
         false,
         json,
-        RunControl::abort_only(Arc::new(AtomicBool::new(false))),
+        RunControl::abort_only(abort),
     )?;
     let truth = sim.with_world(|w| w.truth());
     sim.shutdown();

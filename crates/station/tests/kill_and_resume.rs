@@ -108,6 +108,7 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
     let mut rng = ChaCha8Rng::seed_from_u64(2026);
     let mut resumed_trials = 0;
     let mut stored_checks = 0;
+    let mut replayed_trials = 0;
     // Kill times are drawn from the reference run's length, and a loaded
     // machine makes runs slower or faster than that one: trials go on until
     // ten have been killed mid-run (at most 24).
@@ -233,6 +234,21 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
                 "trial {trial}: a point journaled before the kill changed or vanished: {p}"
             );
         }
+        // The raw capture survived the kill: the replay finds every stored
+        // value (of the killed and of the resumed process) bit for bit.
+        let replay = spinbench()
+            .args(["replay", "--db"])
+            .arg(data.join("spinbench.db"))
+            .arg(&run_dir)
+            .output()
+            .expect("replay");
+        let said = String::from_utf8_lossy(&replay.stdout);
+        assert!(
+            replay.status.success(),
+            "trial {trial}: the replay of a resumed run failed: {said}{}",
+            String::from_utf8_lossy(&replay.stderr)
+        );
+        replayed_trials += 1;
     }
     assert!(
         stored_checks >= 10,
@@ -242,4 +258,5 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
         resumed_trials >= 10,
         "only {resumed_trials} trials were killed mid-run"
     );
+    assert_eq!(replayed_trials, resumed_trials);
 }

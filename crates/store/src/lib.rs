@@ -414,6 +414,52 @@ impl Store {
         Store::connect(&StoreTarget::File(path.to_path_buf()))
     }
 
+    /// Open an existing store only to read it (`runs`, `export`, `report`,
+    /// `replay`): an SQLite file is opened read-only (no WAL switch, no
+    /// migration), so a store on a read-only disk or with read-only
+    /// permissions can still be read. A store whose schema is older than
+    /// this program's is refused with what to do.
+    pub fn open_read_only(target: &StoreTarget) -> Result<Store, StoreError> {
+        let err = |what: &str| {
+            let t = target.to_string();
+            let what = what.to_string();
+            move |source: DbError| StoreError {
+                target: t.clone(),
+                what: what.clone(),
+                source,
+            }
+        };
+        let db = match target {
+            StoreTarget::File(path) => {
+                use rusqlite::OpenFlags;
+                let conn = rusqlite::Connection::open_with_flags(
+                    path,
+                    OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+                )
+                .map_err(|e| err("cannot open the database file to read")(e.into()))?;
+                conn.busy_timeout(std::time::Duration::from_secs(10))
+                    .map_err(|e| err("cannot set the busy timeout")(e.into()))?;
+                Db::Sqlite(conn)
+            }
+            StoreTarget::Postgres(_) => return Store::connect(target),
+        };
+        let store = Store {
+            db: RefCell::new(db),
+            target: target.clone(),
+        };
+        let version = store.schema_version()?;
+        if version != MIGRATIONS.len() as i64 {
+            return Err(err("cannot read it")(
+                format!(
+                    "its schema is version {version}, this program reads version {}; open it once read-write (e.g. `spinbench user list`) to upgrade it",
+                    MIGRATIONS.len()
+                )
+                .into(),
+            ));
+        }
+        Ok(store)
+    }
+
     /// Open a store (a file is created if needed) and bring its schema up to date.
     pub fn connect(target: &StoreTarget) -> Result<Store, StoreError> {
         let err = |what: &str| {
@@ -434,14 +480,17 @@ impl Store {
                 }
                 let conn = rusqlite::Connection::open(path)
                     .map_err(|e| err("cannot open the database file")(e.into()))?;
-                // WAL and full sync: a committed transaction survives the
-                // process being killed and the machine losing power.
-                conn.pragma_update(None, "journal_mode", "WAL")
-                    .map_err(|e| err("cannot enable WAL")(e.into()))?;
-                conn.pragma_update(None, "synchronous", "FULL")
-                    .map_err(|e| err("cannot set synchronous")(e.into()))?;
+                // Another process creating or migrating the same file waits
+                // its turn instead of failing.
                 conn.busy_timeout(std::time::Duration::from_secs(10))
                     .map_err(|e| err("cannot set the busy timeout")(e.into()))?;
+                // WAL and full sync: a committed transaction survives the
+                // process being killed and the machine losing power.
+                enable_wal(&conn).map_err(|e| {
+                    err("cannot enable WAL (is the file or its directory read-only?)")(e.into())
+                })?;
+                conn.pragma_update(None, "synchronous", "FULL")
+                    .map_err(|e| err("cannot set synchronous")(e.into()))?;
                 // References are checked, as PostgreSQL checks them.
                 conn.pragma_update(None, "foreign_keys", "ON")
                     .map_err(|e| err("cannot enable foreign keys")(e.into()))?;
@@ -488,21 +537,45 @@ impl Store {
             )
             .map_err(self.err("cannot prepare the schema table"))?;
         }
-        let result = (|| {
-            let version = schema_version(&mut db)?;
-            for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
-                let v = (i + 1) as i64;
-                db.transaction(|db| match dialect {
-                    Dialect::Sqlite => db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite)),
-                    Dialect::Postgres => db.batch(&format!(
-                        "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
-                        m.postgres
-                    )),
-                })
-                .map_err(|e| -> DbError { format!("migration {v} ({}): {e}", m.what).into() })?;
-            }
-            Ok::<(), DbError>(())
-        })();
+        let result = match dialect {
+            // One exclusive transaction over reading the version and every
+            // migration: two processes creating the same new file never
+            // both run a migration (the second waits, then finds it done).
+            Dialect::Sqlite => db.batch("BEGIN EXCLUSIVE").and_then(|()| {
+                let migrated = (|| {
+                    let version = schema_version(&mut db)?;
+                    for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+                        let v = (i + 1) as i64;
+                        db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite))
+                            .map_err(|e| -> DbError {
+                                format!("migration {v} ({}): {e}", m.what).into()
+                            })?;
+                    }
+                    Ok::<(), DbError>(())
+                })();
+                match migrated {
+                    Ok(()) => db.batch("COMMIT"),
+                    Err(e) => {
+                        let _ = db.batch("ROLLBACK");
+                        Err(e)
+                    }
+                }
+            }),
+            Dialect::Postgres => (|| {
+                let version = schema_version(&mut db)?;
+                for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+                    let v = (i + 1) as i64;
+                    db.transaction(|db| {
+                        db.batch(&format!(
+                            "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
+                            m.postgres
+                        ))
+                    })
+                    .map_err(|e| -> DbError { format!("migration {v} ({}): {e}", m.what).into() })?;
+                }
+                Ok::<(), DbError>(())
+            })(),
+        };
         if dialect == Dialect::Postgres {
             let _ = db.batch("SELECT pg_advisory_unlock(1293)");
         }
@@ -707,6 +780,18 @@ impl Store {
             .collect())
     }
 
+    /// Station time of the last one-second value stored for a run [s].
+    pub fn last_value_time_s(&self, run_id: &str) -> Result<Option<f64>, StoreError> {
+        Ok(self
+            .query(
+                "read the last one-second value's time",
+                "SELECT t_s FROM values_1s WHERE run_id = $1 ORDER BY t_s DESC LIMIT 1",
+                &[run_id.into()],
+            )?
+            .first()
+            .map(|r| r.real(0)))
+    }
+
     /// Number of one-second values stored for a run.
     pub fn value_count(&self, run_id: &str) -> Result<i64, StoreError> {
         Ok(self
@@ -758,6 +843,26 @@ impl Store {
     }
 }
 
+/// Switch an SQLite file to WAL. SQLite answers "busy" at once (without
+/// its busy handler) while another connection creates or converts the same
+/// file, so the switch is retried for up to ten seconds.
+fn enable_wal(conn: &rusqlite::Connection) -> Result<(), rusqlite::Error> {
+    let until = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    loop {
+        match conn.pragma_update(None, "journal_mode", "WAL") {
+            Err(rusqlite::Error::SqliteFailure(e, _))
+                if matches!(
+                    e.code,
+                    rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
+                ) && std::time::Instant::now() < until =>
+            {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            other => return other,
+        }
+    }
+}
+
 fn schema_version(db: &mut Db) -> Result<i64, DbError> {
     match db.dialect() {
         Dialect::Sqlite => Ok(db
@@ -769,12 +874,38 @@ fn schema_version(db: &mut Db) -> Result<i64, DbError> {
     }
 }
 
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
+/// The characters that make a spreadsheet program read a cell as a formula.
+pub const FORMULA_STARTS: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];
+
+/// A text field of a CSV file written for people and spreadsheets: a text
+/// that starts like a formula (`=HYPERLINK(…)`, `+cmd|…`, `@SUM…`) gets a
+/// leading `'` so spreadsheet programs show it as text (OWASP's advice for
+/// CSV injection); then it is quoted where CSV needs it. Only for text
+/// (serials, names, reasons), never for numbers, whose `-` is a sign.
+/// `spinbench analyze` takes the `'` off again when it reads the file.
+pub fn csv_text_field(s: &str) -> String {
+    let s = if s.starts_with(FORMULA_STARTS) {
+        format!("'{s}")
     } else {
         s.to_string()
+    };
+    if s.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s
     }
+}
+
+/// Undo [`csv_text_field`]'s guard: `'=X` read back is `=X`.
+pub fn csv_text_unguarded(s: &str) -> &str {
+    match s.strip_prefix('\'') {
+        Some(rest) if rest.starts_with(FORMULA_STARTS) => rest,
+        _ => s,
+    }
+}
+
+fn csv_field(s: &str) -> String {
+    csv_text_field(s)
 }
 
 /// Writes a run's events as they happen. A failed write is an error the

@@ -122,6 +122,9 @@ fn audit(app: &AppState, who: &str, action: &str, detail: &str) -> ApiResult<()>
         .map_err(ApiError::from)
 }
 
+/// Largest body of a login request [bytes].
+pub const LOGIN_BODY_LIMIT: usize = 4 * 1024;
+
 /// The router: the page, its files and the API.
 pub fn router(app: App) -> Router {
     Router::new()
@@ -129,7 +132,10 @@ pub fn router(app: App) -> Router {
         .route("/app.js", get(script))
         .route("/app.css", get(style))
         .route("/api/openapi.json", get(openapi))
-        .route("/api/login", post(login))
+        .route(
+            "/api/login",
+            post(login).layer(axum::extract::DefaultBodyLimit::max(LOGIN_BODY_LIMIT)),
+        )
         .route("/api/logout", post(logout))
         .route("/api/session", get(session))
         .route("/api/status", get(status))
@@ -222,9 +228,36 @@ struct Login {
     password: String,
 }
 
-async fn login(State(app): State<App>, body: Bytes) -> ApiResult<Response> {
+async fn login(
+    State(app): State<App>,
+    axum::extract::ConnectInfo(peer): axum::extract::ConnectInfo<std::net::SocketAddr>,
+    body: Bytes,
+) -> ApiResult<Response> {
     let login: Login = parse_json(&body)?;
-    let user = store(&app).user(&login.user)?;
+    // A name that cannot be a user's is refused before the store is asked,
+    // and only a short prefix of it is ever written to the audit log.
+    let name = match auth::normalise_user_name(&login.user) {
+        Ok(name) => name,
+        Err(_) => spinbench_engine::bounds::shown(&login.user),
+    };
+    if let Err(locked) = app.logins.check(&name, peer.ip()) {
+        let mut response = ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            format!(
+                "too many failed logins for {}; try again in {} s",
+                locked.what, locked.retry_after_s
+            ),
+        )
+        .into_response();
+        response
+            .headers_mut()
+            .insert(header::RETRY_AFTER, HeaderValue::from(locked.retry_after_s));
+        return Ok(response);
+    }
+    let user = match auth::normalise_user_name(&login.user) {
+        Ok(name) => store(&app).user(&name)?,
+        Err(_) => None,
+    };
     let ok = match &user {
         Some(u) => auth::verify_password(&login.password, &u.password_hash),
         None => {
@@ -237,17 +270,29 @@ async fn login(State(app): State<App>, body: Bytes) -> ApiResult<Response> {
     let (true, Some(role)) = (ok, role) else {
         audit(
             &app,
-            &login.user,
+            &name,
             "login refused",
-            "wrong user name or password",
+            &format!("wrong user name or password (from {})", peer.ip()),
         )?;
+        for what in app.logins.failed(&name, peer.ip()) {
+            audit(
+                &app,
+                &name,
+                "login locked",
+                &format!(
+                    "{what} locked for {} s after repeated failures",
+                    super::throttle::LOCKOUT.as_secs()
+                ),
+            )?;
+        }
         return Err(ApiError::new(
             StatusCode::UNAUTHORIZED,
             "wrong user name or password",
         ));
     };
-    let (token, session) = app.sessions.open(&login.user, role);
-    audit(&app, &login.user, "login", role.as_str())?;
+    app.logins.succeeded(&name);
+    let (token, session) = app.sessions.open(&name, role);
+    audit(&app, &name, "login", role.as_str())?;
     let mut response = axum::Json(json!(session)).into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
@@ -321,24 +366,35 @@ async fn events(
     struct Feed {
         backlog: std::vec::IntoIter<Arc<super::hub::HubEvent>>,
         rx: tokio::sync::broadcast::Receiver<Arc<super::hub::HubEvent>>,
+        closing: tokio::sync::watch::Receiver<bool>,
         last: u64,
         last_values: Option<Instant>,
     }
     let feed = Feed {
         backlog: backlog.into_iter(),
         rx,
+        closing: app.hub.closing(),
         last,
         last_values: None,
     };
     let stream = futures_util::stream::unfold(feed, |mut feed| async move {
         loop {
+            if *feed.closing.borrow() {
+                return None;
+            }
             let next = match feed.backlog.next() {
                 Some(e) => e,
-                None => match feed.rx.recv().await {
-                    Ok(e) => e,
-                    Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => continue,
-                    Err(tokio::sync::broadcast::error::RecvError::Closed) => return None,
-                },
+                None => {
+                    let received = tokio::select! {
+                        received = feed.rx.recv() => received,
+                        _ = feed.closing.changed() => return None,
+                    };
+                    match received {
+                        Ok(e) => e,
+                        Err(tokio::sync::broadcast::error::RecvError::Lagged(_)) => continue,
+                        Err(tokio::sync::broadcast::error::RecvError::Closed) => return None,
+                    }
+                }
             };
             if next.seq <= feed.last {
                 continue;
@@ -557,10 +613,10 @@ async fn control(
     app: &AppState,
     headers: &HeaderMap,
     action: &str,
-    act: impl FnOnce(&super::runner::Runner) -> Result<String, String>,
+    act: impl FnOnce(&super::runner::Runner, &str) -> Result<String, String>,
 ) -> ApiResult<axum::Json<Value>> {
     let session = authorize(app, headers, Role::Operator, true)?;
-    let run_id = act(&app.runner).map_err(ApiError::conflict)?;
+    let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
     audit(app, &session.user, action, &run_id)?;
     Ok(axum::Json(json!({ "run_id": run_id })))
 }
@@ -570,7 +626,7 @@ async fn pause(
     headers: HeaderMap,
     _body: Bytes,
 ) -> ApiResult<axum::Json<Value>> {
-    control(&app, &headers, "pause", |r| r.pause(true)).await
+    control(&app, &headers, "pause", |r, _| r.pause(true)).await
 }
 
 async fn resume(
@@ -578,7 +634,7 @@ async fn resume(
     headers: HeaderMap,
     _body: Bytes,
 ) -> ApiResult<axum::Json<Value>> {
-    control(&app, &headers, "resume", |r| r.pause(false)).await
+    control(&app, &headers, "resume", |r, _| r.pause(false)).await
 }
 
 async fn abort(
@@ -586,7 +642,10 @@ async fn abort(
     headers: HeaderMap,
     _body: Bytes,
 ) -> ApiResult<axum::Json<Value>> {
-    control(&app, &headers, "abort", |r| r.abort()).await
+    control(&app, &headers, "abort", |r, user| {
+        r.abort(&format!("the web UI (user {user})"))
+    })
+    .await
 }
 
 async fn runs(State(app): State<App>, headers: HeaderMap) -> ApiResult<axum::Json<Value>> {

@@ -73,16 +73,38 @@ pub fn verify_password(password: &str, hash: &str) -> bool {
     })
 }
 
+/// Longest user name [characters].
+pub const MAX_USER_NAME: usize = 64;
+
+/// A user name as stored and compared: trimmed and lower-case, 1 to 64 of
+/// the ASCII letters, digits and `. _ - @`, with at least one letter or
+/// digit. Look-alikes (a Cyrillic "а" beside "admin") and names that are
+/// only dots cannot be made. The problem in words, showing at most a short
+/// prefix of what was given.
+pub fn normalise_user_name(name: &str) -> Result<String, String> {
+    let name = name.trim();
+    let ok = !name.is_empty()
+        && name.len() <= MAX_USER_NAME
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "._-@".contains(c))
+        && name.chars().any(|c| c.is_ascii_alphanumeric());
+    if !ok {
+        return Err(format!(
+            "user name '{}': 1 to {MAX_USER_NAME} ASCII letters, digits or . _ - @, with at least one letter or digit",
+            spinbench_engine::bounds::shown(name)
+        ));
+    }
+    Ok(name.to_ascii_lowercase())
+}
+
 /// Check a new user's name and password; the problem in words.
 pub fn check_new_user(name: &str, password: &str) -> Result<(), String> {
-    if name.is_empty()
-        || name.len() > 64
-        || !name
-            .chars()
-            .all(|c| c.is_alphanumeric() || "._-@".contains(c))
-    {
+    let normal = normalise_user_name(name)?;
+    if normal != name {
         return Err(format!(
-            "user name '{name}': 1 to 64 letters, digits or . _ - @"
+            "user name '{}': use it in lower case, as '{normal}'",
+            spinbench_engine::bounds::shown(name)
         ));
     }
     if password.chars().count() < 8 {
@@ -211,6 +233,14 @@ mod tests {
         assert!(same_token("abc", "abc") && !same_token("abc", "abd") && !same_token("a", "ab"));
         assert!(check_new_user("op_1", "12345678").is_ok());
         assert!(check_new_user("bad name", "12345678").is_err());
+        // Look-alikes and dot names cannot be made; names compare in lower case.
+        assert!(check_new_user("\u{430}dmin", "12345678").is_err());
+        assert!(check_new_user(".", "12345678").is_err());
+        assert!(check_new_user("..", "12345678").is_err());
+        assert!(check_new_user("Admin", "12345678").is_err());
+        assert_eq!(normalise_user_name(" Admin ").as_deref(), Ok("admin"));
+        let long = normalise_user_name(&"x".repeat(2_000_000)).expect_err("too long");
+        assert!(long.len() < 300, "{}", long.len());
         assert!(check_new_user("ok", "short").is_err());
         assert!(Role::Admin > Role::Engineer && Role::Engineer > Role::Operator);
     }

@@ -83,6 +83,8 @@ struct HubState {
 pub struct Hub {
     state: Mutex<HubState>,
     tx: broadcast::Sender<Arc<HubEvent>>,
+    /// Set when the server shuts down: every event stream ends.
+    closing: tokio::sync::watch::Sender<bool>,
     /// Mean drawing radius of the station's fixtures [m], for g at R0.
     r0_m: f64,
     g_local_m_s2: f64,
@@ -101,6 +103,7 @@ impl Hub {
                 started: None,
             }),
             tx,
+            closing: tokio::sync::watch::channel(false).0,
             r0_m,
             g_local_m_s2,
         }
@@ -110,6 +113,16 @@ impl Hub {
         // A panic elsewhere while holding the lock leaves data that is still
         // consistent enough to show; carry on with it.
         self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// End every event stream (the server is shutting down).
+    pub fn close(&self) {
+        self.closing.send_replace(true);
+    }
+
+    /// Becomes true when the event streams are to end.
+    pub fn closing(&self) -> tokio::sync::watch::Receiver<bool> {
+        self.closing.subscribe()
     }
 
     /// Subscribe to new events (subscribe before reading the backlog, so

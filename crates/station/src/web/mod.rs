@@ -9,6 +9,8 @@ pub mod api;
 pub mod auth;
 pub mod hub;
 pub mod runner;
+pub mod server;
+pub mod throttle;
 
 use anyhow::{Context, Result};
 use spinbench_engine::StationConfig;
@@ -30,6 +32,8 @@ pub struct AppState {
     pub db: StoreTarget,
     /// Open sessions.
     pub sessions: auth::Sessions,
+    /// Failed logins per name and address.
+    pub logins: throttle::LoginThrottle,
     /// The engine's events.
     pub hub: Arc<hub::Hub>,
     /// Starts and steers runs.
@@ -67,6 +71,39 @@ pub struct ServeArgs {
     /// The store (default DATA/spinbench.db).
     #[arg(long, value_parser = crate::cli::parse_store)]
     pub db: Option<StoreTarget>,
+    /// Most HTTP connections open at once (1 to 10000); more are closed at once.
+    #[arg(long, default_value_t = 256)]
+    pub max_connections: usize,
+    /// Seconds a client has to send a request's headers (1 to 300).
+    #[arg(long, default_value_t = 10.0)]
+    pub header_timeout_s: f64,
+    /// Seconds a connection may stay silent both ways before it is closed (1 to 3600).
+    #[arg(long, default_value_t = 60.0)]
+    pub idle_timeout_s: f64,
+}
+
+impl ServeArgs {
+    /// The connection limits, each checked against its bound.
+    pub fn connection_limits(&self) -> Result<server::ConnectionLimits> {
+        let seconds = |name: &str, v: f64, max: f64| -> Result<std::time::Duration> {
+            if !(v.is_finite() && (1.0..=max).contains(&v)) {
+                anyhow::bail!("--{name} {v}: expected seconds from 1 to {max}");
+            }
+            Ok(std::time::Duration::from_secs_f64(v))
+        };
+        if !(1..=10_000).contains(&self.max_connections) {
+            anyhow::bail!(
+                "--max-connections {}: expected 1 to 10000",
+                self.max_connections
+            );
+        }
+        Ok(server::ConnectionLimits {
+            max_connections: self.max_connections,
+            header_timeout: seconds("header-timeout-s", self.header_timeout_s, 300.0)?,
+            idle_timeout: seconds("idle-timeout-s", self.idle_timeout_s, 3600.0)?,
+            ..server::ConnectionLimits::default()
+        })
+    }
 }
 
 /// The plan a fresh data directory starts with, so a new station has one to run.
@@ -149,6 +186,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         store: Mutex::new(store),
         db: db.clone(),
         sessions: auth::Sessions::default(),
+        logins: throttle::LoginThrottle::default(),
         hub,
         runner,
         plans_dir,
@@ -180,14 +218,53 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     )?;
     out.flush()?;
     let app = api::router(state.clone());
-    let served = runtime.block_on(async move {
-        axum::serve(listener, app)
-            .with_graceful_shutdown(async {
-                let _ = tokio::signal::ctrl_c().await;
-            })
-            .await
-    });
-    // Whatever runs goes to its safe state before the process ends.
-    state.runner.shutdown();
-    served.context("the server stopped")
+    let limits = args.connection_limits()?;
+    let signals = {
+        let _in_runtime = runtime.enter();
+        termination_signals()
+            .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
+    };
+    let stopping = state.clone();
+    runtime.block_on(server::serve(listener, app, limits, async move {
+        let reason = signals.await;
+        eprintln!("{reason}: stopping the run (safe state), then closing the connections…");
+        // The run first: it goes to its safe state and is recorded while the
+        // server still answers; then the event streams end.
+        let runner_state = stopping.clone();
+        let why = reason.clone();
+        let stopped =
+            tokio::task::spawn_blocking(move || runner_state.runner.shutdown(&why, RUN_STOP_LIMIT))
+                .await
+                .unwrap_or(false);
+        if !stopped {
+            eprintln!(
+                "the run did not reach its safe state within {} s: check the centrifuge",
+                RUN_STOP_LIMIT.as_secs()
+            );
+        }
+        stopping.hub.close();
+    }));
+    // Whatever still runs goes to its safe state before the process ends.
+    state.runner.shutdown("the server stopping", RUN_STOP_LIMIT);
+    Ok(())
+}
+
+/// How long shutdown waits for a run to reach its safe state.
+const RUN_STOP_LIMIT: std::time::Duration = std::time::Duration::from_secs(60);
+
+/// A future that completes with the reason (naming the signal) at the first
+/// SIGINT, SIGTERM or SIGHUP.
+fn termination_signals() -> std::io::Result<impl std::future::Future<Output = String>> {
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut int = signal(SignalKind::interrupt())?;
+    let mut term = signal(SignalKind::terminate())?;
+    let mut hup = signal(SignalKind::hangup())?;
+    Ok(async move {
+        let signal = tokio::select! {
+            _ = int.recv() => signal_hook::consts::SIGINT,
+            _ = term.recv() => signal_hook::consts::SIGTERM,
+            _ = hup.recv() => signal_hook::consts::SIGHUP,
+        };
+        crate::signals::reason_of(signal)
+    })
 }

@@ -7,7 +7,7 @@ use super::hub::{Hub, HubSink};
 use crate::station_run::{RunControl, connect_bench, execute, new_run_id};
 use spinbench_engine::plan::Fixture;
 use spinbench_engine::sim_bench::SimOperator;
-use spinbench_engine::{Answer, Operator, StationConfig, TestPlan};
+use spinbench_engine::{AbortFlag, Answer, Operator, StationConfig, TestPlan};
 use spinbench_sim::serve::RunningBench;
 use spinbench_store::StoreTarget;
 use std::path::PathBuf;
@@ -49,7 +49,7 @@ impl PromptSlot {
 /// the virtual bench the simulator then remounts the instruments as asked.
 pub struct WebOperator {
     slot: Arc<PromptSlot>,
-    abort: Arc<AtomicBool>,
+    abort: AbortFlag,
     sim: Option<&'static RunningBench>,
     /// The question posted, for the simulator's hands.
     asked: Option<(String, Vec<Option<Fixture>>)>,
@@ -84,7 +84,7 @@ impl Operator for WebOperator {
             .unwrap_or_else(|e| e.into_inner());
         let answer = match state.1.take() {
             Some(answer) => answer,
-            None if self.abort.load(Ordering::Relaxed) => {
+            None if self.abort.is_set() => {
                 state.0 = None;
                 Answer {
                     proceed: false,
@@ -110,7 +110,7 @@ pub struct ActiveRun {
     pub run_id: String,
     /// Who started it.
     pub started_by: String,
-    abort: Arc<AtomicBool>,
+    abort: AbortFlag,
     pause: Arc<AtomicBool>,
     prompt: Arc<PromptSlot>,
     finished: Arc<AtomicBool>,
@@ -220,9 +220,12 @@ impl Runner {
                     dir.display()
                 ))
             })?;
-        let bench = connect_bench(&station, Some(&dir))
-            .map_err(|e| StartError::Hardware(format!("{e:#}")))?;
-        let abort = Arc::new(AtomicBool::new(false));
+        let bench = connect_bench(&station, Some(&dir)).map_err(|e| {
+            // Nothing ran: leave no run directory behind.
+            let _ = std::fs::remove_dir_all(&dir);
+            StartError::Hardware(format!("{e:#}"))
+        })?;
+        let abort = AbortFlag::new();
         let pause = Arc::new(AtomicBool::new(false));
         let prompt = Arc::new(PromptSlot::default());
         let finished = Arc::new(AtomicBool::new(false));
@@ -303,22 +306,27 @@ impl Runner {
         })
     }
 
-    /// Abort the active run (the engine brings the station to its safe state).
-    pub fn abort(&self) -> Result<String, String> {
+    /// Abort the active run (the engine brings the station to its safe
+    /// state); `by` is recorded as who aborted.
+    pub fn abort(&self, by: &str) -> Result<String, String> {
         self.with_active(|a| {
-            a.abort.store(true, Ordering::Relaxed);
+            a.abort.request(by);
             a.run_id.clone()
         })
     }
 
-    /// Abort whatever runs and wait for it to reach the safe state (server shutdown).
-    pub fn shutdown(&self) {
-        let _ = self.abort();
-        for _ in 0..300 {
+    /// Abort whatever runs (recording `why`) and wait, at most `limit`, for
+    /// it to reach the safe state and be recorded (server shutdown). True
+    /// when no run is active any more.
+    pub fn shutdown(&self, why: &str, limit: Duration) -> bool {
+        let _ = self.abort(why);
+        let until = std::time::Instant::now() + limit;
+        while std::time::Instant::now() < until {
             if self.active().is_none() {
-                return;
+                return true;
             }
-            std::thread::sleep(Duration::from_millis(100));
+            std::thread::sleep(Duration::from_millis(50));
         }
+        self.active().is_none()
     }
 }

@@ -29,6 +29,25 @@ pub struct Server {
     pub base: String,
 }
 
+impl Server {
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Wait at most `limit` for the server to exit; its status if it did.
+    pub fn wait_exit(&mut self, limit: std::time::Duration) -> Option<std::process::ExitStatus> {
+        let until = std::time::Instant::now() + limit;
+        while std::time::Instant::now() < until {
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Some(status);
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        None
+    }
+}
+
 impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.child.kill();
@@ -53,6 +72,11 @@ pub fn add_user(data: &Path, name: &str, role: &str, password: &str) {
 
 /// Start `spinbench serve --simulate` on a free loopback port.
 pub fn serve(data: &Path, sim_speed: &str) -> Server {
+    serve_with(data, sim_speed, &[])
+}
+
+/// As [`serve`], with more options.
+pub fn serve_with(data: &Path, sim_speed: &str, extra: &[&str]) -> Server {
     let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
         .args([
             "serve",
@@ -64,6 +88,7 @@ pub fn serve(data: &Path, sim_speed: &str) -> Server {
             "--data",
         ])
         .arg(data)
+        .args(extra)
         .stdout(Stdio::piped())
         .stderr(Stdio::inherit())
         .spawn()

@@ -1,0 +1,103 @@
+//! The named bounds every number from outside (plans, station configs) is
+//! checked against before anything is allocated or moved in proportion to
+//! it: finite, of the right sign, and within a bound whose name the error
+//! gives, so the user can see which limit was hit.
+
+use std::ops::RangeInclusive;
+
+/// Highest range or level of a plan [g] (well above any centrifuge test of
+/// a VBA; the station's rate limit and fixtures' rating are checked after).
+pub const MAX_LEVEL_G: f64 = 1_000.0;
+/// Most levels in a plan.
+pub const MAX_LEVELS: usize = 500;
+/// Longest warm-up [s] (one day).
+pub const MAX_WARMUP_S: f64 = 86_400.0;
+/// Longest dwell at one level, and the longest adaptive dwell [s] (one hour).
+pub const MAX_DWELL_S: u32 = 3_600;
+/// Longest hold and the longest wait for stability at a level [s] (one day).
+pub const MAX_SETTLE_S: u32 = 86_400;
+/// Most restarts of a point after rate excursions.
+pub const MAX_RESTARTS: u32 = 1_000;
+/// Widest rate tolerance [ppm] (1 %).
+pub const MAX_RATE_TOLERANCE_PPM: f64 = 10_000.0;
+/// Largest drift, noise and standard-error thresholds [µg] or [µg/s] (1 g).
+pub const MAX_UG: f64 = 1e6;
+/// Largest k2 limit [µg/g²] and other figure limits [ppm, µg].
+pub const MAX_FIGURE_LIMIT: f64 = 1e6;
+/// Longest serial number, plan name or operator name [characters].
+pub const MAX_NAME_CHARS: usize = 200;
+/// Highest instrument rail voltage [V].
+pub const MAX_RAIL_V: f64 = 60.0;
+/// Highest rail current limit [A].
+pub const MAX_RAIL_A: f64 = 20.0;
+/// Highest current one instrument may draw [A].
+pub const MAX_INSTRUMENT_A: f64 = 1.0;
+/// Longest arm radius [m].
+pub const MAX_ARM_RADIUS_M: f64 = 10.0;
+/// Highest fixture rating [g].
+pub const MAX_ARM_G: f64 = 10_000.0;
+/// Most counter modules on one station.
+pub const MAX_MODULES: usize = 64;
+
+/// Check that `value` is finite and inside `range` (bounds named `bound`),
+/// in `unit`; the error says what was given and what is allowed.
+pub fn check(
+    value: f64,
+    range: RangeInclusive<f64>,
+    unit: &str,
+    bound: &str,
+) -> Result<(), String> {
+    if !value.is_finite() {
+        return Err(format!(
+            "{value} is not a number; give a finite value from {} to {} {unit}",
+            range.start(),
+            range.end()
+        ));
+    }
+    if !range.contains(&value) {
+        return Err(format!(
+            "{value} {unit} is outside {} to {} {unit} ({bound})",
+            range.start(),
+            range.end()
+        ));
+    }
+    Ok(())
+}
+
+/// As [`check`], for a value that must be above zero (zero excluded).
+pub fn check_positive(value: f64, max: f64, unit: &str, bound: &str) -> Result<(), String> {
+    check(value, 0.0..=max, unit, bound)?;
+    if value <= 0.0 {
+        return Err(format!("{value} {unit}: must be above 0"));
+    }
+    Ok(())
+}
+
+/// A name from outside shortened for an error message (at most 60 characters).
+pub fn shown(name: &str) -> String {
+    const SHOWN: usize = 60;
+    let mut chars = name.chars();
+    let head: String = chars.by_ref().take(SHOWN).collect();
+    if chars.next().is_some() {
+        format!("{head}… ({} characters)", name.chars().count())
+    } else {
+        head
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn non_finite_negative_and_huge_values_are_refused_with_the_bound() {
+        assert!(check(f64::NAN, 0.0..=1.0, "s", "B").is_err());
+        assert!(check(f64::INFINITY, 0.0..=1.0, "s", "B").is_err());
+        let e = check(2.0, 0.0..=1.0, "s", "MAX_B").expect_err("above");
+        assert!(e.contains("MAX_B"), "{e}");
+        assert!(check_positive(0.0, 1.0, "A", "B").is_err());
+        assert!(check_positive(0.5, 1.0, "A", "B").is_ok());
+        assert_eq!(shown("abc"), "abc");
+        assert!(shown(&"x".repeat(1000)).ends_with("(1000 characters)"));
+    }
+}

@@ -1,0 +1,288 @@
+//! `spinbench serve` on a plant network, tried as an attacker would:
+//! failed logins bounded, throttled and audited; slow, idle and surplus
+//! connections closed; and a SIGTERM while a run spins and a browser holds
+//! the event stream stops the run first, then the streams, in bounded time.
+
+#[path = "common/web.rs"]
+mod web;
+
+use serde_json::{Value, json};
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::time::{Duration, Instant};
+use web::{Client, add_user, serve, serve_with};
+
+fn login_body(user: &str, password: &str) -> String {
+    json!({"user": user, "password": password}).to_string()
+}
+
+#[test]
+fn failed_logins_are_bounded_throttled_and_audited() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    add_user(dir.path(), "ana", "admin", "ana-password");
+    let server = serve(dir.path(), "0");
+    let mut anon = Client::new(&server);
+    let db = dir.path().join("spinbench.db");
+    let size = |p: &std::path::Path| {
+        ["", "-wal"]
+            .iter()
+            .map(|s| std::fs::metadata(format!("{}{s}", p.display())).map_or(0, |m| m.len()))
+            .sum::<u64>()
+    };
+    let before = size(&db);
+    // Huge names: refused before anything is stored.
+    let huge = login_body(&"x".repeat(1_900_000), "whatever");
+    let addr = server.base.trim_start_matches("http://").to_string();
+    for _ in 0..20 {
+        // The server answers 413 and closes before the body is all sent.
+        let status = post_raw(&addr, "/api/login", &huge);
+        assert!(
+            status.is_none_or(|s| s == 413 || s == 400),
+            "status {status:?}"
+        );
+    }
+    // A name that fits the body limit but cannot be a user's: a short prefix only.
+    let long = "y".repeat(3_000);
+    let r = anon.send("POST", "/api/login", Some(&login_body(&long, "whatever")));
+    assert_eq!(r.status, 401);
+    assert!(
+        size(&db) < before + 200_000,
+        "the store grew by {} bytes",
+        size(&db) - before
+    );
+    // Guessing a password: locked after five failures, with Retry-After.
+    for i in 0..5 {
+        let r = anon.send("POST", "/api/login", Some(&login_body("admin", "guess")));
+        assert_eq!(r.status, 401, "guess {i}");
+    }
+    let r = anon.send(
+        "POST",
+        "/api/login",
+        Some(&login_body("admin", "admin-password")),
+    );
+    assert_eq!(r.status, 429, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("try again")),
+        "{:?}",
+        r.json()
+    );
+    // Others still log in from the same address.
+    let mut ana = Client::login(&server, "ana", "ana-password");
+    let audit = ana.get_json("/api/audit", 200);
+    let rows = audit.as_array().expect("audit rows");
+    assert!(
+        rows.iter().any(|r| r["action"] == "login locked"),
+        "{audit}"
+    );
+    for r in rows {
+        let who = r["who"].as_str().unwrap_or_default();
+        assert!(who.len() < 200, "an audit entry of {} bytes", who.len());
+    }
+}
+
+#[test]
+fn the_retry_after_header_is_sent_with_429() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    let server = serve(dir.path(), "0");
+    for _ in 0..5 {
+        let mut c = Client::new(&server);
+        c.send("POST", "/api/login", Some(&login_body("admin", "guess")));
+    }
+    let mut stream = TcpStream::connect(server.base.trim_start_matches("http://")).expect("tcp");
+    let body = login_body("admin", "guess");
+    write!(
+        stream,
+        "POST /api/login HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    )
+    .expect("send");
+    let mut reply = String::new();
+    stream.read_to_string(&mut reply).expect("reply");
+    assert!(reply.starts_with("HTTP/1.1 429"), "{reply}");
+    let retry = reply
+        .lines()
+        .find_map(|l| {
+            l.to_ascii_lowercase()
+                .strip_prefix("retry-after: ")
+                .map(str::to_string)
+        })
+        .expect("Retry-After");
+    assert!(
+        retry
+            .trim()
+            .parse::<u64>()
+            .is_ok_and(|s| (1..=60).contains(&s)),
+        "{retry}"
+    );
+}
+
+/// POST `body` on a connection of its own; the status, if an answer came.
+fn post_raw(addr: &str, path: &str, body: &str) -> Option<u16> {
+    let mut stream = TcpStream::connect(addr).expect("connect");
+    let _ = stream.set_read_timeout(Some(Duration::from_secs(10)));
+    let _ = write!(
+        stream,
+        "POST {path} HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    let _ = stream.write_all(body.as_bytes());
+    let mut reply = Vec::new();
+    let _ = stream.read_to_end(&mut reply);
+    let text = String::from_utf8_lossy(&reply);
+    text.split(' ').nth(1).and_then(|s| s.parse().ok())
+}
+
+/// True when the server closed the connection within `limit`.
+fn closed_within(stream: &mut TcpStream, limit: Duration) -> bool {
+    let until = Instant::now() + limit;
+    let mut buf = [0u8; 4096];
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(200)));
+    while Instant::now() < until {
+        match stream.read(&mut buf) {
+            Ok(0) => return true,
+            // A 408 or similar before the close is fine; keep reading.
+            Ok(_) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(_) => return true,
+        }
+    }
+    false
+}
+
+#[test]
+fn slow_idle_and_surplus_connections_are_closed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = serve_with(
+        dir.path(),
+        "0",
+        &[
+            "--header-timeout-s",
+            "1",
+            "--idle-timeout-s",
+            "2",
+            "--max-connections",
+            "40",
+        ],
+    );
+    let addr = server.base.trim_start_matches("http://").to_string();
+    let mut slow = Vec::new();
+    let mut idle = Vec::new();
+    for _ in 0..15 {
+        let mut s = TcpStream::connect(&addr).expect("connect");
+        s.write_all(b"GET /api/status HTTP/1.1\r\nHost: x\r\n")
+            .expect("half a header");
+        slow.push(s);
+        idle.push(TcpStream::connect(&addr).expect("connect"));
+    }
+    // Over the cap: closed at once.
+    let mut surplus: Vec<TcpStream> = (0..20)
+        .map(|_| TcpStream::connect(&addr).expect("connect"))
+        .collect();
+    let mut closed_surplus = 0;
+    for s in &mut surplus {
+        if closed_within(s, Duration::from_millis(500)) {
+            closed_surplus += 1;
+        }
+    }
+    assert!(
+        closed_surplus >= 10,
+        "only {closed_surplus} of 20 surplus connections closed"
+    );
+    for (i, s) in slow.iter_mut().enumerate() {
+        assert!(
+            closed_within(s, Duration::from_secs(5)),
+            "slow-header connection {i} still open"
+        );
+    }
+    for (i, s) in idle.iter_mut().enumerate() {
+        assert!(
+            closed_within(s, Duration::from_secs(5)),
+            "idle connection {i} still open"
+        );
+    }
+    // The server still serves.
+    let mut c = Client::new(&server);
+    assert_eq!(c.send("GET", "/api/openapi.json", None).status, 200);
+}
+
+#[test]
+fn sigterm_stops_the_run_then_the_event_streams_in_bounded_time() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(
+        dir.path().join("plans").join("long.toml"),
+        "name = \"long\"\nrange_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\n\
+         warmup_s = 0\ndwell = { seconds = 60 }\nstability = { hold_s = 3 }\n[serials]\n1 = \"T-1\"\n",
+    )
+    .expect("plan");
+    let mut server = serve(dir.path(), "20");
+    let mut op = Client::login(&server, "op", "op-password");
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "long"}"#));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    // Answer the prompts until the table turns.
+    let until = Instant::now() + Duration::from_secs(120);
+    loop {
+        let s: Value = op.get_json("/api/status", 200);
+        if s["rate_deg_s"].as_f64().is_some_and(|r| r > 100.0) {
+            break;
+        }
+        if s["prompt"].is_string() {
+            op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+        }
+        assert!(Instant::now() < until, "the table never turned: {s}");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // A browser holds the event stream.
+    let mut stream = TcpStream::connect(server.base.trim_start_matches("http://")).expect("tcp");
+    write!(
+        stream,
+        "GET /api/events HTTP/1.1\r\nHost: x\r\nCookie: {}\r\nAccept: text/event-stream\r\n\r\n",
+        op.cookie.clone().unwrap_or_default()
+    )
+    .expect("events");
+    let mut first = [0u8; 64];
+    stream.read_exact(&mut first).expect("the stream flows");
+    let signalled = Instant::now();
+    let kill = std::process::Command::new("kill")
+        .args(["-TERM", &server.pid().to_string()])
+        .status()
+        .expect("kill");
+    assert!(kill.success());
+    let status = server.wait_exit(Duration::from_secs(30));
+    assert!(
+        status.is_some(),
+        "serve did not exit within 30 s of SIGTERM"
+    );
+    assert!(
+        closed_within(&mut stream, Duration::from_secs(2)),
+        "the event stream stayed open"
+    );
+    eprintln!(
+        "serve exited {:.1} s after SIGTERM",
+        signalled.elapsed().as_secs_f64()
+    );
+    let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::File(
+        dir.path().join("spinbench.db"),
+    ))
+    .expect("store");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0].reason);
+    assert!(
+        runs[0]
+            .reason
+            .as_deref()
+            .is_some_and(|r| r.contains("SIGTERM")),
+        "{:?}",
+        runs[0].reason
+    );
+}
