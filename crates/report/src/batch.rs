@@ -116,6 +116,22 @@ impl BatchReport {
         let count = |o: &str| self.tests.iter().filter(|t| t.outcome == o).count();
         (count("pass"), count("marginal"), count("fail"))
     }
+
+    /// Tests whose run ended before they were measured whole (never graded).
+    pub fn incomplete(&self) -> usize {
+        self.tests
+            .iter()
+            .filter(|t| t.outcome == "incomplete")
+            .count()
+    }
+
+    /// ", N incomplete" when there are any, for the totals line.
+    pub fn incomplete_note(&self) -> String {
+        match self.incomplete() {
+            0 => String::new(),
+            n => format!(", {n} incomplete (not graded, not in the statistics)"),
+        }
+    }
 }
 
 /// Read the batch from the store: the runs named, or every run when none is.
@@ -155,12 +171,19 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
             });
         }
     }
+    // An incomplete test (its run aborted or faulted before it was measured
+    // whole) is listed, but its partial figures enter no statistics.
+    let measured: Vec<BatchTest> = tests
+        .iter()
+        .filter(|t| t.outcome != "incomplete")
+        .cloned()
+        .collect();
     let distributions = FIGURES
         .iter()
-        .filter_map(|(name, unit, value)| distribution(name, unit, &tests, *value))
+        .filter_map(|(name, unit, value)| distribution(name, unit, &measured, *value))
         .collect();
     let mut by_serial: BTreeMap<&str, Vec<&BatchTest>> = BTreeMap::new();
-    for t in &tests {
+    for t in &measured {
         by_serial.entry(&t.serial).or_default().push(t);
     }
     let repeats = by_serial
@@ -493,7 +516,7 @@ pub fn batch_html(b: &BatchReport) -> String {
     );
     h.push_str(&format!(
         "<h1>Batch report</h1>\n<p id=\"totals\">{} runs, {} instrument tests, {} serial numbers: \
-         {pass} pass, {marginal} marginal, {fail} fail.</p>\n",
+         {pass} pass, {marginal} marginal, {fail} fail{}.</p>\n",
         b.runs.len(),
         b.tests.len(),
         b.tests
@@ -501,6 +524,7 @@ pub fn batch_html(b: &BatchReport) -> String {
             .map(|t| &t.serial)
             .collect::<std::collections::BTreeSet<_>>()
             .len(),
+        b.incomplete_note(),
     ));
     h.push_str("<h2>Distributions</h2>\n");
     html_table(

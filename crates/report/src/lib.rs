@@ -417,7 +417,7 @@ pub fn html(report: &RunReport) -> String {
     h.push_str(
         "<style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
          table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #999;padding:2px 6px;text-align:right}\
-         th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}\
+         th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}.incomplete{color:#555;font-style:italic}\
          section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
     );
     h.push_str(&format!(

@@ -822,10 +822,11 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
     let (pass, marginal, fail) = b.outcomes();
     let serials: BTreeSet<&str> = b.tests.iter().map(|t| t.serial.as_str()).collect();
     let totals = format!(
-        "{} runs, {} instrument tests, {} serial numbers: {pass} pass, {marginal} marginal, {fail} fail",
+        "{} runs, {} instrument tests, {} serial numbers: {pass} pass, {marginal} marginal, {fail} fail{}",
         b.runs.len(),
         b.tests.len(),
-        serials.len()
+        serials.len(),
+        b.incomplete_note()
     );
     c.text(MARGIN_MM, y, 9.0, &totals, Align::Left);
     if let (Some(first), Some(last)) = (b.runs.first(), b.runs.last()) {

@@ -338,6 +338,10 @@ fn control_command(world: &mut World, line: &str) -> Option<String> {
     })
 }
 
+/// Ticks a pass steps at speed 0 while no module streams (20 ms of bench
+/// time, about the longest idle sleep: the idle bench keeps real time).
+const IDLE_TICKS_PER_PASS: u64 = 8;
+
 /// How long a thread that found nothing to do sleeps: 200 µs at first,
 /// doubling up to 20 ms while it stays idle, back to 200 µs on progress.
 struct IdleBackoff(Duration);
@@ -378,12 +382,20 @@ fn run_clock(
         while !stop.load(Ordering::Relaxed) {
             let due = (start.elapsed().as_secs_f64() * pace / TICK_S) as u64;
             let mut stepped = 0;
+            let mut streamed = false;
             while ticks_done < due && stepped < 400 {
                 // As fast as read: wait while any module has a full buffer.
                 if speed == 0.0 && buffers.iter().any(|b| lock(b).len() > MODULE_BUFFER_LIMIT) {
                     break;
                 }
+                // As fast as read, but no module streams (no station, or one
+                // that has not started them): nothing paces the bench, so it
+                // idles at about real time instead of racing on a core.
+                if speed == 0.0 && !streamed && stepped >= IDLE_TICKS_PER_PASS {
+                    break;
+                }
                 let out = lock(&world).step();
+                streamed |= out.iter().any(|bytes| !bytes.is_empty());
                 for (bytes, buffer) in out.iter().zip(&buffers) {
                     let mut b = lock(buffer);
                     if speed > 0.0 && b.len() > MODULE_BUFFER_LIMIT {
@@ -407,7 +419,7 @@ fn run_clock(
             // As fast as read, the buffers are small: look again soon, but
             // back off while nobody reads (an idle station must not cost a core).
             thread::sleep(if speed == 0.0 {
-                idle.next(stepped > 0)
+                idle.next(streamed)
             } else {
                 Duration::from_millis(1)
             });
