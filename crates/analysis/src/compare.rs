@@ -16,15 +16,15 @@
 
 use crate::lsq::{self, FitStats};
 use crate::{AnalysisError, UG_PER_G};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One candidate model's fit.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Candidate {
     /// Short name: `poly1`, `poly2`, `poly3`, `exp` or `log`.
-    pub model: &'static str,
+    pub model: String,
     /// The model's formula.
-    pub formula: &'static str,
+    pub formula: String,
     /// Number of fitted parameters.
     pub parameters: usize,
     /// RMS residual [output units].
@@ -46,10 +46,10 @@ pub struct Candidate {
 }
 
 /// Candidates ranked best first.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ModelComparison {
     /// The ranking criterion: `"aicc"`, or `"aic"` when some candidate has too few points for AICc.
-    pub criterion: &'static str,
+    pub criterion: String,
     /// The candidates, best first.
     pub candidates: Vec<Candidate>,
     /// Candidates that could not be fitted, with the reason.
@@ -67,24 +67,26 @@ pub fn compare_models(
     let mut fitted: Vec<(Candidate, FitStats)> = Vec::new();
     let mut skipped = Vec::new();
     let mut push =
-        |model, formula, result: Result<(Vec<f64>, FitStats), AnalysisError>| match result {
-            Ok((params, stats)) => fitted.push((
-                Candidate {
-                    model,
-                    formula,
-                    parameters: stats.parameters,
-                    residual_rms: stats.residual_rms,
-                    residual_rms_ug: stats.residual_rms / k1_abs * UG_PER_G,
-                    aic: stats.aic,
-                    aicc: stats.aicc,
-                    bic: stats.bic,
-                    delta: 0.0,
-                    weight: 0.0,
-                    parameters_fitted: params,
-                },
-                stats,
-            )),
-            Err(e) => skipped.push(format!("{model}: {e}")),
+        |model: &str, formula: &str, result: Result<(Vec<f64>, FitStats), AnalysisError>| {
+            match result {
+                Ok((params, stats)) => fitted.push((
+                    Candidate {
+                        model: model.to_string(),
+                        formula: formula.to_string(),
+                        parameters: stats.parameters,
+                        residual_rms: stats.residual_rms,
+                        residual_rms_ug: stats.residual_rms / k1_abs * UG_PER_G,
+                        aic: stats.aic,
+                        aicc: stats.aicc,
+                        bic: stats.bic,
+                        delta: 0.0,
+                        weight: 0.0,
+                        parameters_fitted: params,
+                    },
+                    stats,
+                )),
+                Err(e) => skipped.push(format!("{model}: {e}")),
+            }
         };
     for (degree, model, formula) in [
         (1, "poly1", "b0 + b1·a"),
@@ -142,7 +144,7 @@ pub fn compare_models(
             .then(a.parameters.cmp(&b.parameters))
     });
     Ok(ModelComparison {
-        criterion: if use_aicc { "aicc" } else { "aic" },
+        criterion: if use_aicc { "aicc" } else { "aic" }.to_string(),
         candidates,
         skipped,
     })
@@ -285,7 +287,10 @@ mod tests {
             "{:?}",
             cmp.candidates[0]
         );
-        assert_eq!(cmp.candidates.last().map(|c| c.model), Some("poly1"));
+        assert_eq!(
+            cmp.candidates.last().map(|c| c.model.as_str()),
+            Some("poly1")
+        );
         assert_eq!(cmp.criterion, "aicc");
     }
 }

@@ -4,7 +4,7 @@
 use crate::lsq;
 use crate::points::{Mount, Point, levels_of};
 use crate::{AnalysisError, PPM, UG_PER_G};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Scale-factor asymmetry: (|K+| − |K−|) / mean(|K+|, |K−|) [ppm], from the
 /// scale factors of the P (+a) and N (−a) mountings.
@@ -15,7 +15,7 @@ pub fn asymmetry_ppm(k1_positive: f64, k1_negative: f64) -> Option<f64> {
 }
 
 /// Nonlinearity against the best straight line over full scale.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Nonlinearity {
     /// Largest deviation from the least-squares straight line, as acceleration [µg].
     pub max_deviation_ug: f64,
@@ -69,7 +69,7 @@ pub fn nonlinearity(points: &[Point], what: &str) -> Result<Nonlinearity, Analys
 }
 
 /// Hysteresis: the largest ascending − descending difference at one level.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Hysteresis {
     /// The difference with the largest magnitude, ascending minus descending,
     /// as acceleration (output difference / |k1|) [µg].

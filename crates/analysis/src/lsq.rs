@@ -8,7 +8,7 @@
 
 use crate::AnalysisError;
 use nalgebra::{DMatrix, DVector};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Singular values below this fraction of the largest mean a rank-deficient design.
 const RANK_TOLERANCE: f64 = 1e-12;
@@ -28,7 +28,7 @@ pub struct LinearFit {
 }
 
 /// Goodness-of-fit statistics of a least-squares fit.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct FitStats {
     /// Number of observations.
     pub n: usize,

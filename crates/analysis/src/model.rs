@@ -21,7 +21,7 @@ use crate::lsq::{self, FitStats};
 use crate::points::{Direction, Mount, Point};
 use crate::{AnalysisError, UG_PER_G};
 use nalgebra::{DMatrix, Matrix4};
-use serde::{Serialize, Serializer};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
 /// Polynomial order of the fitted model: 1 (k0, k1), 2 (+k2) or 3 (+k3).
@@ -68,6 +68,15 @@ impl Serialize for ModelOrder {
     }
 }
 
+impl<'de> Deserialize<'de> for ModelOrder {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let degree = u8::deserialize(d)?;
+        ModelOrder::from_degree(degree).ok_or_else(|| {
+            serde::de::Error::custom(format!("model order {degree} is not 1, 2 or 3"))
+        })
+    }
+}
+
 /// The output of method.md (2) at signed input `a_g` for coefficients
 /// `[k0_g, k1, k2, k3]` (k2 in 1/g, k3 in 1/g², not µg): the truth of simulations and tests.
 pub fn ieee1293_output(k: [f64; 4], a_g: f64) -> f64 {
@@ -85,7 +94,7 @@ pub enum Convention {
 }
 
 /// The four model coefficients with one kind of value each (value, error, interval).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Coefficients<T> {
     /// Bias [g].
     pub k0_g: T,
@@ -101,7 +110,7 @@ pub struct Coefficients<T> {
 pub type Interval = [f64; 2];
 
 /// One observation's residual from a fit.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Residual {
     /// Mounting of the point.
     pub mount: Mount,
@@ -120,7 +129,7 @@ pub struct Residual {
 }
 
 /// The result of fitting method.md (2) to a set of points.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Ieee1293Fit {
     /// Model order fitted.
     pub order: ModelOrder,
@@ -157,20 +166,37 @@ pub struct Ieee1293Fit {
     /// Residual of every point, in input order.
     pub residuals: Vec<Residual>,
     /// The fitted polynomial c0..c3 in output units (unused powers are 0).
-    #[serde(skip)]
+    /// Not serialized: a fit read back derives it from its coefficients.
+    #[serde(skip_serializing, default)]
     pub polynomial: [f64; 4],
 }
 
 impl Ieee1293Fit {
     /// The model's output at input acceleration `a_g` (in this fit's convention).
     pub fn predict(&self, a_g: f64) -> f64 {
-        let c = &self.polynomial;
+        let c = self.polynomial_coefficients();
         c[0] + a_g * (c[1] + a_g * (c[2] + a_g * c[3]))
+    }
+
+    /// c0..c3 in output units: as fitted, or, for a fit read back from JSON
+    /// (which does not carry them), from method.md (2)'s coefficients:
+    /// c0 = k1·k0, c1 = k1, c2 = k1·k2, c3 = k1·k3 (k2, k3 in 1/g, 1/g²).
+    pub fn polynomial_coefficients(&self) -> [f64; 4] {
+        if self.polynomial != [0.0; 4] {
+            return self.polynomial;
+        }
+        let per_g = |ug: Option<f64>| ug.unwrap_or(0.0) / UG_PER_G;
+        [
+            self.k1 * self.k0_g,
+            self.k1,
+            self.k1 * per_g(self.k2_ug_per_g2),
+            self.k1 * per_g(self.k3_ug_per_g3),
+        ]
     }
 }
 
 /// One mounting's fit, as the published station reports it (method.md §3.4).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MountingFit {
     /// The mounting fitted.
     pub mount: Mount,

@@ -61,6 +61,14 @@ impl Direction {
             _ => None,
         }
     }
+
+    /// Its serde name: `up` or `down`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Direction::Up => "up",
+            Direction::Down => "down",
+        }
+    }
 }
 
 /// One averaged point: n one-second outputs at one stable level.

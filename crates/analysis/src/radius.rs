@@ -6,10 +6,10 @@ use crate::AnalysisError;
 use crate::centrifuge::applied_acceleration_g;
 use crate::points::Mount;
 use crate::tumble::TumbleCalibration;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The radius found for one instrument in one mounting.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RadiusCalibration {
     /// Mounting the reading was taken in.
     pub mount: Mount,

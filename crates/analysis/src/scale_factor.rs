@@ -13,10 +13,10 @@ use crate::lsq;
 use crate::points::{Mount, Point, levels_of};
 use crate::{AnalysisError, PPM, UG_PER_G};
 use nalgebra::DMatrix;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One level's scale factor, method.md (10).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ScaleFactorPoint {
     /// Mounting of the level.
     pub mount: Mount,
@@ -33,7 +33,7 @@ pub struct ScaleFactorPoint {
 }
 
 /// The fitted scale-factor model (11) and its residual figures.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ScaleFactorModel {
     /// KA [output units / g].
     pub ka: f64,

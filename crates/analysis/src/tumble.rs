@@ -7,10 +7,10 @@
 use crate::lsq;
 use crate::{AnalysisError, model::student_t_975};
 use nalgebra::DMatrix;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Bias and scale factor from a tumble, in output units (method.md (5)).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TumbleCalibration {
     /// k0': the output at 0 g [output units].
     pub bias_output: f64,
@@ -55,7 +55,7 @@ impl TumbleCalibration {
 }
 
 /// One reading of a multi-position tumble.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TumbleReading {
     /// Rotation about the horizontal tumble axis from the IA-up position [deg].
     pub angle_deg: f64,
@@ -66,7 +66,7 @@ pub struct TumbleReading {
 /// A multi-position tumble fitted by least squares:
 /// `output(θ) = B + K1·cos(θ − δ) = B + K1·cos δ·cos θ + K1·sin δ·sin θ`,
 /// where δ is the input axis' misalignment in the plane of rotation.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MultiPositionTumble {
     /// Number of positions used.
     pub positions: usize,

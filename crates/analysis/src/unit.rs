@@ -12,7 +12,7 @@ use crate::model::{Convention, Ieee1293Fit, ModelOrder, MountingFit, fit_ieee129
 use crate::points::{Mount, Point, infer_directions};
 use crate::scale_factor::{ScaleFactorModel, scale_factor_model};
 use crate::{AnalysisError, UG_PER_G};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Choices that shape a reduction.
@@ -44,7 +44,7 @@ impl UnitPoints {
 }
 
 /// The full-range IEEE 1293 fit over signed input (method.md §3.4).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FullRangeFit {
     /// The mountings whose points were used.
     pub mounts: Vec<Mount>,
@@ -54,7 +54,7 @@ pub struct FullRangeFit {
 }
 
 /// Repeatability of one unit across several runs (method.md §3.4).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Repeatability {
     /// Number of runs compared.
     pub runs: usize,
@@ -65,7 +65,7 @@ pub struct Repeatability {
 }
 
 /// Scale-factor figures of merit of one unit.
-#[derive(Debug, Clone, PartialEq, Serialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct Figures {
     /// Scale-factor asymmetry between P (+a) and N (−a) [ppm]; needs both mountings.
     pub asymmetry_ppm: Option<f64>,
@@ -84,7 +84,7 @@ pub struct Figures {
 }
 
 /// Everything the reduction says about one unit.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct UnitAnalysis {
     /// Serial number.
     pub unit: String,
@@ -207,8 +207,40 @@ pub fn analyze_unit(
     })
 }
 
+/// The repeatability of one instrument over several runs (the one
+/// definition `analyze`, `spinbench unit` and the batch report use): per
+/// mounting, the spread of |k1| over the runs relative to its mean [ppm]
+/// and the spread of k0 [µg]; the larger of the two mountings. `None`
+/// with fewer than two runs of a mounting.
+pub fn repeatability_of(runs: &[&UnitAnalysis]) -> Option<Repeatability> {
+    let mut sf_ppm: Option<f64> = None;
+    let mut bias_ug: Option<f64> = None;
+    for mount in [Mount::P, Mount::N] {
+        let fits: Vec<&Ieee1293Fit> = runs
+            .iter()
+            .filter_map(|u| u.fits.get(&mount).map(|f| &f.fit))
+            .collect();
+        let k1: Vec<f64> = fits.iter().map(|f| f.k1.abs()).collect();
+        if let Some(r) = figures::repeatability_ppm(&k1) {
+            sf_ppm = Some(sf_ppm.map_or(r, |m| m.max(r)));
+        }
+        let k0: Vec<f64> = fits.iter().map(|f| f.k0_g).collect();
+        if k0.len() >= 2 {
+            let spread = k0.iter().copied().fold(f64::NEG_INFINITY, f64::max)
+                - k0.iter().copied().fold(f64::INFINITY, f64::min);
+            let ug = spread * UG_PER_G;
+            bias_ug = Some(bias_ug.map_or(ug, |m| m.max(ug)));
+        }
+    }
+    Some(Repeatability {
+        runs: runs.len(),
+        scale_factor_ppm: sf_ppm?,
+        bias_ug: bias_ug?,
+    })
+}
+
 /// The reduction of a batch.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DatasetAnalysis {
     /// Model order used.
     pub order: ModelOrder,
@@ -232,33 +264,10 @@ pub fn analyze_dataset(
         by_serial.entry(u.unit.clone()).or_default().push(i);
     }
     for indices in by_serial.values().filter(|ix| ix.len() >= 2) {
-        let mut sf_ppm: Option<f64> = None;
-        let mut bias_ug: Option<f64> = None;
-        for mount in [Mount::P, Mount::N] {
-            let fits: Vec<&Ieee1293Fit> = indices
-                .iter()
-                .filter_map(|&i| units[i].fits.get(&mount).map(|f| &f.fit))
-                .collect();
-            let k1: Vec<f64> = fits.iter().map(|f| f.k1.abs()).collect();
-            if let Some(r) = figures::repeatability_ppm(&k1) {
-                sf_ppm = Some(sf_ppm.map_or(r, |m| m.max(r)));
-            }
-            let k0: Vec<f64> = fits.iter().map(|f| f.k0_g).collect();
-            if k0.len() >= 2 {
-                let spread = k0.iter().copied().fold(f64::NEG_INFINITY, f64::max)
-                    - k0.iter().copied().fold(f64::INFINITY, f64::min);
-                let ug = spread * UG_PER_G;
-                bias_ug = Some(bias_ug.map_or(ug, |m| m.max(ug)));
-            }
-        }
-        if let (Some(scale_factor_ppm), Some(bias_ug)) = (sf_ppm, bias_ug) {
-            let rep = Repeatability {
-                runs: indices.len(),
-                scale_factor_ppm,
-                bias_ug,
-            };
+        let runs: Vec<&UnitAnalysis> = indices.iter().map(|&i| &units[i]).collect();
+        if let Some(rep) = repeatability_of(&runs) {
             for &i in indices {
-                units[i].figures.repeatability_ppm = Some(scale_factor_ppm);
+                units[i].figures.repeatability_ppm = Some(rep.scale_factor_ppm);
                 units[i].figures.repeatability = Some(rep.clone());
             }
         }

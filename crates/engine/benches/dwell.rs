@@ -8,10 +8,10 @@
 
 use spinbench_analysis::Mount;
 use spinbench_engine::plan::{DwellConfig, StabilityConfig};
-use spinbench_engine::sim_bench::{SimOperator, station_toml};
 use spinbench_engine::{Executor, RunOptions, RunState, StationConfig, TestPlan};
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::station::{SimOperator, station_toml};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};

@@ -2,7 +2,7 @@
 //! `[[power_supply]]` as the `devices` crate defines them), which supply
 //! feeds what, the arm, and local gravity. Errors name the key.
 
-use crate::executor::Bench;
+use crate::bench::Bench;
 use serde::Deserialize;
 use spinbench_devices::PowerSupply;
 use spinbench_devices::capture::RawCapture;
@@ -261,7 +261,7 @@ impl StationConfig {
             return err(
                 "g_local_m_s2",
                 format!(
-                    "{} m/s² is not a gravity on Earth (9.78–9.84)",
+                    "{} m/s² is not a gravity on Earth (expected 9.7 to 9.9; 9.78 at the equator to 9.84 at the poles)",
                     self.g_local_m_s2
                 ),
             );

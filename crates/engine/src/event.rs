@@ -1,13 +1,14 @@
 //! The typed event stream: everything the engine does, as it happens. The
-//! CLI, the journal (and later the store and the web UI) subscribe to it;
-//! none of them reaches into the drivers.
+//! CLI, the journal, the store and the web UI's hub subscribe to it; none
+//! of them reaches into the drivers. No event is dropped: a subscriber that
+//! cannot take one holds the run until it can (see the executor's `fanout`).
 
 use crate::plan::{CompiledPlan, Fixture};
 use crate::record::{PointRecord, UnitRecord};
 use serde::{Deserialize, Serialize};
 use spinbench_analysis::Mount;
 
-/// A run's state (an explicit table: see [`crate::executor`]).
+/// A run's state (the table is data: [`crate::executor::state::TRANSITIONS`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RunState {
@@ -126,6 +127,9 @@ pub enum Event {
         slot: usize,
         /// Why.
         reason: String,
+        /// Its stable code (`other` in journals written before codes existed).
+        #[serde(default)]
+        code: crate::record::ReasonCode,
     },
     /// The operator is asked to do something.
     Prompt {
@@ -176,7 +180,9 @@ pub enum Event {
 
 /// A subscriber to the event stream.
 pub trait EventSink {
-    /// Receive one event; an error stops the run (e.g. the journal cannot be written).
+    /// Receive one event. An error holds the run (state Paused, the ports
+    /// still read) and the same event is offered again every second until it
+    /// is taken, the run is aborted, or the hold limit passes (a fault).
     fn emit(&mut self, event: &Event) -> Result<(), String>;
 }
 

@@ -1,5 +1,6 @@
 //! The middle layer: everything between the drivers and the operator.
 //!
+//! * [`bench`] — the hardware of a station as the engine sees it (device traits);
 //! * [`abort`] — the abort request a run watches, with who or what asked;
 //! * [`bounds`] — the named bounds every number from outside is checked against;
 //! * [`config`] — the station config (TOML), validated with errors that name the key;
@@ -10,9 +11,9 @@
 //! * [`event`] — the typed event stream the CLI, journal, store and UI subscribe to;
 //! * [`journal`] — the append-only, flushed journal, and reading it back for resume;
 //! * [`record`] — per-instrument records with an outcome;
-//! * `sim_bench` (feature `sim`) — the virtual bench as a station: its config and its operator.
 
 pub mod abort;
+pub mod bench;
 pub mod bounds;
 pub mod config;
 pub mod event;
@@ -20,12 +21,10 @@ pub mod executor;
 pub mod journal;
 pub mod plan;
 pub mod record;
-#[cfg(feature = "sim")]
-pub mod sim_bench;
 
 pub use abort::AbortFlag;
 pub use config::StationConfig;
 pub use event::{Event, EventSink, RunState};
 pub use executor::{Answer, Bench, EngineError, Executor, Operator, RunOptions, RunSummary};
 pub use plan::{CompiledPlan, Fixture, TestPlan};
-pub use record::{Outcome, PointRecord, UnitRecord};
+pub use record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};

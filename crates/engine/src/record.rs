@@ -46,6 +46,145 @@ pub enum Outcome {
     Incomplete,
 }
 
+/// The stable code of a reason (its serde name is what is stored and sent).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ReasonCode {
+    /// No output from its resonators at the alive check.
+    Dead,
+    /// No output during a measuring step.
+    NoOutput,
+    /// Its own one-second scatter above `stability.noise_limit_ug`.
+    Noisy,
+    /// Its output kept drifting while the others settled.
+    Drifting,
+    /// The tumble could not calibrate it.
+    TumbleFailed,
+    /// Its radius could not be found.
+    RadiusFailed,
+    /// No point was taken.
+    NoPoints,
+    /// Its points could not be reduced.
+    CannotReduce,
+    /// |k2| above its limit.
+    K2OverLimit,
+    /// |k2| within the marginal band of its limit.
+    K2NearLimit,
+    /// Scale-factor nonlinearity above its limit.
+    NonlinearityOverLimit,
+    /// Nonlinearity within the marginal band.
+    NonlinearityNearLimit,
+    /// |Asymmetry| above its limit.
+    AsymmetryOverLimit,
+    /// |Asymmetry| within the marginal band.
+    AsymmetryNearLimit,
+    /// |Hysteresis| above its limit.
+    HysteresisOverLimit,
+    /// |Hysteresis| within the marginal band.
+    HysteresisNearLimit,
+    /// The model order has no k2 to judge.
+    NoK2,
+    /// A note of the reduction (a secondary result left out, and why).
+    AnalysisNote,
+    /// The run ended before its part of the plan was done.
+    Incomplete,
+    /// Anything else (and every reason of a record written before codes existed).
+    #[default]
+    Other,
+}
+
+/// One reason of an outcome: its code and its text. Reads a bare text (as
+/// records written before codes existed hold) with the code `other`.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(from = "ReasonStored")]
+pub struct Reason {
+    /// The stable code.
+    pub code: ReasonCode,
+    /// The text, for people.
+    pub text: String,
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum ReasonStored {
+    Coded { code: ReasonCode, text: String },
+    Text(String),
+}
+
+impl From<ReasonStored> for Reason {
+    fn from(stored: ReasonStored) -> Reason {
+        match stored {
+            ReasonStored::Coded { code, text } => Reason { code, text },
+            ReasonStored::Text(text) => Reason {
+                code: ReasonCode::Other,
+                text,
+            },
+        }
+    }
+}
+
+impl Reason {
+    /// A reason with its code.
+    pub fn new(code: ReasonCode, text: impl Into<String>) -> Reason {
+        Reason {
+            code,
+            text: text.into(),
+        }
+    }
+}
+
+/// A reason reads as its text (`reason.contains("noisy")`).
+impl std::ops::Deref for Reason {
+    type Target = str;
+    fn deref(&self) -> &str {
+        &self.text
+    }
+}
+
+/// Reasons join as texts (`record.reasons.join("; ")`).
+impl std::borrow::Borrow<str> for Reason {
+    fn borrow(&self) -> &str {
+        &self.text
+    }
+}
+
+impl std::fmt::Display for Reason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.text)
+    }
+}
+
+impl Outcome {
+    /// Every outcome.
+    pub const ALL: [Outcome; 4] = [
+        Outcome::Pass,
+        Outcome::Marginal,
+        Outcome::Fail,
+        Outcome::Incomplete,
+    ];
+
+    /// Its serde name, as stored and shown: `pass`, `marginal`, `fail`, `incomplete`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Outcome::Pass => "pass",
+            Outcome::Marginal => "marginal",
+            Outcome::Fail => "fail",
+            Outcome::Incomplete => "incomplete",
+        }
+    }
+
+    /// The outcome of its serde name.
+    pub fn parse(name: &str) -> Option<Outcome> {
+        Outcome::ALL.into_iter().find(|o| o.as_str() == name)
+    }
+}
+
+impl std::fmt::Display for Outcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.as_str())
+    }
+}
+
 /// Everything the station found for one instrument.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct UnitRecord {
@@ -62,12 +201,45 @@ pub struct UnitRecord {
     /// The averaged points.
     pub points: Vec<PointRecord>,
     /// The reduction (fits, figures), when it could be made.
-    #[serde(skip_deserializing)]
     pub analysis: Option<UnitAnalysis>,
     /// The larger |k2| of the mountings [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
     /// Pass, fail, marginal or incomplete.
     pub outcome: Outcome,
-    /// Why, when not a plain pass.
-    pub reasons: Vec<String>,
+    /// Why, when not a plain pass: a stable code (for a line's MES to
+    /// filter on) beside the text for people.
+    pub reasons: Vec<Reason>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outcome_names_are_their_serde_names() {
+        for o in Outcome::ALL {
+            let json = serde_json::to_string(&o).expect("json");
+            assert_eq!(json, format!("\"{}\"", o.as_str()));
+            assert_eq!(Outcome::parse(o.as_str()), Some(o));
+        }
+        assert_eq!(Outcome::parse("PASS"), None);
+    }
+
+    #[test]
+    fn reasons_carry_a_code_and_old_texts_read_as_other() {
+        let r = Reason::new(
+            ReasonCode::K2OverLimit,
+            "|k2| 21 µg/g² above the limit 20 µg/g²",
+        );
+        let json = serde_json::to_string(&r).expect("json");
+        assert!(json.contains(r#""code":"k2_over_limit""#), "{json}");
+        assert_eq!(serde_json::from_str::<Reason>(&json).expect("back"), r);
+        let old: Reason = serde_json::from_str(r#""noisy: 400 µg""#).expect("old text");
+        assert_eq!(old.code, ReasonCode::Other);
+        assert!(old.contains("noisy"));
+        assert_eq!(
+            [r, old].join("; "),
+            "|k2| 21 µg/g² above the limit 20 µg/g²; noisy: 400 µg"
+        );
+    }
 }

@@ -4,11 +4,11 @@
 
 use spinbench_analysis::Mount;
 use spinbench_engine::event::{Event, EventSink, RunState};
-use spinbench_engine::sim_bench::{SimOperator, station_toml};
 use spinbench_engine::{Bench, Executor, Outcome, RunOptions, RunSummary, StationConfig, TestPlan};
 use spinbench_sim::SimConfig;
 use spinbench_sim::config::SlotRef;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::station::{SimOperator, station_toml};
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -346,6 +346,35 @@ fn dead_and_noisy_instruments_fail_and_the_others_go_on() {
                 .all(|r| !r.contains("noisy") && !r.contains("no output"))
     );
     bench.shutdown();
+}
+
+#[test]
+fn a_units_record_with_its_analysis_reads_back_as_the_same_type() {
+    let (summary, _, bench) = run(SimConfig::default(), small_plan(), None);
+    bench.shutdown();
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    for record in &summary.records {
+        assert!(record.analysis.is_some());
+        let json = serde_json::to_string(record).expect("serialize");
+        let back: spinbench_engine::UnitRecord = serde_json::from_str(&json).expect("deserialize");
+        // Everything the JSON carries comes back; the fitted polynomial is
+        // derived again from the coefficients (it is not in the JSON).
+        assert_eq!(serde_json::to_string(&back).expect("again"), json);
+        let (a, b) = (
+            record.analysis.as_ref().expect("analysis"),
+            back.analysis.as_ref().expect("analysis read back"),
+        );
+        for (mount, fit) in &a.fits {
+            let other = &b.fits[mount].fit;
+            for g in [0.0, 10.0, 70.0] {
+                let (x, y) = (fit.fit.predict(g), other.predict(g));
+                assert!(
+                    (x - y).abs() <= 1e-9 * x.abs().max(1.0),
+                    "{mount} at {g} g: {x} vs {y}"
+                );
+            }
+        }
+    }
 }
 
 #[test]

@@ -5,7 +5,9 @@
 use crate::{ReportError, esc, fmt, unix_date};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::Value;
+use spinbench_analysis::UnitAnalysis;
+use spinbench_analysis::unit::repeatability_of;
+use spinbench_engine::Outcome;
 use spinbench_store::{RunRow, Store};
 use std::collections::BTreeMap;
 
@@ -18,8 +20,8 @@ pub struct BatchTest {
     pub started_at: i64,
     /// Serial number.
     pub serial: String,
-    /// pass, marginal or fail.
-    pub outcome: String,
+    /// Pass, marginal, fail or incomplete.
+    pub outcome: Outcome,
     /// k2_max [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
     /// k2 of the full-range IEEE 1293 fit (signed input) [µg/g²].
@@ -30,6 +32,8 @@ pub struct BatchTest {
     pub sf_nonlinearity_ppm: Option<f64>,
     /// Asymmetry [ppm].
     pub asymmetry_ppm: Option<f64>,
+    /// The whole reduction of the test, when it was made.
+    pub analysis: Option<UnitAnalysis>,
 }
 
 /// The figures whose distributions the batch report shows: (name, unit, value).
@@ -113,15 +117,19 @@ pub struct BatchReport {
 impl BatchReport {
     /// How many tests had each outcome: (pass, marginal, fail).
     pub fn outcomes(&self) -> (usize, usize, usize) {
-        let count = |o: &str| self.tests.iter().filter(|t| t.outcome == o).count();
-        (count("pass"), count("marginal"), count("fail"))
+        let count = |o: Outcome| self.tests.iter().filter(|t| t.outcome == o).count();
+        (
+            count(Outcome::Pass),
+            count(Outcome::Marginal),
+            count(Outcome::Fail),
+        )
     }
 
     /// Tests whose run ended before they were measured whole (never graded).
     pub fn incomplete(&self) -> usize {
         self.tests
             .iter()
-            .filter(|t| t.outcome == "incomplete")
+            .filter(|t| t.outcome == Outcome::Incomplete)
             .count()
     }
 
@@ -152,22 +160,27 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
     let mut tests = Vec::new();
     for run in &runs {
         for r in store.results(&run.id)? {
-            let record: Value =
-                serde_json::from_str(&r.record_json).map_err(|e| ReportError::Record {
-                    serial: r.serial.clone(),
-                    problem: e.to_string(),
-                })?;
-            let a = &record["analysis"];
+            let a = r.record.analysis;
             tests.push(BatchTest {
                 run_id: run.id.clone(),
                 started_at: run.started_at,
-                serial: r.serial.clone(),
-                outcome: r.outcome.clone(),
+                serial: r.serial,
+                outcome: r.outcome,
                 k2_max_ug_per_g2: r.k2_max_ug_per_g2,
-                k2_ug_per_g2: a["full_range"]["k2_ug_per_g2"].as_f64(),
-                k1_hz_per_g: a["full_range"]["k1"].as_f64(),
-                sf_nonlinearity_ppm: a["scale_factor"]["residual_max_ppm"].as_f64(),
-                asymmetry_ppm: a["figures"]["asymmetry_ppm"].as_f64(),
+                k2_ug_per_g2: a
+                    .as_ref()
+                    .and_then(|a| a.full_range.as_ref())
+                    .and_then(|f| f.fit.k2_ug_per_g2),
+                k1_hz_per_g: a
+                    .as_ref()
+                    .and_then(|a| a.full_range.as_ref())
+                    .map(|f| f.fit.k1),
+                sf_nonlinearity_ppm: a
+                    .as_ref()
+                    .and_then(|a| a.scale_factor.as_ref())
+                    .map(|s| s.residual_max_ppm),
+                asymmetry_ppm: a.as_ref().and_then(|a| a.figures.asymmetry_ppm),
+                analysis: a,
             });
         }
     }
@@ -175,7 +188,7 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
     // whole) is listed, but its partial figures enter no statistics.
     let measured: Vec<BatchTest> = tests
         .iter()
-        .filter(|t| t.outcome != "incomplete")
+        .filter(|t| t.outcome != Outcome::Incomplete)
         .cloned()
         .collect();
     let distributions = FIGURES
@@ -191,7 +204,6 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
         .filter(|(_, ts)| ts.len() > 1)
         .map(|(serial, ts)| {
             let k2: Vec<f64> = ts.iter().filter_map(|t| t.k2_max_ug_per_g2).collect();
-            let k1: Vec<f64> = ts.iter().filter_map(|t| t.k1_hz_per_g).collect();
             Repeat {
                 serial: serial.to_string(),
                 tests: ts.len(),
@@ -200,7 +212,13 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
                         - k2.iter().copied().fold(f64::INFINITY, f64::min)
                 }),
                 k2_max_ug_per_g2: k2,
-                k1_repeatability_ppm: spinbench_analysis::figures::repeatability_ppm(&k1),
+                // The one definition, as `analyze` and `spinbench unit` give it.
+                k1_repeatability_ppm: repeatability_of(
+                    &ts.iter()
+                        .filter_map(|t| t.analysis.as_ref())
+                        .collect::<Vec<_>>(),
+                )
+                .map(|r| r.scale_factor_ppm),
             }
         })
         .collect();
@@ -454,7 +472,7 @@ pub(crate) fn test_rows(b: &BatchReport) -> Vec<Vec<String>> {
                 t.run_id.clone(),
                 unix_date(t.started_at),
                 t.serial.clone(),
-                t.outcome.clone(),
+                t.outcome.as_str().to_string(),
             ];
             row.extend(
                 test_numbers(t)
@@ -476,7 +494,7 @@ pub fn batch_csv(b: &BatchReport) -> String {
             crate::csv_field(&t.run_id),
             t.started_at.to_string(),
             crate::csv_field(&t.serial),
-            t.outcome.clone(),
+            t.outcome.as_str().to_string(),
         ];
         cells.extend(
             test_numbers(t)
@@ -573,7 +591,7 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
             sheet.write_string(r, 0, &t.run_id)?;
             sheet.write_string(r, 1, unix_date(t.started_at))?;
             sheet.write_string(r, 2, &t.serial)?;
-            sheet.write_string(r, 3, &t.outcome)?;
+            sheet.write_string(r, 3, t.outcome.as_str())?;
             for (k, v) in test_numbers(t).iter().enumerate() {
                 if let Some(v) = v {
                     sheet.write_number(r, 4 + k as u16, *v)?;
@@ -630,12 +648,13 @@ mod tests {
             run_id: "r".into(),
             started_at: 0,
             serial: serial.into(),
-            outcome: "pass".into(),
+            outcome: Outcome::Pass,
             k2_max_ug_per_g2: Some(k2.abs()),
             k2_ug_per_g2: Some(k2),
             k1_hz_per_g: Some(100.0),
             sf_nonlinearity_ppm: None,
             asymmetry_ppm: None,
+            analysis: None,
         }
     }
 

@@ -100,12 +100,22 @@ impl ReportFormat {
 /// One instrument of a run.
 #[derive(Debug, Clone)]
 pub struct UnitReport {
-    /// The stored result row.
+    /// The stored result row, with the whole record as the engine wrote it.
     pub result: ResultRow,
-    /// The whole stored record.
-    pub record: Value,
     /// The instrument's points, in the order taken.
     pub points: Vec<PointRow>,
+}
+
+impl UnitReport {
+    /// The instrument's record.
+    pub fn record(&self) -> &spinbench_engine::UnitRecord {
+        &self.result.record
+    }
+
+    /// Its reasons in one line.
+    pub fn reasons_text(&self) -> String {
+        self.result.record.reasons.join("; ")
+    }
 }
 
 /// Everything a run's report shows.
@@ -128,11 +138,6 @@ pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
     let points = store.points(run_id)?;
     let mut units = Vec::new();
     for result in store.results(run_id)? {
-        let record: Value =
-            serde_json::from_str(&result.record_json).map_err(|e| ReportError::Record {
-                serial: result.serial.clone(),
-                problem: e.to_string(),
-            })?;
         let own = points
             .iter()
             .filter(|p| p.slot == result.slot)
@@ -140,7 +145,6 @@ pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
             .collect();
         units.push(UnitReport {
             result,
-            record,
             points: own,
         });
     }
@@ -192,43 +196,37 @@ pub struct SummaryRow {
 pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
     let mut rows = Vec::new();
     for u in &report.units {
-        let r = &u.record;
-        let analysis = &r["analysis"];
-        let mounts: Vec<String> = match analysis["fits"].as_object() {
-            Some(fits) if !fits.is_empty() => fits.keys().cloned().collect(),
-            _ => vec![String::new()],
-        };
-        for mount in mounts {
-            let fit = &analysis["fits"][&mount];
-            let ci = &fit["ci95"]["k2_ug_per_g2"];
+        let r = u.record();
+        let analysis = r.analysis.as_ref();
+        let fits: Vec<Option<(&spinbench_analysis::Mount, &spinbench_analysis::MountingFit)>> =
+            match analysis.map(|a| &a.fits) {
+                Some(fits) if !fits.is_empty() => fits.iter().map(Some).collect(),
+                _ => vec![None],
+            };
+        for entry in fits {
+            let mount = entry.map(|(m, _)| *m);
+            let fit = entry.map(|(_, f)| &f.fit);
             rows.push(SummaryRow {
                 serial: u.result.serial.clone(),
                 slot: u.result.slot + 1,
-                mount: mount.clone(),
-                radius_m: r["radius_m"][&mount].as_f64(),
-                drawing_radius_m: r["drawing_radius_m"].as_f64(),
-                k0_g: fit["k0_g"].as_f64(),
-                k1_hz_per_g: fit["k1"].as_f64(),
-                k2_ug_per_g2: fit["k2_ug_per_g2"].as_f64(),
-                k2_ci95_half_ug_per_g2: match (ci[0].as_f64(), ci[1].as_f64()) {
-                    (Some(a), Some(b)) => Some((b - a) / 2.0),
-                    _ => None,
-                },
-                k3_ug_per_g3: fit["k3_ug_per_g3"].as_f64(),
+                mount: mount.map(|m| m.to_string()).unwrap_or_default(),
+                radius_m: mount.and_then(|m| r.radius_m.get(&m).copied()),
+                drawing_radius_m: Some(r.drawing_radius_m),
+                k0_g: fit.map(|f| f.k0_g),
+                k1_hz_per_g: fit.map(|f| f.k1),
+                k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
+                k2_ci95_half_ug_per_g2: fit
+                    .and_then(|f| f.ci95.k2_ug_per_g2)
+                    .map(|[a, b]| (b - a) / 2.0),
+                k3_ug_per_g3: fit.and_then(|f| f.k3_ug_per_g3),
                 k2_max_ug_per_g2: u.result.k2_max_ug_per_g2,
-                sf_nonlinearity_ppm: analysis["scale_factor"]["residual_max_ppm"].as_f64(),
-                asymmetry_ppm: analysis["figures"]["asymmetry_ppm"].as_f64(),
-                hysteresis_ug: analysis["figures"]["hysteresis_ug"].as_f64(),
-                outcome: u.result.outcome.clone(),
-                reasons: r["reasons"]
-                    .as_array()
-                    .map(|v| {
-                        v.iter()
-                            .filter_map(Value::as_str)
-                            .collect::<Vec<_>>()
-                            .join("; ")
-                    })
-                    .unwrap_or_default(),
+                sf_nonlinearity_ppm: analysis
+                    .and_then(|a| a.scale_factor.as_ref())
+                    .map(|s| s.residual_max_ppm),
+                asymmetry_ppm: analysis.and_then(|a| a.figures.asymmetry_ppm),
+                hysteresis_ug: analysis.and_then(|a| a.figures.hysteresis_ug),
+                outcome: u.result.outcome.to_string(),
+                reasons: u.reasons_text(),
             });
         }
     }
@@ -474,8 +472,8 @@ pub fn html(report: &RunReport) -> String {
             "<section class=\"unit\"><h2>{} (slot {}) — <span class=\"{}\">{}</span></h2>\n",
             esc(&u.result.serial),
             u.result.slot + 1,
-            esc(&u.result.outcome),
-            esc(&u.result.outcome)
+            esc(u.result.outcome.as_str()),
+            esc(u.result.outcome.as_str())
         ));
         for svg in plots::UNIT_PLOTS.iter().filter_map(|p| p.svg(u)) {
             h.push_str("<figure>");

@@ -4,7 +4,6 @@
 use crate::UnitReport;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use serde_json::Value;
 
 /// Size of every plot [px]; the PDF maps it onto its page.
 pub(crate) const SIZE: (u32, u32) = (460, 320);
@@ -29,18 +28,19 @@ pub struct ResidualPoint {
 /// Every residual of the instrument's per-mounting fits.
 pub fn residuals(u: &UnitReport) -> Vec<ResidualPoint> {
     let mut out = Vec::new();
-    if let Some(fits) = u.record["analysis"]["fits"].as_object() {
-        for (mount, fit) in fits {
-            for r in fit["residuals"].as_array().into_iter().flatten() {
-                out.push(ResidualPoint {
-                    mount: mount.clone(),
-                    g_nominal: r["g_nominal"].as_f64().unwrap_or(f64::NAN),
-                    g_input: r["g_input"].as_f64().unwrap_or(f64::NAN),
-                    direction: r["direction"].as_str().unwrap_or("").to_string(),
-                    output: r["output"].as_f64().unwrap_or(f64::NAN),
-                    residual_ug: r["residual_ug"].as_f64().unwrap_or(f64::NAN),
-                });
-            }
+    let fits = u.record().analysis.as_ref().map(|a| &a.fits);
+    for (mount, fit) in fits.into_iter().flatten() {
+        for r in &fit.fit.residuals {
+            out.push(ResidualPoint {
+                mount: mount.to_string(),
+                g_nominal: r.g_nominal,
+                g_input: r.g_input,
+                direction: r
+                    .direction
+                    .map_or(String::new(), |d| d.as_str().to_string()),
+                output: r.output,
+                residual_ug: r.residual_ug,
+            });
         }
     }
     out
@@ -213,13 +213,9 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
 
 /// K1(a) (10) with its fit KA + KB·a + KC·a² (11).
 fn draw_k1_vs_g<DB: DrawingBackend>(u: &UnitReport, root: &DrawingArea<DB, Shift>) -> Option<()> {
-    let sf = &u.record["analysis"]["scale_factor"];
-    let pts: Vec<(f64, f64)> = sf["points"]
-        .as_array()?
-        .iter()
-        .filter_map(|p: &Value| Some((p["g_input"].as_f64()?, p["k1"].as_f64()?)))
-        .collect();
-    let (ka, kb, kc) = (sf["ka"].as_f64()?, sf["kb"].as_f64()?, sf["kc"].as_f64()?);
+    let sf = u.record().analysis.as_ref()?.scale_factor.as_ref()?;
+    let pts: Vec<(f64, f64)> = sf.points.iter().map(|p| (p.g_input, p.k1)).collect();
+    let (ka, kb, kc) = (sf.ka, sf.kb, sf.kc);
     let x = range(pts.iter().map(|p| p.0))?;
     let curve: Vec<(f64, f64)> = (0..=100)
         .map(|i| {

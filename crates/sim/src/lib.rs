@@ -13,6 +13,7 @@
 pub mod config;
 pub mod counter;
 pub mod serve;
+pub mod station;
 pub mod supply;
 pub mod table;
 pub mod vba;

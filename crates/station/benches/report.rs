@@ -6,11 +6,12 @@
 //!
 //! Run: `cargo bench -p spinbench-station --bench report`
 
-use spinbench_engine::sim_bench::SimOperator;
 use spinbench_engine::{StationConfig, TestPlan};
 use spinbench_report::ReportFormat;
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::station::SimOperator;
+use spinbench_station::run_setup::{RunDir, Setup, prepare};
 use spinbench_station::station_run::{RunControl, connect_bench, execute, sim_station_toml};
 use spinbench_store::{Store, StoreTarget};
 use std::time::Instant;
@@ -39,17 +40,23 @@ fn main() {
          warmup_s = 600\ndwell = {{ seconds = 3 }}\nstability = {{ hold_s = 3 }}\n[serials]\n{serials}"
     ))
     .expect("plan");
-    let run_dir = dir.path().join("runs").join("bench-run");
     let db = StoreTarget::File(dir.path().join("spinbench.db"));
     let started = Instant::now();
+    let prepared = prepare(Setup {
+        station_toml: sim_station_toml(&sim),
+        station,
+        plan,
+        plan_text: None,
+        dir: RunDir::create(dir.path()).expect("run directory"),
+        store: Some(db.clone()),
+    })
+    .expect("prepare");
+    let run_id = prepared.dir.id().to_string();
+    let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir())).expect("connect");
     let finished = execute(
-        &station,
-        &plan,
-        connect_bench(&station, Some(&run_dir)).expect("connect"),
+        prepared,
+        bench,
         Box::new(SimOperator::new(&sim, true)),
-        &run_dir,
-        &db,
-        false,
         true,
         RunControl::abort_only(spinbench_engine::AbortFlag::new()),
     )
@@ -57,7 +64,7 @@ fn main() {
     sim.shutdown();
     let run_s = started.elapsed().as_secs_f64();
     let store = Store::connect(&db).expect("store");
-    let run_id = "bench-run";
+    let run_id = run_id.as_str();
     assert_eq!(store.results(run_id).expect("results").len(), slots);
     println!(
         "{slots} instruments: the simulated run took {run_s:.1} s ({:?})",

@@ -51,7 +51,7 @@ pub enum Command {
         #[arg(long)]
         json: bool,
         /// Where runs are kept.
-        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,
         /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
         #[arg(long, value_parser = parse_store)]
@@ -74,7 +74,7 @@ pub enum Command {
         #[arg(long, value_name = "RUN_DIR")]
         resume: Option<PathBuf>,
         /// Where runs are kept.
-        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,
         /// Print only faults and the results.
         #[arg(long)]
@@ -139,7 +139,7 @@ pub enum Command {
         /// Run identifier (a directory under DATA/runs) or a run directory.
         run: String,
         /// Where runs are kept.
-        #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,
         /// The store (default DATA/spinbench.db).
         #[arg(long, value_parser = parse_store)]
@@ -294,7 +294,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             json,
             data,
             db,
-        } => crate::station_run::demo(seed, json, &data, db.as_ref(), out)?,
+        } => crate::demo::demo(seed, json, &data, db.as_ref(), out)?,
         Command::Run {
             plan,
             station,
@@ -365,14 +365,13 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             if history.is_empty() {
                 anyhow::bail!("{db}: no results for serial '{serial}'");
             }
-            let mut k1 = Vec::new();
             for h in &history {
-                let record: serde_json::Value =
-                    serde_json::from_str(&h.record_json).unwrap_or_default();
-                let p_k1 = record["analysis"]["fits"]["P"]["k1"].as_f64();
-                if let Some(v) = p_k1 {
-                    k1.push(v);
-                }
+                let p_k1 = h
+                    .record
+                    .analysis
+                    .as_ref()
+                    .and_then(|a| a.fits.get(&spinbench_analysis::Mount::P))
+                    .map(|f| f.fit.k1);
                 writeln!(
                     out,
                     "{:<28} slot {:>2} {:<9} k2_max {:>10} k1(P) {}",
@@ -383,11 +382,18 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                     p_k1.map_or("—".into(), |v| format!("{v:.6}"))
                 )?;
             }
-            match spinbench_analysis::figures::repeatability_ppm(&k1) {
+            // The one definition of repeatability (as `analyze` and the batch
+            // report give it), over the tests measured whole.
+            let measured: Vec<&spinbench_analysis::UnitAnalysis> = history
+                .iter()
+                .filter(|h| h.outcome != spinbench_engine::Outcome::Incomplete)
+                .filter_map(|h| h.record.analysis.as_ref())
+                .collect();
+            match spinbench_analysis::unit::repeatability_of(&measured) {
                 Some(r) => writeln!(
                     out,
-                    "scale-factor repeatability over {} runs: {r:.3} ppm",
-                    k1.len()
+                    "scale-factor repeatability over {} runs: {:.3} ppm (bias {:.1} µg)",
+                    r.runs, r.scale_factor_ppm, r.bias_ug
                 )?,
                 None => writeln!(out, "scale-factor repeatability: needs at least two runs")?,
             }
@@ -497,7 +503,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                     dir.parent()
                         .and_then(Path::parent)
                         .unwrap_or(&data)
-                        .join(crate::station_run::DB_FILE),
+                        .join(crate::run_setup::DB_FILE),
                 )
             });
             let store = open_store(&db)?;
@@ -557,11 +563,10 @@ fn run_plan(
     quiet: bool,
     out: &mut dyn Write,
 ) -> Result<()> {
-    use crate::station_run::{
-        SimOperator, TerminalOperator, connect_bench, execute, new_run_id, sim_station_toml,
-        start_sim,
-    };
+    use crate::run_setup::{RunDir, Setup, prepare};
+    use crate::station_run::{TerminalOperator, connect_bench, execute, sim_station_toml};
     use spinbench_engine::{AbortFlag, StationConfig, TestPlan};
+    use spinbench_sim::station::SimOperator;
     let plan_text = std::fs::read_to_string(plan_path)
         .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
     let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_path.display().to_string())?;
@@ -569,31 +574,15 @@ fn run_plan(
     // everything off and records the signal.
     let abort = AbortFlag::new();
     crate::signals::abort_on_termination_signals(abort.clone())?;
-    if let Some(d) = resume {
-        crate::station_run::check_resume(d, &plan)?;
-    }
-    let dir = match resume {
-        Some(d) => d.to_path_buf(),
-        None => data.join("runs").join(new_run_id()),
-    };
-    std::fs::create_dir_all(&dir)
-        .with_context(|| format!("{}: cannot create the run directory", dir.display()))?;
-    // A resumed run keeps writing to its own store: <data>/spinbench.db above <data>/runs/<id>.
-    let store = db.unwrap_or_else(|| {
-        StoreTarget::File(match resume {
-            Some(d) => d
-                .parent()
-                .filter(|p| p.file_name().is_some_and(|n| n == "runs"))
-                .and_then(Path::parent)
-                .unwrap_or(data)
-                .join(crate::station_run::DB_FILE),
-            None => data.join(crate::station_run::DB_FILE),
-        })
-    });
+    // A resumed run: only with its own plan; it keeps writing to its own store.
+    let resumed = resume.map(|d| RunDir::resume(d, &plan)).transpose()?;
     let sim;
-    let (station, operator): (StationConfig, Box<dyn spinbench_engine::Operator + '_>) = if simulate
-    {
-        let (bench, mut station) = start_sim(seed)?;
+    let (station, station_toml, operator): (
+        StationConfig,
+        String,
+        Box<dyn spinbench_engine::Operator + '_>,
+    ) = if simulate {
+        let (bench, mut station) = crate::demo::start_sim(seed)?;
         if let Some(p) = station_path {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("{}: cannot read the station config", p.display()))?;
@@ -602,41 +591,39 @@ fn run_plan(
             station.g_local_m_s2 = own.g_local_m_s2;
             station.station = own.station;
         }
-        std::fs::write(dir.join("station.toml"), sim_station_toml(&bench))?;
+        let text = sim_station_toml(&bench);
         sim = Some(bench);
         let bench_ref = sim.as_ref().context("virtual bench")?;
-        (station, Box::new(SimOperator::new(bench_ref, quiet)))
+        (station, text, Box::new(SimOperator::new(bench_ref, quiet)))
     } else {
         let p = station_path
             .context("--station CONFIG is needed (or --simulate for the virtual bench)")?;
         let text = std::fs::read_to_string(p)
             .with_context(|| format!("{}: cannot read the station config", p.display()))?;
-        std::fs::write(dir.join("station.toml"), &text)?;
         (
             StationConfig::from_toml(&text).with_context(|| p.display().to_string())?,
+            text,
             Box::new(TerminalOperator::default()),
         )
     };
+    let dir = match resumed {
+        Some(dir) => dir,
+        None => RunDir::create(data)?,
+    };
     // Refuse a plan that cannot run before anything is switched on.
-    if let Err(e) = plan.compile(&station) {
-        if resume.is_none() {
-            // Nothing ran: leave no run directory behind.
-            let _ = std::fs::remove_dir_all(&dir);
-        }
-        return Err(e.into());
-    }
-    if resume.is_none() {
-        std::fs::write(dir.join("plan.toml"), &plan_text)?;
-    }
-    let bench = connect_bench(&station, Some(&dir))?;
+    let prepared = prepare(Setup {
+        station,
+        station_toml,
+        plan,
+        plan_text: Some(plan_text),
+        dir,
+        store: db,
+    })?;
+    let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
     let finished = execute(
-        &station,
-        &plan,
+        prepared,
         bench,
         operator,
-        &dir,
-        &store,
-        resume.is_some(),
         quiet,
         crate::station_run::RunControl::abort_only(abort),
     )?;

@@ -104,46 +104,34 @@ fn write_xlsx(points: &[PointRow], results: &[ResultRow], run_id: &str, out: &Pa
     }
     let mut r = 1u32;
     for result in results {
-        let record: serde_json::Value = serde_json::from_str(&result.record_json)
-            .with_context(|| format!("the stored record of {}", result.serial))?;
-        let reasons = record["reasons"]
-            .as_array()
-            .map(|v| {
-                v.iter()
-                    .filter_map(|x| x.as_str())
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            })
-            .unwrap_or_default();
-        let fits: Vec<(&str, &serde_json::Value)> = ["P", "N"]
-            .iter()
-            .filter_map(|m| {
-                let f = &record["analysis"]["fits"][*m];
-                (!f.is_null()).then_some((*m, f))
-            })
-            .collect();
-        let rows: Vec<(&str, Option<&serde_json::Value>)> = if fits.is_empty() {
-            vec![("", None)]
-        } else {
-            fits.into_iter().map(|(m, f)| (m, Some(f))).collect()
-        };
-        for (mount, fit) in rows {
+        let record = &result.record;
+        let reasons = record.reasons.join("; ");
+        let fits: Vec<(String, Option<&spinbench_analysis::Ieee1293Fit>)> =
+            match record.analysis.as_ref().map(|a| &a.fits) {
+                Some(fits) if !fits.is_empty() => fits
+                    .iter()
+                    .map(|(m, f)| (m.to_string(), Some(&f.fit)))
+                    .collect(),
+                _ => vec![(String::new(), None)],
+            };
+        for (mount, fit) in fits {
             sheet.write_string(r, 0, &result.serial)?;
             sheet.write_number(r, 1, (result.slot + 1) as f64)?;
-            sheet.write_string(r, 2, mount)?;
-            sheet.write_string(r, 3, &result.outcome)?;
+            sheet.write_string(r, 2, &mount)?;
+            sheet.write_string(r, 3, result.outcome.as_str())?;
             if let Some(k) = result.k2_max_ug_per_g2 {
                 sheet.write_number(r, 4, k)?;
             }
             if let Some(f) = fit {
+                let ci = f.ci95.k2_ug_per_g2;
                 let numbers = [
-                    f["k0_g"].as_f64(),
-                    f["k1"].as_f64(),
-                    f["k2_ug_per_g2"].as_f64(),
-                    f["ci95"]["k2_ug_per_g2"][0].as_f64(),
-                    f["ci95"]["k2_ug_per_g2"][1].as_f64(),
-                    f["k3_ug_per_g3"].as_f64(),
-                    f["residual_rms_ug"].as_f64(),
+                    Some(f.k0_g),
+                    Some(f.k1),
+                    f.k2_ug_per_g2,
+                    ci.map(|c| c[0]),
+                    ci.map(|c| c[1]),
+                    f.k3_ug_per_g3,
+                    Some(f.residual_rms_ug),
                 ];
                 for (k, v) in numbers.iter().enumerate() {
                     if let Some(v) = v {

@@ -5,14 +5,21 @@
 //! * [`points_file`] — reading averaged points from CSV and spreadsheets;
 //! * [`render`] — the human-readable output of `spinbench analyze`;
 //! * [`replay`] — `spinbench replay`: a run's raw bytes through the decoder again, checked against the store;
-//! * [`station_run`] — `spinbench run` and `spinbench demo`: devices, engine, journal, results;
+//! * [`run_setup`] — one run set-up: the run directory, the plan compiled once, the store path;
+//! * [`station_run`] — a prepared run executed: engine, journal, store, results, report;
+//! * [`demo`] — `spinbench demo`: the virtual bench, a whole test, the truth beside it;
+//! * [`terminal`] — the operator at the terminal and the progress printer;
+//! * [`signals`] — SIGINT, SIGTERM and SIGHUP abort the run, naming the signal;
 //! * [`web`] — `spinbench serve`: the web UI and the HTTP API.
 
 pub mod cli;
+pub mod demo;
 pub mod export;
 pub mod points_file;
 pub mod render;
 pub mod replay;
+pub mod run_setup;
 pub mod signals;
 pub mod station_run;
+pub mod terminal;
 pub mod web;

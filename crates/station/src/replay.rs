@@ -121,7 +121,7 @@ pub fn replay(run_dir: &Path, store: &Store) -> Result<ReplayReport> {
     let mut replayed: Vec<ReplayedWindows> = Vec::new();
     for (m, fmu) in station.fmu.iter().enumerate() {
         let path = run_dir
-            .join(crate::station_run::RAW_DIR)
+            .join(crate::run_setup::RAW_DIR)
             .join(raw_capture_file(m));
         if !path.exists() {
             anyhow::bail!(

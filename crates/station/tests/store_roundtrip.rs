@@ -94,9 +94,14 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
     // What the store holds: full-range k2 and K1 of each test.
     let store = Store::connect(&StoreTarget::File(db.clone())).expect("store");
     let mut stored: Vec<(String, String, f64, f64)> = Vec::new();
+    let mut analyses: Vec<(String, spinbench_analysis::UnitAnalysis)> = Vec::new();
     for run in store.runs().expect("runs") {
         for r in store.results(&run.id).expect("results") {
-            let record: Value = serde_json::from_str(&r.record_json).expect("record");
+            analyses.push((
+                r.serial.clone(),
+                r.record.analysis.clone().expect("analysis"),
+            ));
+            let record: Value = serde_json::to_value(&r.record).expect("record");
             let full = &record["analysis"]["full_range"];
             stored.push((
                 run.id.clone(),
@@ -127,20 +132,37 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
     }
 
     // XLSX: the repeatability sheet has each serial once, with the scale-factor
-    // repeatability of method.md §3.4 from the stored K1 values.
+    // repeatability of method.md §3.4: the one definition (per mounting, the
+    // spread of |k1| over the runs; the larger mounting), which `analyze`
+    // and `spinbench unit` give too.
     use calamine::{Data, Reader, open_workbook_auto};
     let mut book = open_workbook_auto(out.join("batch-report.xlsx")).expect("xlsx");
     let sheet = book.worksheet_range("repeatability").expect("sheet");
     let mut repeats = 0;
     for row in sheet.rows().skip(1) {
         let serial = row[0].to_string();
-        let k1: Vec<f64> = stored
+        let runs: Vec<&spinbench_analysis::UnitAnalysis> = analyses
             .iter()
-            .filter(|s| s.1 == serial)
-            .map(|s| s.3)
+            .filter(|(s, _)| *s == serial)
+            .map(|(_, a)| a)
             .collect();
         assert_eq!(row[1], Data::Float(2.0), "{serial} tested twice");
-        let want = spinbench_analysis::figures::repeatability_ppm(&k1).expect("two values");
+        let want = spinbench_analysis::unit::repeatability_of(&runs)
+            .expect("two runs")
+            .scale_factor_ppm;
+        // `spinbench unit` says the same number for the same serial.
+        let (ok, said, err) = spinbench(&["unit", &serial, "--db", db_s]);
+        assert!(ok, "{err}");
+        let printed = said
+            .lines()
+            .find_map(|l| l.split(" runs: ").nth(1))
+            .and_then(|rest| rest.split(' ').next())
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or_else(|| panic!("no repeatability in: {said}"));
+        assert!(
+            (printed - want).abs() <= 0.0005 + 1e-9 * want.abs(),
+            "unit says {printed}, batch {want}"
+        );
         let Data::Float(got) = row[4] else {
             panic!("repeatability is not a number: {:?}", row[4]);
         };
@@ -273,7 +295,7 @@ fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
         let analysed: Value = serde_json::from_str(&json).expect("json");
         let mut compared = 0;
         for stored in store.results(&run.id).expect("results") {
-            let record: Value = serde_json::from_str(&stored.record_json).expect("record");
+            let record: Value = serde_json::to_value(&stored.record).expect("record");
             let unit = analysed["units"]
                 .as_array()
                 .expect("units")
@@ -402,7 +424,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
         .expect("results")
         .iter()
         .flat_map(|r| {
-            let record: Value = serde_json::from_str(&r.record_json).expect("record");
+            let record: Value = serde_json::to_value(&r.record).expect("record");
             ["P", "N"]
                 .iter()
                 .filter_map(|m| {

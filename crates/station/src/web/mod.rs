@@ -66,7 +66,7 @@ pub struct ServeArgs {
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
     /// Where runs and plans are kept.
-    #[arg(long, default_value = crate::station_run::DEFAULT_DATA_DIR)]
+    #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
     pub data: PathBuf,
     /// The store (default DATA/spinbench.db).
     #[arg(long, value_parser = crate::cli::parse_store)]
@@ -126,7 +126,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     let db = args
         .db
         .clone()
-        .unwrap_or_else(|| StoreTarget::File(args.data.join(crate::station_run::DB_FILE)));
+        .unwrap_or_else(|| StoreTarget::File(args.data.join(crate::run_setup::DB_FILE)));
     let (station_toml, sim) = if args.simulate {
         let base = match &args.sim_config {
             Some(p) => {

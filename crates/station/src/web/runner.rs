@@ -4,11 +4,12 @@
 //! every event.
 
 use super::hub::{Hub, HubSink};
-use crate::station_run::{RunControl, connect_bench, execute, new_run_id};
+use crate::run_setup::{PrepareError, RunDir, Setup, prepare};
+use crate::station_run::{RunControl, connect_bench, execute};
 use spinbench_engine::plan::Fixture;
-use spinbench_engine::sim_bench::SimOperator;
 use spinbench_engine::{AbortFlag, Answer, Operator, StationConfig, TestPlan};
 use spinbench_sim::serve::RunningBench;
+use spinbench_sim::station::SimOperator;
 use spinbench_store::StoreTarget;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -125,6 +126,8 @@ pub enum StartError {
     Invalid(String),
     /// The hardware could not be reached.
     Hardware(String),
+    /// The run's directory or files could not be written.
+    Files(String),
 }
 
 /// Starts and steers the web's runs.
@@ -207,24 +210,29 @@ impl Runner {
             return Err(StartError::Busy(a.run_id.clone()));
         }
         let (station, station_toml) = self.station();
-        plan.compile(&station)
-            .map_err(|e| StartError::Invalid(e.to_string()))?;
-        let run_id = new_run_id();
-        let dir = self.data_dir.join("runs").join(&run_id);
-        std::fs::create_dir_all(&dir)
-            .and_then(|()| std::fs::write(dir.join("station.toml"), &station_toml))
-            .and_then(|()| std::fs::write(dir.join("plan.toml"), plan_text))
-            .map_err(|e| {
-                StartError::Hardware(format!(
-                    "{}: cannot write the run directory: {e}",
-                    dir.display()
-                ))
-            })?;
-        let bench = connect_bench(&station, Some(&dir)).map_err(|e| {
-            // Nothing ran: leave no run directory behind.
-            let _ = std::fs::remove_dir_all(&dir);
-            StartError::Hardware(format!("{e:#}"))
+        let dir =
+            RunDir::create(&self.data_dir).map_err(|e| StartError::Files(format!("{e:#}")))?;
+        let prepared = prepare(Setup {
+            station,
+            station_toml,
+            plan,
+            plan_text: Some(plan_text.to_string()),
+            dir,
+            store: Some(self.db.clone()),
+        })
+        .map_err(|e| match e {
+            PrepareError::Plan(e) => StartError::Invalid(e.to_string()),
+            PrepareError::Files(e) => StartError::Files(format!("{e:#}")),
         })?;
+        let run_id = prepared.dir.id().to_string();
+        let bench = match connect_bench(&prepared.station, Some(&prepared.dir.raw_dir())) {
+            Ok(bench) => bench,
+            Err(e) => {
+                // Nothing ran: leave no run directory behind.
+                prepared.dir.discard();
+                return Err(StartError::Hardware(format!("{e:#}")));
+            }
+        };
         let abort = AbortFlag::new();
         let pause = Arc::new(AtomicBool::new(false));
         let prompt = Arc::new(PromptSlot::default());
@@ -240,21 +248,11 @@ impl Runner {
             pause: pause.clone(),
             sinks: vec![Box::new(HubSink(self.hub.clone()))],
         };
-        let (db, hub, done) = (self.db.clone(), self.hub.clone(), finished.clone());
+        let (hub, done) = (self.hub.clone(), finished.clone());
         std::thread::Builder::new()
             .name(format!("run {run_id}"))
             .spawn(move || {
-                let result = execute(
-                    &station,
-                    &plan,
-                    bench,
-                    Box::new(operator),
-                    &dir,
-                    &db,
-                    false,
-                    true,
-                    control,
-                );
+                let result = execute(prepared, bench, Box::new(operator), true, control);
                 if let Err(e) = result {
                     hub.publish_notice(&format!("the run could not go on: {e:#}"));
                 }

@@ -1,27 +1,39 @@
-//! The virtual bench as a station (feature `sim`): the station sections that
-//! go with its devices, and the operator whose hands are the simulator's.
+//! The virtual bench as a station: the station sections that go with its
+//! devices (currents and slot counts from the bench's own config), and the
+//! operator whose hands are the simulator's. The engine does not know the
+//! simulator; the simulator plays a station to it.
 
-use crate::executor::{Answer, Operator};
-use crate::plan::Fixture;
+use crate::Mounting;
+use crate::serve::RunningBench;
 use spinbench_analysis::Mount;
-use spinbench_sim::Mounting;
-use spinbench_sim::serve::RunningBench;
+use spinbench_engine::plan::Fixture;
+use spinbench_engine::{Answer, Operator};
+use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
 
 /// A complete station config (TOML) for the bench: its arm, the power roles
 /// and its device sections; `power_extra` adds lines to `[power]`.
 pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
-    let (r0, instruments) =
-        bench.with_world(|w| (w.config().centrifuge.arm_radius_m, w.config().modules * 6));
+    let (r0, instruments, current_a) = bench.with_world(|w| {
+        let c = w.config();
+        (
+            c.centrifuge.arm_radius_m,
+            c.modules * INSTRUMENTS_PER_MODULE,
+            c.instruments.current_a,
+        )
+    });
     // The rails' limit: the default 0.5 A, or a quarter above what a bigger bench draws.
-    let limit = if power_extra.contains("rail_current_limit_a") {
+    let mut limit = if power_extra.contains("rail_current_limit_a") {
         String::new()
     } else {
-        let draw_a = instruments as f64 * 0.04;
+        let draw_a = instruments as f64 * current_a;
         format!(
             "rail_current_limit_a = {}\n",
             ((draw_a * 1.25 * 10.0).ceil() / 10.0).max(0.5)
         )
     };
+    if !power_extra.contains("instrument_current_a") {
+        limit.push_str(&format!("instrument_current_a = {current_a}\n"));
+    }
     format!(
         "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{}",
         bench.station_config_toml()

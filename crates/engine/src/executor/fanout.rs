@@ -1,0 +1,94 @@
+//! Fan-out: every event to every subscriber (journal, store, screens), and
+//! the hold-and-retry when one cannot take it: nothing is dropped.
+
+use super::*;
+
+impl Executor<'_> {
+    /// Offer `event` to every subscriber in turn; one that refuses it holds
+    /// the run until it takes it ([`Self::hold_for_sink`]).
+    pub(super) fn emit(&mut self, event: Event) -> Result<(), EngineError> {
+        for i in 0..self.sinks.len() {
+            if let Err(problem) = self.sinks[i].emit(&event) {
+                self.hold_for_sink(i, &event, problem)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// A subscriber (the store, the journal) could not take an event: nothing
+    /// is dropped. The run is held (state Paused; the ports are still read,
+    /// the table keeps its commanded rate) and the same event is offered again
+    /// every second, until it is taken (the run goes on), the operator aborts,
+    /// or [`RunOptions::sink_hold_limit`] passes (a fault: safe state).
+    pub(super) fn hold_for_sink(
+        &mut self,
+        failed: usize,
+        event: &Event,
+        problem: String,
+    ) -> Result<(), EngineError> {
+        fn tell_others(sinks: &mut [Box<dyn EventSink + '_>], failed: usize, e: &Event) {
+            for (j, sink) in sinks.iter_mut().enumerate() {
+                if j != failed {
+                    let _ = sink.emit(e);
+                }
+            }
+        }
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::Notice {
+                message: format!(
+                    "{problem}; the run is held (paused) and the write is tried again every second \
+                     — fix the database or abort"
+                ),
+            },
+        );
+        // Held through the state table; a run already ended (its last
+        // events) has no state to hold, but its write is retried all the same.
+        let holding = self.machine.fire(Trigger::WriteFailed).ok();
+        if let Some(state) = holding {
+            tell_others(&mut self.sinks, failed, &Event::StateChanged { state });
+        }
+        let held = Instant::now();
+        let mut last = problem;
+        loop {
+            let gave_up = if self.options.abort.is_set() {
+                Some(EngineError::Aborted(format!(
+                    "the operator while a write was failing ({last})"
+                )))
+            } else if held.elapsed() > self.options.sink_hold_limit {
+                Some(EngineError::Sink(format!(
+                    "{last} (held {:.0} s, sink_hold_limit)",
+                    held.elapsed().as_secs_f64()
+                )))
+            } else {
+                None
+            };
+            if let Some(e) = gave_up {
+                if holding.is_some() {
+                    self.machine.fire(Trigger::WriteAbandoned)?;
+                }
+                return Err(e);
+            }
+            self.drain_ports(Duration::from_secs(1));
+            match self.sinks[failed].emit(event) {
+                Ok(()) => break,
+                Err(e) => last = e,
+            }
+        }
+        tell_others(
+            &mut self.sinks,
+            failed,
+            &Event::Notice {
+                message: "the write succeeded; nothing was lost and the run goes on".into(),
+            },
+        );
+        if holding.is_some() {
+            let state = self.machine.fire(Trigger::WriteSucceeded)?;
+            tell_others(&mut self.sinks, failed, &Event::StateChanged { state });
+            // The failed subscriber missed the notice; it gets the state.
+            let _ = self.sinks[failed].emit(&Event::StateChanged { state });
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,198 @@
+//! Judging: every instrument's points fitted and its figures held against
+//! the plan's limits, into its record and outcome.
+
+use super::*;
+
+impl Executor<'_> {
+    /// The steps of the plan that measure `slot` (tumble, radius, levels
+    /// of the passes it takes part in) and were not all done.
+    pub(super) fn steps_left(&self, slot: usize) -> usize {
+        self.plan
+            .steps
+            .iter()
+            .enumerate()
+            .filter(|(_, step)| match step {
+                Step::Tumble { .. } => true,
+                Step::Radius { pass } | Step::Level { pass, .. } => self
+                    .plan
+                    .passes
+                    .get(*pass)
+                    .and_then(|p| p.get(slot))
+                    .is_some_and(Option::is_some),
+                _ => false,
+            })
+            .filter(|(index, _)| !self.completed.contains(index))
+            .count()
+    }
+
+    /// Fit every instrument and give each its record and outcome. An
+    /// instrument whose part of the plan was not completed (`run_complete`
+    /// false, and steps of its left) is [`Outcome::Incomplete`]: its points
+    /// are fitted and kept, but never graded pass or fail.
+    pub(super) fn records(&self, run_complete: bool, run_reason: Option<&str>) -> Vec<UnitRecord> {
+        let limits = self.plan.plan.limits;
+        let mut out = Vec::new();
+        for (slot, u) in self.units.iter().enumerate() {
+            let Some(serial) = self.plan.serials[slot].clone() else {
+                continue;
+            };
+            let mut reasons = Vec::new();
+            let mut analysis = None;
+            let mut k2_max = None;
+            let mut outcome = Outcome::Fail;
+            let left = if run_complete || u.failed.is_some() {
+                0
+            } else {
+                self.steps_left(slot)
+            };
+            if left > 0 {
+                outcome = Outcome::Incomplete;
+                reasons.push(Reason::new(ReasonCode::Incomplete, format!(
+                    "incomplete: the run ended with {left} of this instrument's measuring steps not done ({})",
+                    run_reason.unwrap_or("no reason recorded")
+                )));
+                if !u.points.is_empty()
+                    && let Ok(a) = analyze_unit(
+                        &UnitPoints {
+                            unit: serial.clone(),
+                            run: None,
+                            points: point_list(&u.points),
+                        },
+                        AnalysisOptions {
+                            order: self.plan.order,
+                        },
+                    )
+                {
+                    k2_max = a.k2_max_ug_per_g2;
+                    analysis = Some(a);
+                }
+            } else if let Some(f) = &u.failed {
+                reasons.push(f.clone());
+            } else if u.points.is_empty() {
+                reasons.push(Reason::new(ReasonCode::NoPoints, "no points were taken"));
+            } else {
+                let input = UnitPoints {
+                    unit: serial.clone(),
+                    run: None,
+                    points: point_list(&u.points),
+                };
+                match analyze_unit(
+                    &input,
+                    AnalysisOptions {
+                        order: self.plan.order,
+                    },
+                ) {
+                    Ok(a) => {
+                        k2_max = a.k2_max_ug_per_g2;
+                        // Each figure against its limit; the outcome is the worst.
+                        let f = &a.figures;
+                        let checks = [
+                            (
+                                "|k2|",
+                                k2_max,
+                                Some(limits.k2_max_ug_per_g2),
+                                "µg/g²",
+                                [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
+                            ),
+                            (
+                                "nonlinearity",
+                                f.nonlinearity_ppm_fs,
+                                limits.nonlinearity_max_ppm_fs,
+                                "ppm FS",
+                                [
+                                    ReasonCode::NonlinearityOverLimit,
+                                    ReasonCode::NonlinearityNearLimit,
+                                ],
+                            ),
+                            (
+                                "|asymmetry|",
+                                f.asymmetry_ppm.map(f64::abs),
+                                limits.asymmetry_max_ppm,
+                                "ppm",
+                                [
+                                    ReasonCode::AsymmetryOverLimit,
+                                    ReasonCode::AsymmetryNearLimit,
+                                ],
+                            ),
+                            (
+                                "|hysteresis|",
+                                f.hysteresis_ug.map(f64::abs),
+                                limits.hysteresis_max_ug,
+                                "µg",
+                                [
+                                    ReasonCode::HysteresisOverLimit,
+                                    ReasonCode::HysteresisNearLimit,
+                                ],
+                            ),
+                        ];
+                        outcome = Outcome::Pass;
+                        for (name, value, limit, unit, [over, near]) in checks {
+                            let (Some(v), Some(l)) = (value, limit) else {
+                                continue;
+                            };
+                            if v > l {
+                                reasons.push(Reason::new(
+                                    over,
+                                    format!("{name} {v:.3} {unit} above the limit {l} {unit}"),
+                                ));
+                                outcome = Outcome::Fail;
+                            } else if v > limits.marginal_fraction * l {
+                                reasons.push(Reason::new(
+                                    near,
+                                    format!(
+                                        "{name} {v:.3} {unit} within {:.0} % of the limit {l} {unit}",
+                                        (1.0 - limits.marginal_fraction) * 100.0
+                                    ),
+                                ));
+                                if outcome == Outcome::Pass {
+                                    outcome = Outcome::Marginal;
+                                }
+                            }
+                        }
+                        if k2_max.is_none() {
+                            reasons
+                                .push(Reason::new(ReasonCode::NoK2, "the model order has no k2"));
+                        }
+                        reasons.extend(
+                            a.notes
+                                .iter()
+                                .map(|n| Reason::new(ReasonCode::AnalysisNote, n.clone())),
+                        );
+                        analysis = Some(a);
+                    }
+                    Err(e) => reasons.push(Reason::new(
+                        ReasonCode::CannotReduce,
+                        format!("cannot reduce: {e}"),
+                    )),
+                }
+            }
+            out.push(UnitRecord {
+                slot,
+                serial,
+                tumble: u.cal.map(|c| [c.bias_output, c.scale_factor]),
+                drawing_radius_m: self.station.drawing_radius_m(slot),
+                radius_m: u.radius.clone(),
+                points: u.points.clone(),
+                analysis,
+                k2_max_ug_per_g2: k2_max,
+                outcome,
+                reasons,
+            });
+        }
+        out
+    }
+}
+
+/// The analysis' points of a unit's records.
+fn point_list(records: &[PointRecord]) -> Vec<Point> {
+    records
+        .iter()
+        .map(|p| Point {
+            mount: p.mount,
+            g_nominal: p.g_nominal,
+            g_applied: p.g_applied,
+            output: p.output_hz,
+            direction: Some(p.direction),
+        })
+        .collect()
+}

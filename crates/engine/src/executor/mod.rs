@@ -1,0 +1,473 @@
+//! The one executor: runs a compiled plan's steps against the hardware
+//! traits, emits events, and always ends in the safe state.
+//!
+//! This module is the thin run loop ([`Executor::run`]); each job has a
+//! room of its own:
+//!
+//! | module | job |
+//! |---|---|
+//! | [`state`] | the run-state table as data; every change of state goes through it |
+//! | `fanout` | every event to every subscriber; hold and retry when one cannot take it |
+//! | `ports` | the counter modules drained and paired into one second of the station, with the per-second safety checks |
+//! | [`stability`] | the stability statistics (pure functions) |
+//! | `dwell` | the settle-and-average loop around them |
+//! | `steps` | one handler per kind of step |
+//! | `judge` | points → fits → figures against the limits → record and outcome |
+//! | `safety` | the safe state, the confirmed stop, the stop keeper |
+//! | `resume` | what a journal says was done, restored |
+//!
+//! Time is counted in counter-module windows (one second of ticks each), so
+//! the same code runs against hardware and against a faster-than-real-time
+//! simulator. Data are taken only at stable speed (method.md §3.3).
+
+mod dwell;
+mod fanout;
+mod judge;
+mod ports;
+mod resume;
+mod safety;
+pub mod stability;
+pub mod state;
+mod steps;
+
+pub use crate::bench::Bench;
+use safety::HandedToStopKeeper;
+pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
+pub use steps::label;
+
+use crate::abort::AbortFlag;
+use crate::config::StationConfig;
+use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState};
+use crate::plan::{CompiledPlan, Fixture, Step};
+use crate::record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
+use spinbench_analysis::radius::RadiusCalibration;
+use spinbench_analysis::tumble::TumbleCalibration;
+use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
+use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
+use spinbench_devices::{Centrifuge, DeviceError, DeviceErrorKind};
+use spinbench_wire::fmu::{INSTRUMENTS_PER_MODULE, WindowAccumulator, WindowConfig, WindowValue};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Scale factor assumed before the tumble has measured it [Hz/g].
+const NOMINAL_K1_HZ_PER_G: f64 = 100.0;
+
+use stability::{AT_REST_DEG_S, mean_std};
+use state::{StateMachine, Trigger};
+
+/// An operator's answer to a prompt.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Answer {
+    /// Continue (true) or abort the run.
+    pub proceed: bool,
+    /// Who answered.
+    pub by: String,
+}
+
+/// Whoever answers prompts: the terminal, the web UI, or the simulator.
+pub trait Operator {
+    /// Ask the operator to do `text` (mount the instruments as `fixtures`)
+    /// and wait for the answer.
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer;
+
+    /// Put the question without waiting, when this operator can be polled:
+    /// the engine then keeps reading the counter modules (nothing overruns
+    /// while a person walks to the centrifuge) and calls
+    /// [`poll_answer`](Self::poll_answer). The default asks and waits.
+    fn post(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Option<Answer> {
+        Some(self.ask(text, fixtures))
+    }
+
+    /// The answer to the posted question, waiting at most `wait`.
+    fn poll_answer(&mut self, wait: Duration) -> Option<Answer> {
+        let _ = wait;
+        None
+    }
+}
+
+/// Why a run ended early.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EngineError {
+    /// A device failed.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// A counter module sent no data within the deadline.
+    #[error("counter module {module} sent no data for {seconds:.1} s; check its cable and supply")]
+    ModuleSilent {
+        /// Module index (1-based).
+        module: usize,
+        /// Wall-clock seconds of silence.
+        seconds: f64,
+    },
+    /// The interlocks opened while the table was commanded to move.
+    #[error(
+        "the centrifuge interlocks opened; the table was stopped (close the door and reset the interlocks)"
+    )]
+    InterlockOpen,
+    /// The instrument supply lost its output (over-current trip).
+    #[error(
+        "the instrument supply output dropped to {volts:.2} V (over-current trip?); check for a shorted instrument"
+    )]
+    SupplyTripped {
+        /// Measured output voltage.
+        volts: f64,
+    },
+    /// The rate or the outputs did not become stable.
+    #[error("{0}")]
+    NotStable(String),
+    /// The operator or Ctrl-C aborted the run.
+    #[error("aborted by {0}")]
+    Aborted(String),
+    /// The supply current does not match the instruments powered.
+    #[error("{0}")]
+    Power(String),
+    /// An event subscriber (e.g. the journal) failed.
+    #[error("{0}")]
+    Sink(String),
+    /// Nothing left to measure.
+    #[error("every instrument has failed; nothing left to measure")]
+    NoUnits,
+    /// A change of run state that the table does not have (a defect).
+    #[error(transparent)]
+    State(#[from] state::Refused),
+    /// A level that cannot be turned into a rate (plan or station values).
+    #[error("{0}")]
+    Rate(String),
+}
+
+/// Options of a run.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Run identifier.
+    pub run_id: String,
+    /// Set to abort (Ctrl-C or a signal ending the process, the operator).
+    pub abort: AbortFlag,
+    /// While set, the run holds between steps (the ports are still read).
+    pub pause: Arc<AtomicBool>,
+    /// Wall-clock deadline for a counter module's silence.
+    pub module_silence: Duration,
+    /// The station config's text, stored with the run as a snapshot.
+    pub station_config_toml: String,
+    /// How long a run is held while a subscriber (the store) cannot write
+    /// before it faults into the safe state.
+    pub sink_hold_limit: Duration,
+}
+
+#[derive(Debug, Clone, Default)]
+struct UnitState {
+    up: Option<f64>,
+    down: Option<f64>,
+    cal: Option<TumbleCalibration>,
+    radius: BTreeMap<Mount, f64>,
+    points: Vec<PointRecord>,
+    failed: Option<Reason>,
+}
+
+/// One second of the whole station.
+#[derive(Debug, Clone)]
+struct Window {
+    time_s: f64,
+    rate_deg_s: f64,
+    /// dF per slot, `None` when missing or from an incomplete window.
+    outputs: Vec<Option<f64>>,
+    /// (f1, f2) per slot.
+    resonators: Vec<(Option<f64>, Option<f64>)>,
+}
+
+/// The summary of a finished run.
+#[derive(Debug, Clone)]
+pub struct RunSummary {
+    /// Final state.
+    pub state: RunState,
+    /// Why it did not complete, if so.
+    pub reason: Option<String>,
+    /// One record per instrument.
+    pub records: Vec<UnitRecord>,
+    /// Station time the run took [s].
+    pub duration_s: f64,
+    /// One-second windows dropped to keep the counter modules aligned in time.
+    pub dropped_windows: u64,
+    /// The centrifuge controller acknowledged the stop at the end of the run.
+    /// When false the reason says [`STOP_NOT_CONFIRMED`], and a thread keeps
+    /// commanding the stop for as long as the process lives.
+    pub stop_confirmed: bool,
+}
+
+/// The executor.
+pub struct Executor<'a> {
+    station: &'a StationConfig,
+    plan: CompiledPlan,
+    bench: Bench,
+    operator: Box<dyn Operator + 'a>,
+    sinks: Vec<Box<dyn EventSink + 'a>>,
+    options: RunOptions,
+    units: Vec<UnitState>,
+    completed: BTreeSet<usize>,
+    resumed: bool,
+    accumulators: Vec<WindowAccumulator>,
+    pending: Vec<VecDeque<WindowValue>>,
+    last_data: Vec<Instant>,
+    windows: u64,
+    demand_deg_s: f64,
+    streaming: bool,
+    /// Windows dropped to keep the modules aligned in time.
+    dropped_windows: u64,
+    /// The instrument supply's output 1 at its last safety check: (volts, amperes).
+    supply_first: (f64, f64),
+    /// The controller acknowledged the last stop command.
+    stop_confirmed: bool,
+    /// The run's state, changed only through the table.
+    machine: StateMachine,
+}
+
+impl<'a> Executor<'a> {
+    /// An executor for `plan` on `bench`.
+    pub fn new(
+        station: &'a StationConfig,
+        plan: CompiledPlan,
+        bench: Bench,
+        operator: Box<dyn Operator + 'a>,
+        options: RunOptions,
+    ) -> Self {
+        let slots = plan.serials.len();
+        let accumulators = station
+            .fmu
+            .iter()
+            .map(|f| {
+                WindowAccumulator::new(WindowConfig {
+                    mode: f.mode.into(),
+                    reference_hz: f.reference_hz,
+                    ..WindowConfig::default()
+                })
+            })
+            .collect();
+        let modules = station.fmu.len();
+        Executor {
+            station,
+            plan,
+            bench,
+            operator,
+            sinks: Vec::new(),
+            options,
+            units: vec![UnitState::default(); slots],
+            completed: BTreeSet::new(),
+            resumed: false,
+            accumulators,
+            pending: vec![VecDeque::new(); modules],
+            last_data: vec![Instant::now(); modules],
+            windows: 0,
+            demand_deg_s: 0.0,
+            streaming: false,
+            dropped_windows: 0,
+            supply_first: (0.0, 0.0),
+            stop_confirmed: false,
+            machine: StateMachine::default(),
+        }
+    }
+
+    /// Subscribe to the event stream.
+    pub fn subscribe(&mut self, sink: impl EventSink + 'a) {
+        self.sinks.push(Box::new(sink));
+    }
+
+    /// Change the state through the table ([`state::TRANSITIONS`]) and say
+    /// so; a transition not in the table is refused (an error, nothing changes).
+    fn set_state(&mut self, trigger: Trigger) -> Result<(), EngineError> {
+        let state = self.machine.fire(trigger)?;
+        self.emit(Event::StateChanged { state })
+    }
+
+    fn live(&self, slot: usize) -> bool {
+        self.plan.serials[slot].is_some() && self.units[slot].failed.is_none()
+    }
+
+    fn fail_unit(
+        &mut self,
+        slot: usize,
+        code: ReasonCode,
+        reason: String,
+    ) -> Result<(), EngineError> {
+        if self.units[slot].failed.is_none() {
+            self.units[slot].failed = Some(Reason::new(code, reason.clone()));
+            self.emit(Event::UnitFailed { slot, reason, code })?;
+        }
+        if (0..self.units.len()).all(|s| !self.live(s)) {
+            return Err(EngineError::NoUnits);
+        }
+        Ok(())
+    }
+
+    /// The sign of the instrument's scale factor from its tumble (+1 before it).
+    fn k1_sign(&self, slot: usize) -> f64 {
+        self.units[slot]
+            .cal
+            .map_or(1.0, |c| c.scale_factor.signum())
+    }
+
+    fn k1(&self, slot: usize) -> f64 {
+        self.units[slot]
+            .cal
+            .map_or(NOMINAL_K1_HZ_PER_G, |c| c.scale_factor.abs())
+    }
+
+    /// Ask every device who it is, for the run's record; a device that cannot
+    /// say is recorded with the reason (the run's own checks decide whether it can work).
+    fn identify(&mut self) -> Result<(), EngineError> {
+        let say =
+            |r: Result<String, DeviceError>| r.unwrap_or_else(|e| format!("(no answer: {e})"));
+        let mut devices = vec![DeviceIdentity {
+            role: "centrifuge".into(),
+            identity: say(self.bench.centrifuge.identify()),
+        }];
+        for (m, module) in self.bench.modules.iter_mut().enumerate() {
+            devices.push(DeviceIdentity {
+                role: format!("fmu {}", m + 1),
+                identity: say(module
+                    .status()
+                    .map(|s| format!("firmware {:#06x}", s.firmware_id))),
+            });
+        }
+        devices.push(DeviceIdentity {
+            role: "instrument supply".into(),
+            identity: say(self.bench.instrument_supply.identify()),
+        });
+        if let Some(supply) = self.bench.module_supply.as_mut() {
+            devices.push(DeviceIdentity {
+                role: "module supply".into(),
+                identity: say(supply.identify()),
+            });
+        }
+        self.emit(Event::Identified { devices })
+    }
+
+    /// Run the plan to the end (or to a fault or abort) and return the records.
+    pub fn run(&mut self) -> RunSummary {
+        let started = self.emit(Event::RunStarted {
+            run_id: self.options.run_id.clone(),
+            station: self.station.station.clone(),
+            plan: Box::new(self.plan.clone()),
+            resumed: self.resumed,
+            station_config: self.options.station_config_toml.clone(),
+        });
+        let result = started
+            .and_then(|()| self.identify())
+            .and_then(|()| self.set_state(Trigger::Start))
+            .and_then(|()| self.execute_steps());
+        let (mut state, reason) = match &result {
+            Ok(()) => (RunState::Completed, None),
+            Err(EngineError::Aborted(_)) => (
+                RunState::Aborted,
+                result.as_ref().err().map(ToString::to_string),
+            ),
+            Err(e) => (RunState::Faulted, Some(e.to_string())),
+        };
+        if let Some(r) = &reason {
+            let _ = self.emit(Event::Fault { reason: r.clone() });
+        }
+        let _ = self.set_state(Trigger::End);
+        let safe_problems = self.safe_state();
+        if !self.stop_confirmed {
+            let _ = self.emit(Event::Fault {
+                reason: safe_problems[0].clone(),
+            });
+            let centrifuge =
+                std::mem::replace(&mut self.bench.centrifuge, Box::new(HandedToStopKeeper));
+            keep_stopping(centrifuge);
+            if state == RunState::Completed {
+                state = RunState::Faulted;
+            }
+        }
+        let complete = result.is_ok();
+        let reason = match (reason, safe_problems.is_empty()) {
+            (r, true) => r,
+            (Some(r), false) => Some(format!(
+                "{r}; while making safe: {}",
+                safe_problems.join("; ")
+            )),
+            (None, false) => Some(format!("while making safe: {}", safe_problems.join("; "))),
+        };
+        let records = self.records(complete, reason.as_deref());
+        for r in &records {
+            let _ = self.emit(Event::UnitResult {
+                record: Box::new(r.clone()),
+            });
+        }
+        let _ = self.set_state(match state {
+            RunState::Completed => Trigger::Completed,
+            RunState::Aborted => Trigger::Aborted,
+            _ => Trigger::Faulted,
+        });
+        let _ = self.emit(Event::RunFinished {
+            state,
+            reason: reason.clone(),
+        });
+        RunSummary {
+            state,
+            reason,
+            records,
+            duration_s: self.windows as f64,
+            dropped_windows: self.dropped_windows,
+            stop_confirmed: self.stop_confirmed,
+        }
+    }
+
+    fn execute_steps(&mut self) -> Result<(), EngineError> {
+        let steps = self.plan.steps.clone();
+        // On resume: the first step still to do, and the mounting it needs.
+        let first_todo = (0..steps.len()).find(|i| !self.completed.contains(i));
+        let remount = first_todo.and_then(|t| {
+            (0..t)
+                .rev()
+                .find(|&i| matches!(steps[i], Step::Mount { .. }))
+        });
+        for (index, step) in steps.iter().enumerate() {
+            let setup = matches!(step, Step::PowerOn | Step::CheckAlive);
+            let needed = !self.completed.contains(&index)
+                || (self.resumed && (setup || Some(index) == remount));
+            if !needed {
+                continue;
+            }
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
+            }
+            if self.options.pause.load(Ordering::Relaxed) {
+                self.set_state(Trigger::Pause)?;
+                while self.options.pause.load(Ordering::Relaxed) {
+                    if self.options.abort.is_set() {
+                        return Err(EngineError::Aborted(self.options.abort.by()));
+                    }
+                    if self.streaming {
+                        // Keep reading (and keep the safety checks running) while held.
+                        self.next_window()?;
+                    } else {
+                        std::thread::sleep(Duration::from_millis(10));
+                    }
+                }
+                self.set_state(Trigger::Resume)?;
+            }
+            self.emit(Event::StepStarted {
+                index,
+                of: steps.len(),
+                label: label(step),
+            })?;
+            match step {
+                Step::PowerOn => self.power_on()?,
+                Step::CheckAlive => self.check_alive()?,
+                Step::WarmUp { seconds } => self.warm_up(*seconds)?,
+                Step::Mount { fixtures } => self.mount(fixtures)?,
+                Step::Tumble { up } => self.tumble(*up)?,
+                Step::Radius { pass } => self.radius(*pass)?,
+                Step::Level {
+                    pass,
+                    g_nominal,
+                    direction,
+                } => self.level(index, *pass, *g_nominal, *direction)?,
+                Step::Stop => self.command_rate(0.0)?,
+            }
+            self.emit(Event::StepDone { index })?;
+        }
+        Ok(())
+    }
+}

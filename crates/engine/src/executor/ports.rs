@@ -1,0 +1,184 @@
+//! The counter modules' ports: drained all the time the run streams, each
+//! module's freshest window paired with the others' into one second of the
+//! whole station, with the rate and the per-second safety and health checks.
+
+use super::*;
+
+impl Executor<'_> {
+    /// Read every module's port for `time` without using the data beyond
+    /// keeping each module's freshest window (a held run must not let the
+    /// ports overrun).
+    pub(super) fn drain_ports(&mut self, time: Duration) {
+        let until = Instant::now() + time;
+        while Instant::now() < until {
+            for m in 0..self.bench.modules.len() {
+                let Ok(got) =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(5))
+                else {
+                    continue;
+                };
+                if !got.is_empty() {
+                    self.last_data[m] = Instant::now();
+                }
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+                while self.pending[m].len() > 1 {
+                    self.pending[m].pop_front();
+                    self.dropped_windows += 1;
+                }
+            }
+            if !self.streaming {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    }
+
+    /// The next one-second window of every module, with the rate and the safety checks.
+    pub(super) fn next_window(&mut self) -> Result<Window, EngineError> {
+        let modules = self.bench.modules.len();
+        let mut values: Vec<Option<WindowValue>> = vec![None; modules];
+        loop {
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
+            }
+            for (m, value) in values.iter_mut().enumerate() {
+                // Pair each module's freshest window: an older backlog would
+                // put another moment beside the other modules' values.
+                while self.pending[m].len() > 1 {
+                    self.pending[m].pop_front();
+                    self.dropped_windows += 1;
+                }
+                if value.is_none() {
+                    *value = self.pending[m].pop_front();
+                }
+            }
+            if values.iter().all(Option::is_some) {
+                break;
+            }
+            // Drain every module on every pass: a port left unread overruns
+            // (and a simulator pacing itself on the station's reads would wait).
+            // Short waits: a long wait on one quiet module would leave the
+            // others unread for its length.
+            for m in 0..values.len() {
+                let got =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_millis(1))?;
+                if !got.is_empty() {
+                    self.last_data[m] = Instant::now();
+                }
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+                let silent = self.last_data[m].elapsed();
+                if silent > self.options.module_silence {
+                    return Err(EngineError::ModuleSilent {
+                        module: m + 1,
+                        seconds: silent.as_secs_f64(),
+                    });
+                }
+            }
+        }
+        // Take in everything that has already arrived: after a pause the
+        // ports hold a backlog, and the windows averaged must be of the same
+        // moment as the rate polled below. Newer windows replace older ones.
+        for (m, value) in values.iter_mut().enumerate() {
+            loop {
+                let got =
+                    self.bench.modules[m].receive(Instant::now() + Duration::from_micros(300))?;
+                if got.is_empty() {
+                    break;
+                }
+                self.last_data[m] = Instant::now();
+                for msg in got {
+                    let closed = self.accumulators[m].push(&msg);
+                    self.pending[m].extend(closed);
+                }
+            }
+            if let Some(newest) = self.pending[m].pop_back() {
+                self.dropped_windows += 1 + self.pending[m].len() as u64;
+                self.pending[m].clear();
+                *value = Some(newest);
+            }
+        }
+        self.windows += 1;
+        let rate = self.bench.centrifuge.read_rate()?;
+        if self.demand_deg_s != 0.0 && !self.bench.centrifuge.read_interlocks()? {
+            return Err(EngineError::InterlockOpen);
+        }
+        if self.windows.is_multiple_of(5) {
+            let first = self.bench.instrument_supply.measure(1)?;
+            if first.volts < 0.5 * self.station.power.rail_volts {
+                return Err(EngineError::SupplyTripped { volts: first.volts });
+            }
+            self.supply_first = (first.volts, first.amps);
+        }
+        // The status panel's health every 20 s: two more device queries,
+        // which cost wall time when the bench runs faster than real time.
+        if self.windows.is_multiple_of(20) {
+            let first = self.supply_first;
+            let second = self.bench.instrument_supply.measure(2)?;
+            let modules = self
+                .bench
+                .modules
+                .iter()
+                .zip(&self.accumulators)
+                .map(|(module, acc)| {
+                    let link = module.link_stats();
+                    ModuleHealth {
+                        frames: link.decoder.frames,
+                        bad_crc: link.decoder.bad_crc,
+                        bad_tail: link.decoder.bad_tail,
+                        lost_ticks: acc.stats().lost_ticks,
+                        reconnects: link.reconnects,
+                    }
+                })
+                .collect();
+            // Spinning, they were just read closed; at rest an unreadable
+            // interlock shows as open.
+            let interlocks_closed = self.demand_deg_s != 0.0
+                || self.bench.centrifuge.read_interlocks().unwrap_or(false);
+            self.emit(Event::Health {
+                supply: vec![first, (second.volts, second.amps)],
+                interlocks_closed,
+                modules,
+            })?;
+        }
+        let slots = self.units.len();
+        let mut outputs = vec![None; slots];
+        let mut resonators = vec![(None, None); slots];
+        for (m, v) in values.into_iter().enumerate() {
+            let Some(v) = v else { continue };
+            for (k, inst) in v.instruments.iter().enumerate() {
+                let slot = m * INSTRUMENTS_PER_MODULE + k;
+                if slot < slots {
+                    resonators[slot] = (inst.f1_hz, inst.f2_hz);
+                    // A window with lost ticks is marked, never averaged as whole.
+                    outputs[slot] = if v.is_complete() { inst.df_hz } else { None };
+                }
+            }
+        }
+        let window = Window {
+            time_s: self.windows as f64,
+            rate_deg_s: rate,
+            outputs,
+            resonators,
+        };
+        let on_speed = self.on_speed(rate);
+        // The raw bytes of this second reach the capture's file before its
+        // values reach the store: replay can check every stored value, even
+        // of a run killed and resumed.
+        for module in &mut self.bench.modules {
+            module.flush_capture();
+        }
+        self.emit(Event::Values {
+            time_s: window.time_s,
+            rate_deg_s: rate,
+            demand_deg_s: self.demand_deg_s,
+            on_speed,
+            outputs_hz: window.outputs.clone(),
+        })?;
+        Ok(window)
+    }
+}

@@ -1,0 +1,158 @@
+//! The safe state at the end of every run (controlled stop confirmed by
+//! reading the controller back, streaming off, relays open, rails off), and
+//! the thread that keeps commanding a stop the controller did not confirm.
+
+use super::*;
+
+/// What every screen and record says when the centrifuge did not confirm its stop.
+pub const STOP_NOT_CONFIRMED: &str = "stop not confirmed: check the centrifuge";
+
+/// Times the stop is commanded at the end of a run before it counts as unconfirmed.
+const STOP_ATTEMPTS: usize = 3;
+
+/// How often an unconfirmed stop is commanded again, for as long as the process lives.
+const STOP_RETRY: Duration = Duration::from_secs(2);
+
+impl Executor<'_> {
+    /// Controlled stop, streaming off, relays open, supplies off. Every
+    /// action is tried; the problems are returned. The stop is commanded up
+    /// to [`STOP_ATTEMPTS`] times; when the controller never acknowledges
+    /// it, the first problem is [`STOP_NOT_CONFIRMED`] and `stop_confirmed`
+    /// stays false (the caller keeps commanding it, see [`keep_stopping`]).
+    pub(super) fn safe_state(&mut self) -> Vec<String> {
+        let mut problems = Vec::new();
+        let mut last_stop_error = None;
+        self.stop_confirmed = false;
+        for attempt in 0..STOP_ATTEMPTS {
+            // Confirmed: the stop was sent and the controller answers after
+            // it (a dialect whose stop has no acknowledgement would
+            // otherwise "succeed" into a controller that hears nothing).
+            match stop_and_confirm(self.bench.centrifuge.as_mut()) {
+                Ok(()) => {
+                    self.stop_confirmed = true;
+                    break;
+                }
+                Err(e) => {
+                    last_stop_error = Some(e.to_string());
+                    if attempt + 1 < STOP_ATTEMPTS {
+                        std::thread::sleep(Duration::from_millis(200));
+                    }
+                }
+            }
+        }
+        if !self.stop_confirmed {
+            problems.push(format!(
+                "{STOP_NOT_CONFIRMED} (the controller did not acknowledge the stop after {STOP_ATTEMPTS} tries: {}; \
+                 the station keeps commanding it while this program runs)",
+                last_stop_error.unwrap_or_default()
+            ));
+        }
+        let mut note = |r: Result<(), DeviceError>| {
+            if let Err(e) = r {
+                problems.push(e.to_string());
+            }
+        };
+        if self.stop_confirmed {
+            note(self.bench.centrifuge.disarm());
+        }
+        for m in &mut self.bench.modules {
+            if self.streaming {
+                note(m.stop());
+            }
+            note(m.set_power(0));
+        }
+        for ch in [1, 2] {
+            note(self.bench.instrument_supply.set_output(ch, false));
+        }
+        self.demand_deg_s = 0.0;
+        problems
+    }
+}
+
+/// The executor's stand-in for a centrifuge whose controller was handed to
+/// [`keep_stopping`]: every command says where it went.
+pub(super) struct HandedToStopKeeper;
+
+impl Centrifuge for HandedToStopKeeper {
+    fn identify(&mut self) -> Result<String, DeviceError> {
+        Err(self.refuse("*IDN?"))
+    }
+    fn arm(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("arm"))
+    }
+    fn reset_interlocks(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("reset interlocks"))
+    }
+    fn set_rate(&mut self, _rate_deg_s: f64) -> Result<(), DeviceError> {
+        Err(self.refuse("set rate"))
+    }
+    fn read_rate(&mut self) -> Result<f64, DeviceError> {
+        Err(self.refuse("read rate"))
+    }
+    fn read_interlocks(&mut self) -> Result<bool, DeviceError> {
+        Err(self.refuse("read interlocks"))
+    }
+    fn stop(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("stop"))
+    }
+    fn disarm(&mut self) -> Result<(), DeviceError> {
+        Err(self.refuse("disarm"))
+    }
+}
+
+impl HandedToStopKeeper {
+    fn refuse(&self, command: &str) -> DeviceError {
+        DeviceError {
+            device: "centrifuge".into(),
+            command: command.into(),
+            kind: DeviceErrorKind::Rejected(format!(
+                "{STOP_NOT_CONFIRMED}; the controller is being sent the stop until it answers"
+            )),
+        }
+    }
+}
+
+/// Command the stop and read the rate back: the stop counts as confirmed
+/// only when the controller answers after it.
+fn stop_and_confirm(centrifuge: &mut dyn Centrifuge) -> Result<(), DeviceError> {
+    centrifuge.stop()?;
+    centrifuge.read_rate().map(|_| ())
+}
+
+/// Keep commanding the stop of a centrifuge whose controller did not
+/// acknowledge it, every [`STOP_RETRY`], on a thread of its own, for as
+/// long as the process lives (or until it is acknowledged, said on stderr).
+pub fn keep_stopping(mut centrifuge: Box<dyn Centrifuge>) {
+    UNCONFIRMED_STOPS.fetch_add(1, Ordering::SeqCst);
+    let spawned = std::thread::Builder::new()
+        .name("centrifuge stop keeper".into())
+        .spawn(move || {
+            let since = Instant::now();
+            loop {
+                std::thread::sleep(STOP_RETRY);
+                if stop_and_confirm(centrifuge.as_mut()).is_ok() {
+                    let _ = centrifuge.disarm();
+                    UNCONFIRMED_STOPS.fetch_sub(1, Ordering::SeqCst);
+                    eprintln!(
+                        "  centrifuge: the stop was acknowledged {:.0} s after the run ended",
+                        since.elapsed().as_secs_f64()
+                    );
+                    return;
+                }
+            }
+        });
+    if let Err(e) = spawned {
+        eprintln!(
+            "  {STOP_NOT_CONFIRMED}: cannot start the thread that keeps commanding the stop: {e}"
+        );
+    }
+}
+
+/// Centrifuges of this process whose stop is still being commanded.
+static UNCONFIRMED_STOPS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// How many centrifuges of this process have a stop not yet acknowledged
+/// (a program about to exit waits while this is above zero).
+pub fn unconfirmed_stops() -> usize {
+    UNCONFIRMED_STOPS.load(Ordering::SeqCst)
+}

@@ -1,0 +1,376 @@
+//! One handler per kind of [`Step`]: power on, alive check, warm-up, the
+//! operator's remounting, the tumble, the radius at 1 g, a level's point.
+
+use super::*;
+
+/// Resonator frequencies outside this range mean a dead or miswired input [Hz].
+const RESONATOR_RANGE_HZ: (f64, f64) = (5_000.0, 200_000.0);
+
+impl Executor<'_> {
+    pub(super) fn power_on(&mut self) -> Result<(), EngineError> {
+        let p = &self.station.power;
+        if let Some(m) = &mut self.bench.module_supply {
+            m.set_output(1, true)?;
+        }
+        for ch in [1, 2] {
+            self.bench
+                .instrument_supply
+                .configure(ch, p.rail_volts, p.rail_current_limit_a)?;
+            self.bench.instrument_supply.set_output(ch, true)?;
+        }
+        for (m, module) in self.bench.modules.iter_mut().enumerate() {
+            let mask = (0..INSTRUMENTS_PER_MODULE)
+                .filter(|s| {
+                    self.plan
+                        .serials
+                        .get(m * INSTRUMENTS_PER_MODULE + s)
+                        .is_some_and(Option::is_some)
+                })
+                .fold(0u8, |mask, s| mask | (1 << s));
+            module.set_power(mask)?;
+            module.start(self.station.fmu[m].mode.into())?;
+        }
+        self.streaming = true;
+        self.bench.centrifuge.reset_interlocks()?;
+        self.bench.centrifuge.arm()?;
+        let now = Instant::now();
+        self.last_data.iter_mut().for_each(|t| *t = now);
+        Ok(())
+    }
+
+    pub(super) fn check_alive(&mut self) -> Result<(), EngineError> {
+        let mut seen: Vec<u32> = vec![0; self.units.len()];
+        for _ in 0..3 {
+            let w = self.next_window()?;
+            for (slot, (f1, f2)) in w.resonators.iter().enumerate() {
+                let ok = |f: &Option<f64>| {
+                    f.is_some_and(|f| (RESONATOR_RANGE_HZ.0..=RESONATOR_RANGE_HZ.1).contains(&f))
+                };
+                if ok(f1) && ok(f2) {
+                    seen[slot] += 1;
+                }
+            }
+        }
+        // The instruments' total current on the +15 V rail.
+        let powered = self.plan.serials.iter().filter(|s| s.is_some()).count() as f64;
+        let expected = powered * self.station.power.instrument_current_a;
+        let amps = self.bench.instrument_supply.measure(1)?.amps;
+        if expected > 0.0 && !(0.5 * expected..=1.5 * expected).contains(&amps) {
+            return Err(EngineError::Power(format!(
+                "the instruments draw {amps:.3} A on the +15 V rail, expected about {expected:.3} A \
+                 ({powered} × power.instrument_current_a); check the relays and the wiring"
+            )));
+        }
+        for (slot, &count) in seen.iter().enumerate() {
+            if self.live(slot) && count == 0 {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::Dead,
+                    "no output from its resonators: dead, unpowered or not connected".into(),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn warm_up(&mut self, seconds: f64) -> Result<(), EngineError> {
+        let n = seconds.ceil() as u32;
+        for i in 0..n {
+            self.next_window()?;
+            self.emit(Event::Progress {
+                phase: "warm-up".into(),
+                done: i + 1,
+                of: n,
+            })?;
+        }
+        Ok(())
+    }
+
+    pub(super) fn mount(&mut self, fixtures: &[Option<Fixture>]) -> Result<(), EngineError> {
+        // The table must be at rest before anyone touches it.
+        self.command_rate(0.0)?;
+        let mut waited = 0;
+        while self.next_window()?.rate_deg_s.abs() > AT_REST_DEG_S {
+            waited += 1;
+            if waited > self.plan.plan.stability.max_settle_s {
+                return Err(EngineError::NotStable(
+                    "the table did not come to rest for remounting".into(),
+                ));
+            }
+        }
+        let text = mount_text(fixtures);
+        self.set_state(Trigger::Prompt)?;
+        self.emit(Event::Prompt {
+            text: text.clone(),
+            fixtures: fixtures.to_vec(),
+        })?;
+        let mut answer = self.operator.post(&text, fixtures);
+        while answer.is_none() {
+            if self.options.abort.is_set() {
+                return Err(EngineError::Aborted(self.options.abort.by()));
+            }
+            // Keep the ports read while the person works.
+            self.drain_ports(Duration::from_millis(100));
+            answer = self.operator.poll_answer(Duration::from_millis(50));
+        }
+        let answer = answer.unwrap_or(Answer {
+            proceed: false,
+            by: "nobody".into(),
+        });
+        self.emit(Event::PromptAnswered {
+            proceed: answer.proceed,
+            by: answer.by.clone(),
+        })?;
+        self.set_state(Trigger::Answered)?;
+        if !answer.proceed {
+            return Err(EngineError::Aborted(answer.by));
+        }
+        Ok(())
+    }
+
+    pub(super) fn command_rate(&mut self, rate_deg_s: f64) -> Result<(), EngineError> {
+        if rate_deg_s == 0.0 {
+            self.bench.centrifuge.stop()?;
+        } else {
+            self.bench.centrifuge.set_rate(rate_deg_s)?;
+        }
+        self.demand_deg_s = rate_deg_s;
+        Ok(())
+    }
+
+    pub(super) fn tumble(&mut self, up: bool) -> Result<(), EngineError> {
+        self.command_rate(0.0)?;
+        let mut slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
+        let values = self.acquire(&mut slots)?;
+        for slot in slots {
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            if y.is_empty() {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::NoOutput,
+                    format!(
+                        "no output during the IA-{} tumble reading",
+                        if up { "up" } else { "down" }
+                    ),
+                )?;
+                continue;
+            }
+            let (mean, _) = mean_std(&y);
+            let u = &mut self.units[slot];
+            if up {
+                u.up = Some(mean);
+            } else {
+                u.down = Some(mean);
+            }
+            self.emit(Event::TumbleDone {
+                slot,
+                up,
+                output_hz: mean,
+            })?;
+            let u = &self.units[slot];
+            if let (Some(a), Some(b)) = (u.up, u.down) {
+                match TumbleCalibration::from_up_down(a, b) {
+                    Ok(cal) => self.units[slot].cal = Some(cal),
+                    Err(e) => {
+                        self.fail_unit(slot, ReasonCode::TumbleFailed, format!("tumble: {e}"))?
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn radius(&mut self, pass: usize) -> Result<(), EngineError> {
+        let g = self.station.g_local_m_s2;
+        let r0 = self.station.arm.radius_m;
+        let w = centrifuge::rate_for_acceleration_rad_s(1.0, r0, g)
+            .map_err(|e| EngineError::Rate(e.to_string()))?;
+        self.command_rate(w.to_degrees())?;
+        let mut slots: Vec<usize> = (0..self.units.len())
+            .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
+            .collect();
+        let values = self.acquire(&mut slots)?;
+        let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
+        let w_meas = rate.to_radians();
+        for slot in slots {
+            let Some(mount) = self.plan.passes[pass][slot] else {
+                continue;
+            };
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            let Some(cal) = self.units[slot].cal else {
+                continue;
+            };
+            if y.is_empty() {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::NoOutput,
+                    "no output during the radius step".into(),
+                )?;
+                continue;
+            }
+            let (mean, _) = mean_std(&y);
+            let r0_i = self.station.drawing_radius_m(slot);
+            // method.md (6)–(8) at the measured rate: the rate applies ω²·R0/g at R0.
+            let nominal_g = w_meas * w_meas * r0_i / g;
+            match RadiusCalibration::from_reading(mean, &cal, r0_i, nominal_g, mount) {
+                Ok(r) => {
+                    self.units[slot].radius.insert(mount, r.radius_m);
+                    self.emit(Event::RadiusDone {
+                        slot,
+                        mount,
+                        drawing_radius_m: r0_i,
+                        radius_m: r.radius_m,
+                    })?;
+                }
+                Err(e) => self.fail_unit(
+                    slot,
+                    ReasonCode::RadiusFailed,
+                    format!("radius in mounting {mount}: {e}"),
+                )?,
+            }
+        }
+        Ok(())
+    }
+
+    pub(super) fn level(
+        &mut self,
+        step: usize,
+        pass: usize,
+        g_nominal: f64,
+        direction: spinbench_analysis::Direction,
+    ) -> Result<(), EngineError> {
+        let g = self.station.g_local_m_s2;
+        let r0 = self.station.arm.radius_m;
+        let w = centrifuge::rate_for_acceleration_rad_s(g_nominal, r0, g)
+            .map_err(|e| EngineError::Rate(e.to_string()))?;
+        self.command_rate(w.to_degrees())?;
+        let mut slots: Vec<usize> = (0..self.units.len())
+            .filter(|&s| self.live(s) && self.plan.passes[pass][s].is_some())
+            .collect();
+        let noise_limit = self.plan.plan.stability.noise_limit_ug;
+        let mut table_restarts = 0;
+        let (values, own_noise) = loop {
+            let values = self.acquire(&mut slots)?;
+            let own_noise = self.instrument_noise_ug(pass, &slots, &values);
+            // Every instrument scattering at once is the table (the tail of
+            // its settling), not the instruments: measure the point again.
+            let noisy = |s: &usize| own_noise.get(s).is_some_and(|&n| n > noise_limit);
+            if slots.len() >= 2
+                && slots.iter().all(noisy)
+                && table_restarts < self.plan.plan.stability.max_restarts
+            {
+                table_restarts += 1;
+                self.emit(Event::Notice {
+                    message: format!(
+                        "every instrument scattered more than {noise_limit} µg together at {g_nominal} g: \
+                         the table, not the instruments; measuring the point again ({table_restarts})"
+                    ),
+                })?;
+                continue;
+            }
+            break (values, own_noise);
+        };
+        let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
+        let w_meas = rate.to_radians();
+        let mut points = Vec::new();
+        for slot in slots {
+            let Some(mount) = self.plan.passes[pass][slot] else {
+                continue;
+            };
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            if y.len() < 2 {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::NoOutput,
+                    format!("no output at {g_nominal} g"),
+                )?;
+                continue;
+            }
+            let (mean, std) = mean_std(&y);
+            let std_ug = own_noise
+                .get(&slot)
+                .copied()
+                .unwrap_or(std / self.k1(slot) * UG_PER_G);
+            if std_ug > noise_limit {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::Noisy,
+                    format!("noisy: its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g (limit {noise_limit} µg, stability.noise_limit_ug)"),
+                )?;
+                continue;
+            }
+            let radius = self.units[slot]
+                .radius
+                .get(&mount)
+                .copied()
+                .unwrap_or_else(|| self.station.drawing_radius_m(slot));
+            points.push(PointRecord {
+                slot,
+                mount,
+                g_nominal,
+                direction,
+                // method.md (9): each instrument's own radius.
+                g_applied: w_meas * w_meas * radius / g,
+                rate_deg_s: rate,
+                output_hz: mean,
+                std_hz: std,
+                n: y.len() as u32,
+                time_s: [
+                    values.first().map_or(0.0, |w| w.time_s),
+                    values.last().map_or(0.0, |w| w.time_s),
+                ],
+            });
+        }
+        for p in &points {
+            self.units[p.slot].points.push(p.clone());
+        }
+        self.emit(Event::PointDone { step, points })
+    }
+}
+
+fn mount_text(fixtures: &[Option<Fixture>]) -> String {
+    let kinds: BTreeSet<String> = fixtures
+        .iter()
+        .flatten()
+        .map(|f| format!("{f:?}"))
+        .collect();
+    let describe = |f: &Fixture| match f {
+        Fixture::Up => "on the tumble fixture, input axis UP".to_string(),
+        Fixture::Down => "on the tumble fixture, input axis DOWN".to_string(),
+        Fixture::Arm(Mount::P) => {
+            "on the arm in mounting P (input axis toward the spin axis)".to_string()
+        }
+        Fixture::Arm(Mount::N) => {
+            "on the arm in mounting N (input axis away from the spin axis)".to_string()
+        }
+    };
+    match fixtures.iter().flatten().next() {
+        Some(f) if kinds.len() == 1 => format!("Mount every instrument {}", describe(f)),
+        _ => {
+            let list: Vec<String> = fixtures
+                .iter()
+                .enumerate()
+                .filter_map(|(i, f)| f.map(|f| format!("slot {}: {}", i + 1, describe(&f))))
+                .collect();
+            format!("Mount the instruments: {}", list.join("; "))
+        }
+    }
+}
+
+/// A short label of a step for progress display.
+pub fn label(step: &Step) -> String {
+    match step {
+        Step::PowerOn => "power on".into(),
+        Step::CheckAlive => "check instruments".into(),
+        Step::WarmUp { seconds } => format!("warm-up {seconds:.0} s"),
+        Step::Mount { fixtures } => mount_text(fixtures),
+        Step::Tumble { up } => format!("tumble, input axis {}", if *up { "up" } else { "down" }),
+        Step::Radius { pass } => format!("radius at 1 g (pass {})", pass + 1),
+        Step::Level {
+            pass,
+            g_nominal,
+            direction,
+        } => format!("{g_nominal} g {direction:?} (pass {})", pass + 1),
+        Step::Stop => "stop".into(),
+    }
+}

@@ -1,0 +1,52 @@
+//! The embedded font (WenQuanYi Micro Hei): parsed once for metrics, and
+//! cut down to the glyphs a report uses.
+
+use super::*;
+
+/// The embedded font, parsed once per process (metrics for the layout).
+pub(super) fn full_font() -> Result<&'static ParsedFont, ReportError> {
+    static FONT: OnceLock<Option<ParsedFont>> = OnceLock::new();
+    FONT.get_or_init(|| ParsedFont::from_bytes(FONT_TTC, 0, &mut Vec::new()))
+        .as_ref()
+        .ok_or_else(|| ReportError::Pdf("the embedded font cannot be read".into()))
+}
+
+/// The embedded font cut down to the glyphs of `used` (a whole CJK font is
+/// 5 MB; a report uses a few hundred glyphs).
+pub(super) fn subset_font(
+    full: &ParsedFont,
+    used: &BTreeSet<char>,
+) -> Result<ParsedFont, ReportError> {
+    use allsorts::binary::read::ReadScope;
+    use allsorts::font_data::FontData;
+    use allsorts::subset::{CmapTarget, SubsetProfile, subset};
+    let fail =
+        |what: &str, e: String| ReportError::Pdf(format!("subsetting the font: {what}: {e}"));
+    let mut glyphs: Vec<u16> = used
+        .iter()
+        .filter_map(|&c| full.lookup_glyph_index(c as u32))
+        .filter(|&g| g != 0)
+        .collect();
+    glyphs.sort_unstable();
+    glyphs.dedup();
+    // Glyph 0 (.notdef) first, as the subsetter requires.
+    let ids: Vec<u16> = std::iter::once(0).chain(glyphs).collect();
+    let data = ReadScope::new(FONT_TTC)
+        .read::<FontData<'_>>()
+        .map_err(|e| fail("reading", e.to_string()))?;
+    let provider = data
+        .table_provider(0)
+        .map_err(|e| fail("face 0", e.to_string()))?;
+    let bytes = subset(&provider, &ids, &SubsetProfile::Pdf, CmapTarget::Unicode)
+        .map_err(|e| fail("subset", e.to_string()))?;
+    let font = ParsedFont::from_bytes(&bytes, 0, &mut Vec::new())
+        .ok_or_else(|| fail("reading the subset", "not a font".into()))?;
+    // Every character the full font draws must still map to a glyph.
+    if let Some(lost) = used.iter().find(|&&c| {
+        full.lookup_glyph_index(c as u32).is_some_and(|g| g != 0)
+            && font.lookup_glyph_index(c as u32).is_none_or(|g| g == 0)
+    }) {
+        return Err(fail("lost a glyph", format!("{lost:?}")));
+    }
+    Ok(font)
+}

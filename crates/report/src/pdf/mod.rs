@@ -1,0 +1,275 @@
+//! The report as a PDF, rendered from Rust with printpdf: A4 landscape pages,
+//! text in an embedded font that covers Chinese as well as Latin
+//! (WenQuanYi Micro Hei, Apache-2.0, see `fonts/wqy-microhei.COPYRIGHT`),
+//! subset to the glyphs the report uses, and the plots as vector paths drawn
+//! by the same plotters code as the HTML's SVG through [`PdfPlotBackend`].
+//!
+//! Written by hand here: the plotters backend (no crate draws plotters
+//! charts into printpdf operators; printpdf's own SVG import needs its HTML
+//! layout engine, a large build) and the table layout (a few fixed columns).
+
+use crate::batch::{self, BatchReport};
+use crate::plots::{self, UNIT_PLOTS};
+use crate::{
+    POINT_HEADERS, ReportError, RunReport, SUMMARY_DECIMALS, SUMMARY_HEADERS, UnitReport,
+    meta_rows, numbers, point_cells, summary,
+};
+use plotters::coord::Shift;
+use plotters::prelude::{DrawingArea, IntoDrawingArea, WHITE};
+use plotters_backend::text_anchor::{HPos, VPos};
+use plotters_backend::{
+    BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingBackend, DrawingErrorKind,
+    FontTransform,
+};
+use printpdf::{
+    Color, FontId, Line, LinePoint, Mm, Op, PaintMode, ParsedFont, PdfDocument, PdfFont,
+    PdfFontHandle, PdfPage, PdfSaveOptions, Point, Polygon, PolygonRing, Pt, Rgb, TextItem,
+    TextMatrix, WindingOrder,
+};
+use spinbench_engine::Outcome;
+use std::collections::BTreeSet;
+use std::convert::Infallible;
+use std::sync::OnceLock;
+
+mod backend;
+mod canvas;
+mod font;
+
+use backend::PdfPlotBackend;
+use canvas::{Align, Canvas, from_top, point};
+use font::{full_font, subset_font};
+
+/// WenQuanYi Micro Hei: Latin, Greek, symbols (µ ± ² σ) and CJK in one face.
+const FONT_TTC: &[u8] = include_bytes!("../../fonts/wqy-microhei.ttc");
+/// The font's resource name in every page.
+const FONT_ID: &str = "F1";
+const PAGE_W_MM: f32 = 297.0;
+const PAGE_H_MM: f32 = 210.0;
+const MARGIN_MM: f32 = 12.0;
+/// Room kept at the foot of each page for the footer [mm].
+const FOOTER_MM: f32 = 8.0;
+const PT_PER_MM: f32 = 72.0 / 25.4;
+const BLACK: (f32, f32, f32) = (0.0, 0.0, 0.0);
+const GREY: (f32, f32, f32) = (0.45, 0.45, 0.45);
+
+/// Number each page and write the document.
+fn finish(mut canvas: Canvas, title: &str, footer: &str) -> Result<Vec<u8>, ReportError> {
+    let total = canvas.pages.len();
+    for i in 0..total {
+        let text = format!("{footer} · page {} of {total}", i + 1);
+        let y = from_top(PAGE_H_MM - MARGIN_MM + 2.0);
+        let ops = canvas.text_ops(MARGIN_MM * PT_PER_MM, y, 0.0, 7.0, 1.0, GREY, &text);
+        canvas.pages[i].extend(ops);
+    }
+    let font = subset_font(canvas.font, &canvas.used)?;
+    let mut doc = PdfDocument::new(title);
+    doc.resources
+        .fonts
+        .map
+        .insert(FontId(FONT_ID.into()), PdfFont::new(font));
+    let pages = canvas
+        .pages
+        .into_iter()
+        .map(|ops| PdfPage::new(Mm(PAGE_W_MM), Mm(PAGE_H_MM), ops))
+        .collect();
+    doc.with_pages(pages);
+    let options = PdfSaveOptions {
+        // Subset above already.
+        subset_fonts: false,
+        ..PdfSaveOptions::default()
+    };
+    Ok(doc.save(&options, &mut Vec::new()))
+}
+
+/// The run's report as PDF bytes: a cover with the run, the station's
+/// devices and the summary table, then a page per instrument with its three
+/// plots and its points.
+pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
+    let mut c = Canvas::new(full_font()?);
+    let run = &report.run;
+    c.new_page();
+    let mut y = MARGIN_MM + 6.0;
+    c.text(
+        MARGIN_MM,
+        y,
+        16.0,
+        &format!("Centrifuge test report — run {}", run.id),
+        Align::Left,
+    );
+    y += 8.0;
+    for (label, value) in meta_rows(report) {
+        c.text(MARGIN_MM, y, 9.0, label, Align::Left);
+        c.text(MARGIN_MM + 28.0, y, 9.0, &value, Align::Left);
+        y += 4.6;
+    }
+    if let Some(devices) = crate::devices(report) {
+        y += 2.0;
+        c.text(
+            MARGIN_MM,
+            y,
+            11.0,
+            "Instruments of the station",
+            Align::Left,
+        );
+        y += 5.0;
+        for (role, identity) in devices {
+            c.text(MARGIN_MM, y, 8.0, &role, Align::Left);
+            c.text(MARGIN_MM + 28.0, y, 8.0, &identity, Align::Left);
+            y += 4.0;
+        }
+    }
+    y += 3.0;
+    c.text(MARGIN_MM, y, 11.0, "Summary", Align::Left);
+    y += 2.0;
+    let rows: Vec<Vec<String>> = summary(report)
+        .iter()
+        .map(|row| {
+            let mut cells = vec![row.serial.clone(), row.slot.to_string(), row.mount.clone()];
+            cells.extend(
+                numbers(row)
+                    .iter()
+                    .zip(SUMMARY_DECIMALS)
+                    .map(|(v, d)| crate::fmt(*v, d)),
+            );
+            cells.push(row.outcome.clone());
+            cells.push(row.reasons.clone());
+            cells
+        })
+        .collect();
+    c.table(y, &SUMMARY_HEADERS, &rows, 7.0, 1);
+    for u in &report.units {
+        unit_page(&mut c, u);
+    }
+    finish(
+        c,
+        &format!("spinbench report {}", run.id),
+        &format!(
+            "spinbench {} · run {}",
+            report.context.software_version, run.id
+        ),
+    )
+}
+
+/// One instrument: title, fit figures, the three plots, the points.
+fn unit_page(c: &mut Canvas, u: &UnitReport) {
+    c.new_page();
+    let mut y = MARGIN_MM + 5.0;
+    let title = format!("{} (slot {})", u.result.serial, u.result.slot + 1);
+    c.text(MARGIN_MM, y, 14.0, &title, Align::Left);
+    let x = MARGIN_MM + c.width_mm(&title, 14.0) + 4.0;
+    let color = match u.result.outcome {
+        Outcome::Fail => (0.7, 0.0, 0.0),
+        Outcome::Marginal => (0.65, 0.4, 0.0),
+        Outcome::Incomplete => (0.35, 0.35, 0.35),
+        Outcome::Pass => (0.0, 0.4, 0.0),
+    };
+    c.text_colored(x, y, 14.0, u.result.outcome.as_str(), Align::Left, color);
+    y += 6.0;
+    let fits = u.record().analysis.as_ref().map(|a| &a.fits);
+    for (mount, fit) in fits.into_iter().flatten() {
+        let fit = &fit.fit;
+        let half = fit.ci95.k2_ug_per_g2.map(|[a, b]| (b - a) / 2.0);
+        let line = format!(
+            "mounting {mount}: k0 {} g · k1 {} Hz/g · k2 {} ± {} µg/g² (95 %) · k3 {} µg/g³ · residual RMS {} µg",
+            crate::fmt(Some(fit.k0_g), 6),
+            crate::fmt(Some(fit.k1), 6),
+            crate::fmt(fit.k2_ug_per_g2, 3),
+            crate::fmt(half, 3),
+            crate::fmt(fit.k3_ug_per_g3, 3),
+            crate::fmt(Some(fit.residual_rms_ug), 2),
+        );
+        c.text(MARGIN_MM, y, 8.5, &line, Align::Left);
+        y += 4.2;
+    }
+    if !u.record().reasons.is_empty() {
+        let text = c.fit(&u.reasons_text(), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM);
+        c.text_colored(MARGIN_MM, y, 8.5, &text, Align::Left, (0.7, 0.0, 0.0));
+        y += 4.2;
+    }
+    y += 1.0;
+    let gap = 4.0;
+    let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
+    let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
+    for (k, plot) in UNIT_PLOTS.iter().enumerate() {
+        c.plot(MARGIN_MM + k as f32 * (width + gap), y, width, |root| {
+            plot.draw(u, root)
+        });
+    }
+    y += height + 3.0;
+    let rows: Vec<Vec<String>> = u.points.iter().map(|p| point_cells(p).to_vec()).collect();
+    c.table(y, &POINT_HEADERS, &rows, 6.5, 2);
+}
+
+/// The batch report as PDF bytes: totals and statistics, the histograms,
+/// outliers, repeatability, then every test.
+pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
+    let mut c = Canvas::new(full_font()?);
+    c.new_page();
+    let mut y = MARGIN_MM + 6.0;
+    c.text(MARGIN_MM, y, 16.0, "Batch report", Align::Left);
+    y += 7.0;
+    let (pass, marginal, fail) = b.outcomes();
+    let serials: BTreeSet<&str> = b.tests.iter().map(|t| t.serial.as_str()).collect();
+    let totals = format!(
+        "{} runs, {} instrument tests, {} serial numbers: {pass} pass, {marginal} marginal, {fail} fail{}",
+        b.runs.len(),
+        b.tests.len(),
+        serials.len(),
+        b.incomplete_note()
+    );
+    c.text(MARGIN_MM, y, 9.0, &totals, Align::Left);
+    if let (Some(first), Some(last)) = (b.runs.first(), b.runs.last()) {
+        y += 4.6;
+        let span = format!(
+            "runs from {} to {}",
+            crate::unix_date(first.started_at),
+            crate::unix_date(last.started_at)
+        );
+        c.text(MARGIN_MM, y, 9.0, &span, Align::Left);
+    }
+    y += 4.0;
+    let rows = batch::statistics_rows(b);
+    let bottom = c.table(y, &batch::STATISTICS_HEADERS, &rows, 7.5, 1);
+    let gap = 4.0;
+    let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
+    let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
+    let mut top = bottom + 2.0;
+    for (k, d) in b.distributions.iter().enumerate() {
+        let column = k % 3;
+        if column == 0 && k > 0 {
+            top += height + 2.0;
+        }
+        if top + height > PAGE_H_MM - MARGIN_MM - FOOTER_MM {
+            c.new_page();
+            top = MARGIN_MM;
+        }
+        c.plot(
+            MARGIN_MM + column as f32 * (width + gap),
+            top,
+            width,
+            |root| batch::draw_histogram(d, root),
+        );
+    }
+    for (title, headers, rows) in [
+        (
+            "Outliers (|robust z| > 3.5)",
+            &batch::OUTLIER_HEADERS[..],
+            batch::outlier_rows(b),
+        ),
+        (
+            "Repeatability of serial numbers tested more than once",
+            &batch::REPEAT_HEADERS[..],
+            batch::repeat_rows(b),
+        ),
+        ("Every test", &batch::TEST_HEADERS[..], batch::test_rows(b)),
+    ] {
+        c.new_page();
+        c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, title, Align::Left);
+        if rows.is_empty() {
+            c.text(MARGIN_MM, MARGIN_MM + 12.0, 9.0, "none", Align::Left);
+        } else {
+            c.table(MARGIN_MM + 8.0, headers, &rows, 7.0, 1);
+        }
+    }
+    finish(c, "spinbench batch report", "spinbench batch report")
+}

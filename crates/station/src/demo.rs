@@ -1,0 +1,282 @@
+//! `spinbench demo`: the virtual bench started in this process, a complete
+//! test run on it through the production drivers, and what was measured
+//! beside the simulator's truth.
+
+use crate::run_setup::{RunDir, Setup, prepare};
+use crate::station_run::{Finished, RunControl, connect_bench, execute, sim_station_toml};
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use spinbench_analysis::Mount;
+use spinbench_engine::{AbortFlag, Outcome, RunState, StationConfig, TestPlan, UnitRecord};
+use spinbench_sim::SimConfig;
+use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::station::SimOperator;
+use spinbench_store::StoreTarget;
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+/// One line of the demo's comparison with the truth.
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoUnit {
+    /// Serial number.
+    pub serial: String,
+    /// Slot (1-based).
+    pub slot: usize,
+    /// Mounting.
+    pub mount: Mount,
+    /// Radius found [m].
+    pub radius_m: Option<f64>,
+    /// The simulator's true radius [m].
+    pub true_radius_m: f64,
+    /// Drawing radius [m].
+    pub drawing_radius_m: f64,
+    /// Measured k2 in this mounting [µg/g²].
+    pub k2_ug_per_g2: Option<f64>,
+    /// Its 95 % interval.
+    pub k2_ci95: Option<[f64; 2]>,
+    /// The truth in the same per-mounting convention (N flips the sign).
+    pub true_k2_ug_per_g2: f64,
+    /// Measured k1 [Hz/g] in this mounting.
+    pub k1_hz_per_g: Option<f64>,
+    /// True k1 in this convention.
+    pub true_k1_hz_per_g: f64,
+    /// The instrument's k2_max [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Pass, fail or marginal.
+    pub outcome: Outcome,
+}
+
+/// Compare a finished demo run with the simulator's truth.
+pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) -> Vec<DemoUnit> {
+    let mut out = Vec::new();
+    for r in records {
+        let Some(t) = truth.instruments.get(r.slot) else {
+            continue;
+        };
+        for mount in [Mount::P, Mount::N] {
+            let fit = r
+                .analysis
+                .as_ref()
+                .and_then(|a| a.fits.get(&mount))
+                .map(|f| &f.fit);
+            if fit.is_none() && !r.radius_m.contains_key(&mount) {
+                continue;
+            }
+            let sign = mount.input_sign();
+            out.push(DemoUnit {
+                serial: r.serial.clone(),
+                slot: r.slot + 1,
+                mount,
+                radius_m: r.radius_m.get(&mount).copied(),
+                true_radius_m: match mount {
+                    Mount::P => t.position.radius_p_m,
+                    Mount::N => t.position.radius_n_m,
+                },
+                drawing_radius_m: t.position.drawing_radius_m,
+                k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
+                k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
+                true_k2_ug_per_g2: sign * t.vba.k2_ug_per_g2,
+                k1_hz_per_g: fit.map(|f| f.k1),
+                true_k1_hz_per_g: sign * t.vba.k1_hz_per_g,
+                k2_max_ug_per_g2: r.k2_max_ug_per_g2,
+                outcome: r.outcome,
+            });
+        }
+    }
+    out
+}
+
+/// The demo's plan: every slot, ±70 g (both mountings), published levels,
+/// a 10-minute warm-up (virtual time is cheap).
+pub fn demo_plan(slots: usize) -> TestPlan {
+    TestPlan {
+        name: "demo: ±70 g, mountings P and N".into(),
+        operator: "demo".into(),
+        serials: (1..=slots)
+            .map(|i| (i.to_string(), format!("SIM-{i:02}")))
+            .collect(),
+        passes: vec![Mount::P, Mount::N],
+        warmup_s: 600.0,
+        ..TestPlan::default()
+    }
+}
+
+/// Start the virtual bench and the station config that reaches it.
+pub fn start_sim(seed: u64) -> Result<(RunningBench, StationConfig)> {
+    let sim = SimConfig {
+        seed,
+        speed: 0.0,
+        ..SimConfig::default()
+    };
+    let bench = RunningBench::start(sim, ServeOptions::default())
+        .context("cannot start the virtual bench")?;
+    let text = sim_station_toml(&bench);
+    let station = StationConfig::from_toml(&text)
+        .with_context(|| format!("the virtual bench's station config:\n{text}"))?;
+    Ok((bench, station))
+}
+
+/// `spinbench demo`.
+pub fn demo(
+    seed: u64,
+    json: bool,
+    data_dir: &Path,
+    db: Option<&StoreTarget>,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let wall = Instant::now();
+    let (sim, station) = start_sim(seed)?;
+    let plan = demo_plan(station.slots());
+    if !json {
+        writeln!(
+            out,
+            "spinbench demo: a virtual bench (seed {seed}) with {} instruments on {} counter modules, a 0.8 m centrifuge,\n\
+             ±70 g in mountings P and N, in virtual time. Operator prompts are answered by the simulator.\n",
+            station.slots(),
+            station.fmu.len()
+        )?;
+        out.flush()?;
+    }
+    let prepared = prepare(Setup {
+        station_toml: sim_station_toml(&sim),
+        station,
+        plan,
+        plan_text: None,
+        dir: RunDir::create(data_dir)?,
+        store: db.cloned(),
+    })?;
+    let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
+    let operator = Box::new(SimOperator::new(&sim, json));
+    let abort = AbortFlag::new();
+    crate::signals::abort_on_termination_signals(abort.clone())?;
+    let finished = execute(
+        prepared,
+        bench,
+        operator,
+        json,
+        RunControl::abort_only(abort),
+    )?;
+    let truth = sim.with_world(|w| w.truth());
+    sim.shutdown();
+    let units = compare_with_truth(&finished.summary.records, &truth);
+    std::fs::write(
+        finished.dir.join("truth.json"),
+        serde_json::to_string_pretty(&truth)?,
+    )?;
+    let wall_s = wall.elapsed().as_secs_f64();
+    if json {
+        let doc = serde_json::json!({
+            "run": {
+                "dir": finished.dir,
+                "state": finished.summary.state,
+                "reason": finished.summary.reason,
+                "seed": seed,
+                "virtual_duration_s": finished.summary.duration_s,
+                "wall_duration_s": wall_s,
+            },
+            "units": units,
+        });
+        serde_json::to_writer_pretty(&mut *out, &doc)?;
+        writeln!(out)?;
+    } else {
+        render_demo(out, &finished, &units, wall_s)?;
+    }
+    if finished.summary.state != RunState::Completed {
+        bail!(
+            "the demo run did not complete: {}",
+            finished.summary.reason.unwrap_or_default()
+        );
+    }
+    Ok(())
+}
+
+fn render_demo(
+    out: &mut dyn Write,
+    finished: &Finished,
+    units: &[DemoUnit],
+    wall_s: f64,
+) -> Result<()> {
+    let s = &finished.summary;
+    writeln!(
+        out,
+        "\nRun {:?} in {:.0} s of virtual time ({:.1} h), {:.1} s of wall-clock time.\n",
+        s.state,
+        s.duration_s,
+        s.duration_s / 3600.0,
+        wall_s
+    )?;
+    writeln!(
+        out,
+        "{:<7} {:>4} {:>5} | {:>10} {:>10} {:>9} | {:>22} {:>9} {:>6} | {:>8} {:>9}",
+        "serial",
+        "slot",
+        "mount",
+        "R [mm]",
+        "true R",
+        "R0 − true",
+        "k2 ± 95 % [µg/g²]",
+        "true k2",
+        "in CI",
+        "k2_max",
+        "outcome"
+    )?;
+    let (mut covered, mut total) = (0, 0);
+    for u in units {
+        let r = u.radius_m.map_or("—".into(), |r| format!("{:.3}", r * 1e3));
+        let k2 = match (u.k2_ug_per_g2, u.k2_ci95) {
+            (Some(k), Some([lo, hi])) => format!("{k:+.3} ± {:.3}", (hi - lo) / 2.0),
+            _ => "—".into(),
+        };
+        let inside = u
+            .k2_ci95
+            .map(|[lo, hi]| lo <= u.true_k2_ug_per_g2 && u.true_k2_ug_per_g2 <= hi);
+        if let Some(i) = inside {
+            total += 1;
+            covered += usize::from(i);
+        }
+        writeln!(
+            out,
+            "{:<7} {:>4} {:>5} | {:>10} {:>10.3} {:>+9.3} | {:>22} {:>+9.3} {:>6} | {:>8} {:>9}",
+            u.serial,
+            u.slot,
+            u.mount.to_string(),
+            r,
+            u.true_radius_m * 1e3,
+            (u.drawing_radius_m - u.true_radius_m) * 1e3,
+            k2,
+            u.true_k2_ug_per_g2,
+            inside.map_or("—", |i| if i { "yes" } else { "NO" }),
+            u.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
+            format!("{:?}", u.outcome).to_lowercase(),
+        )?;
+    }
+    let radius_err: Vec<f64> = units
+        .iter()
+        .filter_map(|u| u.radius_m.map(|r| (r - u.true_radius_m).abs() * 1e6))
+        .collect();
+    let r0_err: Vec<f64> = units
+        .iter()
+        .map(|u| (u.drawing_radius_m - u.true_radius_m).abs() * 1e6)
+        .collect();
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    writeln!(
+        out,
+        "\nk2: the true value lies inside the reported 95 % interval for {covered} of {total} instrument-mountings.\n\
+         Radius: found within {:.1} µm of the truth on average; the drawing radius R0 is off by {:.1} µm on average.",
+        mean(&radius_err),
+        mean(&r0_err)
+    )?;
+    writeln!(
+        out,
+        "\nResults: {}/results.json (per-instrument records), journal.jsonl (every event), truth.json (the simulator's truth);\n\
+         the run is also in the store {}/spinbench.db (`spinbench runs list --db …`).",
+        finished.dir.display(),
+        finished
+            .dir
+            .parent()
+            .and_then(Path::parent)
+            .map_or_else(|| ".".into(), |p| p.display().to_string())
+    )?;
+    Ok(())
+}

@@ -1,0 +1,308 @@
+//! One run set-up, shared by `spinbench demo`, `spinbench run` and the web
+//! runner: a run directory ([`RunDir`]), and [`prepare`], which checks and
+//! compiles the plan once against the station, writes the run's
+//! `station.toml` and `plan.toml` and settles which store the run writes to.
+//! What comes out ([`Prepared`]) is all [`crate::station_run::execute`] needs.
+
+use anyhow::{Context, Result, bail};
+use spinbench_engine::event::Event;
+use spinbench_engine::journal::{JOURNAL_FILE, read_journal};
+use spinbench_engine::{CompiledPlan, StationConfig, TestPlan};
+use spinbench_store::StoreTarget;
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// Where runs are kept unless `--data` says otherwise.
+pub const DEFAULT_DATA_DIR: &str = "spinbench-data";
+
+/// The store's file inside the data directory.
+pub const DB_FILE: &str = "spinbench.db";
+
+/// The directory of the runs inside the data directory.
+pub const RUNS_DIR: &str = "runs";
+
+/// The raw byte captures of a run, inside its directory.
+pub const RAW_DIR: &str = "raw";
+
+/// The plan a run was started with, inside its directory.
+pub const PLAN_FILE: &str = "plan.toml";
+
+/// The station config a run was started with, inside its directory.
+pub const STATION_FILE: &str = "station.toml";
+
+/// A new run identifier: the clock and 48 random bits, so that stations
+/// sharing one database never pick the same one.
+pub fn new_run_id() -> String {
+    let t = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default();
+    let random: u64 = rand::random::<u64>() & 0xffff_ffff_ffff;
+    format!("run-{}-{random:012x}", t.as_secs())
+}
+
+/// The default store of a data directory: `DATA/spinbench.db`.
+pub fn default_store(data: &Path) -> StoreTarget {
+    StoreTarget::File(data.join(DB_FILE))
+}
+
+/// A run's directory: `DATA/runs/<id>`, holding its station config, plan,
+/// journal, raw captures, results and reports.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RunDir {
+    path: PathBuf,
+    id: String,
+    /// Made by this process for a new run (removed again if the run never starts).
+    new: bool,
+}
+
+impl RunDir {
+    /// A new run directory under `data/runs`, created.
+    pub fn create(data: &Path) -> Result<RunDir> {
+        let id = new_run_id();
+        let path = data.join(RUNS_DIR).join(&id);
+        std::fs::create_dir_all(&path)
+            .with_context(|| format!("{}: cannot create the run directory", path.display()))?;
+        Ok(RunDir {
+            path,
+            id,
+            new: true,
+        })
+    }
+
+    /// The directory of an existing run, to resume with `plan`: it must
+    /// hold a journal that started a run and the plan the run was started
+    /// with, and `plan` must be that very plan (two tests are never merged
+    /// into one record); the difference is named otherwise.
+    pub fn resume(path: &Path, plan: &TestPlan) -> Result<RunDir> {
+        if !path.is_dir() {
+            bail!("--resume {}: no such run directory", path.display());
+        }
+        let plan_path = path.join(PLAN_FILE);
+        if !path.join(JOURNAL_FILE).is_file() || !plan_path.is_file() {
+            bail!(
+                "--resume {}: not a run directory (it has no {JOURNAL_FILE} and {PLAN_FILE}); give the directory of the run to continue, under DATA/{RUNS_DIR}",
+                path.display()
+            );
+        }
+        let (events, _) = read_journal(path).map_err(anyhow::Error::msg)?;
+        if !events.iter().any(|e| matches!(e, Event::RunStarted { .. })) {
+            bail!(
+                "--resume {}: its journal never started a run; start a new run instead",
+                path.display()
+            );
+        }
+        let text = std::fs::read_to_string(&plan_path)
+            .with_context(|| format!("{}: cannot read the run's plan", plan_path.display()))?;
+        let own = TestPlan::from_toml(&text).with_context(|| plan_path.display().to_string())?;
+        let differences = plan_differences(&own, plan);
+        if !differences.is_empty() {
+            bail!(
+                "--resume {}: the plan given is not the run's own plan ({}); resume with {} or start a new run",
+                path.display(),
+                differences.join("; "),
+                plan_path.display()
+            );
+        }
+        let id = path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .with_context(|| format!("--resume {}: the directory has no name", path.display()))?;
+        Ok(RunDir {
+            path: path.to_path_buf(),
+            id,
+            new: false,
+        })
+    }
+
+    /// The directory.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The run's identifier (the directory's name).
+    pub fn id(&self) -> &str {
+        &self.id
+    }
+
+    /// The raw captures' directory.
+    pub fn raw_dir(&self) -> PathBuf {
+        self.path.join(RAW_DIR)
+    }
+
+    /// The store this run writes to unless one is given: the data
+    /// directory's, `DATA/spinbench.db` for a run in `DATA/runs/<id>`.
+    pub fn default_store(&self) -> StoreTarget {
+        let data = self
+            .path
+            .parent()
+            .filter(|p| p.file_name().is_some_and(|n| n == RUNS_DIR))
+            .and_then(Path::parent)
+            .unwrap_or(Path::new("."));
+        default_store(data)
+    }
+
+    /// Remove a directory made for a run that never started (nothing of
+    /// it is worth keeping); an existing run's directory is never touched.
+    pub fn discard(self) {
+        if self.new {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+/// What a run starts from.
+pub struct Setup {
+    /// The station, and its config's text (kept with the run).
+    pub station: StationConfig,
+    /// The station config's text.
+    pub station_toml: String,
+    /// The plan.
+    pub plan: TestPlan,
+    /// The plan's text as the user wrote it (written as `plan.toml`; the
+    /// plan serialised when `None`).
+    pub plan_text: Option<String>,
+    /// The run's directory (new, or the run to resume).
+    pub dir: RunDir,
+    /// The store, when given (`--db`); the data directory's otherwise.
+    pub store: Option<StoreTarget>,
+}
+
+/// A run ready to execute.
+pub struct Prepared {
+    /// The run's directory.
+    pub dir: RunDir,
+    /// The station.
+    pub station: StationConfig,
+    /// The station config's text, stored with the run.
+    pub station_toml: String,
+    /// The plan as written.
+    pub plan: TestPlan,
+    /// The plan compiled against the station (once, here).
+    pub compiled: CompiledPlan,
+    /// The store the run writes to.
+    pub store: StoreTarget,
+    /// True when the run continues from its journal.
+    pub resume: bool,
+}
+
+/// Why [`prepare`] refused.
+#[derive(Debug, thiserror::Error)]
+pub enum PrepareError {
+    /// The plan cannot run on this station (nothing was written).
+    #[error(transparent)]
+    Plan(#[from] spinbench_engine::plan::PlanError),
+    /// The run's files could not be written.
+    #[error("{0:#}")]
+    Files(anyhow::Error),
+}
+
+/// Check the plan against the station and compile it (once), write the
+/// run's `station.toml` (and, for a new run, `plan.toml`; a resumed run
+/// keeps its own), and settle the store. A plan refused leaves no new run
+/// directory behind.
+pub fn prepare(setup: Setup) -> Result<Prepared, PrepareError> {
+    let Setup {
+        station,
+        station_toml,
+        plan,
+        plan_text,
+        dir,
+        store,
+    } = setup;
+    let compiled = match plan.compile(&station) {
+        Ok(c) => c,
+        Err(e) => {
+            dir.discard();
+            return Err(e.into());
+        }
+    };
+    let resume = !dir.new;
+    let write = |name: &str, text: &str| -> Result<(), PrepareError> {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text)
+            .with_context(|| format!("{}: cannot write", path.display()))
+            .map_err(PrepareError::Files)
+    };
+    write(STATION_FILE, &station_toml)?;
+    if !resume {
+        let text = match plan_text {
+            Some(t) => t,
+            None => toml::to_string(&plan)
+                .context("cannot write the plan as TOML")
+                .map_err(PrepareError::Files)?,
+        };
+        write(PLAN_FILE, &text)?;
+    }
+    let store = store.unwrap_or_else(|| dir.default_store());
+    Ok(Prepared {
+        dir,
+        station,
+        station_toml,
+        plan,
+        compiled,
+        store,
+        resume,
+    })
+}
+
+/// The keys in which two plans differ, with both values ("range_g: 70 in the run, 10 given").
+pub fn plan_differences(run: &TestPlan, given: &TestPlan) -> Vec<String> {
+    fn walk(prefix: &str, a: &toml::Value, b: &toml::Value, out: &mut Vec<String>) {
+        let shown = |v: &toml::Value| spinbench_engine::bounds::shown(&v.to_string());
+        match (a, b) {
+            (toml::Value::Table(x), toml::Value::Table(y)) => {
+                let keys: std::collections::BTreeSet<&String> = x.keys().chain(y.keys()).collect();
+                for k in keys {
+                    let key = if prefix.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{prefix}.{k}")
+                    };
+                    match (x.get(k), y.get(k)) {
+                        (Some(va), Some(vb)) => walk(&key, va, vb, out),
+                        (Some(va), None) => {
+                            out.push(format!("{key}: {} in the run, none given", shown(va)))
+                        }
+                        (None, Some(vb)) => {
+                            out.push(format!("{key}: none in the run, {} given", shown(vb)))
+                        }
+                        (None, None) => {}
+                    }
+                }
+            }
+            _ if a != b => out.push(format!(
+                "{prefix}: {} in the run, {} given",
+                shown(a),
+                shown(b)
+            )),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    match (toml::Value::try_from(run), toml::Value::try_from(given)) {
+        (Ok(a), Ok(b)) => walk("", &a, &b, &mut out),
+        _ if run != given => out.push("the plans differ".into()),
+        _ => {}
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_run_in_a_data_directory_writes_to_that_directorys_store() {
+        let data = std::env::temp_dir().join(format!("spinbench-setup-{}", std::process::id()));
+        let dir = RunDir::create(&data).expect("run dir");
+        assert!(dir.path().starts_with(data.join(RUNS_DIR)));
+        assert_eq!(dir.default_store(), StoreTarget::File(data.join(DB_FILE)));
+        let path = dir.path().to_path_buf();
+        dir.discard();
+        assert!(
+            !path.exists(),
+            "a new run that never started leaves nothing"
+        );
+        let _ = std::fs::remove_dir_all(data);
+    }
+}

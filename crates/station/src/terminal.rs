@@ -1,0 +1,150 @@
+//! The terminal's side of a run: the operator at the keyboard (prompts on
+//! stderr, Enter or `abort` on stdin) and the progress printer.
+
+use spinbench_engine::event::{Event, EventSink};
+use spinbench_engine::plan::Fixture;
+use spinbench_engine::{Answer, Operator};
+use std::io::IsTerminal;
+use std::time::{Duration, Instant};
+
+/// The terminal operator: shows the prompt, waits for Enter (or `abort`).
+/// Standard input is read on its own thread, so the engine keeps reading
+/// the counter modules while the operator works at the centrifuge.
+#[derive(Default)]
+pub struct TerminalOperator {
+    lines: Option<std::sync::mpsc::Receiver<Option<String>>>,
+}
+
+impl TerminalOperator {
+    fn answer_of(line: Option<String>) -> Answer {
+        let proceed = line
+            .as_deref()
+            .is_some_and(|l| !l.trim().eq_ignore_ascii_case("abort"));
+        Answer {
+            proceed,
+            by: "operator at the terminal".into(),
+        }
+    }
+}
+
+impl Operator for TerminalOperator {
+    fn ask(&mut self, text: &str, fixtures: &[Option<Fixture>]) -> Answer {
+        if let Some(answer) = self.post(text, fixtures) {
+            return answer;
+        }
+        loop {
+            if let Some(answer) = self.poll_answer(Duration::from_millis(500)) {
+                return answer;
+            }
+        }
+    }
+
+    fn post(&mut self, text: &str, _fixtures: &[Option<Fixture>]) -> Option<Answer> {
+        eprintln!(
+            "\n>>> {text}\n    Press Enter when done, or type 'abort' and Enter to stop the run safely."
+        );
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let read = std::io::stdin().read_line(&mut line);
+            // End of input (or an unreadable terminal) is no "done".
+            let _ = tx.send(matches!(read, Ok(n) if n > 0).then_some(line));
+        });
+        self.lines = Some(rx);
+        None
+    }
+
+    fn poll_answer(&mut self, wait: Duration) -> Option<Answer> {
+        let rx = self.lines.as_ref()?;
+        match rx.recv_timeout(wait) {
+            Ok(line) => {
+                self.lines = None;
+                Some(Self::answer_of(line))
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => None,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                self.lines = None;
+                Some(Self::answer_of(None))
+            }
+        }
+    }
+}
+
+/// Progress on stderr: the step, the phase, the rate.
+pub struct ProgressPrinter {
+    tty: bool,
+    step: String,
+    steps: (usize, usize),
+    phase: String,
+    last: Instant,
+    quiet: bool,
+}
+
+impl ProgressPrinter {
+    /// A printer (`quiet` prints nothing but faults).
+    pub fn new(quiet: bool) -> Self {
+        ProgressPrinter {
+            tty: std::io::stderr().is_terminal(),
+            step: String::new(),
+            steps: (0, 0),
+            phase: String::new(),
+            last: Instant::now(),
+            quiet,
+        }
+    }
+}
+
+impl EventSink for ProgressPrinter {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        match event {
+            Event::Fault { reason } => {
+                eprintln!("\r\x1b[2K  FAULT: {reason} — bringing the station to the safe state")
+            }
+            _ if self.quiet => {}
+            Event::Notice { message } => eprintln!("\r\x1b[2K  note: {message}"),
+            Event::StepStarted { index, of, label } => {
+                self.steps = (*index + 1, *of);
+                self.step = label.clone();
+                if !self.tty {
+                    eprintln!("  [{:>3}/{}] {label}", index + 1, of);
+                }
+            }
+            Event::Progress { phase, done, of } => self.phase = format!("{phase} {done}/{of}"),
+            Event::UnitFailed { slot, reason, .. } => {
+                eprintln!("\r\x1b[2K  slot {}: FAILED — {reason}", slot + 1)
+            }
+            Event::Values {
+                time_s,
+                rate_deg_s,
+                on_speed,
+                ..
+            } if self.tty && self.last.elapsed() > Duration::from_millis(100) => {
+                self.last = Instant::now();
+                let (i, n) = self.steps;
+                let bar_len = 20;
+                let filled = (i * bar_len).checked_div(n).unwrap_or(0).min(bar_len);
+                eprint!(
+                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}",
+                    "#".repeat(filled),
+                    ".".repeat(bar_len - filled),
+                    self.step,
+                    self.phase,
+                    time_s,
+                    rate_deg_s,
+                    if *on_speed { "on speed" } else { "settling" }
+                );
+            }
+            Event::RunFinished { state, reason } => {
+                eprintln!(
+                    "\r\x1b[2K  run {state:?}{}",
+                    reason
+                        .as_ref()
+                        .map(|r| format!(": {r}"))
+                        .unwrap_or_default()
+                );
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+}

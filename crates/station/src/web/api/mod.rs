@@ -1,0 +1,200 @@
+//! The HTTP API and the page's files. Every `/api` route but login, the
+//! session check and the OpenAPI document needs a session; every request
+//! that changes something also needs the session's CSRF token in
+//! `X-CSRF-Token`, and the role the action needs. Errors are JSON
+//! `{"error": "…"}` that say what to do.
+
+use super::AppState;
+use super::auth::{self, CSRF_HEADER, Role, Session};
+use crate::web::runner::StartError;
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{MethodRouter, delete, get, post, put};
+use futures_util::Stream;
+use serde::Deserialize;
+use serde_json::{Value, json};
+use spinbench_engine::TestPlan;
+use spinbench_report::ReportFormat;
+use std::collections::BTreeMap;
+use std::convert::Infallible;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+mod assets;
+mod live;
+mod plans;
+mod runs;
+mod session;
+mod users;
+
+type App = Arc<AppState>;
+
+/// An API error: a status and what to do about it.
+#[derive(Debug)]
+pub struct ApiError {
+    status: StatusCode,
+    message: String,
+}
+
+impl ApiError {
+    fn new(status: StatusCode, message: impl Into<String>) -> ApiError {
+        ApiError {
+            status,
+            message: message.into(),
+        }
+    }
+    fn bad(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::BAD_REQUEST, message)
+    }
+    fn not_found(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::NOT_FOUND, message)
+    }
+    fn conflict(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::CONFLICT, message)
+    }
+    fn internal(message: impl Into<String>) -> ApiError {
+        ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, message)
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.status, axum::Json(json!({ "error": self.message }))).into_response()
+    }
+}
+
+impl From<spinbench_store::StoreError> for ApiError {
+    fn from(e: spinbench_store::StoreError) -> ApiError {
+        ApiError::internal(e.to_string())
+    }
+}
+
+type ApiResult<T> = Result<T, ApiError>;
+
+/// The session of the request, checked for its role and (when the request
+/// changes something) its CSRF token.
+pub(super) fn authorize(
+    app: &AppState,
+    headers: &HeaderMap,
+    min: Role,
+    changes: bool,
+) -> ApiResult<Session> {
+    let session = headers
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(auth::session_token)
+        .and_then(|t| app.sessions.get(&t))
+        .ok_or_else(|| {
+            ApiError::new(
+                StatusCode::UNAUTHORIZED,
+                "not logged in: POST /api/login first",
+            )
+        })?;
+    if changes {
+        let sent = headers
+            .get(CSRF_HEADER)
+            .and_then(|v| v.to_str().ok())
+            .unwrap_or("");
+        if !auth::same_token(sent, &session.csrf) {
+            return Err(ApiError::new(
+                StatusCode::FORBIDDEN,
+                "missing or wrong X-CSRF-Token header (GET /api/session gives the token)",
+            ));
+        }
+    }
+    if session.role < min {
+        return Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            format!(
+                "this needs the {} role; {} is {}",
+                min.as_str(),
+                session.user,
+                session.role.as_str()
+            ),
+        ));
+    }
+    Ok(session)
+}
+
+fn parse_json<T: for<'de> Deserialize<'de>>(body: &[u8]) -> ApiResult<T> {
+    serde_json::from_slice(body).map_err(|e| ApiError::bad(format!("the request body: {e}")))
+}
+
+pub(super) fn store(app: &AppState) -> std::sync::MutexGuard<'_, spinbench_store::Store> {
+    app.store.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+pub(super) fn audit(app: &AppState, who: &str, action: &str, detail: &str) -> ApiResult<()> {
+    store(app)
+        .audit(who, action, detail)
+        .map_err(ApiError::from)
+}
+
+/// Largest body of a login request [bytes].
+pub const LOGIN_BODY_LIMIT: usize = 4 * 1024;
+
+/// Every route, once: (method, path, handler). The router and the list the
+/// OpenAPI document is held to ([`api_routes`]) are both built from it.
+fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
+    vec![
+        ("get", "/", get(assets::page)),
+        ("get", "/app.js", get(assets::script)),
+        ("get", "/app.css", get(assets::style)),
+        ("get", "/api/openapi.json", get(assets::openapi)),
+        (
+            "post",
+            "/api/login",
+            post(session::login).layer(axum::extract::DefaultBodyLimit::max(LOGIN_BODY_LIMIT)),
+        ),
+        ("post", "/api/logout", post(session::logout)),
+        ("get", "/api/session", get(session::session)),
+        ("get", "/api/status", get(live::status)),
+        ("get", "/api/events", get(live::events)),
+        ("get", "/api/plans", get(plans::plans)),
+        ("put", "/api/plans/{name}", put(plans::save_plan)),
+        ("get", "/api/station", get(plans::station)),
+        ("put", "/api/station", put(plans::save_station)),
+        ("get", "/api/runs", get(runs::runs)),
+        ("post", "/api/runs", post(runs::start_run)),
+        ("get", "/api/runs/{id}", get(runs::run)),
+        ("get", "/api/runs/{id}/report/{format}", get(runs::report)),
+        ("post", "/api/run/prompt", post(runs::answer_prompt)),
+        ("post", "/api/run/pause", post(runs::pause)),
+        ("post", "/api/run/resume", post(runs::resume)),
+        ("post", "/api/run/abort", post(runs::abort)),
+        ("get", "/api/units/{serial}", get(runs::unit)),
+        ("get", "/api/users", get(users::users)),
+        ("post", "/api/users", post(users::add_user)),
+        ("delete", "/api/users/{name}", delete(users::delete_user)),
+        ("get", "/api/audit", get(users::audit_log)),
+    ]
+}
+
+/// The router: the page, its files and the API, from [`routes`] (the method
+/// routers of one path are merged).
+pub fn router(app: App) -> Router {
+    routes()
+        .into_iter()
+        .fold(Router::new(), |router, (_, path, handler)| {
+            router.route(path, handler)
+        })
+        .with_state(app)
+}
+
+/// Every route of the API as (method, path), from the same table as the
+/// router — the OpenAPI document must list exactly these.
+pub fn api_routes() -> Vec<(&'static str, &'static str)> {
+    routes()
+        .into_iter()
+        .filter(|(_, path, _)| path.starts_with("/api/"))
+        .map(|(method, path, _)| (method, path))
+        .collect()
+}
+
+// Handlers of a POST or DELETE without a body of their own still take it
+// (`_body`): a body left unread makes the server close the connection, and a
+// client that pooled it fails its next request.

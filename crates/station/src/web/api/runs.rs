@@ -1,0 +1,251 @@
+//! Runs: start one, answer its prompts, pause, resume, abort; the history,
+//! one run's results, its reports, every run of one serial number.
+
+use super::plans::plan_name_ok;
+use super::*;
+
+#[derive(Deserialize)]
+pub(super) struct StartRun {
+    plan: String,
+    #[serde(default)]
+    serials: BTreeMap<String, String>,
+}
+
+pub(super) async fn start_run(
+    State(app): State<App>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<(StatusCode, axum::Json<Value>)> {
+    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let start: StartRun = parse_json(&body)?;
+    if !plan_name_ok(&start.plan) {
+        return Err(ApiError::bad(format!("no plan named '{}'", start.plan)));
+    }
+    let path = app.plans_dir.join(format!("{}.toml", start.plan));
+    let text = std::fs::read_to_string(&path)
+        .map_err(|_| ApiError::bad(format!("no plan named '{}' (GET /api/plans)", start.plan)))?;
+    let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
+    let serials: BTreeMap<String, String> = start
+        .serials
+        .into_iter()
+        .filter(|(_, s)| !s.trim().is_empty())
+        .collect();
+    if !serials.is_empty() {
+        plan.serials = serials;
+    }
+    plan.operator = session.user.clone();
+    let plan_text = toml::to_string(&plan).map_err(|e| ApiError::internal(e.to_string()))?;
+    let run_id = app
+        .runner
+        .start(plan.clone(), &plan_text, &session.user)
+        .map_err(|e| match e {
+            StartError::Busy(id) => ApiError::conflict(format!(
+                "run {id} is active; wait for it to end or abort it"
+            )),
+            StartError::Invalid(why) => ApiError::bad(why),
+            StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
+            StartError::Files(why) => ApiError::internal(why),
+        })?;
+    let serial_list: Vec<String> = plan
+        .serials
+        .iter()
+        .map(|(k, v)| format!("{k}={v}"))
+        .collect();
+    audit(
+        &app,
+        &session.user,
+        "start run",
+        &format!(
+            "{run_id} plan {} serials {}",
+            start.plan,
+            serial_list.join(" ")
+        ),
+    )?;
+    Ok((StatusCode::CREATED, axum::Json(json!({ "run_id": run_id }))))
+}
+
+#[derive(Deserialize)]
+pub(super) struct PromptAnswer {
+    proceed: bool,
+}
+
+pub(super) async fn answer_prompt(
+    State(app): State<App>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let answer: PromptAnswer = parse_json(&body)?;
+    let prompt = app.runner.prompt().unwrap_or_default();
+    let run_id = app
+        .runner
+        .answer(answer.proceed, &session.user)
+        .map_err(ApiError::conflict)?;
+    audit(
+        &app,
+        &session.user,
+        if answer.proceed {
+            "answer prompt: done"
+        } else {
+            "answer prompt: abort"
+        },
+        &format!("{run_id}: {prompt}"),
+    )?;
+    Ok(axum::Json(json!({ "run_id": run_id })))
+}
+
+pub(super) async fn control(
+    app: &AppState,
+    headers: &HeaderMap,
+    action: &str,
+    act: impl FnOnce(&crate::web::runner::Runner, &str) -> Result<String, String>,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(app, headers, Role::Operator, true)?;
+    let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
+    audit(app, &session.user, action, &run_id)?;
+    Ok(axum::Json(json!({ "run_id": run_id })))
+}
+
+pub(super) async fn pause(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    control(&app, &headers, "pause", |r, _| r.pause(true)).await
+}
+
+pub(super) async fn resume(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    control(&app, &headers, "resume", |r, _| r.pause(false)).await
+}
+
+pub(super) async fn abort(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    control(&app, &headers, "abort", |r, user| {
+        r.abort(&format!("the web UI (user {user})"))
+    })
+    .await
+}
+
+pub(super) async fn runs(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<axum::Json<Value>> {
+    authorize(&app, &headers, Role::Operator, false)?;
+    let runs = store(&app).runs()?;
+    Ok(axum::Json(json!(
+        runs.iter()
+            .map(|r| json!({
+                "id": r.id,
+                "station": r.station,
+                "state": r.state,
+                "reason": r.reason,
+                "started_at": r.started_at,
+                "units": r.units,
+                "points": r.points,
+            }))
+            .collect::<Vec<_>>()
+    )))
+}
+
+pub(super) async fn run(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> ApiResult<axum::Json<Value>> {
+    authorize(&app, &headers, Role::Operator, false)?;
+    let report = {
+        let store = store(&app);
+        spinbench_report::gather(&store, &id)
+    }
+    .map_err(|e| match e {
+        spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
+        other => ApiError::internal(other.to_string()),
+    })?;
+    let rows: Vec<Value> = spinbench_report::summary(&report)
+        .iter()
+        .map(|r| {
+            json!({
+                "serial": r.serial, "slot": r.slot, "mount": r.mount,
+                "radius_m": r.radius_m, "drawing_radius_m": r.drawing_radius_m,
+                "k0_g": r.k0_g, "k1_hz_per_g": r.k1_hz_per_g,
+                "k2_ug_per_g2": r.k2_ug_per_g2, "k2_ci95_half_ug_per_g2": r.k2_ci95_half_ug_per_g2,
+                "k3_ug_per_g3": r.k3_ug_per_g3, "k2_max_ug_per_g2": r.k2_max_ug_per_g2,
+                "sf_nonlinearity_ppm": r.sf_nonlinearity_ppm, "asymmetry_ppm": r.asymmetry_ppm,
+                "hysteresis_ug": r.hysteresis_ug, "outcome": r.outcome, "reasons": r.reasons,
+            })
+        })
+        .collect();
+    let run = &report.run;
+    Ok(axum::Json(json!({
+        "id": run.id, "station": run.station, "state": run.state, "reason": run.reason,
+        "started_at": run.started_at, "units": run.units, "points": run.points,
+        "results": rows,
+        "reports": ReportFormat::ALL.iter().map(|f| format!("/api/runs/{}/report/{}", run.id, f.ext())).collect::<Vec<_>>(),
+    })))
+}
+
+pub(super) async fn report(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path((id, format)): Path<(String, String)>,
+) -> ApiResult<Response> {
+    authorize(&app, &headers, Role::Operator, false)?;
+    let format = ReportFormat::parse(&format).ok_or_else(|| {
+        ApiError::bad(format!(
+            "report format '{format}': use pdf, html, xlsx or csv"
+        ))
+    })?;
+    let db = app.db.clone();
+    let run_id = id.clone();
+    // A 96-instrument PDF takes a moment: off the async workers, on its own connection.
+    let bytes = tokio::task::spawn_blocking(move || {
+        let store = spinbench_store::Store::connect(&db)?;
+        let report = spinbench_report::gather(&store, &run_id)?;
+        spinbench_report::render(&report, format)
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))?
+    .map_err(|e| match e {
+        spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
+        other => ApiError::internal(other.to_string()),
+    })?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, format.mime().to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"report-{id}.{}\"", format.ext()),
+            ),
+        ],
+        bytes,
+    )
+        .into_response())
+}
+
+pub(super) async fn unit(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(serial): Path<String>,
+) -> ApiResult<axum::Json<Value>> {
+    authorize(&app, &headers, Role::Operator, false)?;
+    let history = store(&app).unit_history(&serial)?;
+    if history.is_empty() {
+        return Err(ApiError::not_found(format!(
+            "no run holds serial '{serial}'"
+        )));
+    }
+    Ok(axum::Json(json!({
+        "serial": serial,
+        "tests": history.iter().map(|h| json!({
+            "run_id": h.run_id, "slot": h.slot + 1, "outcome": h.outcome,
+            "k2_max_ug_per_g2": h.k2_max_ug_per_g2,
+        })).collect::<Vec<_>>(),
+    })))
+}

@@ -1,0 +1,114 @@
+//! Sessions: login (bounded, throttled per name and address, audited),
+//! logout and the session check.
+
+use super::*;
+
+#[derive(Deserialize)]
+pub(super) struct Login {
+    user: String,
+    password: String,
+}
+
+pub(super) async fn login(
+    State(app): State<App>,
+    axum::extract::ConnectInfo(peer): axum::extract::ConnectInfo<std::net::SocketAddr>,
+    body: Bytes,
+) -> ApiResult<Response> {
+    let login: Login = parse_json(&body)?;
+    // A name that cannot be a user's is refused before the store is asked,
+    // and only a short prefix of it is ever written to the audit log.
+    let name = match auth::normalise_user_name(&login.user) {
+        Ok(name) => name,
+        Err(_) => spinbench_engine::bounds::shown(&login.user),
+    };
+    if let Err(locked) = app.logins.check(&name, peer.ip()) {
+        let mut response = ApiError::new(
+            StatusCode::TOO_MANY_REQUESTS,
+            format!(
+                "too many failed logins for {}; try again in {} s",
+                locked.what, locked.retry_after_s
+            ),
+        )
+        .into_response();
+        response
+            .headers_mut()
+            .insert(header::RETRY_AFTER, HeaderValue::from(locked.retry_after_s));
+        return Ok(response);
+    }
+    let user = match auth::normalise_user_name(&login.user) {
+        Ok(name) => store(&app).user(&name)?,
+        Err(_) => None,
+    };
+    let ok = match &user {
+        Some(u) => auth::verify_password(&login.password, &u.password_hash),
+        None => {
+            // Spend the time a check takes, so a missing name is not faster to find.
+            let _ = auth::hash_password(&login.password);
+            false
+        }
+    };
+    let role = user.as_ref().and_then(|u| Role::parse(&u.role));
+    let (true, Some(role)) = (ok, role) else {
+        audit(
+            &app,
+            &name,
+            "login refused",
+            &format!("wrong user name or password (from {})", peer.ip()),
+        )?;
+        for what in app.logins.failed(&name, peer.ip()) {
+            audit(
+                &app,
+                &name,
+                "login locked",
+                &format!(
+                    "{what} locked for {} s after repeated failures",
+                    crate::web::throttle::LOCKOUT.as_secs()
+                ),
+            )?;
+        }
+        return Err(ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "wrong user name or password",
+        ));
+    };
+    app.logins.succeeded(&name);
+    let (token, session) = app.sessions.open(&name, role);
+    audit(&app, &name, "login", role.as_str())?;
+    let mut response = axum::Json(json!(session)).into_response();
+    response.headers_mut().insert(
+        header::SET_COOKIE,
+        HeaderValue::from_str(&auth::session_cookie(Some(&token)))
+            .map_err(|e| ApiError::internal(e.to_string()))?,
+    );
+    Ok(response)
+}
+
+pub(super) async fn logout(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<Response> {
+    let session = authorize(&app, &headers, Role::Operator, true)?;
+    if let Some(token) = headers
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(auth::session_token)
+    {
+        app.sessions.close(&token);
+    }
+    audit(&app, &session.user, "logout", "")?;
+    let mut response = StatusCode::NO_CONTENT.into_response();
+    response.headers_mut().insert(
+        header::SET_COOKIE,
+        HeaderValue::from_str(&auth::session_cookie(None))
+            .map_err(|e| ApiError::internal(e.to_string()))?,
+    );
+    Ok(response)
+}
+
+pub(super) async fn session(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<axum::Json<Session>> {
+    authorize(&app, &headers, Role::Operator, false).map(axum::Json)
+}

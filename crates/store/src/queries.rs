@@ -1,0 +1,333 @@
+//! Reading the store back: runs, results (typed records), points,
+//! one-second values, radii.
+
+use super::*;
+
+/// One run in a listing.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunRow {
+    /// Run identifier.
+    pub id: String,
+    /// Station name.
+    pub station: String,
+    /// Final (or current) state.
+    pub state: String,
+    /// Why it ended, if not completed.
+    pub reason: Option<String>,
+    /// Unix time it started.
+    pub started_at: i64,
+    /// Instruments with results.
+    pub units: i64,
+    /// Points stored.
+    pub points: i64,
+}
+
+/// One instrument's result in one run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResultRow {
+    /// Run identifier.
+    pub run_id: String,
+    /// Slot (0-based).
+    pub slot: i64,
+    /// Serial number.
+    pub serial: String,
+    /// Pass, marginal, fail or incomplete.
+    pub outcome: Outcome,
+    /// k2_max [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// The whole record, read back as the type the engine wrote.
+    pub record: UnitRecord,
+}
+
+/// One stored point (a row of the `points` table).
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointRow {
+    /// Step of the plan.
+    pub step: i64,
+    /// Slot (0-based).
+    pub slot: i64,
+    /// Serial number.
+    pub serial: String,
+    /// P or N.
+    pub mount: String,
+    /// Nominal level [g].
+    pub g_nominal: f64,
+    /// up or down.
+    pub direction: String,
+    /// Applied acceleration, method.md (9) [g].
+    pub g_applied: f64,
+    /// Mean measured rate [deg/s].
+    pub rate_deg_s: f64,
+    /// Mean output dF [Hz].
+    pub output_hz: f64,
+    /// Standard deviation of the one-second values [Hz].
+    pub std_hz: f64,
+    /// Number of one-second values.
+    pub n: i64,
+    /// Times of the first and last one-second value averaged [s of the run].
+    pub time_s: [f64; 2],
+}
+
+/// One stored one-second value.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ValueRow {
+    /// Window time [s].
+    pub t_s: f64,
+    /// Slot (0-based).
+    pub slot: i64,
+    /// Output dF [Hz], none when the window was missing or incomplete.
+    pub output_hz: Option<f64>,
+    /// Measured rate [deg/s].
+    pub rate_deg_s: f64,
+}
+
+/// One instrument's radius in one mounting (method.md (6)–(8)).
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitRow {
+    /// Slot (0-based).
+    pub slot: i64,
+    /// P or N.
+    pub mount: String,
+    /// Serial number.
+    pub serial: String,
+    /// The fixture's drawing radius R0 [m].
+    pub drawing_radius_m: f64,
+    /// The radius found [m].
+    pub radius_m: f64,
+}
+
+/// One run's context: what the station was and what it was made of.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RunContext {
+    /// The station config (TOML) as the run used it.
+    pub station_config: Option<String>,
+    /// The devices' identities (JSON list of `{role, identity}`).
+    pub devices_json: Option<String>,
+    /// The plan (JSON).
+    pub plan_json: String,
+    /// The software version that ran it.
+    pub software_version: String,
+    /// Operator actions: (unix time, who, what).
+    pub operator_actions: Vec<(i64, String, String)>,
+}
+
+impl Store {
+    /// Every run, newest first.
+    pub fn runs(&self) -> Result<Vec<RunRow>, StoreError> {
+        self.runs_where("TRUE", &[])
+    }
+
+    pub(crate) fn runs_where(
+        &self,
+        clause: &str,
+        params: &[Value],
+    ) -> Result<Vec<RunRow>, StoreError> {
+        let rows = self.query(
+            "list runs",
+            &format!(
+                "SELECT r.id, r.station, r.state, r.reason, r.started_at,
+                        (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
+                        (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id)
+                 FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC"
+            ),
+            params,
+        )?;
+        Ok(rows
+            .iter()
+            .map(|r| RunRow {
+                id: r.text(0),
+                station: r.text(1),
+                state: r.text(2),
+                reason: r.opt_text(3),
+                started_at: r.int(4),
+                units: r.int(5),
+                points: r.int(6),
+            })
+            .collect())
+    }
+
+    /// One run, if it exists.
+    pub fn run(&self, id: &str) -> Result<Option<RunRow>, StoreError> {
+        Ok(self
+            .runs_where("r.id = $1", &[id.into()])?
+            .into_iter()
+            .next())
+    }
+
+    /// A run's context (station config, devices, plan, operator actions).
+    pub fn run_context(&self, id: &str) -> Result<Option<RunContext>, StoreError> {
+        let Some(row) = self
+            .query(
+                "read a run",
+                "SELECT station_config, devices_json, plan_json, software_version FROM runs WHERE id = $1",
+                &[id.into()],
+            )?
+            .into_iter()
+            .next()
+        else {
+            return Ok(None);
+        };
+        let actions = self.query(
+            "read operator actions",
+            "SELECT at, who, action FROM operator_actions WHERE run_id = $1 ORDER BY seq",
+            &[id.into()],
+        )?;
+        Ok(Some(RunContext {
+            station_config: row.opt_text(0),
+            devices_json: row.opt_text(1),
+            plan_json: row.text(2),
+            software_version: row.text(3),
+            operator_actions: actions
+                .iter()
+                .map(|r| (r.int(0), r.text(1), r.text(2)))
+                .collect(),
+        }))
+    }
+
+    pub(crate) fn results_where(
+        &self,
+        clause: &str,
+        arg: &str,
+    ) -> Result<Vec<ResultRow>, StoreError> {
+        let rows = self.query(
+            "query results",
+            &format!(
+                "SELECT s.run_id, s.slot, s.serial, s.outcome, s.k2_max_ug_per_g2, s.record_json
+                 FROM results s JOIN runs r ON r.id = s.run_id WHERE {clause}
+                 ORDER BY r.started_at, s.run_id, s.slot"
+            ),
+            &[arg.into()],
+        )?;
+        rows.iter()
+            .map(|r| {
+                let (run_id, serial) = (r.text(0), r.text(2));
+                let unreadable = |problem: String| StoreError {
+                    target: self.target.to_string(),
+                    what: format!("read the result of '{serial}' in run {run_id}"),
+                    source: problem.into(),
+                };
+                let outcome_name = r.text(3);
+                let outcome = Outcome::parse(&outcome_name)
+                    .ok_or_else(|| unreadable(format!("'{outcome_name}' is not an outcome")))?;
+                let record: UnitRecord = serde_json::from_str(&r.text(5))
+                    .map_err(|e| unreadable(format!("the stored record: {e}")))?;
+                Ok(ResultRow {
+                    run_id,
+                    slot: r.int(1),
+                    serial,
+                    outcome,
+                    k2_max_ug_per_g2: r.opt_real(4),
+                    record,
+                })
+            })
+            .collect()
+    }
+
+    /// The per-instrument results of one run.
+    pub fn results(&self, run_id: &str) -> Result<Vec<ResultRow>, StoreError> {
+        self.results_where("s.run_id = $1", run_id)
+    }
+
+    /// Every result of one serial number, oldest run first.
+    pub fn unit_history(&self, serial: &str) -> Result<Vec<ResultRow>, StoreError> {
+        self.results_where("s.serial = $1", serial)
+    }
+
+    /// The points of a run, in the order taken.
+    pub fn points(&self, run_id: &str) -> Result<Vec<PointRow>, StoreError> {
+        let rows = self.query(
+            "read points",
+            "SELECT step, slot, serial, mount, g_nominal, direction, g_applied, rate_deg_s,
+                    output_hz, std_hz, n, t0_s, t1_s
+             FROM points WHERE run_id = $1 ORDER BY step, slot",
+            &[run_id.into()],
+        )?;
+        Ok(rows
+            .iter()
+            .map(|r| PointRow {
+                step: r.int(0),
+                slot: r.int(1),
+                serial: r.text(2),
+                mount: r.text(3),
+                g_nominal: r.real(4),
+                direction: r.text(5),
+                g_applied: r.real(6),
+                rate_deg_s: r.real(7),
+                output_hz: r.real(8),
+                std_hz: r.real(9),
+                n: r.int(10),
+                time_s: [r.real(11), r.real(12)],
+            })
+            .collect())
+    }
+
+    /// The one-second values of a run, by time and slot.
+    pub fn values(&self, run_id: &str) -> Result<Vec<ValueRow>, StoreError> {
+        let rows = self.query(
+            "read one-second values",
+            "SELECT t_s, slot, output_hz, rate_deg_s FROM values_1s WHERE run_id = $1 ORDER BY t_s, slot",
+            &[run_id.into()],
+        )?;
+        Ok(rows
+            .iter()
+            .map(|r| ValueRow {
+                t_s: r.real(0),
+                slot: r.int(1),
+                output_hz: r.opt_real(2),
+                rate_deg_s: r.real(3),
+            })
+            .collect())
+    }
+
+    /// Station time of the last one-second value stored for a run [s].
+    pub fn last_value_time_s(&self, run_id: &str) -> Result<Option<f64>, StoreError> {
+        Ok(self
+            .query(
+                "read the last one-second value's time",
+                "SELECT t_s FROM values_1s WHERE run_id = $1 ORDER BY t_s DESC LIMIT 1",
+                &[run_id.into()],
+            )?
+            .first()
+            .map(|r| r.real(0)))
+    }
+
+    /// Number of one-second values stored for a run.
+    pub fn value_count(&self, run_id: &str) -> Result<i64, StoreError> {
+        Ok(self
+            .query(
+                "count one-second values",
+                "SELECT COUNT(*) FROM values_1s WHERE run_id = $1",
+                &[run_id.into()],
+            )?
+            .first()
+            .map_or(0, |r| r.int(0)))
+    }
+
+    /// The (step, slot) keys of a run's stored points.
+    pub fn point_keys(&self, run_id: &str) -> Result<Vec<(i64, i64)>, StoreError> {
+        Ok(self
+            .points(run_id)?
+            .iter()
+            .map(|p| (p.step, p.slot))
+            .collect())
+    }
+
+    /// The radius found for each (slot, mount) of a run.
+    pub fn unit_radii(&self, run_id: &str) -> Result<Vec<UnitRow>, StoreError> {
+        let rows = self.query(
+            "read units",
+            "SELECT slot, mount, serial, drawing_radius_m, radius_m FROM units WHERE run_id = $1 ORDER BY slot, mount",
+            &[run_id.into()],
+        )?;
+        Ok(rows
+            .iter()
+            .map(|r| UnitRow {
+                slot: r.int(0),
+                mount: r.text(1),
+                serial: r.text(2),
+                drawing_radius_m: r.real(3),
+                radius_m: r.real(4),
+            })
+            .collect())
+    }
+}

@@ -1,0 +1,309 @@
+//! The schema: every migration in both spellings (SQLite, PostgreSQL),
+//! applied once under an exclusive transaction (SQLite) or an advisory lock
+//! (PostgreSQL), and the schema's version and soundness.
+
+use super::*;
+
+/// One schema migration, as SQLite and PostgreSQL spell it.
+#[derive(Debug, Clone, Copy)]
+pub struct Migration {
+    /// What it adds.
+    pub what: &'static str,
+    /// SQLite's text.
+    pub sqlite: &'static str,
+    /// PostgreSQL's text.
+    pub postgres: &'static str,
+}
+
+/// Schema migrations, in order; never edit one that has shipped, add a new one.
+pub const MIGRATIONS: &[Migration] = &[
+    Migration {
+        what: "runs, points, per-instrument results, the event log",
+        sqlite: MIGRATION_1_SQLITE,
+        postgres: "CREATE TABLE runs (
+        id TEXT PRIMARY KEY,
+        station TEXT NOT NULL,
+        plan_json TEXT NOT NULL,
+        software_version TEXT NOT NULL,
+        state TEXT NOT NULL,
+        reason TEXT,
+        started_at BIGINT NOT NULL,
+        finished_at BIGINT,
+        starts BIGINT NOT NULL DEFAULT 1
+    );
+    CREATE TABLE points (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        step BIGINT NOT NULL,
+        slot BIGINT NOT NULL,
+        serial TEXT NOT NULL,
+        mount TEXT NOT NULL,
+        g_nominal DOUBLE PRECISION NOT NULL,
+        direction TEXT NOT NULL,
+        g_applied DOUBLE PRECISION NOT NULL,
+        rate_deg_s DOUBLE PRECISION NOT NULL,
+        output_hz DOUBLE PRECISION NOT NULL,
+        std_hz DOUBLE PRECISION NOT NULL,
+        n BIGINT NOT NULL,
+        t0_s DOUBLE PRECISION NOT NULL,
+        t1_s DOUBLE PRECISION NOT NULL,
+        PRIMARY KEY (run_id, step, slot)
+    );
+    CREATE TABLE results (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        slot BIGINT NOT NULL,
+        serial TEXT NOT NULL,
+        outcome TEXT NOT NULL,
+        k2_max_ug_per_g2 DOUBLE PRECISION,
+        record_json TEXT NOT NULL,
+        PRIMARY KEY (run_id, slot)
+    );
+    CREATE INDEX results_serial ON results(serial);
+    CREATE TABLE events (
+        seq BIGSERIAL PRIMARY KEY,
+        run_id TEXT NOT NULL,
+        at BIGINT NOT NULL,
+        kind TEXT NOT NULL,
+        json TEXT NOT NULL
+    );",
+    },
+    Migration {
+        what: "the one-second values of every instrument (and the rate), as the engine saw them",
+        sqlite: MIGRATION_2_SQLITE,
+        postgres: "CREATE TABLE values_1s (
+        run_id TEXT NOT NULL,
+        t_s DOUBLE PRECISION NOT NULL,
+        slot BIGINT NOT NULL,
+        output_hz DOUBLE PRECISION,
+        rate_deg_s DOUBLE PRECISION NOT NULL,
+        on_speed BIGINT NOT NULL,
+        PRIMARY KEY (run_id, t_s, slot)
+    );",
+    },
+    Migration {
+        what: "stations, the station config and device identities of a run, units (radius per mounting), operator actions",
+        sqlite: "CREATE TABLE stations (
+        name TEXT PRIMARY KEY,
+        first_seen INTEGER NOT NULL,
+        last_seen INTEGER NOT NULL
+    );
+    ALTER TABLE runs ADD COLUMN station_config TEXT;
+    ALTER TABLE runs ADD COLUMN devices_json TEXT;
+    CREATE TABLE units (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        slot INTEGER NOT NULL,
+        mount TEXT NOT NULL,
+        serial TEXT NOT NULL,
+        drawing_radius_m REAL NOT NULL,
+        radius_m REAL NOT NULL,
+        PRIMARY KEY (run_id, slot, mount)
+    );
+    CREATE TABLE operator_actions (
+        seq INTEGER PRIMARY KEY AUTOINCREMENT,
+        run_id TEXT NOT NULL,
+        at INTEGER NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL
+    );",
+        postgres: "CREATE TABLE stations (
+        name TEXT PRIMARY KEY,
+        first_seen BIGINT NOT NULL,
+        last_seen BIGINT NOT NULL
+    );
+    ALTER TABLE runs ADD COLUMN station_config TEXT;
+    ALTER TABLE runs ADD COLUMN devices_json TEXT;
+    CREATE TABLE units (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        slot BIGINT NOT NULL,
+        mount TEXT NOT NULL,
+        serial TEXT NOT NULL,
+        drawing_radius_m DOUBLE PRECISION NOT NULL,
+        radius_m DOUBLE PRECISION NOT NULL,
+        PRIMARY KEY (run_id, slot, mount)
+    );
+    CREATE TABLE operator_actions (
+        seq BIGSERIAL PRIMARY KEY,
+        run_id TEXT NOT NULL,
+        at BIGINT NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL
+    );",
+    },
+    Migration {
+        what: "users of the web UI (role, password hash) and the audit log of their actions",
+        sqlite: "CREATE TABLE users (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL,
+        password_hash TEXT NOT NULL,
+        created_at INTEGER NOT NULL
+    );
+    CREATE TABLE audit (
+        seq INTEGER PRIMARY KEY AUTOINCREMENT,
+        at INTEGER NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL,
+        detail TEXT NOT NULL
+    );",
+        postgres: "CREATE TABLE users (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL,
+        password_hash TEXT NOT NULL,
+        created_at BIGINT NOT NULL
+    );
+    CREATE TABLE audit (
+        seq BIGSERIAL PRIMARY KEY,
+        at BIGINT NOT NULL,
+        who TEXT NOT NULL,
+        action TEXT NOT NULL,
+        detail TEXT NOT NULL
+    );",
+    },
+];
+
+const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (
+        id TEXT PRIMARY KEY,
+        station TEXT NOT NULL,
+        plan_json TEXT NOT NULL,
+        software_version TEXT NOT NULL,
+        state TEXT NOT NULL,
+        reason TEXT,
+        started_at INTEGER NOT NULL,
+        finished_at INTEGER,
+        starts INTEGER NOT NULL DEFAULT 1
+    );
+    CREATE TABLE points (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        step INTEGER NOT NULL,
+        slot INTEGER NOT NULL,
+        serial TEXT NOT NULL,
+        mount TEXT NOT NULL,
+        g_nominal REAL NOT NULL,
+        direction TEXT NOT NULL,
+        g_applied REAL NOT NULL,
+        rate_deg_s REAL NOT NULL,
+        output_hz REAL NOT NULL,
+        std_hz REAL NOT NULL,
+        n INTEGER NOT NULL,
+        t0_s REAL NOT NULL,
+        t1_s REAL NOT NULL,
+        PRIMARY KEY (run_id, step, slot)
+    );
+    CREATE TABLE results (
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        slot INTEGER NOT NULL,
+        serial TEXT NOT NULL,
+        outcome TEXT NOT NULL,
+        k2_max_ug_per_g2 REAL,
+        record_json TEXT NOT NULL,
+        PRIMARY KEY (run_id, slot)
+    );
+    CREATE INDEX results_serial ON results(serial);
+    CREATE TABLE events (
+        seq INTEGER PRIMARY KEY AUTOINCREMENT,
+        run_id TEXT NOT NULL,
+        at INTEGER NOT NULL,
+        kind TEXT NOT NULL,
+        json TEXT NOT NULL
+    );";
+
+const MIGRATION_2_SQLITE: &str = "CREATE TABLE values_1s (
+        run_id TEXT NOT NULL,
+        t_s REAL NOT NULL,
+        slot INTEGER NOT NULL,
+        output_hz REAL,
+        rate_deg_s REAL NOT NULL,
+        on_speed INTEGER NOT NULL,
+        PRIMARY KEY (run_id, t_s, slot)
+    ) WITHOUT ROWID;";
+
+fn schema_version(db: &mut Db) -> Result<i64, DbError> {
+    match db.dialect() {
+        Dialect::Sqlite => Ok(db
+            .query_one("PRAGMA user_version", &[])?
+            .map_or(0, |r| r.int(0))),
+        Dialect::Postgres => Ok(db
+            .query_one("SELECT version FROM spinbench_schema", &[])?
+            .map_or(0, |r| r.int(0))),
+    }
+}
+
+impl Store {
+    pub(crate) fn migrate(&self) -> Result<(), StoreError> {
+        let mut db = self.db.borrow_mut();
+        let dialect = db.dialect();
+        if dialect == Dialect::Postgres {
+            db.batch(
+                "SELECT pg_advisory_lock(1293);
+                 CREATE TABLE IF NOT EXISTS spinbench_schema (version BIGINT NOT NULL);",
+            )
+            .map_err(self.err("cannot prepare the schema table"))?;
+        }
+        let result = match dialect {
+            // One exclusive transaction over reading the version and every
+            // migration: two processes creating the same new file never
+            // both run a migration (the second waits, then finds it done).
+            Dialect::Sqlite => db.batch("BEGIN EXCLUSIVE").and_then(|()| {
+                let migrated = (|| {
+                    let version = schema_version(&mut db)?;
+                    for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+                        let v = (i + 1) as i64;
+                        db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite))
+                            .map_err(|e| -> DbError {
+                                format!("migration {v} ({}): {e}", m.what).into()
+                            })?;
+                    }
+                    Ok::<(), DbError>(())
+                })();
+                match migrated {
+                    Ok(()) => db.batch("COMMIT"),
+                    Err(e) => {
+                        let _ = db.batch("ROLLBACK");
+                        Err(e)
+                    }
+                }
+            }),
+            Dialect::Postgres => (|| {
+                let version = schema_version(&mut db)?;
+                for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
+                    let v = (i + 1) as i64;
+                    db.transaction(|db| {
+                        db.batch(&format!(
+                            "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
+                            m.postgres
+                        ))
+                    })
+                    .map_err(|e| -> DbError { format!("migration {v} ({}): {e}", m.what).into() })?;
+                }
+                Ok::<(), DbError>(())
+            })(),
+        };
+        if dialect == Dialect::Postgres {
+            let _ = db.batch("SELECT pg_advisory_unlock(1293)");
+        }
+        result.map_err(self.err("cannot bring the schema up to date"))
+    }
+
+    /// The schema version of the database.
+    pub fn schema_version(&self) -> Result<i64, StoreError> {
+        schema_version(&mut self.db.borrow_mut())
+            .map_err(self.err("cannot read the schema version"))
+    }
+
+    /// "ok" when the database is sound (SQLite's `PRAGMA integrity_check`;
+    /// on PostgreSQL, that every table can be read).
+    pub fn integrity_check(&self) -> Result<String, StoreError> {
+        let mut db = self.db.borrow_mut();
+        match db.dialect() {
+            Dialect::Sqlite => db
+                .query_one("PRAGMA integrity_check", &[])
+                .map(|r| r.map(|r| r.text(0)).unwrap_or_default())
+                .map_err(self.err("integrity check")),
+            Dialect::Postgres => {
+                for table in ["runs", "points", "results", "events", "values_1s", "units"] {
+                    db.query(&format!("SELECT COUNT(*) FROM {table}"), &[])
+                        .map_err(self.err("integrity check"))?;
+                }
+                Ok("ok".into())
+            }
+        }
+    }
+}

@@ -1,0 +1,255 @@
+//! The store as a subscriber of the engine's events: every event written
+//! as it happens; a failed write is an error the engine answers by holding
+//! the run (nothing is dropped).
+
+use super::*;
+
+/// Writes a run's events as they happen. A failed write is an error the
+/// engine answers by holding the run and offering the same event again
+/// every second (nothing is dropped); only after its hold limit does the
+/// run fault into the safe state.
+pub struct StoreSink {
+    store: Store,
+    serials: Vec<Option<String>>,
+    run_id: String,
+    /// The last prompt, recorded with the operator's answer.
+    prompt: String,
+}
+
+impl StoreSink {
+    fn write(&mut self, event: &Event) -> Result<(), DbError> {
+        let mut db = self.store.db.borrow_mut();
+        let run_id = self.run_id.clone();
+        match event {
+            Event::Progress { .. } => return Ok(()),
+            Event::Values {
+                time_s,
+                rate_deg_s,
+                on_speed,
+                outputs_hz,
+                ..
+            } => {
+                let serials = &self.serials;
+                return db.transaction(|db| {
+                    for (slot, v) in outputs_hz.iter().enumerate() {
+                        if serials.get(slot).is_some_and(Option::is_some) {
+                            db.execute(
+                                "INSERT INTO values_1s (run_id, t_s, slot, output_hz, rate_deg_s, on_speed)
+                                 VALUES ($1, $2, $3, $4, $5, $6)
+                                 ON CONFLICT (run_id, t_s, slot) DO UPDATE SET output_hz = excluded.output_hz,
+                                   rate_deg_s = excluded.rate_deg_s, on_speed = excluded.on_speed",
+                                &[
+                                    run_id.as_str().into(),
+                                    (*time_s).into(),
+                                    (slot as i64).into(),
+                                    (*v).into(),
+                                    (*rate_deg_s).into(),
+                                    i64::from(*on_speed).into(),
+                                ],
+                            )?;
+                        }
+                    }
+                    Ok(())
+                });
+            }
+            Event::RunStarted {
+                run_id,
+                station,
+                plan,
+                resumed,
+                station_config,
+            } => {
+                self.run_id = run_id.clone();
+                self.serials = plan.serials.clone();
+                let plan_json = serde_json::to_string(&plan.plan).unwrap_or_default();
+                let now = now_s();
+                db.transaction(|db| {
+                    db.execute(
+                        "INSERT INTO stations (name, first_seen, last_seen) VALUES ($1, $2, $3)
+                         ON CONFLICT (name) DO UPDATE SET last_seen = excluded.last_seen",
+                        &[station.into(), now.into(), now.into()],
+                    )?;
+                    let existing = db.query_one("SELECT id FROM runs WHERE id = $1", &[run_id.into()])?;
+                    if existing.is_some() {
+                        db.execute(
+                            "UPDATE runs SET starts = starts + 1, state = 'running' WHERE id = $1",
+                            &[run_id.into()],
+                        )?;
+                    } else {
+                        db.execute(
+                            "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
+                               station_config)
+                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7)",
+                            &[
+                                run_id.into(),
+                                station.into(),
+                                plan_json.into(),
+                                env!("CARGO_PKG_VERSION").into(),
+                                now.into(),
+                                (1 + i64::from(*resumed)).into(),
+                                (!station_config.is_empty()).then(|| station_config.clone()).into(),
+                            ],
+                        )?;
+                    }
+                    Ok(())
+                })?;
+            }
+            Event::Identified { devices } => {
+                db.execute(
+                    "UPDATE runs SET devices_json = $2 WHERE id = $1",
+                    &[
+                        run_id.as_str().into(),
+                        serde_json::to_string(devices).unwrap_or_default().into(),
+                    ],
+                )?;
+            }
+            Event::RadiusDone {
+                slot,
+                mount,
+                drawing_radius_m,
+                radius_m,
+            } => {
+                let serial = self
+                    .serials
+                    .get(*slot)
+                    .cloned()
+                    .flatten()
+                    .unwrap_or_default();
+                db.execute(
+                    "INSERT INTO units (run_id, slot, mount, serial, drawing_radius_m, radius_m)
+                     VALUES ($1, $2, $3, $4, $5, $6)
+                     ON CONFLICT (run_id, slot, mount) DO UPDATE SET radius_m = excluded.radius_m",
+                    &[
+                        run_id.as_str().into(),
+                        (*slot as i64).into(),
+                        mount.to_string().into(),
+                        serial.into(),
+                        (*drawing_radius_m).into(),
+                        (*radius_m).into(),
+                    ],
+                )?;
+            }
+            Event::Prompt { text, .. } => self.prompt = text.clone(),
+            Event::PromptAnswered { proceed, by } => {
+                let action = format!(
+                    "{} at the prompt: {}",
+                    if *proceed { "went on" } else { "aborted" },
+                    self.prompt
+                );
+                db.execute(
+                    "INSERT INTO operator_actions (run_id, at, who, action) VALUES ($1, $2, $3, $4)",
+                    &[run_id.as_str().into(), now_s().into(), by.into(), action.into()],
+                )?;
+            }
+            Event::PointDone { step, points } => {
+                let serials = &self.serials;
+                db.transaction(|db| {
+                    for p in points {
+                        let serial = serials.get(p.slot).cloned().flatten().unwrap_or_default();
+                        // A step redone after a resume replaces its row: nothing doubled.
+                        db.execute(
+                            "INSERT INTO points (run_id, step, slot, serial, mount, g_nominal, direction,
+                               g_applied, rate_deg_s, output_hz, std_hz, n, t0_s, t1_s)
+                             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)
+                             ON CONFLICT (run_id, step, slot) DO UPDATE SET serial = excluded.serial,
+                               mount = excluded.mount, g_nominal = excluded.g_nominal,
+                               direction = excluded.direction, g_applied = excluded.g_applied,
+                               rate_deg_s = excluded.rate_deg_s, output_hz = excluded.output_hz,
+                               std_hz = excluded.std_hz, n = excluded.n, t0_s = excluded.t0_s,
+                               t1_s = excluded.t1_s",
+                            &[
+                                run_id.as_str().into(),
+                                (*step as i64).into(),
+                                (p.slot as i64).into(),
+                                serial.into(),
+                                p.mount.to_string().into(),
+                                p.g_nominal.into(),
+                                format!("{:?}", p.direction).to_lowercase().into(),
+                                p.g_applied.into(),
+                                p.rate_deg_s.into(),
+                                p.output_hz.into(),
+                                p.std_hz.into(),
+                                i64::from(p.n).into(),
+                                p.time_s[0].into(),
+                                p.time_s[1].into(),
+                            ],
+                        )?;
+                    }
+                    Ok(())
+                })?;
+            }
+            Event::UnitResult { record } => {
+                let json = serde_json::to_string(record).unwrap_or_default();
+                db.execute(
+                    "INSERT INTO results (run_id, slot, serial, outcome, k2_max_ug_per_g2, record_json)
+                     VALUES ($1, $2, $3, $4, $5, $6)
+                     ON CONFLICT (run_id, slot) DO UPDATE SET serial = excluded.serial,
+                       outcome = excluded.outcome, k2_max_ug_per_g2 = excluded.k2_max_ug_per_g2,
+                       record_json = excluded.record_json",
+                    &[
+                        run_id.as_str().into(),
+                        (record.slot as i64).into(),
+                        record.serial.as_str().into(),
+                        record.outcome.as_str().into(),
+                        record.k2_max_ug_per_g2.into(),
+                        json.into(),
+                    ],
+                )?;
+            }
+            Event::RunFinished { state, reason } => {
+                db.execute(
+                    "UPDATE runs SET state = $2, reason = $3, finished_at = $4 WHERE id = $1",
+                    &[
+                        run_id.as_str().into(),
+                        format!("{state:?}").to_lowercase().into(),
+                        reason.clone().into(),
+                        now_s().into(),
+                    ],
+                )?;
+            }
+            _ => {}
+        }
+        let kind = serde_json::to_value(event)
+            .ok()
+            .and_then(|v| v["event"].as_str().map(str::to_string))
+            .unwrap_or_default();
+        let json = serde_json::to_string(event).unwrap_or_default();
+        db.execute(
+            "INSERT INTO events (run_id, at, kind, json) VALUES ($1, $2, $3, $4)",
+            &[
+                self.run_id.as_str().into(),
+                now_s().into(),
+                kind.into(),
+                json.into(),
+            ],
+        )?;
+        Ok(())
+    }
+}
+
+impl EventSink for StoreSink {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        self.write(event).map_err(|e| {
+            format!(
+                "store {}: cannot record the {} event: {e}",
+                self.store.target,
+                serde_json::to_value(event)
+                    .ok()
+                    .and_then(|v| v["event"].as_str().map(str::to_string))
+                    .unwrap_or_default()
+            )
+        })
+    }
+}
+
+impl Store {
+    /// A sink that writes the events of a run to this store (its own connection).
+    pub fn sink(&self) -> Result<StoreSink, StoreError> {
+        Ok(StoreSink {
+            store: Store::connect(&self.target)?,
+            serials: Vec::new(),
+            run_id: String::new(),
+            prompt: String::new(),
+        })
+    }
+}

@@ -1,0 +1,40 @@
+//! For tests and benchmarks: a fresh, empty database on a PostgreSQL server.
+
+/// The environment variable that names the test server
+/// (`scripts/test` starts one and sets it).
+pub const POSTGRES_ENV: &str = "SPINBENCH_TEST_POSTGRES";
+
+/// Create a new database (a random name) on the server at `admin_url` and
+/// return the URL that reaches it.
+pub fn fresh_postgres_database(admin_url: &str) -> Result<String, super::DbError> {
+    let mut admin = postgres::Client::connect(admin_url, postgres::NoTls)?;
+    let name = format!("spinbench_test_{:016x}", rand_u64());
+    admin.batch_execute(&format!("CREATE DATABASE {name}"))?;
+    let base = admin_url
+        .rsplit_once('/')
+        .map_or(admin_url, |(base, _)| base);
+    Ok(format!("{base}/{name}"))
+}
+
+/// The test server's URL, or an error that says how to get one.
+pub fn postgres_url() -> Result<String, String> {
+    std::env::var(POSTGRES_ENV).map_err(|_| {
+        format!(
+            "{POSTGRES_ENV} is not set: run the tests with ./scripts/test, which starts a \
+             throwaway PostgreSQL on loopback, or set it to postgres://user@host:port/database"
+        )
+    })
+}
+
+fn rand_u64() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    // RandomState is seeded randomly per process; the clock and the pid separate calls.
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_nanos()),
+    );
+    h.write_u32(std::process::id());
+    h.finish()
+}
