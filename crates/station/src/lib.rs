@@ -10,11 +10,14 @@
 //! * [`demo`] — `spinbench demo`: the virtual bench, a whole test, the truth beside it;
 //! * [`terminal`] — the operator at the terminal and the progress printer;
 //! * [`signals`] — SIGINT, SIGTERM and SIGHUP abort the run, naming the signal;
+//! * [`users`] — adding a user, the one way the CLI and the web API do it;
+//! * [`paths`] — where things live: the data directory, the store, a run's files;
 //! * [`web`] — `spinbench serve`: the web UI and the HTTP API.
 
 pub mod cli;
 pub mod demo;
 pub mod export;
+pub mod paths;
 pub mod points_file;
 pub mod render;
 pub mod replay;
@@ -22,4 +25,5 @@ pub mod run_setup;
 pub mod signals;
 pub mod station_run;
 pub mod terminal;
+pub mod users;
 pub mod web;

@@ -154,7 +154,8 @@ pub fn replay(run_dir: &Path, store: &Store) -> Result<ReplayReport> {
                 let Ok(message) = Message::decode(frame) else {
                     return;
                 };
-                for w in accumulator.push(&message) {
+                accumulator.feed(&message);
+                while let Some(w) = accumulator.decode() {
                     if w.is_complete() {
                         whole += 1;
                         // The engine stores dF only from whole windows; so does the replay.

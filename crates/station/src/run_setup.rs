@@ -12,23 +12,9 @@ use spinbench_store::StoreTarget;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-/// Where runs are kept unless `--data` says otherwise.
-pub const DEFAULT_DATA_DIR: &str = "spinbench-data";
-
-/// The store's file inside the data directory.
-pub const DB_FILE: &str = "spinbench.db";
-
-/// The directory of the runs inside the data directory.
-pub const RUNS_DIR: &str = "runs";
-
-/// The raw byte captures of a run, inside its directory.
-pub const RAW_DIR: &str = "raw";
-
-/// The plan a run was started with, inside its directory.
-pub const PLAN_FILE: &str = "plan.toml";
-
-/// The station config a run was started with, inside its directory.
-pub const STATION_FILE: &str = "station.toml";
+pub use crate::paths::{
+    DB_FILE, DEFAULT_DATA_DIR, PLAN_FILE, RAW_DIR, RUNS_DIR, STATION_FILE, default_store,
+};
 
 /// A new run identifier: the clock and 48 random bits, so that stations
 /// sharing one database never pick the same one.
@@ -38,11 +24,6 @@ pub fn new_run_id() -> String {
         .unwrap_or_default();
     let random: u64 = rand::random::<u64>() & 0xffff_ffff_ffff;
     format!("run-{}-{random:012x}", t.as_secs())
-}
-
-/// The default store of a data directory: `DATA/spinbench.db`.
-pub fn default_store(data: &Path) -> StoreTarget {
-    StoreTarget::File(data.join(DB_FILE))
 }
 
 /// A run's directory: `DATA/runs/<id>`, holding its station config, plan,

@@ -109,6 +109,16 @@ pub struct Store {
     target: StoreTarget,
 }
 
+/// An error of `target` while doing `what`, for `map_err`.
+fn failed(target: &StoreTarget, what: &str) -> impl Fn(DbError) -> StoreError + use<> {
+    let (target, what) = (target.to_string(), what.to_string());
+    move |source| StoreError {
+        target: target.clone(),
+        what: what.clone(),
+        source,
+    }
+}
+
 impl Store {
     /// Open (creating if needed) the SQLite store at `path`.
     pub fn open(path: &Path) -> Result<Store, StoreError> {
@@ -121,15 +131,7 @@ impl Store {
     /// permissions can still be read. A store whose schema is older than
     /// this program's is refused with what to do.
     pub fn open_read_only(target: &StoreTarget) -> Result<Store, StoreError> {
-        let err = |what: &str| {
-            let t = target.to_string();
-            let what = what.to_string();
-            move |source: DbError| StoreError {
-                target: t.clone(),
-                what: what.clone(),
-                source,
-            }
-        };
+        let err = |what: &str| failed(target, what);
         let db = match target {
             StoreTarget::File(path) => {
                 use rusqlite::OpenFlags;
@@ -163,15 +165,7 @@ impl Store {
 
     /// Open a store (a file is created if needed) and bring its schema up to date.
     pub fn connect(target: &StoreTarget) -> Result<Store, StoreError> {
-        let err = |what: &str| {
-            let t = target.to_string();
-            let what = what.to_string();
-            move |source: DbError| StoreError {
-                target: t.clone(),
-                what: what.clone(),
-                source,
-            }
-        };
+        let err = |what: &str| failed(target, what);
         let db = match target {
             StoreTarget::File(path) => {
                 if let Some(dir) = path.parent()

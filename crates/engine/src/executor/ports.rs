@@ -21,8 +21,10 @@ impl Executor<'_> {
                     self.last_data[m] = Instant::now();
                 }
                 for msg in got {
-                    let closed = self.accumulators[m].push(&msg);
-                    self.pending[m].extend(closed);
+                    self.accumulators[m].feed(&msg);
+                    while let Some(window) = self.accumulators[m].decode() {
+                        self.pending[m].push_back(window);
+                    }
                 }
                 while self.pending[m].len() > 1 {
                     self.pending[m].pop_front();
@@ -68,8 +70,10 @@ impl Executor<'_> {
                     self.last_data[m] = Instant::now();
                 }
                 for msg in got {
-                    let closed = self.accumulators[m].push(&msg);
-                    self.pending[m].extend(closed);
+                    self.accumulators[m].feed(&msg);
+                    while let Some(window) = self.accumulators[m].decode() {
+                        self.pending[m].push_back(window);
+                    }
                 }
                 let silent = self.last_data[m].elapsed();
                 if silent > self.options.module_silence {
@@ -92,8 +96,10 @@ impl Executor<'_> {
                 }
                 self.last_data[m] = Instant::now();
                 for msg in got {
-                    let closed = self.accumulators[m].push(&msg);
-                    self.pending[m].extend(closed);
+                    self.accumulators[m].feed(&msg);
+                    while let Some(window) = self.accumulators[m].decode() {
+                        self.pending[m].push_back(window);
+                    }
                 }
             }
             if let Some(newest) = self.pending[m].pop_back() {

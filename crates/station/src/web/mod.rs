@@ -69,7 +69,7 @@ pub struct ServeArgs {
     #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
     pub data: PathBuf,
     /// The store (default DATA/spinbench.db).
-    #[arg(long, value_parser = crate::cli::parse_store)]
+    #[arg(long, value_parser = crate::paths::parse_store)]
     pub db: Option<StoreTarget>,
     /// Most HTTP connections open at once (1 to 10000); more are closed at once.
     #[arg(long, default_value_t = 256)]

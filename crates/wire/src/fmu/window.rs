@@ -101,6 +101,9 @@ pub struct WindowAccumulator {
     /// Reciprocal: Σspan per input.
     sum_b: Vec<u64>,
     stats: WindowStats,
+    /// Windows closed and not yet taken by [`WindowAccumulator::decode`]
+    /// (its capacity is reused: no allocation per message).
+    ready: std::collections::VecDeque<WindowValue>,
 }
 
 impl WindowAccumulator {
@@ -115,6 +118,7 @@ impl WindowAccumulator {
             ticks_in_window: 0,
             status: 0,
             stats: WindowStats::default(),
+            ready: std::collections::VecDeque::new(),
         }
     }
 
@@ -123,10 +127,24 @@ impl WindowAccumulator {
         self.stats
     }
 
-    /// Feed one message; count messages of the configured mode are summed,
-    /// others ignored. Returns the windows this tick closed (usually none or
-    /// one; more after a gap longer than a window).
+    /// Feed one message and return the windows it closed (usually none or
+    /// one; more after a gap longer than a window): [`Self::feed`], then
+    /// every [`Self::decode`], collected.
     pub fn push(&mut self, message: &Message) -> Vec<WindowValue> {
+        self.feed(message);
+        self.ready.drain(..).collect()
+    }
+
+    /// The next closed window, if any (the pull side, in the manner of
+    /// tokio-util's `Decoder::decode`: feed messages, then take windows
+    /// until `None`).
+    pub fn decode(&mut self) -> Option<WindowValue> {
+        self.ready.pop_front()
+    }
+
+    /// Feed one message; count messages of the configured mode are summed,
+    /// others ignored. The windows it closes wait for [`Self::decode`].
+    pub fn feed(&mut self, message: &Message) {
         let (seq, status) = match (message, self.config.mode) {
             (
                 Message::GatedCounts {
@@ -146,9 +164,9 @@ impl WindowAccumulator {
             ) if inputs.len() == self.config.inputs => (*seq, *status),
             (Message::GatedCounts { .. } | Message::ReciprocalCounts { .. }, _) => {
                 self.stats.wrong_shape += 1;
-                return Vec::new();
+                return;
             }
-            _ => return Vec::new(),
+            _ => return,
         };
 
         let tick = match self.last_tick {
@@ -157,7 +175,7 @@ impl WindowAccumulator {
                 let step = seq.wrapping_sub(last_seq);
                 if step == 0 || step >= 0x8000 {
                     self.stats.out_of_order += 1;
-                    return Vec::new();
+                    return;
                 }
                 if step > 1 {
                     self.stats.gaps += 1;
@@ -168,10 +186,10 @@ impl WindowAccumulator {
         };
         self.last_tick = Some((tick, seq));
 
-        let mut closed = Vec::new();
         let window = tick / u64::from(self.config.ticks_per_window.max(1));
         while self.window < window {
-            closed.push(self.close_window());
+            let closed = self.close_window();
+            self.ready.push_back(closed);
         }
         self.ticks_in_window += 1;
         self.status |= status;
@@ -190,7 +208,6 @@ impl WindowAccumulator {
             }
             _ => {}
         }
-        closed
     }
 
     /// Emit the current window even though it is not over (end of a stream);
@@ -299,6 +316,34 @@ mod tests {
         assert!(out[1].is_complete());
         let s = acc.stats();
         assert_eq!((s.gaps, s.lost_ticks, s.incomplete_windows), (1, 10, 1));
+    }
+
+    #[test]
+    fn the_pull_side_gives_the_windows_push_gives_in_order() {
+        let tick = |seq: u16| Message::ReciprocalCounts {
+            seq,
+            status: 0,
+            inputs: (0..4)
+                .map(|i| ReciprocalCount {
+                    periods: 70 + i,
+                    span: 250_000 + u32::from(seq % 7),
+                })
+                .collect(),
+        };
+        let mut pushed = WindowAccumulator::new(config(StreamMode::Reciprocal));
+        let mut pulled = WindowAccumulator::new(config(StreamMode::Reciprocal));
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        // A gap of three windows in the middle closes several at once.
+        for seq in (0..900u16).chain(2100..2500) {
+            a.extend(pushed.push(&tick(seq)));
+            pulled.feed(&tick(seq));
+            while let Some(w) = pulled.decode() {
+                b.push(w);
+            }
+        }
+        assert!(a.len() >= 5, "{} windows", a.len());
+        assert_eq!(a, b);
+        assert_eq!(pulled.decode(), None);
     }
 
     #[test]

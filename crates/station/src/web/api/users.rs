@@ -30,24 +30,20 @@ pub(super) async fn add_user(
 ) -> ApiResult<(StatusCode, axum::Json<Value>)> {
     let session = authorize(&app, &headers, Role::Admin, true)?;
     let new: NewUser = parse_json(&body)?;
-    let role = Role::parse(&new.role).ok_or_else(|| {
-        ApiError::bad(format!(
-            "role '{}': use operator, engineer or admin",
-            new.role
-        ))
-    })?;
-    auth::check_new_user(&new.name, &new.password).map_err(ApiError::bad)?;
-    if store(&app).user(&new.name)?.is_some() {
-        return Err(ApiError::conflict(format!("user '{}' exists", new.name)));
-    }
-    let hash = auth::hash_password(&new.password).map_err(ApiError::internal)?;
-    store(&app).add_user(&new.name, role.as_str(), &hash)?;
-    audit(
-        &app,
+    use crate::users::AddUserError;
+    let role = crate::users::add_user(
+        &store(&app),
+        &new.name,
+        &new.role,
+        &new.password,
         &session.user,
-        "add user",
-        &format!("{} ({})", new.name, role.as_str()),
-    )?;
+    )
+    .map_err(|e| match e {
+        AddUserError::Invalid(why) => ApiError::bad(why),
+        AddUserError::Exists(_) => ApiError::conflict(e.to_string()),
+        AddUserError::Hash(why) => ApiError::internal(why),
+        AddUserError::Store(e) => ApiError::from(e),
+    })?;
     Ok((
         StatusCode::CREATED,
         axum::Json(json!({ "name": new.name, "role": role.as_str() })),

@@ -1,0 +1,358 @@
+//! The `spinbench` command line: the arguments (parsed in one place, here)
+//! and the dispatch to one module per command.
+//!
+//! | module | commands |
+//! |---|---|
+//! | this | `analyze`, `demo`, `serve` (their work lives in [`crate::points_file`], [`crate::demo`], [`crate::web`]) |
+//! | `run` | `run` |
+//! | `records` | `runs list`, `runs show`, `unit`, `export` |
+//! | `reports` | `report`, `batch-report`, `replay` |
+//! | `sim` | `sim` |
+//! | `user` | `user add`, `user list` |
+
+use crate::paths::parse_store;
+use crate::points_file::read_points_file;
+use crate::render::render_dataset;
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use spinbench_analysis::{AnalysisOptions, DatasetAnalysis, ModelOrder, analyze_dataset};
+use spinbench_store::StoreTarget;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+mod records;
+mod reports;
+mod run;
+mod sim;
+mod user;
+
+/// spinbench: automatic centrifuge test station for vibrating-beam accelerometers.
+#[derive(Debug, Parser)]
+#[command(name = "spinbench", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Reduce the averaged points of a centrifuge test (CSV or XLSX) to the
+    /// model coefficients with uncertainties, per unit and mounting.
+    ///
+    /// FILE has a header row and the columns unit,mount,g_nominal,g_applied,output
+    /// (mount is P or N; an empty g_applied equals g_nominal). Optional
+    /// columns: direction (up/down) and run (a label for repeated tests).
+    Analyze {
+        /// The points file (.csv, or a spreadsheet: .xlsx, .xls, .ods).
+        file: PathBuf,
+        /// Print one JSON document instead of tables.
+        #[arg(long)]
+        json: bool,
+        /// Model order: 1 (k0, k1), 2 (+k2) or 3 (+k3, the published station's model).
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
+        order: u8,
+        /// Spreadsheet sheet to read (default: the first).
+        #[arg(long)]
+        sheet: Option<String>,
+    },
+    /// The main job, with no hardware: a complete simulated station (virtual
+    /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
+    /// to end in virtual time and compares what it measured with the truth.
+    Demo {
+        /// Seed of the virtual bench (same seed, same instruments).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON document instead of tables.
+        #[arg(long)]
+        json: bool,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Run a test plan on a station (or, with --simulate, on the virtual bench).
+    Run {
+        /// The test plan (TOML).
+        plan: PathBuf,
+        /// The station config (TOML); with --simulate its device sections are replaced by the bench's.
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run against the virtual bench in this process (real pseudo-terminals).
+        #[arg(long)]
+        simulate: bool,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Continue the run in this directory from its journal.
+        #[arg(long, value_name = "RUN_DIR")]
+        resume: Option<PathBuf>,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// Print only faults and the results.
+        #[arg(long)]
+        quiet: bool,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…);
+        /// default DATA/spinbench.db (with --resume, the run's own).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// List the runs in the store, or show one run's results.
+    Runs {
+        /// `list` or `show`.
+        #[command(subcommand)]
+        action: RunsAction,
+    },
+    /// Every run of one instrument (by serial number), with the repeatability of its scale factor.
+    Unit {
+        /// Serial number.
+        serial: String,
+        /// The store (default: spinbench-data/spinbench.db).
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Export a run's points (the input format of `spinbench analyze`) and results.
+    Export {
+        /// Run identifier.
+        run: String,
+        /// Format: csv (points), xlsx (points and results sheets) or parquet (points).
+        #[arg(long, default_value = "csv")]
+        format: String,
+        /// Write to this file instead of standard output (an existing file
+        /// only with --force; never the store or a run's own files).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing --out file.
+        #[arg(long)]
+        force: bool,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Write a run's report: PDF, HTML (self-contained, plots inline), XLSX and/or CSV.
+    Report {
+        /// Run identifier.
+        run: String,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
+    },
+    /// Write the batch report of many runs: distributions of k2 and the
+    /// scale-factor figures, outliers, repeatability of serials tested more than once.
+    BatchReport {
+        /// Run identifiers (default: every run in the store).
+        runs: Vec<String>,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
+    },
+    /// Replay a run's raw counter-module bytes through the decoder and show
+    /// that they give the one-second values and points the store holds.
+    Replay {
+        /// Run identifier (a directory under DATA/runs) or a run directory.
+        run: String,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Start a virtual bench (simulated centrifuge, instruments, counter
+    /// modules and supplies) behind real pseudo-terminals, and print the
+    /// device sections of a station config that reach it. Runs until
+    /// interrupted (Ctrl-C).
+    Sim {
+        /// Bench configuration (TOML); every key has a default.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Time: 1 = real time, N = N× faster, 0 = as fast as the station reads.
+        #[arg(long)]
+        speed: Option<f64>,
+        /// Put the centrifuge controller and the supplies on TCP (loopback).
+        #[arg(long)]
+        tcp: bool,
+        /// Write the instruments' true coefficients and radii to this JSON file.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// Stop after this many seconds of wall-clock time (default: run until interrupted).
+        #[arg(long = "for", value_name = "SECONDS")]
+        run_for: Option<f64>,
+    },
+    /// Serve the station's web UI and HTTP API (loopback by default): status,
+    /// live curves, run control and prompts, new runs, history and reports.
+    Serve {
+        /// Where and how to serve.
+        #[command(flatten)]
+        args: crate::web::ServeArgs,
+    },
+    /// Manage the web UI's users (the first admin is made here).
+    User {
+        /// What to do.
+        #[command(subcommand)]
+        action: UserAction,
+    },
+}
+
+/// Actions of `spinbench user`.
+#[derive(Debug, Subcommand)]
+pub enum UserAction {
+    /// Add a user; the password is read from standard input (one line) or
+    /// from the environment variable SPINBENCH_PASSWORD.
+    Add {
+        /// Login name.
+        name: String,
+        /// operator, engineer or admin.
+        #[arg(long, default_value = "operator")]
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// List the users.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}
+
+/// Where reports go, in which formats, from which store.
+#[derive(Debug, clap::Args)]
+pub struct ReportOutput {
+    /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
+    #[arg(long, value_delimiter = ',')]
+    format: Vec<String>,
+    /// Directory for the files (default: the current directory).
+    #[arg(long, default_value = ".")]
+    out: PathBuf,
+    /// The store.
+    #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+    db: StoreTarget,
+}
+
+/// Actions of `spinbench runs`.
+#[derive(Debug, Subcommand)]
+pub enum RunsAction {
+    /// Every run, newest first.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// One run's per-instrument results.
+    Show {
+        /// Run identifier.
+        run: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}
+
+/// Open an existing store to read it (a missing file is an error, not a
+/// new empty store; a read-only file or disk can be read).
+fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
+    if let StoreTarget::File(path) = db
+        && !path.exists()
+    {
+        anyhow::bail!(
+            "{}: no store here; runs are stored under --data (default spinbench-data), or give --db",
+            path.display()
+        );
+    }
+    Ok(spinbench_store::Store::open_read_only(db)?)
+}
+
+/// Read and reduce a points file.
+pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<DatasetAnalysis> {
+    let order = ModelOrder::from_degree(order)
+        .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
+    let points = read_points_file(file, sheet)?;
+    analyze_dataset(&points.units, AnalysisOptions { order })
+        .with_context(|| format!("{}: cannot reduce the points", file.display()))
+}
+
+/// Run a parsed command line, writing its output to `out`.
+pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
+    match cli.command {
+        Command::Analyze {
+            file,
+            json,
+            order,
+            sheet,
+        } => {
+            let analysis = analyze_file(&file, order, sheet.as_deref())?;
+            if json {
+                serde_json::to_writer_pretty(&mut *out, &analysis)?;
+                writeln!(out)?;
+            } else {
+                write!(
+                    out,
+                    "{}",
+                    render_dataset(&file.display().to_string(), &analysis)
+                )?;
+            }
+            Ok(())
+        }
+        Command::Demo {
+            seed,
+            json,
+            data,
+            db,
+        } => crate::demo::demo(seed, json, &data, db.as_ref(), out),
+        Command::Run {
+            plan,
+            station,
+            simulate,
+            seed,
+            resume,
+            data,
+            quiet,
+            db,
+        } => run::run_plan(
+            &plan,
+            station.as_deref(),
+            simulate,
+            seed,
+            resume.as_deref(),
+            &data,
+            db,
+            quiet,
+            out,
+        ),
+        Command::Runs {
+            action: RunsAction::List { db },
+        } => records::runs_list(&db, out),
+        Command::Runs {
+            action: RunsAction::Show { run, db },
+        } => records::runs_show(&run, &db, out),
+        Command::Unit { serial, db } => records::unit(&serial, &db, out),
+        Command::Export {
+            run,
+            format,
+            out: file,
+            force,
+            db,
+        } => records::export(&run, &format, file, force, &db, out),
+        Command::Report { run, output } => reports::report(&run, &output, out),
+        Command::BatchReport { runs, output } => reports::batch_report(&runs, &output, out),
+        Command::Replay { run, data, db } => reports::replay(&run, &data, db, out),
+        Command::Serve { args } => crate::web::serve(args, out),
+        Command::User { action } => match action {
+            UserAction::Add { name, role, db } => user::add(&name, &role, &db, out),
+            UserAction::List { db } => user::list(&db, out),
+        },
+        Command::Sim {
+            config,
+            speed,
+            tcp,
+            truth,
+            run_for,
+        } => sim::run_sim(config, speed, tcp, truth, run_for, out),
+    }
+}

@@ -1,0 +1,123 @@
+//! The commands that read runs back: `runs list`, `runs show`, `unit`
+//! (every run of one serial, with its repeatability) and `export`.
+
+use super::open_store;
+use anyhow::Result;
+use spinbench_store::StoreTarget;
+use std::io::Write;
+use std::path::PathBuf;
+
+/// `spinbench runs list`.
+pub(super) fn runs_list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    writeln!(
+        out,
+        "{:<28} {:<10} {:>6} {:>7}  station",
+        "run", "state", "units", "points"
+    )?;
+    for r in store.runs()? {
+        writeln!(
+            out,
+            "{:<28} {:<10} {:>6} {:>7}  {}",
+            r.id, r.state, r.units, r.points, r.station
+        )?;
+    }
+    Ok(())
+}
+
+/// `spinbench runs show RUN`.
+pub(super) fn runs_show(run: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    let Some(r) = store.run(run)? else {
+        anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
+    };
+    writeln!(
+        out,
+        "run {} — {} — {}{}",
+        r.id,
+        r.station,
+        r.state,
+        r.reason.map(|x| format!(": {x}")).unwrap_or_default()
+    )?;
+    for u in store.results(run)? {
+        writeln!(
+            out,
+            "  slot {:>2} {:<12} {:<9} k2_max {}",
+            u.slot + 1,
+            u.serial,
+            u.outcome,
+            u.k2_max_ug_per_g2
+                .map_or("—".into(), |k| format!("{k:.3} µg/g²"))
+        )?;
+    }
+    Ok(())
+}
+
+/// `spinbench unit SERIAL`.
+pub(super) fn unit(serial: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    let history = store.unit_history(serial)?;
+    if history.is_empty() {
+        anyhow::bail!("{db}: no results for serial '{serial}'");
+    }
+    for h in &history {
+        let p_k1 = h
+            .record
+            .analysis
+            .as_ref()
+            .and_then(|a| a.fits.get(&spinbench_analysis::Mount::P))
+            .map(|f| f.fit.k1);
+        writeln!(
+            out,
+            "{:<28} slot {:>2} {:<9} k2_max {:>10} k1(P) {}",
+            h.run_id,
+            h.slot + 1,
+            h.outcome,
+            h.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
+            p_k1.map_or("—".into(), |v| format!("{v:.6}"))
+        )?;
+    }
+    // The one definition of repeatability (as `analyze` and the batch
+    // report give it), over the tests measured whole.
+    let measured: Vec<&spinbench_analysis::UnitAnalysis> = history
+        .iter()
+        .filter(|h| h.outcome != spinbench_engine::Outcome::Incomplete)
+        .filter_map(|h| h.record.analysis.as_ref())
+        .collect();
+    match spinbench_analysis::unit::repeatability_of(&measured) {
+        Some(r) => writeln!(
+            out,
+            "scale-factor repeatability over {} runs: {:.3} ppm (bias {:.1} µg)",
+            r.runs, r.scale_factor_ppm, r.bias_ug
+        )?,
+        None => writeln!(out, "scale-factor repeatability: needs at least two runs")?,
+    }
+    Ok(())
+}
+
+/// `spinbench export RUN`.
+pub(super) fn export(
+    run: &str,
+    format: &str,
+    file: Option<PathBuf>,
+    force: bool,
+    db: &StoreTarget,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let format = crate::export::ExportFormat::parse(format)?;
+    if let Some(f) = &file {
+        crate::export::check_out_path(f, db, force)?;
+    }
+    let store = open_store(db)?;
+    if store.run(run)?.is_none() {
+        anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
+    }
+    match (file, format) {
+        (Some(f), _) => crate::export::export_run(&store, run, format, &f)?,
+        (None, crate::export::ExportFormat::Csv) => write!(out, "{}", store.points_csv(run)?)?,
+        (None, _) => {
+            anyhow::bail!("--out FILE is needed for xlsx and parquet (binary formats)")
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,44 @@
+//! `spinbench user`: the web UI's users (the first admin is made here).
+
+use super::open_store;
+use anyhow::{Context, Result};
+use spinbench_store::StoreTarget;
+use std::io::Write;
+
+/// `spinbench user add NAME`: the password from `SPINBENCH_PASSWORD` or one
+/// line of standard input; added the one way the web API adds users too.
+pub(super) fn add(name: &str, role: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let password = match std::env::var("SPINBENCH_PASSWORD") {
+        Ok(p) => p,
+        Err(_) => {
+            eprintln!("password for {name} (one line on standard input):");
+            let mut line = String::new();
+            std::io::stdin()
+                .read_line(&mut line)
+                .context("cannot read the password")?;
+            line.trim_end_matches(['\r', '\n']).to_string()
+        }
+    };
+    // Checked before a new store file is made for it.
+    crate::web::auth::check_new_user(name, &password).map_err(anyhow::Error::msg)?;
+    if let StoreTarget::File(path) = db
+        && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+    {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    let store = spinbench_store::Store::connect(db)?;
+    let role = crate::users::add_user(&store, name, role, &password, "spinbench (command line)")
+        .with_context(|| format!("{db}: user '{name}'"))?;
+    writeln!(out, "user {name} added as {} in {db}", role.as_str())?;
+    Ok(())
+}
+
+/// `spinbench user list`.
+pub(super) fn list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    for u in store.users()? {
+        writeln!(out, "{:<24} {}", u.name, u.role)?;
+    }
+    Ok(())
+}
