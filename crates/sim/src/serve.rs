@@ -4,11 +4,12 @@
 //! the controller and supplies on TCP. A control socket lets a simulated
 //! operator remount instruments and read the truth.
 //!
-//! A clock thread advances the [`World`] in 2.5 ms ticks: at `speed` × real
-//! time, or (speed 0) as fast as the station reads the counter modules,
-//! which is how a two-hour test runs in well under a minute with the same
-//! station code. A module's output is buffered; in a paced mode a station
-//! that stops reading loses frames (counted as overruns), as with hardware.
+//! A clock thread advances the [`World`] in 2.5 ms ticks at `speed` × real
+//! time; at speed 0 the world runs in virtual time, in lockstep with the
+//! station (see [`crate::world`]): a two-hour test runs in seconds with the
+//! same station code, and a seed gives the same results on every run. A
+//! module's output is buffered; in a paced mode a station that stops
+//! reading loses frames (counted as overruns), as with hardware.
 
 use crate::config::{SimConfig, SimDialect};
 use crate::vba::Mounting;
@@ -23,14 +24,13 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-/// Bytes a module may have waiting before the bench pauses (speed 0) or drops (paced).
+/// Bytes a module may have waiting before a paced bench drops them.
 const MODULE_BUFFER_LIMIT: usize = 8 * 1024;
-/// As fast as read: bytes a module may have waiting in the bench's buffer,
-/// in one write, and unread in the kernel. Together they bound how far the
-/// module data lag the table (~0.1 s for six instruments).
-const PACED_BY_READER_BYTES: usize = 2048;
-/// Fastest pace of the "as fast as read" mode, × real time.
-const MAX_SPEED: f64 = 2000.0;
+/// Lockstep: wall time without a rate query, while the station has read
+/// everything, after which the bench produces the next second anyway (a
+/// client that reads the modules but never polls the rate still gets data;
+/// such a run is not reproducible).
+const LOCKSTEP_LIVENESS: Duration = Duration::from_secs(2);
 
 /// Where a device can be reached.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -122,17 +122,10 @@ impl RunningBench {
         for (m, buffer) in buffers.iter().enumerate() {
             let (master, slave) = TTYPort::pair().map_err(|e| io::Error::other(e.to_string()))?;
             modules.push(Endpoint::Pty(slave.name().unwrap_or_default()));
-            // As fast as read: the writer watches what the station has not read yet.
-            let watch = if speed == 0.0 {
-                Some(watch_slave(&slave.name().unwrap_or_default())?)
-            } else {
-                None
-            };
             slaves.push(slave);
             threads.extend(serve_module(
                 m,
                 master,
-                watch,
                 world.clone(),
                 buffer.clone(),
                 stop.clone(),
@@ -338,12 +331,8 @@ fn control_command(world: &mut World, line: &str) -> Option<String> {
     })
 }
 
-/// Ticks a pass steps at speed 0 while no module streams (20 ms of bench
-/// time, about the longest idle sleep: the idle bench keeps real time).
-const IDLE_TICKS_PER_PASS: u64 = 8;
-
-/// How long a thread that found nothing to do sleeps: 200 µs at first,
-/// doubling up to 20 ms while it stays idle, back to 200 µs on progress.
+/// How long a thread that found nothing to do sleeps: 100 µs at first,
+/// doubling up to 20 ms while it stays idle, back to 100 µs on progress.
 struct IdleBackoff(Duration);
 
 impl Default for IdleBackoff {
@@ -353,7 +342,7 @@ impl Default for IdleBackoff {
 }
 
 impl IdleBackoff {
-    const SHORTEST: Duration = Duration::from_micros(200);
+    const SHORTEST: Duration = Duration::from_micros(100);
     const LONGEST: Duration = Duration::from_millis(20);
 
     /// The next sleep, after a round that made progress or not.
@@ -375,30 +364,20 @@ fn run_clock(
     stats: Arc<ServeStats>,
 ) -> JoinHandle<()> {
     thread::spawn(move || {
+        if speed == 0.0 {
+            lockstep_clock(&world, &buffers, &stop);
+            return;
+        }
         let start = Instant::now();
-        let pace = if speed > 0.0 { speed } else { MAX_SPEED };
         let mut ticks_done: u64 = 0;
-        let mut idle = IdleBackoff::default();
         while !stop.load(Ordering::Relaxed) {
-            let due = (start.elapsed().as_secs_f64() * pace / TICK_S) as u64;
+            let due = (start.elapsed().as_secs_f64() * speed / TICK_S) as u64;
             let mut stepped = 0;
-            let mut streamed = false;
             while ticks_done < due && stepped < 400 {
-                // As fast as read: wait while any module has a full buffer.
-                if speed == 0.0 && buffers.iter().any(|b| lock(b).len() > MODULE_BUFFER_LIMIT) {
-                    break;
-                }
-                // As fast as read, but no module streams (no station, or one
-                // that has not started them): nothing paces the bench, so it
-                // idles at about real time instead of racing on a core.
-                if speed == 0.0 && !streamed && stepped >= IDLE_TICKS_PER_PASS {
-                    break;
-                }
                 let out = lock(&world).step();
-                streamed |= out.iter().any(|bytes| !bytes.is_empty());
                 for (bytes, buffer) in out.iter().zip(&buffers) {
                     let mut b = lock(buffer);
-                    if speed > 0.0 && b.len() > MODULE_BUFFER_LIMIT {
+                    if b.len() > MODULE_BUFFER_LIMIT {
                         stats
                             .overrun_bytes
                             .fetch_add(bytes.len() as u64, Ordering::Relaxed);
@@ -409,22 +388,54 @@ fn run_clock(
                 ticks_done += 1;
                 stepped += 1;
             }
-            if speed == 0.0 && ticks_done < due {
-                // Behind because the reader is slow: do not try to catch up later.
-                let behind = due - ticks_done;
-                if behind > 400 {
-                    ticks_done = due;
-                }
-            }
-            // As fast as read, the buffers are small: look again soon, but
-            // back off while nobody reads (an idle station must not cost a core).
-            thread::sleep(if speed == 0.0 {
-                idle.next(streamed)
-            } else {
-                Duration::from_millis(1)
-            });
+            thread::sleep(Duration::from_millis(1));
         }
     })
+}
+
+/// The clock of virtual time. The world moves on the station's steps (see
+/// [`crate::world`]); this thread only runs it in real time while it is
+/// free-running (after a run: a table left spinning must slow down), and
+/// keeps a station that never polls the rate fed ([`LOCKSTEP_LIVENESS`]).
+fn lockstep_clock(world: &Shared<World>, buffers: &[Shared<VecDeque<u8>>], stop: &AtomicBool) {
+    let mut free: Option<(Instant, u64)> = None;
+    let mut last_second = (0u64, Instant::now());
+    let mut idle = IdleBackoff::default();
+    while !stop.load(Ordering::Relaxed) {
+        let mut progressed = false;
+        {
+            let mut w = lock(world);
+            if w.free_running() {
+                let (since, done) = free.get_or_insert_with(|| (Instant::now(), 0));
+                let due = (since.elapsed().as_secs_f64() / TICK_S) as u64;
+                let mut stepped = 0;
+                while *done < due && stepped < 400 {
+                    // Nothing streams: the bytes are empty.
+                    let _ = w.step();
+                    *done += 1;
+                    stepped += 1;
+                }
+            } else {
+                free = None;
+                let seconds = w.seconds_produced();
+                if seconds != last_second.0 {
+                    last_second = (seconds, Instant::now());
+                } else if w.streaming_any()
+                    && w.outbox_empty()
+                    && last_second.1.elapsed() > LOCKSTEP_LIVENESS
+                    && buffers.iter().all(|b| lock(b).is_empty())
+                {
+                    w.advance_second();
+                    progressed = true;
+                }
+            }
+        }
+        thread::sleep(if progressed {
+            Duration::from_millis(1)
+        } else {
+            idle.next(false).max(Duration::from_millis(5))
+        });
+    }
 }
 
 /// Make a pty master non-blocking: a blocking write to a pty whose reader
@@ -442,32 +453,11 @@ fn set_nonblocking(port: &TTYPort) -> io::Result<()> {
     Ok(())
 }
 
-/// Bytes waiting in the kernel for the station to read from a pty slave.
-/// rustix wraps FIONREAD safely (nix would need an unsafe block).
-fn unread_bytes(slave: &std::fs::File) -> usize {
-    rustix::io::ioctl_fionread(slave).map_or(0, |n| usize::try_from(n).unwrap_or(usize::MAX))
-}
-
-/// The pty slave opened once more, only to watch [`unread_bytes`]; opened
-/// before any station does, so a station's exclusive open still succeeds.
-fn watch_slave(path: &str) -> io::Result<std::fs::File> {
-    use std::os::unix::fs::OpenOptionsExt;
-    std::fs::OpenOptions::new()
-        .read(true)
-        .custom_flags(nix::libc::O_NOCTTY | nix::libc::O_NONBLOCK)
-        .open(path)
-}
-
-/// Serves one counter module on a pty. With `watch` (the slave end, in the
-/// as-fast-as-read mode) the writer only hands the kernel more bytes once the
-/// station has read most of what it holds: otherwise the kernel's buffer
-/// (~17 KB) would let the module data lag the table's state by about a
-/// second, and the rate the station polls would belong to another moment
-/// than the windows it reads — something real hardware never does.
+/// Serves one counter module on a pty: replies to its commands, and the
+/// bytes the clock (paced) or the world itself (lockstep) produced.
 fn serve_module(
     m: usize,
     master: TTYPort,
-    watch: Option<std::fs::File>,
     world: Shared<World>,
     buffer: Shared<VecDeque<u8>>,
     stop: Arc<AtomicBool>,
@@ -481,6 +471,7 @@ fn serve_module(
     let _ = writer.set_timeout(Duration::from_millis(200));
     let rx_buffer = buffer.clone();
     let rx_stop = stop.clone();
+    let rx_world = world.clone();
     let rx = thread::spawn(move || {
         let mut decoder = FrameDecoder::new();
         let mut bytes = [0u8; 512];
@@ -499,7 +490,7 @@ fn serve_module(
                 messages.push(Message::decode(f).map_err(|_| ()))
             });
             for message in messages {
-                let reply = lock(&world).handle_module_message(m, message);
+                let reply = lock(&rx_world).handle_module_message(m, message);
                 lock(&rx_buffer).extend(reply);
             }
         }
@@ -507,35 +498,31 @@ fn serve_module(
     let tx = thread::spawn(move || {
         let mut chunk = Vec::with_capacity(8192);
         let mut idle = IdleBackoff::default();
+        let lockstep = lock(&world).lockstep();
         while !stop.load(Ordering::Relaxed) {
-            if watch
-                .as_ref()
-                .is_some_and(|w| unread_bytes(w) > PACED_BY_READER_BYTES)
             {
-                thread::sleep(idle.next(false));
-                continue;
-            }
-            idle.next(true);
-            {
-                let mut b = lock(&buffer);
-                let limit = if watch.is_some() {
-                    PACED_BY_READER_BYTES
+                let produced = if lockstep {
+                    lock(&world).take_outbox(m)
                 } else {
-                    8192
+                    Vec::new()
                 };
-                let n = b.len().min(limit);
+                let mut b = lock(&buffer);
+                b.extend(produced);
+                let n = b.len().min(8192);
                 chunk.clear();
                 chunk.extend(b.drain(..n));
             }
             if chunk.is_empty() {
-                thread::sleep(Duration::from_millis(1));
+                thread::sleep(idle.next(false));
                 continue;
             }
+            idle.next(true);
             let mut sent = 0;
             while sent < chunk.len() && !stop.load(Ordering::Relaxed) {
                 match writer.write(&chunk[sent..]) {
                     Ok(n) => sent += n,
-                    Err(_) => thread::sleep(Duration::from_millis(5)),
+                    // The kernel's buffer is full: the station is reading it.
+                    Err(_) => thread::sleep(Duration::from_micros(200)),
                 }
             }
         }

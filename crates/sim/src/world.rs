@@ -3,6 +3,18 @@
 //! same ticks, it produces the same bytes: that is what makes runs
 //! reproducible. The serving layer ([`crate::serve`]) only moves bytes
 //! between this world and pseudo-terminals or sockets.
+//!
+//! **Lockstep** (virtual time, `speed = 0`): the world stands still between
+//! the station's steps, so every command lands on a tick that does not
+//! depend on how fast either side runs. Nothing moves before the counter
+//! modules stream; the last module the station addressed starting its
+//! stream produces the first second; after that each rate query of the
+//! centrifuge controller (which the station makes once per second, after
+//! taking that second's values) is answered for the second just read and
+//! then produces the next second, whole, before the reply. Every station
+//! command waits for its answer before the station goes on, so commands
+//! reach the world between seconds. When no module streams any more, the
+//! world runs in real time (a table left spinning slows down).
 
 use crate::config::{SimConfig, SimDialect, SlotRef};
 use crate::counter::InputCounter;
@@ -109,6 +121,18 @@ pub struct World {
     centrifuge_silent: bool,
     module_silent: Vec<bool>,
     faults_fired: [bool; 3],
+    /// Virtual time in lockstep with the station (`speed = 0`).
+    lockstep: bool,
+    /// Lockstep: bytes of the seconds produced, per module, for the serving layer.
+    outbox: Vec<Vec<u8>>,
+    /// Modules the station has sent a frame to.
+    addressed: Vec<bool>,
+    /// Some module has streamed since the world began.
+    has_streamed: bool,
+    /// Lockstep: a second has been produced since the streams started.
+    lockstep_running: bool,
+    /// Lockstep: seconds produced (the serving layer watches it for liveness).
+    seconds_produced: u64,
 }
 
 fn draw(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
@@ -183,6 +207,12 @@ impl World {
             module_silent: vec![false; config.modules],
             faults_fired: [false; 3],
             tick: 0,
+            lockstep: config.speed == 0.0,
+            outbox: vec![Vec::new(); config.modules],
+            addressed: vec![false; config.modules],
+            has_streamed: false,
+            lockstep_running: false,
+            seconds_produced: 0,
             config,
         }
     }
@@ -200,6 +230,74 @@ impl World {
     /// Ticks elapsed.
     pub fn tick(&self) -> u64 {
         self.tick
+    }
+
+    /// Whether the world runs in lockstep with the station (virtual time).
+    pub fn lockstep(&self) -> bool {
+        self.lockstep
+    }
+
+    /// Lockstep: seconds produced so far.
+    pub fn seconds_produced(&self) -> u64 {
+        self.seconds_produced
+    }
+
+    /// Whether any live module streams.
+    pub fn streaming_any(&self) -> bool {
+        (0..self.modules.len()).any(|m| self.module_alive(m) && self.modules[m].streaming.is_some())
+    }
+
+    /// Lockstep: the world runs in real time instead (no module streams
+    /// after a run, or a table was set moving before any did).
+    pub fn free_running(&self) -> bool {
+        let table_moving = self.table.rate_rad_s != 0.0
+            || (self.table.rate_mode && self.table.demand_rad_s != 0.0);
+        self.lockstep && !self.streaming_any() && (self.has_streamed || table_moving)
+    }
+
+    /// Lockstep: take the bytes module `m` produced since the last call.
+    pub fn take_outbox(&mut self, m: usize) -> Vec<u8> {
+        self.outbox
+            .get_mut(m)
+            .map(std::mem::take)
+            .unwrap_or_default()
+    }
+
+    /// Lockstep: whether every module's produced bytes have been taken.
+    pub fn outbox_empty(&self) -> bool {
+        self.outbox.iter().all(Vec::is_empty)
+    }
+
+    /// Lockstep: produce the next whole second (to the next whole-second
+    /// tick), its bytes kept for [`take_outbox`](Self::take_outbox).
+    pub fn advance_second(&mut self) {
+        let per_second = u64::from(TICKS_PER_SECOND);
+        let end = (self.tick / per_second + 1) * per_second;
+        while self.tick < end {
+            let out = self.step();
+            for (bytes, outbox) in out.into_iter().zip(&mut self.outbox) {
+                outbox.extend(bytes);
+            }
+        }
+        self.seconds_produced += 1;
+        self.lockstep_running = true;
+    }
+
+    /// Lockstep: the station has taken a second (its rate query): the next one.
+    fn lockstep_barrier(&mut self) {
+        if self.lockstep && self.lockstep_running && self.streaming_any() {
+            self.advance_second();
+        }
+    }
+
+    /// Lockstep: once every module the station addressed streams, the first second.
+    fn lockstep_start(&mut self) {
+        let all_streaming = (0..self.modules.len()).all(|m| {
+            !self.addressed[m] || !self.module_alive(m) || self.modules[m].streaming.is_some()
+        });
+        if self.lockstep && !self.lockstep_running && all_streaming && self.streaming_any() {
+            self.advance_second();
+        }
     }
 
     /// Number of instruments.
@@ -522,6 +620,7 @@ impl World {
             self.modules[m].rx_crc_errors = self.modules[m].rx_crc_errors.wrapping_add(1);
             return Vec::new();
         };
+        self.addressed[m] = true;
         let cmd = message.command() as u8;
         let ack = |result| Message::Ack { cmd, result };
         let module = &mut self.modules[m];
@@ -534,10 +633,15 @@ impl World {
                 let second = u64::from(TICKS_PER_SECOND);
                 module.streaming = Some(mode);
                 module.stream_from_tick = self.tick.div_ceil(second) * second;
+                self.has_streamed = true;
+                self.lockstep_start();
                 ack(0)
             }
             Message::StopStreaming => {
                 module.streaming = None;
+                if !self.streaming_any() {
+                    self.lockstep_running = false;
+                }
                 ack(0)
             }
             Message::StatusRequest => Message::Status(StatusReply {
@@ -590,10 +694,9 @@ impl World {
                 | (u8::from(self.table.interlock_fault) << 2);
             return Some(stb.to_string());
         } else if is(h::READ_RATE) {
-            return Some(format!(
-                "{:.6}",
-                self.table.reported_rate_rad_s().to_degrees()
-            ));
+            let reply = format!("{:.6}", self.table.reported_rate_rad_s().to_degrees());
+            self.lockstep_barrier();
+            return Some(reply);
         } else if is(h::INTERLOCK_QUERY) {
             return Some(
                 if self.table.interlocks_closed {
@@ -659,10 +762,14 @@ impl World {
         let arg = words.next();
         Some(match verb.as_str() {
             "ID?" => "SPINBENCH SIM-TABLE MNEMONIC 1.0".into(),
-            "RATE?" => format!(
-                "RATE {:.4}",
-                spinbench_analysis::centrifuge::rad_s_to_rpm(self.table.reported_rate_rad_s())
-            ),
+            "RATE?" => {
+                let reply = format!(
+                    "RATE {:.4}",
+                    spinbench_analysis::centrifuge::rad_s_to_rpm(self.table.reported_rate_rad_s())
+                );
+                self.lockstep_barrier();
+                reply
+            }
             "ILK?" => format!("ILK {}", u8::from(self.table.interlocks_closed)),
             "ENA" if self.table.interlock_fault => "ERR interlock fault latched, send RST".into(),
             "ENA" => {

@@ -41,6 +41,9 @@ impl Executor<'_> {
     pub(super) fn next_window(&mut self) -> Result<Window, EngineError> {
         let modules = self.bench.modules.len();
         let mut values: Vec<Option<WindowValue>> = vec![None; modules];
+        // Silence counts from when the station began to wait: a bench in
+        // virtual time sends nothing while the run is held or a prompt is open.
+        let waiting_since = Instant::now();
         loop {
             if self.options.abort.is_set() {
                 return Err(EngineError::Aborted(self.options.abort.by()));
@@ -75,7 +78,7 @@ impl Executor<'_> {
                         self.pending[m].push_back(window);
                     }
                 }
-                let silent = self.last_data[m].elapsed();
+                let silent = self.last_data[m].max(waiting_since).elapsed();
                 if silent > self.options.module_silence {
                     return Err(EngineError::ModuleSilent {
                         module: m + 1,

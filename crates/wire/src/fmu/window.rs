@@ -6,7 +6,9 @@
 //! window built from fewer ticks than it should hold is marked incomplete,
 //! never passed as whole. Sequence numbers are 16-bit: a jump of less than
 //! half the range forward is a gap (lost ticks); a jump backward is a
-//! duplicate or out-of-order tick and is dropped and counted.
+//! duplicate or out-of-order tick and is dropped and counted. A window
+//! closes on its own last tick, or on the first tick of a later window when
+//! its last tick was lost.
 
 use super::message::{Message, StreamMode};
 use super::{DEFAULT_REFERENCE_HZ, INPUTS_PER_MODULE, TICKS_PER_SECOND};
@@ -208,6 +210,14 @@ impl WindowAccumulator {
             }
             _ => {}
         }
+        // The window's last tick closes it at once (a window waits for no
+        // later tick: a station that reads one second at a time gets it
+        // whole); after lost ticks the next window's first tick closes it.
+        let per_window = u64::from(self.config.ticks_per_window.max(1));
+        if (tick + 1).is_multiple_of(per_window) {
+            let closed = self.close_window();
+            self.ready.push_back(closed);
+        }
     }
 
     /// Emit the current window even though it is not over (end of a stream);
@@ -302,6 +312,22 @@ mod tests {
     }
 
     #[test]
+    fn a_window_closes_on_its_last_tick_without_waiting_for_the_next() {
+        let mut acc = WindowAccumulator::new(config(StreamMode::Gated));
+        for i in 0..399u16 {
+            assert!(acc.push(&gated(i, [75, 75, 75, 75])).is_empty());
+        }
+        let closed = acc.push(&gated(399, [75, 75, 75, 75]));
+        assert_eq!(closed.len(), 1);
+        assert!(closed[0].is_complete());
+        assert_eq!(acc.flush(), None);
+        // The next window starts clean.
+        let next = acc.push(&gated(400, [75, 75, 75, 75]));
+        assert!(next.is_empty());
+        assert_eq!(acc.flush().map(|w| (w.index, w.ticks)), Some((1, 1)));
+    }
+
+    #[test]
     fn lost_ticks_mark_the_window_and_do_not_shift_the_next() {
         let mut acc = WindowAccumulator::new(config(StreamMode::Gated));
         let mut out = Vec::new();
@@ -371,10 +397,10 @@ mod tests {
                 },
             ],
         };
-        for seq in 0..400 {
+        for seq in 0..399 {
             assert!(acc.push(&tick(seq)).is_empty());
         }
-        let w = acc.push(&tick(400)).pop().expect("window closed");
+        let w = acc.push(&tick(399)).pop().expect("window closed");
         let f1 = 400.0 * 75.0 * 100e6 / (400.0 * 250_001.0);
         let f2 = 400.0 * 70.0 * 100e6 / (400.0 * 249_999.0);
         assert!((w.instruments[0].f1_hz.expect("f1") - f1).abs() < 1e-9);
