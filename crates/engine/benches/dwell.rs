@@ -1,29 +1,35 @@
 //! Test duration and k2 uncertainty: this station's stability detection with
 //! adaptive dwell, against the published practice (a fixed settle, then a
 //! fixed 10-s dwell), on the same virtual bench (seed) and the default
-//! level table (0–70 g up and down, mounting P, 12 instruments).
-//! Prints `bench: <name> = <value> <unit>` lines.
+//! level table (0–70 g up and down, mounting P, 12 instruments), on the
+//! bench's `typical` realism (SPINBENCH_BENCH_REALISM = ideal, typical or
+//! harsh chooses another). Prints `bench: <name> = <value> <unit>` lines.
 //!
 //! Run: `cargo bench -p spinbench-engine --bench dwell`
 
 use spinbench_analysis::Mount;
 use spinbench_engine::plan::{DwellConfig, StabilityConfig};
 use spinbench_engine::{Executor, RunOptions, RunState, StationConfig, TestPlan};
-use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
 use spinbench_sim::station::{SimOperator, station_toml};
+use spinbench_sim::{Realism, SimConfig};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 /// Returns (virtual seconds, mean k2 95 % half-width [µg/g²], wall seconds).
-fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f64, f64) {
+fn run(
+    realism: Realism,
+    stability: StabilityConfig,
+    dwell: DwellConfig,
+    range_g: f64,
+) -> (f64, f64, f64) {
     let wall = Instant::now();
     let bench = RunningBench::start(
         SimConfig {
             seed: 7,
             speed: 0.0,
-            ..SimConfig::default()
+            ..realism.config()
         },
         ServeOptions::default(),
     )
@@ -84,6 +90,10 @@ fn run(stability: StabilityConfig, dwell: DwellConfig, range_g: f64) -> (f64, f6
 fn main() {
     let measuring = std::env::args().any(|a| a == "--bench");
     let range = if measuring { 70.0 } else { 25.0 };
+    let realism: Realism = std::env::var("SPINBENCH_BENCH_REALISM")
+        .unwrap_or_else(|_| "typical".into())
+        .parse()
+        .expect("SPINBENCH_BENCH_REALISM: ideal, typical or harsh");
     // The published practice: wait a fixed 30 s after each rate command, then 10 one-second values.
     let published = StabilityConfig {
         rate_tolerance_ppm: 10_000.0,
@@ -95,7 +105,7 @@ fn main() {
         seconds: 10,
         ..DwellConfig::default()
     };
-    let (t_pub, k2_pub, wall_pub) = run(published, fixed, range);
+    let (t_pub, k2_pub, wall_pub) = run(realism, published, fixed, range);
     // This station: stability detection (20 ppm for 5 s and no drift), adaptive dwell to 1 µg.
     let adaptive = DwellConfig {
         seconds: 10,
@@ -103,13 +113,14 @@ fn main() {
         min_seconds: 5,
         max_seconds: 20,
     };
-    let (t_ada, k2_ada, wall_ada) = run(StabilityConfig::default(), adaptive, range);
+    let (t_ada, k2_ada, wall_ada) = run(realism, StabilityConfig::default(), adaptive, range);
     if !measuring {
         println!(
             "dwell bench smoke run done ({t_pub:.0} s and {t_ada:.0} s virtual; no figures outside `cargo bench`)"
         );
         return;
     }
+    println!("realism: {realism}");
     println!("bench: dwell_published_fixed_settle_test_duration = {t_pub:.0} s virtual");
     println!("bench: dwell_published_fixed_settle_k2_ci95_halfwidth = {k2_pub:.3} ug/g2");
     println!("bench: dwell_adaptive_test_duration = {t_ada:.0} s virtual");

@@ -2,21 +2,33 @@
 //! empty file, or none, is a complete bench: two counter modules with six
 //! instruments each on a 0.8 m centrifuge.
 
-use serde::Deserialize;
+use crate::realism::Realism;
+use serde::{Deserialize, Serialize};
 
 /// The whole bench.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SimConfig {
+    /// The preset the other keys start from (`ideal`, `typical`, `harsh`);
+    /// keys given beside it override the preset's values.
+    pub realism: Realism,
     /// Seed of every random process (instrument population, noise, faults).
     pub seed: u64,
     /// Local gravity [m/s²].
     pub g_local_m_s2: f64,
     /// Time: 1 = real time (the hardware's pace), N > 1 = N× faster,
-    /// 0 = as fast as the station reads the counter modules.
+    /// 0 = virtual time in lockstep with the station (reproducible).
     pub speed: f64,
     /// Laboratory temperature [°C].
     pub ambient_c: f64,
+    /// Slow drift of the laboratory temperature [°C per hour].
+    pub ambient_drift_c_per_h: f64,
+    /// Latitude of the laboratory [degrees, north positive]: the vertical
+    /// component of the Earth's rate, Ω_E·sin(latitude), adds to a table
+    /// spinning counter-clockwise (seen from above) and subtracts from one
+    /// spinning clockwise (method.md §5). 0 puts the bench on the equator
+    /// (no vertical Earth rate).
+    pub latitude_deg: f64,
     /// Counter modules (6 instruments each).
     pub modules: usize,
     /// Reference clock of reciprocal counting [Hz].
@@ -32,10 +44,13 @@ pub struct SimConfig {
 impl Default for SimConfig {
     fn default() -> Self {
         SimConfig {
+            realism: Realism::Ideal,
             seed: 1,
             g_local_m_s2: spinbench_analysis::STANDARD_GRAVITY_M_S2,
             speed: 1.0,
             ambient_c: 23.0,
+            ambient_drift_c_per_h: 0.0,
+            latitude_deg: 0.0,
             modules: 2,
             reference_hz: 100e6,
             centrifuge: TableConfig::default(),
@@ -46,7 +61,7 @@ impl Default for SimConfig {
 }
 
 /// Controller language of the simulated centrifuge.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
 pub enum SimDialect {
     /// ACUTROL SCPI-style tree (abbreviations accepted).
@@ -57,7 +72,7 @@ pub enum SimDialect {
 }
 
 /// The centrifuge.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct TableConfig {
     /// Drawing radius R0 of every fixture position [m].
@@ -81,6 +96,49 @@ pub struct TableConfig {
     pub wander_ppm: f64,
     /// Controller language.
     pub dialect: SimDialect,
+    /// Arm stretch k_s: R(ω) = R0 + k_s·ω² [m per (rad/s)²], method.md (13).
+    pub arm_stretch_m_per_rad2_s2: f64,
+    /// Thermal expansion of the arm [ppm/°C], with the arm's windage heating.
+    pub arm_expansion_ppm_per_c: f64,
+    /// Tilt of the spin axis from the vertical [µrad]: a once-per-revolution
+    /// gravity component g·sin(θ)·cos(ωt) along the radius (method.md §5).
+    pub tilt_urad: f64,
+    /// Scale error of the controller's rate read-back [ppm].
+    pub readback_scale_ppm: f64,
+    /// Resolution of the controller's rate read-back [deg/s] (0 = none).
+    pub readback_resolution_deg_s: f64,
+    /// Gate of the controller's rate measurement [s]: it reports the mean
+    /// rate over its last gate.
+    pub readback_gate_s: f64,
+    /// Windage heating of the arm and the instruments at 100 g (at the
+    /// drawing radius) [°C]; it rises with the cube of the rate.
+    pub windage_c_at_100g: f64,
+    /// Time constant of the windage heating [s].
+    pub windage_tau_s: f64,
+    /// Speed-dependent systematic disturbances (structural resonances).
+    pub disturbances: Vec<Disturbance>,
+}
+
+/// A structural resonance near one speed: every instrument's output shifts
+/// by `amplitude_ug` (times its own gain) at `at_g` and less beside it, the
+/// same whether the level is reached going up or down.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Disturbance {
+    /// Centre, as the acceleration at the drawing radius [g].
+    pub at_g: f64,
+    /// Half width at half height [g].
+    pub width_g: f64,
+    /// Shift at the centre, along the instrument's input axis [µg].
+    pub amplitude_ug: f64,
+}
+
+impl Disturbance {
+    /// The shift [µg] at nominal acceleration `nominal_g` (a Lorentzian).
+    pub fn shift_ug(&self, nominal_g: f64) -> f64 {
+        let x = (nominal_g - self.at_g) / self.width_g;
+        self.amplitude_ug / (1.0 + x * x)
+    }
 }
 
 impl Default for TableConfig {
@@ -96,12 +154,21 @@ impl Default for TableConfig {
             ripple_ppm: 5.0,
             wander_ppm: 2.0,
             dialect: SimDialect::Acutrol,
+            arm_stretch_m_per_rad2_s2: 0.0,
+            arm_expansion_ppm_per_c: 0.0,
+            tilt_urad: 0.0,
+            readback_scale_ppm: 0.0,
+            readback_resolution_deg_s: 0.0,
+            readback_gate_s: 1.0,
+            windage_c_at_100g: 0.0,
+            windage_tau_s: 300.0,
+            disturbances: Vec::new(),
         }
     }
 }
 
 /// Ranges the instrument population is drawn from.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PopulationConfig {
     /// Resonator rest frequency [Hz].
@@ -130,6 +197,19 @@ pub struct PopulationConfig {
     pub warmup_ug: f64,
     /// Supply current per powered instrument, per rail [A].
     pub current_a: f64,
+    /// Odd-quadratic term |Koq| limit (Koq·a·|a|) [µg/g²] (sign at random).
+    pub koq_max_ug_per_g2: f64,
+    /// Scale-factor asymmetry limit, (K1+ − K1−)/K1 [ppm].
+    pub asymmetry_max_ppm: f64,
+    /// Scale-factor temperature coefficient limit [ppm/°C].
+    pub k1_temp_coeff_ppm_per_c: f64,
+    /// Temperature coefficient of the resonators' common frequency [ppm/°C]:
+    /// f1 + f2 tracks the instrument's temperature.
+    pub resonator_sum_ppm_per_c: f64,
+    /// Low-frequency (1/f-like) noise, RMS as acceleration [µg].
+    pub flicker_ug: f64,
+    /// Range of each instrument's gain on the disturbances.
+    pub disturbance_gain: [f64; 2],
 }
 
 impl Default for PopulationConfig {
@@ -148,12 +228,18 @@ impl Default for PopulationConfig {
             warmup_tau_s: 120.0,
             warmup_ug: 150.0,
             current_a: 0.04,
+            koq_max_ug_per_g2: 0.0,
+            asymmetry_max_ppm: 0.0,
+            k1_temp_coeff_ppm_per_c: 0.0,
+            resonator_sum_ppm_per_c: 0.0,
+            flicker_ug: 0.0,
+            disturbance_gain: [1.0, 1.0],
         }
     }
 }
 
 /// An instrument addressed by module and slot (0-based).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SlotRef {
     /// Module index.
@@ -163,7 +249,7 @@ pub struct SlotRef {
 }
 
 /// Faults to inject; all off by default. Times are simulated seconds.
-#[derive(Debug, Clone, PartialEq, Deserialize, Default)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default, deny_unknown_fields)]
 pub struct FaultConfig {
     /// Probability that a bit of the counter-module stream is flipped.
@@ -194,6 +280,8 @@ pub struct FaultConfig {
 
 /// Fastest virtual time (× real time).
 pub const MAX_SPEED: f64 = 1e6;
+/// Most structural disturbances a bench may have.
+pub const MAX_DISTURBANCES: usize = 32;
 /// Latest time a fault may be scheduled at [s] (one year of simulated time).
 pub const MAX_FAULT_TIME_S: f64 = 3.2e7;
 
@@ -208,12 +296,37 @@ pub struct SimConfigError {
 }
 
 impl SimConfig {
-    /// Parse TOML text.
+    /// Parse TOML text: the preset its `realism` key names (`ideal` when
+    /// absent), with the file's other keys over it.
     pub fn from_toml(text: &str) -> Result<SimConfig, SimConfigError> {
-        let config: SimConfig = toml::from_str(text).map_err(|e| SimConfigError {
+        SimConfig::from_toml_with(text, None)
+    }
+
+    /// Parse TOML text as [`from_toml`](Self::from_toml); `realism`, when
+    /// given (a command line's `--realism`), replaces the file's preset.
+    pub fn from_toml_with(
+        text: &str,
+        realism: Option<Realism>,
+    ) -> Result<SimConfig, SimConfigError> {
+        let file_error = |problem: String| SimConfigError {
             key: "(file)".into(),
-            problem: e.to_string(),
-        })?;
+            problem,
+        };
+        let mut table: toml::Table = toml::from_str(text).map_err(|e| file_error(e.to_string()))?;
+        let named = match table.remove("realism") {
+            None => Realism::Ideal,
+            Some(v) => v.try_into().map_err(|_| SimConfigError {
+                key: "realism".into(),
+                problem: "must be \"ideal\", \"typical\" or \"harsh\"".into(),
+            })?,
+        };
+        let realism = realism.unwrap_or(named);
+        let mut merged = toml::Table::try_from(realism.config())
+            .map_err(|e| file_error(format!("the {realism:?} preset: {e}")))?;
+        crate::realism::merge(&mut merged, table);
+        let config: SimConfig = merged
+            .try_into()
+            .map_err(|e: toml::de::Error| file_error(e.to_string()))?;
         config.validate()?;
         Ok(config)
     }
@@ -340,6 +453,76 @@ impl SimConfig {
             ("instruments.current_a", p.current_a, 0.0, 1.0),
             ("faults.noisy_factor", self.faults.noisy_factor, 0.0, 1e9),
             (
+                "ambient_drift_c_per_h",
+                self.ambient_drift_c_per_h,
+                -100.0,
+                100.0,
+            ),
+            ("latitude_deg", self.latitude_deg, -90.0, 90.0),
+            (
+                "centrifuge.arm_stretch_m_per_rad2_s2",
+                c.arm_stretch_m_per_rad2_s2,
+                -1e-3,
+                1e-3,
+            ),
+            (
+                "centrifuge.arm_expansion_ppm_per_c",
+                c.arm_expansion_ppm_per_c,
+                -1e3,
+                1e3,
+            ),
+            ("centrifuge.tilt_urad", c.tilt_urad, 0.0, 1e5),
+            (
+                "centrifuge.readback_scale_ppm",
+                c.readback_scale_ppm,
+                -1e5,
+                1e5,
+            ),
+            (
+                "centrifuge.readback_resolution_deg_s",
+                c.readback_resolution_deg_s,
+                0.0,
+                100.0,
+            ),
+            (
+                "centrifuge.readback_gate_s",
+                c.readback_gate_s,
+                0.0025,
+                100.0,
+            ),
+            (
+                "centrifuge.windage_c_at_100g",
+                c.windage_c_at_100g,
+                0.0,
+                100.0,
+            ),
+            ("centrifuge.windage_tau_s", c.windage_tau_s, 1.0, 1e6),
+            (
+                "instruments.koq_max_ug_per_g2",
+                p.koq_max_ug_per_g2,
+                0.0,
+                1e6,
+            ),
+            (
+                "instruments.asymmetry_max_ppm",
+                p.asymmetry_max_ppm,
+                0.0,
+                1e6,
+            ),
+            (
+                "instruments.k1_temp_coeff_ppm_per_c",
+                p.k1_temp_coeff_ppm_per_c,
+                -1e4,
+                1e4,
+            ),
+            (
+                "instruments.resonator_sum_ppm_per_c",
+                p.resonator_sum_ppm_per_c,
+                -1e4,
+                1e4,
+            ),
+            ("instruments.flicker_ug", p.flicker_ug, 0.0, 1e6),
+            (
                 "faults.drift_ug_per_s",
                 self.faults.drift_ug_per_s,
                 0.0,
@@ -359,6 +542,46 @@ impl SimConfig {
                     "instruments.k2_abs_ug_per_g2"
                 };
                 return err(key, format!("{v} is outside 0 to 1000000"));
+            }
+        }
+        let [lo, hi] = p.disturbance_gain;
+        if !(lo.is_finite()
+            && hi.is_finite()
+            && (-100.0..=100.0).contains(&lo)
+            && lo <= hi
+            && hi <= 100.0)
+        {
+            return err(
+                "instruments.disturbance_gain",
+                format!(
+                    "must be a range [low, high] within −100 to 100 with low ≤ high, got [{lo}, {hi}]"
+                ),
+            );
+        }
+        if c.disturbances.len() > MAX_DISTURBANCES {
+            return err(
+                "centrifuge.disturbances",
+                format!(
+                    "at most {MAX_DISTURBANCES} (MAX_DISTURBANCES), got {}",
+                    c.disturbances.len()
+                ),
+            );
+        }
+        for (i, d) in c.disturbances.iter().enumerate() {
+            let ok = d.at_g.is_finite()
+                && (0.0..=1e4).contains(&d.at_g)
+                && d.width_g.is_finite()
+                && d.width_g > 0.0
+                && d.width_g <= 1e4
+                && d.amplitude_ug.is_finite()
+                && d.amplitude_ug.abs() <= 1e7;
+            if !ok {
+                return err(
+                    &format!("centrifuge.disturbances[{i}]"),
+                    format!(
+                        "at_g 0 to 10000, width_g above 0 up to 10000 and |amplitude_ug| up to 1e7, got {d:?}"
+                    ),
+                );
             }
         }
         if p.k2_abs_ug_per_g2[0] > p.k2_abs_ug_per_g2[1] {

@@ -3,6 +3,8 @@
 //! hardware speaks, with known truth and fault injection.
 //!
 //! * [`config`] — the bench's TOML configuration (every key defaulted);
+//! * [`realism`] — the presets `ideal`, `typical` and `harsh` the config
+//!   starts from (the error sources of precision centrifuge testing);
 //! * [`vba`], [`table`], [`counter`], [`supply`] — the physics and the
 //!   devices, each a small deterministic model;
 //! * [`world`] — the whole bench as one state machine advanced in 2.5 ms
@@ -12,6 +14,7 @@
 
 pub mod config;
 pub mod counter;
+pub mod realism;
 pub mod serve;
 pub mod station;
 pub mod supply;
@@ -20,5 +23,6 @@ pub mod vba;
 pub mod world;
 
 pub use config::SimConfig;
+pub use realism::Realism;
 pub use vba::Mounting;
 pub use world::{SupplyId, Truth, World};

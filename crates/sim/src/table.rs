@@ -9,11 +9,6 @@ use rand_distr::{Distribution, StandardNormal};
 /// Correlation time of the rate wander [s].
 const WANDER_TAU_S: f64 = 60.0;
 
-/// Gate of the controller's rate measurement [s]: like a real controller
-/// counting encoder lines, it reports the mean rate over its last gate, not
-/// one instant of the once-per-revolution ripple.
-const RATE_GATE_S: f64 = 1.0;
-
 /// The table's state.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Table {
@@ -94,7 +89,9 @@ impl Table {
             -self.wander / WANDER_TAU_S * dt + sigma * (2.0 * dt / WANDER_TAU_S).sqrt() * n;
         // The controller's gate: a running sum, summed afresh once per gate
         // so rounding cannot accumulate over a long run.
-        let steps = ((RATE_GATE_S / dt).round() as usize).max(1);
+        // Like a real controller counting encoder lines, it reports the mean
+        // rate over its last gate, not one instant of the ripple.
+        let steps = ((self.config.readback_gate_s / dt).round() as usize).max(1);
         let rate = self.measured_rate_rad_s();
         self.gate.push_back(rate);
         self.gate_sum += rate;
@@ -108,13 +105,27 @@ impl Table {
     }
 
     /// The rate the controller reports [rad/s]: the mean of the measured
-    /// rate over the last [`RATE_GATE_S`].
+    /// rate over its last gate (`readback_gate_s`), with its scale error
+    /// and rounded to its resolution.
     pub fn reported_rate_rad_s(&self) -> f64 {
-        if self.gate.is_empty() {
+        let mean = if self.gate.is_empty() {
             self.measured_rate_rad_s()
         } else {
             self.gate_sum / self.gate.len() as f64
-        }
+        };
+        let scaled_deg_s = mean.to_degrees() * (1.0 + self.config.readback_scale_ppm * 1e-6);
+        let step = self.config.readback_resolution_deg_s;
+        let shown = if step > 0.0 {
+            (scaled_deg_s / step).round() * step
+        } else {
+            scaled_deg_s
+        };
+        shown.to_radians()
+    }
+
+    /// The table's angle [rad], 0 to 2π.
+    pub fn angle_rad(&self) -> f64 {
+        self.angle_rad
     }
 
     /// The instantaneous rate with ripple and wander [rad/s]: what the

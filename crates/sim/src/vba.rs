@@ -1,7 +1,9 @@
 //! Vibrating-beam accelerometer physics: two resonators in push-pull whose
-//! difference follows method.md (2) exactly, plus the effects a real
-//! instrument adds (cross-axis sensitivity, bias random walk, temperature,
-//! warm-up). Noise is added by the world, per tick.
+//! difference follows method.md (2), with the terms of the fuller model
+//! (12) a real instrument adds: an odd-quadratic term Koq·a·|a|, scale-factor
+//! asymmetry, cross-axis sensitivity, temperature coefficients of bias and
+//! scale factor, a common frequency (f1 + f2) that tracks temperature, bias
+//! random walk and warm-up. Noise is added by the world, per tick.
 
 use serde::{Deserialize, Serialize};
 
@@ -53,6 +55,33 @@ pub struct VbaTruth {
     pub bias_walk_ug_per_sqrt_h: f64,
     /// Bias temperature coefficient [µg/°C].
     pub temp_coeff_ug_per_c: f64,
+    /// Odd-quadratic coefficient Koq (Koq·a·|a|) [µg/g²].
+    pub koq_ug_per_g2: f64,
+    /// Scale-factor asymmetry (K1+ − K1−)/K1 [ppm].
+    pub asymmetry_ppm: f64,
+    /// Scale-factor temperature coefficient [ppm/°C].
+    pub k1_temp_coeff_ppm_per_c: f64,
+    /// Temperature coefficient of the common frequency (f1 + f2)/2 [ppm/°C].
+    pub resonator_sum_ppm_per_c: f64,
+    /// Low-frequency (1/f-like) noise, RMS [µg].
+    pub flicker_ug: f64,
+    /// Gain on the centrifuge's structural disturbances.
+    pub disturbance_gain: f64,
+}
+
+/// What an instrument feels at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Inputs {
+    /// Acceleration along the input axis [g].
+    pub a_g: f64,
+    /// Acceleration across it [g].
+    pub cross_g: f64,
+    /// Temperature above the warmed-up temperature at rest [°C].
+    pub temp_offset_c: f64,
+    /// Remaining warm-up transient [g].
+    pub warmup_g: f64,
+    /// Further bias: disturbances and low-frequency noise [g].
+    pub extra_g: f64,
 }
 
 /// Common-mode second-order term of each resonator (cancels in dF, as push-pull intends) [1/g²].
@@ -96,29 +125,29 @@ impl Vba {
         }
     }
 
-    /// The resonator frequencies (f1, f2) [Hz] for input `a_g` along the
-    /// input axis and `cross_g` across it, at `temp_offset_c` from the
-    /// warmed-up temperature, `warmup_g` of remaining warm-up transient.
-    /// dF = f1 − f2 = k1·(k0 + a + k2·a² + k3·a³ + …) — method.md (2).
-    pub fn resonators(
-        &self,
-        a_g: f64,
-        cross_g: f64,
-        temp_offset_c: f64,
-        warmup_g: f64,
-    ) -> (f64, f64) {
+    /// The resonator frequencies (f1, f2) [Hz] for `inputs`.
+    /// dF = f1 − f2 = k1·(k0 + a + k2·a² + k3·a³ + Koq·a·|a| + …) —
+    /// method.md (2) and (12), K1 split into K1+ and K1− by the asymmetry.
+    pub fn resonators(&self, inputs: &Inputs) -> (f64, f64) {
         let t = &self.truth;
-        let a = a_g;
+        let a = inputs.a_g;
+        let dt = inputs.temp_offset_c;
+        // K1+ for a > 0, K1− for a < 0: (K1+ − K1−)/K1 = asymmetry.
+        let linear = a * (1.0 + 0.5e-6 * t.asymmetry_ppm * a.signum());
         let input = t.k0_g
-            + a
+            + linear
             + t.k2_ug_per_g2 * 1e-6 * a * a
             + t.k3_ug_per_g3 * 1e-6 * a * a * a
-            + t.cross_axis_ug_per_g * 1e-6 * cross_g
+            + t.koq_ug_per_g2 * 1e-6 * a * a.abs()
+            + t.cross_axis_ug_per_g * 1e-6 * inputs.cross_g
             + self.bias_walk_g
-            + t.temp_coeff_ug_per_c * 1e-6 * temp_offset_c
-            + warmup_g;
-        let half = t.k1_hz_per_g * input / 2.0;
-        let common = t.resonator_hz * (1.0 + COMMON_MODE_PER_G2 * a * a);
+            + t.temp_coeff_ug_per_c * 1e-6 * dt
+            + inputs.warmup_g
+            + inputs.extra_g;
+        let k1 = t.k1_hz_per_g * (1.0 + t.k1_temp_coeff_ppm_per_c * 1e-6 * dt);
+        let half = k1 * input / 2.0;
+        let common = t.resonator_hz
+            * (1.0 + COMMON_MODE_PER_G2 * a * a + t.resonator_sum_ppm_per_c * 1e-6 * dt);
         (common + half, common - half)
     }
 }
@@ -139,14 +168,48 @@ mod tests {
             noise_ug: 0.0,
             bias_walk_ug_per_sqrt_h: 0.0,
             temp_coeff_ug_per_c: 0.0,
+            koq_ug_per_g2: 0.0,
+            asymmetry_ppm: 0.0,
+            k1_temp_coeff_ppm_per_c: 0.0,
+            resonator_sum_ppm_per_c: 0.0,
+            flicker_ug: 0.0,
+            disturbance_gain: 1.0,
         };
         let v = Vba::new(truth);
         for a in [-70.0, -1.0, 0.0, 1.0, 35.0, 100.0] {
-            let (f1, f2) = v.resonators(a, 0.0, 0.0, 0.0);
+            let (f1, f2) = v.resonators(&Inputs {
+                a_g: a,
+                ..Inputs::default()
+            });
             let want = spinbench_analysis::model::ieee1293_output([0.01, 100.0, 15e-6, 0.05e-6], a);
             assert!((f1 - f2 - want).abs() < 1e-9, "a = {a}");
             assert!(f1 > 20_000.0 && f2 > 20_000.0);
         }
+        // Koq·a·|a| and the asymmetry: odd and even parts as the model says.
+        let v = Vba::new(VbaTruth {
+            koq_ug_per_g2: 4.0,
+            asymmetry_ppm: 100.0,
+            ..truth
+        });
+        let df = |a: f64| {
+            let (f1, f2) = v.resonators(&Inputs {
+                a_g: a,
+                ..Inputs::default()
+            });
+            f1 - f2
+        };
+        let (plus, minus, zero) = (df(50.0), df(-50.0), df(0.0));
+        // Odd in a: Koq·a·|a| and the linear term; even: k2·a² and the asymmetry's |a|.
+        let odd = (plus - minus) / 2.0 / 100.0;
+        let even = ((plus + minus) / 2.0 - zero) / 100.0;
+        assert!(
+            (odd - (50.0 + 0.05e-6 * 125_000.0 + 4e-6 * 2500.0)).abs() < 1e-9,
+            "{odd}"
+        );
+        assert!(
+            (even - (15e-6 * 2500.0 + 50e-6 * 50.0)).abs() < 1e-9,
+            "{even}"
+        );
         assert_eq!(Mounting::parse("down"), Some(Mounting::TumbleDown));
         assert_eq!(Mounting::parse("x"), None);
     }

@@ -20,7 +20,7 @@ use crate::config::{SimConfig, SimDialect, SlotRef};
 use crate::counter::InputCounter;
 use crate::supply::Supply;
 use crate::table::Table;
-use crate::vba::{Mounting, Vba, VbaTruth};
+use crate::vba::{Inputs, Mounting, Vba, VbaTruth};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, StandardNormal, Uniform};
@@ -39,6 +39,15 @@ const MODULE_CURRENT_A: f64 = 0.15;
 /// Seed offsets of the noise and wire-fault random streams ("noise", "wire").
 const NOISE_STREAM: u64 = 0x006e_6f69_7365;
 const WIRE_STREAM: u64 = 0x7769_7265;
+/// Seed offset of the error sources' draws ("errors"): the `ideal`
+/// population stays the one it always was.
+const ERRORS_STREAM: u64 = 0x0000_6572_726f_7273;
+/// The Earth's rate [rad/s].
+pub const EARTH_RATE_RAD_S: f64 = 7.292_115e-5;
+/// Time constants of the low-frequency noise's relaxation processes [s]:
+/// equal shares of variance a decade apart approximate a 1/f spectrum
+/// between them.
+const FLICKER_TAUS_S: [f64; 4] = [10.0, 100.0, 1_000.0, 10_000.0];
 /// Firmware id the simulated modules report.
 const FIRMWARE_ID: u16 = 0x5101;
 
@@ -56,10 +65,59 @@ pub enum SupplyId {
 pub struct Position {
     /// Drawing radius R0 [m].
     pub drawing_radius_m: f64,
-    /// True effective radius in mounting P [m].
+    /// True effective radius in mounting P [m], at rest.
     pub radius_p_m: f64,
-    /// True effective radius in mounting N [m].
+    /// True effective radius in mounting N [m], at rest.
     pub radius_n_m: f64,
+    /// Angle of the position on the arm [rad] (the phase of the tilt's
+    /// once-per-revolution gravity component).
+    pub azimuth_rad: f64,
+}
+
+/// What a perfect per-mounting fit of method.md (2) against |a| would
+/// return for one instrument, centrifuge terms included (method.md (15)):
+/// k2_P = K2 + c', k2_N = c' − K2, c' = arm stretch + Koq.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PerMountingK2 {
+    /// Mounting P [µg/g²].
+    pub p_ug_per_g2: f64,
+    /// Mounting N [µg/g²].
+    pub n_ug_per_g2: f64,
+    /// The part common to both: arm stretch c plus Koq [µg/g²].
+    pub common_ug_per_g2: f64,
+    /// The arm stretch's share of it, c = k_s·g/R² [µg/g²].
+    pub arm_stretch_ug_per_g2: f64,
+}
+
+/// The centrifuge's and the laboratory's error sources, as the bench has them.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CentrifugeTruth {
+    /// The preset.
+    pub realism: crate::Realism,
+    /// Arm stretch k_s [m per (rad/s)²].
+    pub arm_stretch_m_per_rad2_s2: f64,
+    /// Arm thermal expansion [ppm/°C].
+    pub arm_expansion_ppm_per_c: f64,
+    /// Spin-axis tilt [µrad].
+    pub tilt_urad: f64,
+    /// Latitude [deg].
+    pub latitude_deg: f64,
+    /// Vertical component of the Earth's rate, Ω_E·sin(latitude) [rad/s].
+    pub earth_rate_vertical_rad_s: f64,
+    /// Rate read-back scale error [ppm].
+    pub readback_scale_ppm: f64,
+    /// Rate read-back resolution [deg/s].
+    pub readback_resolution_deg_s: f64,
+    /// Rate read-back gate [s].
+    pub readback_gate_s: f64,
+    /// Rate wander [ppm RMS].
+    pub wander_ppm: f64,
+    /// Once-per-revolution ripple [ppm].
+    pub ripple_ppm: f64,
+    /// Windage heating at 100 g [°C].
+    pub windage_c_at_100g: f64,
+    /// Structural disturbances.
+    pub disturbances: Vec<crate::config::Disturbance>,
 }
 
 /// The truth of one instrument, for comparing with what the station measured.
@@ -75,6 +133,10 @@ pub struct InstrumentTruth {
     /// Its fixture position.
     #[serde(flatten)]
     pub position: Position,
+    /// The instrument's own second-order term K2 (even; the IEEE value) [µg/g²].
+    pub instrument_k2_ug_per_g2: f64,
+    /// What a perfect per-mounting fit would return, centrifuge included.
+    pub per_mounting_k2: PerMountingK2,
 }
 
 /// Everything the bench knows that the station must find out.
@@ -84,6 +146,8 @@ pub struct Truth {
     pub seed: u64,
     /// Local gravity [m/s²].
     pub g_local_m_s2: f64,
+    /// The centrifuge's error sources.
+    pub centrifuge: CentrifugeTruth,
     /// Every instrument.
     pub instruments: Vec<InstrumentTruth>,
 }
@@ -133,6 +197,10 @@ pub struct World {
     lockstep_running: bool,
     /// Lockstep: seconds produced (the serving layer watches it for liveness).
     seconds_produced: u64,
+    /// Windage heating of the arm and the instruments now [°C].
+    windage_c: f64,
+    /// Low-frequency noise state per instrument [g], one per time constant.
+    flicker_g: Vec<[f64; 4]>,
 }
 
 fn draw(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
@@ -147,6 +215,7 @@ impl World {
     /// A bench from a validated config; the population is drawn from the seed.
     pub fn new(config: SimConfig) -> World {
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
+        let mut errors_rng = ChaCha8Rng::seed_from_u64(config.seed ^ ERRORS_STREAM);
         let n = config.modules * INSTRUMENTS_PER_MODULE;
         let p = &config.instruments;
         let t = &config.centrifuge;
@@ -168,6 +237,17 @@ impl World {
                 noise_ug: p.noise_ug,
                 bias_walk_ug_per_sqrt_h: p.bias_walk_ug_per_sqrt_h,
                 temp_coeff_ug_per_c: p.temp_coeff_ug_per_c * draw(&mut rng, -1.0, 1.0),
+                koq_ug_per_g2: draw(&mut errors_rng, -p.koq_max_ug_per_g2, p.koq_max_ug_per_g2),
+                asymmetry_ppm: draw(&mut errors_rng, -p.asymmetry_max_ppm, p.asymmetry_max_ppm),
+                k1_temp_coeff_ppm_per_c: p.k1_temp_coeff_ppm_per_c
+                    * draw(&mut errors_rng, -1.0, 1.0),
+                resonator_sum_ppm_per_c: p.resonator_sum_ppm_per_c,
+                flicker_ug: p.flicker_ug,
+                disturbance_gain: draw(
+                    &mut errors_rng,
+                    p.disturbance_gain[0],
+                    p.disturbance_gain[1],
+                ),
             };
             instruments.push(Vba::new(truth));
             let scatter: f64 = StandardNormal.sample(&mut rng);
@@ -177,6 +257,7 @@ impl World {
                 drawing_radius_m: t.arm_radius_m,
                 radius_p_m: centre + offset,
                 radius_n_m: centre - offset,
+                azimuth_rad: std::f64::consts::TAU * positions.len() as f64 / n as f64,
             });
         }
         let module = ModuleSim {
@@ -213,6 +294,8 @@ impl World {
             has_streamed: false,
             lockstep_running: false,
             seconds_produced: 0,
+            windage_c: 0.0,
+            flicker_g: vec![[0.0; 4]; n],
             config,
         }
     }
@@ -307,22 +390,82 @@ impl World {
 
     /// The truth of every instrument.
     pub fn truth(&self) -> Truth {
+        let c = &self.config;
+        let t = &c.centrifuge;
         Truth {
-            seed: self.config.seed,
-            g_local_m_s2: self.config.g_local_m_s2,
+            seed: c.seed,
+            g_local_m_s2: c.g_local_m_s2,
+            centrifuge: CentrifugeTruth {
+                realism: c.realism,
+                arm_stretch_m_per_rad2_s2: t.arm_stretch_m_per_rad2_s2,
+                arm_expansion_ppm_per_c: t.arm_expansion_ppm_per_c,
+                tilt_urad: t.tilt_urad,
+                latitude_deg: c.latitude_deg,
+                earth_rate_vertical_rad_s: self.earth_rate_vertical_rad_s(),
+                readback_scale_ppm: t.readback_scale_ppm,
+                readback_resolution_deg_s: t.readback_resolution_deg_s,
+                readback_gate_s: t.readback_gate_s,
+                wander_ppm: t.wander_ppm,
+                ripple_ppm: t.ripple_ppm,
+                windage_c_at_100g: t.windage_c_at_100g,
+                disturbances: t.disturbances.clone(),
+            },
             instruments: self
                 .instruments
                 .iter()
                 .zip(&self.positions)
                 .enumerate()
-                .map(|(i, (v, p))| InstrumentTruth {
-                    module: i / INSTRUMENTS_PER_MODULE,
-                    slot: i % INSTRUMENTS_PER_MODULE,
-                    vba: v.truth,
-                    position: *p,
+                .map(|(i, (v, p))| {
+                    let k2 = v.truth.k2_ug_per_g2;
+                    // c = k_s·g/R² (method.md (15)), at the position's radius.
+                    let r = 0.5 * (p.radius_p_m + p.radius_n_m);
+                    let stretch = t.arm_stretch_m_per_rad2_s2 * c.g_local_m_s2 / (r * r) * 1e6;
+                    let common = stretch + v.truth.koq_ug_per_g2;
+                    InstrumentTruth {
+                        module: i / INSTRUMENTS_PER_MODULE,
+                        slot: i % INSTRUMENTS_PER_MODULE,
+                        vba: v.truth,
+                        position: *p,
+                        instrument_k2_ug_per_g2: k2,
+                        per_mounting_k2: PerMountingK2 {
+                            p_ug_per_g2: k2 + common,
+                            n_ug_per_g2: common - k2,
+                            common_ug_per_g2: common,
+                            arm_stretch_ug_per_g2: stretch,
+                        },
+                    }
                 })
                 .collect(),
         }
+    }
+
+    /// The vertical component of the Earth's rate here [rad/s].
+    pub fn earth_rate_vertical_rad_s(&self) -> f64 {
+        EARTH_RATE_RAD_S * self.config.latitude_deg.to_radians().sin()
+    }
+
+    /// The laboratory's temperature now [°C].
+    pub fn ambient_c(&self) -> f64 {
+        self.config.ambient_c + self.config.ambient_drift_c_per_h * self.now_s() / 3600.0
+    }
+
+    /// Windage heating of the arm and the instruments now [°C].
+    pub fn windage_c(&self) -> f64 {
+        self.windage_c
+    }
+
+    /// Temperature of instrument `i` now [°C]: the laboratory, its
+    /// self-heating since power-on, and the windage.
+    pub fn instrument_temperature_c(&self, i: usize) -> f64 {
+        let pc = &self.config.instruments;
+        self.instruments.get(i).map_or(f64::NAN, |v| {
+            v.temperature_c(
+                self.now_s(),
+                self.ambient_c(),
+                pc.self_heating_c,
+                pc.warmup_tau_s,
+            ) + self.windage_c
+        })
     }
 
     /// Mount instrument `index` (module·6 + slot) as `mounting` (the operator's hands).
@@ -390,16 +533,78 @@ impl World {
         vec![self.modules.len() as f64 * MODULE_CURRENT_A]
     }
 
-    /// Acceleration along the input axis and across it [g] for instrument `i` now.
+    /// Acceleration along the input axis and across it [g] for instrument
+    /// `i` now. On the arm (method.md (3), (13)): a = ω_i²·R(ω)/g with ω_i
+    /// the rate in inertial space (the table's plus the Earth's vertical
+    /// rate), R(ω) = R + k_s·ω² + R0·α·ΔT_arm, plus the tilted axis's
+    /// once-per-revolution gravity component along the radius; gravity
+    /// lies across the input axis.
     pub fn input_g(&self, i: usize) -> (f64, f64) {
         let w = self.table.measured_rate_rad_s();
         let g = self.config.g_local_m_s2;
+        let t = &self.config.centrifuge;
         let p = self.positions[i];
+        let inertial = w + self.earth_rate_vertical_rad_s();
+        let stretch_m = t.arm_stretch_m_per_rad2_s2 * w * w
+            + p.drawing_radius_m * t.arm_expansion_ppm_per_c * 1e-6 * self.windage_c;
+        // Only while the table turns: at rest the Earth's rate is no centripetal input.
+        let radial = |r: f64| {
+            if w == 0.0 {
+                0.0
+            } else {
+                inertial * inertial * (r + stretch_m) / g
+            }
+        };
+        let tilt = (t.tilt_urad * 1e-6).sin() * (self.table.angle_rad() + p.azimuth_rad).cos();
         match self.instruments[i].mounting {
             Mounting::TumbleUp => (1.0, 0.0),
             Mounting::TumbleDown => (-1.0, 0.0),
-            Mounting::ArmP => (w * w * p.radius_p_m / g, 1.0),
-            Mounting::ArmN => (-(w * w * p.radius_n_m / g), 1.0),
+            Mounting::ArmP => (radial(p.radius_p_m) + tilt, 1.0),
+            Mounting::ArmN => (-(radial(p.radius_n_m) + tilt), 1.0),
+        }
+    }
+
+    /// The structural disturbances' shift at the table's rate now [g],
+    /// before each instrument's gain.
+    fn disturbance_g(&self) -> f64 {
+        let t = &self.config.centrifuge;
+        if t.disturbances.is_empty() {
+            return 0.0;
+        }
+        let w = self.table.measured_rate_rad_s();
+        let nominal_g = w * w * t.arm_radius_m / self.config.g_local_m_s2;
+        t.disturbances
+            .iter()
+            .map(|d| d.shift_ug(nominal_g))
+            .sum::<f64>()
+            * 1e-6
+    }
+
+    /// Windage heating and the low-frequency noise, one tick on.
+    fn step_environment(&mut self) {
+        let t = &self.config.centrifuge;
+        if t.windage_c_at_100g != 0.0 {
+            let w100 = (100.0 * self.config.g_local_m_s2 / t.arm_radius_m).sqrt();
+            let ratio = self.table.measured_rate_rad_s().abs() / w100;
+            let target = t.windage_c_at_100g * ratio * ratio * ratio;
+            self.windage_c += (target - self.windage_c) * TICK_S / t.windage_tau_s;
+        }
+        // The low-frequency noise moves once a second (its shortest time
+        // constant is ten seconds).
+        if !self.tick.is_multiple_of(u64::from(TICKS_PER_SECOND)) {
+            return;
+        }
+        for (state, v) in self.flicker_g.iter_mut().zip(&self.instruments) {
+            if v.truth.flicker_ug == 0.0 {
+                continue;
+            }
+            // Each process holds an equal share of the variance.
+            let sigma = v.truth.flicker_ug * 1e-6 / (FLICKER_TAUS_S.len() as f64).sqrt();
+            for (x, tau) in state.iter_mut().zip(FLICKER_TAUS_S) {
+                let n: f64 = StandardNormal.sample(&mut self.noise_rng);
+                let decay = (-1.0 / tau).exp();
+                *x = *x * decay + sigma * (1.0 - decay * decay).sqrt() * n;
+            }
         }
     }
 
@@ -441,6 +646,7 @@ impl World {
     pub fn step(&mut self) -> Vec<Vec<u8>> {
         self.fire_faults();
         self.table.step(TICK_S, &mut self.noise_rng);
+        self.step_environment();
         let now = self.now_s();
         // Power transitions and the bias random walk.
         let walk_per_tick =
@@ -485,10 +691,19 @@ impl World {
                     recips[input] = c.reciprocal;
                 }
             }
-            let module = &mut self.modules[m];
             if !alive {
                 continue;
             }
+            // Temperatures once a second (frame command 2).
+            let second_starts = self.tick.is_multiple_of(u64::from(TICKS_PER_SECOND));
+            let temps: Vec<i16> = (0..INSTRUMENTS_PER_MODULE)
+                .filter(|_| second_starts)
+                .map(|slot| {
+                    let t = self.instrument_temperature_c(m * INSTRUMENTS_PER_MODULE + slot);
+                    (t * 100.0).round() as i16
+                })
+                .collect();
+            let module = &mut self.modules[m];
             let mut frames = Vec::new();
             if let Some(mode) = module
                 .streaming
@@ -508,19 +723,7 @@ impl World {
                 };
                 module.seq = module.seq.wrapping_add(1);
                 frames.push(message);
-                if self.tick.is_multiple_of(u64::from(TICKS_PER_SECOND)) {
-                    let temps = (0..INSTRUMENTS_PER_MODULE)
-                        .map(|slot| {
-                            let v = &self.instruments[m * INSTRUMENTS_PER_MODULE + slot];
-                            let t = v.temperature_c(
-                                now,
-                                self.config.ambient_c,
-                                self.config.instruments.self_heating_c,
-                                self.config.instruments.warmup_tau_s,
-                            );
-                            (t * 100.0).round() as i16
-                        })
-                        .collect();
+                if second_starts {
                     frames.push(Message::Temperatures {
                         seq: module.temp_seq,
                         centi_celsius: temps,
@@ -539,18 +742,21 @@ impl World {
     /// The resonator frequencies of instrument `i` now, with noise.
     fn frequencies(&mut self, i: usize, now: f64) -> (f64, f64) {
         let (a, cross) = self.input_g(i);
+        let disturbance = self.disturbance_g();
         let pc = &self.config.instruments;
         let v = &self.instruments[i];
         let since = v.powered_since_s.map_or(0.0, |t0| (now - t0).max(0.0));
-        let temp = v.temperature_c(
-            now,
-            self.config.ambient_c,
-            pc.self_heating_c,
-            pc.warmup_tau_s,
-        );
-        let temp_offset = temp - (self.config.ambient_c + pc.self_heating_c);
+        // Relative to the warmed-up temperature at rest in the laboratory as it was at the start.
+        let temp_offset =
+            self.instrument_temperature_c(i) - (self.config.ambient_c + pc.self_heating_c);
         let warmup = pc.warmup_ug * 1e-6 * (-since / pc.warmup_tau_s).exp();
-        let (mut f1, mut f2) = v.resonators(a, cross, temp_offset, warmup);
+        let (mut f1, mut f2) = v.resonators(&Inputs {
+            a_g: a,
+            cross_g: cross,
+            temp_offset_c: temp_offset,
+            warmup_g: warmup,
+            extra_g: disturbance * v.truth.disturbance_gain + self.flicker_g[i].iter().sum::<f64>(),
+        });
         if self.is(&self.config.faults.drifting_instruments, i) {
             let rate = match self.config.faults.drift_ug_per_s {
                 r if r != 0.0 => r,

@@ -2,113 +2,13 @@
 //! sends, and judged only by the bytes it sends back: the physics, the
 //! determinism, and every fault kind's effect on the wire.
 
+mod support;
+
 use spinbench_sim::config::SlotRef;
 use spinbench_sim::world::TICK_S;
 use spinbench_sim::{Mounting, SimConfig, SupplyId, World};
-use spinbench_wire::fmu::{
-    DecoderStats, FrameDecoder, Message, StreamMode, WindowAccumulator, WindowConfig, WindowValue,
-};
-
-/// A quiet bench: no drift, ripple or warm-up, so the physics can be checked tightly.
-fn quiet() -> SimConfig {
-    let mut c = SimConfig {
-        modules: 1,
-        ..SimConfig::default()
-    };
-    c.instruments.warmup_ug = 0.0;
-    c.instruments.temp_coeff_ug_per_c = 0.0;
-    c.instruments.bias_walk_ug_per_sqrt_h = 0.0;
-    c.centrifuge.ripple_ppm = 0.0;
-    c.centrifuge.wander_ppm = 0.0;
-    c
-}
-
-fn frame(m: &Message) -> Result<Message, ()> {
-    Ok(m.clone())
-}
-
-/// Power the rails and every relay, start streaming in `mode`.
-fn power_up(world: &mut World, mode: StreamMode) {
-    for line in [
-        "INST:NSEL 1",
-        "VOLT 15",
-        "CURR 1",
-        "OUTP ON",
-        "INST:NSEL 2",
-        "VOLT 15",
-        "CURR 1",
-        "OUTP ON",
-    ] {
-        world.handle_supply_line(SupplyId::Rails, line);
-    }
-    for m in 0..world.config().modules {
-        assert!(
-            !world
-                .handle_module_message(m, frame(&Message::SetPower { mask: 0x3F }))
-                .is_empty()
-        );
-        assert!(
-            !world
-                .handle_module_message(m, frame(&Message::StartStreaming { mode }))
-                .is_empty()
-        );
-    }
-}
-
-fn spin(world: &mut World, rate_deg_s: f64) {
-    for line in [
-        ":INTERLOCK:CLOSE 1".to_string(),
-        format!(":DEMAND:RATE 1,{rate_deg_s}"),
-        ":MODE:RATE 1".into(),
-    ] {
-        world.handle_centrifuge_line(&line);
-    }
-}
-
-/// Run `seconds` and decode module `m`'s stream into one-second windows.
-struct Capture {
-    windows: Vec<WindowValue>,
-    decoder: FrameDecoder,
-    acc: WindowAccumulator,
-    bytes: Vec<u8>,
-}
-
-impl Capture {
-    fn new(mode: StreamMode) -> Capture {
-        Capture {
-            windows: Vec::new(),
-            decoder: FrameDecoder::new(),
-            acc: WindowAccumulator::new(WindowConfig {
-                mode,
-                ..WindowConfig::default()
-            }),
-            bytes: Vec::new(),
-        }
-    }
-
-    fn run(&mut self, world: &mut World, m: usize, seconds: f64) {
-        for _ in 0..(seconds / TICK_S).round() as usize {
-            let out = world.step();
-            self.bytes.extend(&out[m]);
-            let (acc, windows) = (&mut self.acc, &mut self.windows);
-            self.decoder.decode(&out[m], |f| {
-                if let Ok(msg) = Message::decode(f) {
-                    windows.extend(acc.push(&msg));
-                }
-            });
-        }
-    }
-
-    fn stats(&self) -> DecoderStats {
-        self.decoder.stats()
-    }
-}
-
-fn settle(world: &mut World, seconds: f64) {
-    for _ in 0..(seconds / TICK_S).round() as usize {
-        world.step();
-    }
-}
+use spinbench_wire::fmu::{Message, StreamMode, WindowValue};
+use support::{Capture, power_up, quiet, settle, spin};
 
 #[test]
 fn the_rate_reaches_the_command_within_its_settling_time() {
@@ -207,7 +107,10 @@ fn gated_and_reciprocal_resolution_differ_as_predicted() {
         cap.run(&mut world, 0, 6.0);
         let truth = world.truth();
         let t = truth.instruments[0].vba;
-        let (f1_true, _) = spinbench_sim::vba::Vba::new(t).resonators(1.0, 0.0, 0.0, 0.0);
+        let (f1_true, _) = spinbench_sim::vba::Vba::new(t).resonators(&spinbench_sim::vba::Inputs {
+            a_g: 1.0,
+            ..Default::default()
+        });
         for w in cap.windows.iter().filter(|w| w.is_complete()).skip(1) {
             let f1 = w.instruments[0].f1_hz.expect("f1");
             let err = (f1 - f1_true).abs();

@@ -40,7 +40,13 @@ fn main() {
     let modules = if measuring { 16 } else { 2 };
     let dir = tempfile::tempdir().expect("tempdir");
     let sim_config = dir.path().join("bench.toml");
-    std::fs::write(&sim_config, format!("modules = {modules}\nspeed = 1\n")).expect("write");
+    // The bench's realism: SPINBENCH_BENCH_REALISM (ideal, typical, harsh), default typical.
+    let realism = std::env::var("SPINBENCH_BENCH_REALISM").unwrap_or_else(|_| "typical".into());
+    std::fs::write(
+        &sim_config,
+        format!("realism = \"{realism}\"\nmodules = {modules}\nspeed = 1\n"),
+    )
+    .expect("write");
     let mut sim = Command::new(env!("CARGO_BIN_EXE_spinbench"))
         .args(["sim", "--for", &format!("{}", seconds + 30.0), "--config"])
         .arg(&sim_config)
@@ -114,7 +120,7 @@ fn main() {
         return;
     }
     println!(
-        "events: {}, modules: {modules}, instruments: {slots}, wall {wall:.1} s, windows dropped {}",
+        "realism {realism}; events: {}, modules: {modules}, instruments: {slots}, wall {wall:.1} s, windows dropped {}",
         times.len(),
         summary.dropped_windows
     );

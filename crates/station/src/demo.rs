@@ -8,9 +8,9 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use spinbench_analysis::Mount;
 use spinbench_engine::{AbortFlag, Outcome, RunState, StationConfig, TestPlan, UnitRecord};
-use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
 use spinbench_sim::station::SimOperator;
+use spinbench_sim::{Realism, SimConfig};
 use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::Path;
@@ -35,8 +35,14 @@ pub struct DemoUnit {
     pub k2_ug_per_g2: Option<f64>,
     /// Its 95 % interval.
     pub k2_ci95: Option<[f64; 2]>,
-    /// The truth in the same per-mounting convention (N flips the sign).
+    /// The instrument's K2 in the same per-mounting convention (N flips the sign).
     pub true_k2_ug_per_g2: f64,
+    /// The instrument's own K2 (the even, IEEE value; the same in both mountings).
+    pub true_instrument_k2_ug_per_g2: f64,
+    /// What a perfect per-mounting fit would return here: the instrument's
+    /// K2 (sign by mounting) plus the centrifuge's common part, arm stretch
+    /// and Koq (method.md (15)).
+    pub true_mounting_k2_ug_per_g2: f64,
     /// Measured k1 [Hz/g] in this mounting.
     pub k1_hz_per_g: Option<f64>,
     /// True k1 in this convention.
@@ -77,6 +83,11 @@ pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) 
                 k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
                 k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
                 true_k2_ug_per_g2: sign * t.vba.k2_ug_per_g2,
+                true_instrument_k2_ug_per_g2: t.instrument_k2_ug_per_g2,
+                true_mounting_k2_ug_per_g2: match mount {
+                    Mount::P => t.per_mounting_k2.p_ug_per_g2,
+                    Mount::N => t.per_mounting_k2.n_ug_per_g2,
+                },
                 k1_hz_per_g: fit.map(|f| f.k1),
                 true_k1_hz_per_g: sign * t.vba.k1_hz_per_g,
                 k2_max_ug_per_g2: r.k2_max_ug_per_g2,
@@ -102,13 +113,40 @@ pub fn demo_plan(slots: usize) -> TestPlan {
     }
 }
 
+/// Which virtual bench: a seed, a preset of realism, a bench config file.
+#[derive(Debug, Clone, Default)]
+pub struct BenchChoice {
+    /// Seed (replaces the file's).
+    pub seed: u64,
+    /// Preset (replaces the file's `realism`; default `ideal`).
+    pub realism: Option<Realism>,
+    /// Bench config (TOML) whose keys go over the preset's.
+    pub config: Option<std::path::PathBuf>,
+}
+
+impl BenchChoice {
+    /// The bench's config, in virtual time (lockstep: reproducible).
+    pub fn sim_config(&self) -> Result<SimConfig> {
+        let base = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("{}: cannot read the bench config", path.display()))?;
+                SimConfig::from_toml_with(&text, self.realism)
+                    .with_context(|| path.display().to_string())?
+            }
+            None => self.realism.unwrap_or_default().config(),
+        };
+        Ok(SimConfig {
+            seed: self.seed,
+            speed: 0.0,
+            ..base
+        })
+    }
+}
+
 /// Start the virtual bench and the station config that reaches it.
-pub fn start_sim(seed: u64) -> Result<(RunningBench, StationConfig)> {
-    let sim = SimConfig {
-        seed,
-        speed: 0.0,
-        ..SimConfig::default()
-    };
+pub fn start_sim(choice: &BenchChoice) -> Result<(RunningBench, StationConfig)> {
+    let sim = choice.sim_config()?;
     let bench = RunningBench::start(sim, ServeOptions::default())
         .context("cannot start the virtual bench")?;
     let text = sim_station_toml(&bench);
@@ -119,19 +157,21 @@ pub fn start_sim(seed: u64) -> Result<(RunningBench, StationConfig)> {
 
 /// `spinbench demo`.
 pub fn demo(
-    seed: u64,
+    choice: &BenchChoice,
     json: bool,
     data_dir: &Path,
     db: Option<&StoreTarget>,
     out: &mut dyn Write,
 ) -> Result<()> {
     let wall = Instant::now();
-    let (sim, station) = start_sim(seed)?;
+    let seed = choice.seed;
+    let (sim, station) = start_sim(choice)?;
+    let realism = sim.with_world(|w| w.config().realism);
     let plan = demo_plan(station.slots());
     if !json {
         writeln!(
             out,
-            "spinbench demo: a virtual bench (seed {seed}) with {} instruments on {} counter modules, a 0.8 m centrifuge,\n\
+            "spinbench demo: a virtual bench (seed {seed}, realism {realism}) with {} instruments on {} counter modules, a 0.8 m centrifuge,\n\
              ±70 g in mountings P and N, in virtual time. Operator prompts are answered by the simulator.\n",
             station.slots(),
             station.fmu.len()
@@ -172,6 +212,7 @@ pub fn demo(
                 "state": finished.summary.state,
                 "reason": finished.summary.reason,
                 "seed": seed,
+                "realism": realism,
                 "virtual_duration_s": finished.summary.duration_s,
                 "wall_duration_s": wall_s,
             },

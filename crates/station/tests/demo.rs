@@ -2,14 +2,16 @@
 //! the simulator's truth.
 
 use serde_json::Value;
+use std::path::Path;
 use std::process::Command;
 
-#[test]
-fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
-    let dir = tempfile::tempdir().expect("tempdir");
+/// `spinbench demo --json` with `args`, its data in `data`: the document.
+fn demo(args: &[&str], data: &Path) -> Value {
     let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args(["demo", "--json", "--seed", "3", "--data"])
-        .arg(dir.path())
+        .args(["demo", "--json"])
+        .args(args)
+        .arg("--data")
+        .arg(data)
         .output()
         .expect("run the demo");
     assert!(
@@ -17,7 +19,39 @@ fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let doc: Value = serde_json::from_slice(&out.stdout).expect("one JSON document");
+    serde_json::from_slice(&out.stdout).expect("one JSON document")
+}
+
+/// The document without what differs by design between two runs: the run
+/// directory (its run id) and the wall-clock time.
+fn without_run_id_and_wall_time(mut doc: Value) -> Value {
+    if let Some(run) = doc["run"].as_object_mut() {
+        run.remove("dir");
+        run.remove("wall_duration_s");
+    }
+    doc
+}
+
+/// Run the demo twice with `args`; the two documents must be the same.
+fn twice_the_same(args: &[&str]) -> (Value, tempfile::TempDir) {
+    let (first_dir, second_dir) = (
+        tempfile::tempdir().expect("tempdir"),
+        tempfile::tempdir().expect("tempdir"),
+    );
+    let first = demo(args, first_dir.path());
+    let second = demo(args, second_dir.path());
+    assert_eq!(
+        without_run_id_and_wall_time(first.clone()),
+        without_run_id_and_wall_time(second),
+        "two demos with {args:?} differ"
+    );
+    (first, first_dir)
+}
+
+#[test]
+fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
+    // The same seed gives the same results, byte for byte (virtual time in lockstep).
+    let (doc, _dir) = twice_the_same(&["--seed", "3"]);
     assert_eq!(doc["run"]["state"], "completed");
     assert!(
         doc["run"]["dir"]
@@ -77,4 +111,160 @@ fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
         radius_better >= 20,
         "the radius found beats R0 for only {radius_better} of 24"
     );
+}
+
+/// Export a demo run's points and reduce them with `spinbench analyze --json`.
+fn analyze_run(doc: &Value, data: &Path) -> Value {
+    let dir = doc["run"]["dir"].as_str().expect("run dir");
+    let run_id = Path::new(dir)
+        .file_name()
+        .and_then(|n| n.to_str())
+        .expect("run id");
+    let points = data.join("points.csv");
+    let db = data.join("spinbench.db");
+    let export = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["export", run_id, "--out"])
+        .arg(&points)
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .expect("export");
+    assert!(
+        export.status.success(),
+        "{}",
+        String::from_utf8_lossy(&export.stderr)
+    );
+    let analyze = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["analyze", "--json"])
+        .arg(&points)
+        .output()
+        .expect("analyze");
+    assert!(
+        analyze.status.success(),
+        "{}",
+        String::from_utf8_lossy(&analyze.stderr)
+    );
+    serde_json::from_slice(&analyze.stdout).expect("analysis JSON")
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
+    let (doc, dir) = twice_the_same(&["--seed", "2", "--realism", "typical"]);
+    assert_eq!(doc["run"]["state"], "completed");
+    assert_eq!(doc["run"]["realism"], "typical");
+    let units = doc["units"].as_array().expect("units");
+    assert_eq!(
+        units.len(),
+        24,
+        "no instrument faulted on the typical bench"
+    );
+    // Every interval holds what a perfect per-mounting fit would return, and
+    // the per-mounting truth is the instrument's K2 plus the centrifuge's part.
+    for u in units {
+        let ci = u["k2_ci95"].as_array().expect("interval");
+        let (lo, hi) = (ci[0].as_f64().expect("lo"), ci[1].as_f64().expect("hi"));
+        let truth = u["true_mounting_k2_ug_per_g2"].as_f64().expect("truth");
+        assert!(lo <= truth && truth <= hi, "{u}");
+        let sign = if u["mount"] == "P" { 1.0 } else { -1.0 };
+        let own = u["true_instrument_k2_ug_per_g2"].as_f64().expect("K2");
+        assert_eq!(u["true_k2_ug_per_g2"].as_f64(), Some(sign * own));
+    }
+    // The published signature (method.md §5): a cubic leaves thousands of µg
+    // (published ≈ 4,700 µg), far above the up/down disagreement, with one
+    // level off the curve in every instrument.
+    let analysis = analyze_run(&doc, dir.path());
+    let (mut residual, mut up_down, mut worst_levels) = (Vec::new(), Vec::new(), Vec::new());
+    for unit in analysis["units"].as_array().expect("units") {
+        for fit in unit["fits"].as_object().expect("fits").values() {
+            residual.push(fit["residual_rms_ug"].as_f64().expect("rms"));
+            let k1 = fit["k1"].as_f64().expect("k1").abs();
+            let mut by_level: std::collections::BTreeMap<String, [Option<f64>; 2]> =
+                Default::default();
+            let mut worst = (0.0_f64, 0.0);
+            for r in fit["residuals"].as_array().expect("residuals") {
+                let g = r["g_nominal"].as_f64().expect("g");
+                let e = by_level.entry(format!("{g}")).or_default();
+                let k = usize::from(r["direction"] == "down");
+                e[k] = r["output"].as_f64();
+                let res = r["residual_ug"].as_f64().expect("residual").abs();
+                if res > worst.0 {
+                    worst = (res, g);
+                }
+            }
+            let d: Vec<f64> = by_level
+                .values()
+                .filter_map(|[u, d]| Some((u.as_ref()? - d.as_ref()?) / k1 * 1e6))
+                .collect();
+            up_down.push((d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt());
+            worst_levels.push(worst);
+        }
+    }
+    let (rms, agreement) = (median(residual), median(up_down));
+    assert!(
+        (4_700.0 / 2.0..=4_700.0 * 2.0).contains(&rms),
+        "cubic residual RMS {rms:.0} µg, published about 4,700 µg"
+    );
+    assert!(
+        rms >= 10.0 * agreement,
+        "residual {rms:.0} µg, up/down {agreement:.0} µg"
+    );
+    let disturbed = worst_levels[0].1;
+    for (size, level) in &worst_levels {
+        assert_eq!(*level, disturbed, "one disturbed level in every fit");
+        assert!(
+            *size > 5_000.0,
+            "the disturbed level is off by {size:.0} µg only"
+        );
+    }
+}
+
+#[test]
+fn arm_stretch_is_the_part_of_k2_common_to_both_mountings_end_to_end() {
+    // The ideal bench with a large arm stretch: c = k_s·g/R0² = 8 µg/g².
+    let dir = tempfile::tempdir().expect("tempdir");
+    let config = dir.path().join("stretch.toml");
+    let k_s = 8e-6 * 0.64 / 9.80665;
+    std::fs::write(
+        &config,
+        format!("[centrifuge]\narm_stretch_m_per_rad2_s2 = {k_s:e}\n"),
+    )
+    .expect("write");
+    let doc = demo(
+        &[
+            "--seed",
+            "4",
+            "--sim-config",
+            config.to_str().expect("utf-8"),
+        ],
+        dir.path(),
+    );
+    let units = doc["units"].as_array().expect("units");
+    for pair in units.chunks(2) {
+        let k2 = |u: &Value| u["k2_ug_per_g2"].as_f64().expect("k2");
+        let (p, n) = (&pair[0], &pair[1]);
+        assert_eq!(
+            (p["mount"].as_str(), n["mount"].as_str()),
+            (Some("P"), Some("N"))
+        );
+        let common = 0.5 * (k2(p) + k2(n));
+        let own = 0.5 * (k2(p) - k2(n));
+        let true_common = 0.5
+            * (p["true_mounting_k2_ug_per_g2"].as_f64().expect("P")
+                + n["true_mounting_k2_ug_per_g2"].as_f64().expect("N"));
+        assert!((true_common - 8.0).abs() < 0.05, "{true_common}");
+        assert!(
+            (common - true_common).abs() < 0.2,
+            "common part {common:.3}, true {true_common:.3}: {p}"
+        );
+        let true_own = p["true_instrument_k2_ug_per_g2"].as_f64().expect("K2");
+        assert!(
+            (own - true_own).abs() < 0.2,
+            "K2 {own:.3}, true {true_own:.3}: {p}"
+        );
+    }
 }

@@ -61,9 +61,17 @@ pub enum Command {
     /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
     /// to end in virtual time and compares what it measured with the truth.
     Demo {
-        /// Seed of the virtual bench (same seed, same instruments).
+        /// Seed of the virtual bench (same seed and realism, same results).
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// How real the virtual bench is: ideal, typical (the error sources
+        /// of precision centrifuge testing) or harsh (typical with drift, a
+        /// dead and a noisy instrument and line faults).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// Bench configuration (TOML) to start from (its keys over its realism preset).
+        #[arg(long, value_name = "FILE")]
+        sim_config: Option<PathBuf>,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,
@@ -87,6 +95,9 @@ pub enum Command {
         /// Seed of the virtual bench.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
         /// Continue the run in this directory from its journal.
         #[arg(long, value_name = "RUN_DIR")]
         resume: Option<PathBuf>,
@@ -170,9 +181,12 @@ pub enum Command {
         /// Bench configuration (TOML); every key has a default.
         #[arg(long)]
         config: Option<PathBuf>,
-        /// Time: 1 = real time, N = N× faster, 0 = as fast as the station reads.
+        /// Time: 1 = real time, N = N× faster, 0 = virtual time in lockstep with the station.
         #[arg(long)]
         speed: Option<f64>,
+        /// How real the bench is (ideal, typical, harsh); replaces the config's `realism`.
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
         /// Put the centrifuge controller and the supplies on TCP (loopback).
         #[arg(long)]
         tcp: bool,
@@ -301,15 +315,25 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         }
         Command::Demo {
             seed,
+            realism,
+            sim_config,
             json,
             data,
             db,
-        } => crate::demo::demo(seed, json, &data, db.as_ref(), out),
+        } => {
+            let bench = crate::demo::BenchChoice {
+                seed,
+                realism,
+                config: sim_config,
+            };
+            crate::demo::demo(&bench, json, &data, db.as_ref(), out)
+        }
         Command::Run {
             plan,
             station,
             simulate,
             seed,
+            realism,
             resume,
             data,
             quiet,
@@ -318,7 +342,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             &plan,
             station.as_deref(),
             simulate,
-            seed,
+            &crate::demo::BenchChoice {
+                seed,
+                realism,
+                config: None,
+            },
             resume.as_deref(),
             &data,
             db,
@@ -350,9 +378,10 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         Command::Sim {
             config,
             speed,
+            realism,
             tcp,
             truth,
             run_for,
-        } => sim::run_sim(config, speed, tcp, truth, run_for, out),
+        } => sim::run_sim(config, speed, realism, tcp, truth, run_for, out),
     }
 }

@@ -12,7 +12,7 @@ pub(super) fn run_plan(
     plan_path: &Path,
     station_path: Option<&Path>,
     simulate: bool,
-    seed: u64,
+    bench_choice: &crate::demo::BenchChoice,
     resume: Option<&Path>,
     data: &Path,
     db: Option<StoreTarget>,
@@ -38,7 +38,7 @@ pub(super) fn run_plan(
         String,
         Box<dyn spinbench_engine::Operator + '_>,
     ) = if simulate {
-        let (bench, mut station) = crate::demo::start_sim(seed)?;
+        let (bench, mut station) = crate::demo::start_sim(bench_choice)?;
         if let Some(p) = station_path {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("{}: cannot read the station config", p.display()))?;

@@ -12,6 +12,7 @@ const MAX_SIM_FOR_S: f64 = 1e7;
 pub(super) fn run_sim(
     config: Option<PathBuf>,
     speed: Option<f64>,
+    realism: Option<spinbench_sim::Realism>,
     tcp: bool,
     truth: Option<PathBuf>,
     run_for: Option<f64>,
@@ -23,9 +24,9 @@ pub(super) fn run_sim(
         Some(path) => {
             let text = std::fs::read_to_string(path)
                 .with_context(|| format!("{}: cannot read the bench config", path.display()))?;
-            SimConfig::from_toml(&text).with_context(|| path.display().to_string())?
+            SimConfig::from_toml_with(&text, realism).with_context(|| path.display().to_string())?
         }
-        None => SimConfig::default(),
+        None => realism.unwrap_or_default().config(),
     };
     if let Some(s) = speed {
         sim_config.speed = s;

@@ -53,9 +53,12 @@ pub struct ServeArgs {
     /// Run on the virtual bench instead of hardware.
     #[arg(long)]
     pub simulate: bool,
-    /// The virtual bench's time: 1 = real time, N = N× faster, 0 = as fast as read.
+    /// The virtual bench's time: 1 = real time, N = N× faster, 0 = virtual time in lockstep.
     #[arg(long, default_value_t = 1.0)]
     pub sim_speed: f64,
+    /// How real the virtual bench is (ideal, typical, harsh); replaces the bench config's `realism`.
+    #[arg(long)]
+    pub realism: Option<spinbench_sim::Realism>,
     /// The virtual bench's configuration (TOML, as for `spinbench sim --config`).
     #[arg(long)]
     pub sim_config: Option<PathBuf>,
@@ -132,9 +135,10 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             Some(p) => {
                 let text = std::fs::read_to_string(p)
                     .with_context(|| format!("{}: cannot read the bench config", p.display()))?;
-                SimConfig::from_toml(&text).with_context(|| p.display().to_string())?
+                SimConfig::from_toml_with(&text, args.realism)
+                    .with_context(|| p.display().to_string())?
             }
-            None => SimConfig::default(),
+            None => args.realism.unwrap_or_default().config(),
         };
         let config = SimConfig {
             seed: args.seed,
