@@ -1,14 +1,16 @@
 //! How fast the virtual bench runs: raw world steps, and simulated time per
-//! wall-clock second when the production counter-module drivers read every
-//! module over real pseudo-terminals (speed 0: as fast as read).
+//! wall-clock second when the production drivers read every module over
+//! real pseudo-terminals and poll the rate once a second, as the station
+//! does (speed 0: virtual time in lockstep).
 //! Prints `bench: <name> = <value> <unit>` lines.
 //!
 //! Run: `cargo bench -p spinbench-sim --bench bench_speed`
 
-use spinbench_devices::{CounterModule, FmuDriver, IoPolicy, SerialSettings, SerialTransport};
-use spinbench_sim::serve::{Endpoint, RunningBench, ServeOptions};
+use spinbench_engine::StationConfig;
+use spinbench_sim::serve::{RunningBench, ServeOptions};
+use spinbench_sim::station::station_toml;
 use spinbench_sim::{Mounting, SimConfig, World};
-use spinbench_wire::fmu::{Message, StreamMode};
+use spinbench_wire::fmu::{Message, StreamMode, WindowAccumulator, WindowConfig};
 use std::time::{Duration, Instant};
 
 fn raw_steps(modules: usize, seconds: f64) -> f64 {
@@ -52,28 +54,10 @@ fn served(modules: usize, seconds: f64) -> f64 {
         "  {modules} modules: bench started in {:.2} s",
         t.elapsed().as_secs_f64()
     );
-    let policy = IoPolicy {
-        timeout_ms: 2000,
-        retries: 1,
-    };
-    let mut drivers: Vec<FmuDriver<SerialTransport>> = bench
-        .endpoints()
-        .modules
-        .iter()
-        .enumerate()
-        .map(|(i, e)| {
-            let Endpoint::Pty(path) = e else {
-                panic!("pty")
-            };
-            FmuDriver::new(
-                SerialTransport::open(SerialSettings::new(path.clone(), 921_600)).expect("open"),
-                &format!("fmu{i}"),
-                policy,
-            )
-        })
-        .collect();
+    let station = StationConfig::from_toml(&station_toml(&bench, "")).expect("station");
     let t = Instant::now();
-    for d in &mut drivers {
+    let mut devices = station.connect().expect("connect");
+    for d in &mut devices.modules {
         d.set_power(0x3F).expect("power");
         d.start(StreamMode::Reciprocal).expect("start");
     }
@@ -81,18 +65,31 @@ fn served(modules: usize, seconds: f64) -> f64 {
         "  {modules} modules: drivers started in {:.2} s",
         t.elapsed().as_secs_f64()
     );
+    let mut accumulators = vec![WindowAccumulator::new(WindowConfig::default()); modules];
     let t0 = bench.with_world(|w| w.now_s());
     let start = Instant::now();
+    // As the station does in virtual time: one window from every module,
+    // then the rate (which lets the bench produce the next second).
     while start.elapsed().as_secs_f64() < seconds {
-        for d in &mut drivers {
-            std::hint::black_box(
-                d.receive(Instant::now() + Duration::from_millis(5))
-                    .expect("receive"),
-            );
+        for (d, acc) in devices.modules.iter_mut().zip(&mut accumulators) {
+            let mut have = false;
+            while !have {
+                for msg in d
+                    .receive(Instant::now() + Duration::from_millis(5))
+                    .expect("receive")
+                {
+                    acc.feed(&msg);
+                }
+                while acc.decode().is_some() {
+                    have = true;
+                }
+            }
         }
+        std::hint::black_box(devices.centrifuge.read_rate().expect("rate"));
     }
     let simulated = bench.with_world(|w| w.now_s()) - t0;
     let wall = start.elapsed().as_secs_f64();
+    drop(devices);
     let t = Instant::now();
     bench.shutdown();
     eprintln!(

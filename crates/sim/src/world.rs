@@ -89,7 +89,8 @@ pub struct PerMountingK2 {
     pub arm_stretch_ug_per_g2: f64,
 }
 
-/// The centrifuge's and the laboratory's error sources, as the bench has them.
+/// The centrifuge's and the laboratory's error sources, as the bench has them
+/// (the instruments' own are in [`VbaTruth`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CentrifugeTruth {
     /// The preset.
@@ -116,6 +117,12 @@ pub struct CentrifugeTruth {
     pub ripple_ppm: f64,
     /// Windage heating at 100 g [°C].
     pub windage_c_at_100g: f64,
+    /// Laboratory temperature at the start [°C].
+    pub ambient_c: f64,
+    /// Its drift [°C per hour].
+    pub ambient_drift_c_per_h: f64,
+    /// Each instrument's self-heating once powered [°C].
+    pub self_heating_c: f64,
     /// Structural disturbances.
     pub disturbances: Vec<crate::config::Disturbance>,
 }
@@ -408,6 +415,9 @@ impl World {
                 wander_ppm: t.wander_ppm,
                 ripple_ppm: t.ripple_ppm,
                 windage_c_at_100g: t.windage_c_at_100g,
+                ambient_c: c.ambient_c,
+                ambient_drift_c_per_h: c.ambient_drift_c_per_h,
+                self_heating_c: c.instruments.self_heating_c,
                 disturbances: t.disturbances.clone(),
             },
             instruments: self

@@ -107,10 +107,11 @@ fn gated_and_reciprocal_resolution_differ_as_predicted() {
         cap.run(&mut world, 0, 6.0);
         let truth = world.truth();
         let t = truth.instruments[0].vba;
-        let (f1_true, _) = spinbench_sim::vba::Vba::new(t).resonators(&spinbench_sim::vba::Inputs {
-            a_g: 1.0,
-            ..Default::default()
-        });
+        let (f1_true, _) =
+            spinbench_sim::vba::Vba::new(t).resonators(&spinbench_sim::vba::Inputs {
+                a_g: 1.0,
+                ..Default::default()
+            });
         for w in cap.windows.iter().filter(|w| w.is_complete()).skip(1) {
             let f1 = w.instruments[0].f1_hz.expect("f1");
             let err = (f1 - f1_true).abs();

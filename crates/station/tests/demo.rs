@@ -268,3 +268,36 @@ fn arm_stretch_is_the_part_of_k2_common_to_both_mountings_end_to_end() {
         );
     }
 }
+
+#[test]
+fn the_harsh_bench_completes_and_only_its_bad_instruments_are_failed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let doc = demo(&["--seed", "5", "--realism", "harsh"], dir.path());
+    assert_eq!(doc["run"]["state"], "completed");
+    let run_dir = Path::new(doc["run"]["dir"].as_str().expect("dir"));
+    let results: Value = serde_json::from_str(
+        &std::fs::read_to_string(run_dir.join("results.json")).expect("results"),
+    )
+    .expect("json");
+    // Every reason that is not a figure against its limit is a fault of the instrument.
+    let mut failed = std::collections::BTreeMap::new();
+    for r in results.as_array().expect("records") {
+        assert_ne!(r["outcome"], "incomplete", "{r}");
+        for reason in r["reasons"].as_array().expect("reasons") {
+            let code = reason["code"].as_str().unwrap_or("?");
+            if !code.ends_with("_limit") {
+                failed.insert(r["slot"].as_u64().expect("slot"), code.to_string());
+            }
+        }
+    }
+    // harsh: module 0 slot 2 noisy, module 1 slot 5 dead; nothing else.
+    let want: std::collections::BTreeMap<u64, String> =
+        [(2, "noisy".to_string()), (11, "dead".to_string())].into();
+    assert_eq!(failed, want, "{results}");
+    // No false stability faults: no notice of a point measured again.
+    let journal = std::fs::read_to_string(run_dir.join("journal.jsonl")).expect("journal");
+    assert!(
+        !journal.contains("measuring the point again"),
+        "a point was measured again"
+    );
+}

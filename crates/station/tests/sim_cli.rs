@@ -91,3 +91,59 @@ fn a_bad_bench_config_names_the_key() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("radius"), "unknown key named: {stderr}");
 }
+
+#[test]
+fn realism_chooses_the_presets_error_sources_and_the_truth_says_which() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let truth_path = dir.path().join("truth.json");
+    let config = dir.path().join("bench.toml");
+    // The file asks for ideal with one key of its own; --realism replaces the preset only.
+    std::fs::write(&config, "realism = \"ideal\"\nlatitude_deg = -30\n").expect("write");
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["sim", "--for", "0", "--realism", "typical", "--config"])
+        .arg(&config)
+        .arg("--truth")
+        .arg(&truth_path)
+        .output()
+        .expect("run");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth_path).expect("truth")).expect("json");
+    let c = &truth["centrifuge"];
+    assert_eq!(c["realism"], "typical");
+    assert_eq!(c["latitude_deg"], -30.0);
+    assert!(
+        c["earth_rate_vertical_rad_s"]
+            .as_f64()
+            .is_some_and(|w| w < 0.0)
+    );
+    assert!(
+        c["arm_stretch_m_per_rad2_s2"]
+            .as_f64()
+            .is_some_and(|k| k > 0.0)
+    );
+    assert_eq!(c["disturbances"].as_array().map(Vec::len), Some(2));
+    let first = &truth["instruments"][0];
+    for key in [
+        "koq_ug_per_g2",
+        "asymmetry_ppm",
+        "k1_temp_coeff_ppm_per_c",
+        "instrument_k2_ug_per_g2",
+        "azimuth_rad",
+    ] {
+        assert!(first[key].is_number(), "{key} missing: {first}");
+    }
+    assert!(first["per_mounting_k2"]["common_ug_per_g2"].is_number());
+    // An unknown preset is named.
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["sim", "--for", "0", "--realism", "dirty"])
+        .output()
+        .expect("run");
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("ideal, typical or harsh"), "{stderr}");
+}
