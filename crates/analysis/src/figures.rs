@@ -82,26 +82,29 @@ pub struct Hysteresis {
 
 /// Hysteresis over every level that was visited both ascending and
 /// descending, at the same applied acceleration: the part of the up − down
-/// output difference that the two passes' applied accelerations explain
-/// (k1·Δa, the first-order term of (2)) is removed, so a table whose rate
-/// differs by a few ppm between the passes does not show as instrument
-/// hysteresis. `scale_factor(mount)` gives the mounting's k1 (output per g
-/// of applied magnitude). `None` when no level has both directions.
+/// output difference that the two passes' applied accelerations explain is
+/// removed with the fit's local slope there, dF/da = k1·(1 + 2·k2·a +
+/// 3·k3·a²) (method.md (2)), so a table whose rate differs by a few ppm
+/// between the passes does not show as instrument hysteresis (with k1 alone,
+/// a 10 ppm faster descent read as −114 µg on perfect data). `slope(mount,
+/// a)` gives the mounting's output per g of applied magnitude at |a| = a.
+/// `None` when no level has both directions.
 pub fn hysteresis(
     points: &[Point],
-    scale_factor: impl Fn(Mount) -> Option<f64>,
+    slope: impl Fn(Mount, f64) -> Option<f64>,
 ) -> Option<Hysteresis> {
     let mut worst: Option<Hysteresis> = None;
     for mount in [Mount::P, Mount::N] {
-        let Some(k1) = scale_factor(mount).filter(|k| *k != 0.0) else {
-            continue;
-        };
         for level in levels_of(points.iter().filter(|p| p.mount == mount)) {
             if let (Some(up), Some(down), Some(g_up), Some(g_down)) =
                 (level.output_up, level.output_down, level.g_up, level.g_down)
             {
+                let Some(k) = slope(mount, 0.5 * (g_up + g_down).abs()).filter(|k| *k != 0.0)
+                else {
+                    continue;
+                };
                 // Express as acceleration in this mounting's input direction.
-                let ug = ((up - down) - k1 * (g_up - g_down)) / k1.abs() * UG_PER_G;
+                let ug = ((up - down) - k * (g_up - g_down)) / k.abs() * UG_PER_G;
                 if worst.is_none_or(|w| ug.abs() > w.ug.abs()) {
                     worst = Some(Hysteresis {
                         ug,
@@ -202,7 +205,7 @@ mod tests {
         pts[3].output += 0.002; // descending 5 g reads 20 µg high
         infer_directions(&mut pts);
         assert_eq!(pts[3].direction, Some(Direction::Down));
-        let h = hysteresis(&pts, |_| Some(100.0)).expect("h");
+        let h = hysteresis(&pts, |_, _| Some(100.0)).expect("h");
         assert!((h.ug + 20.0).abs() < 1e-6, "{h:?}");
         assert_eq!(h.g_nominal, 5.0);
     }
@@ -223,11 +226,11 @@ mod tests {
             })
             .collect();
         infer_directions(&mut pts);
-        let h = hysteresis(&pts, |_| Some(k1)).expect("h");
+        let h = hysteresis(&pts, |_, _| Some(k1)).expect("h");
         assert!(h.ug.abs() < 1e-6, "{h:?}");
         // A real 15 µg offset of the descending pass still shows (up − down).
         pts[3].output += 0.0015;
-        let h = hysteresis(&pts, |_| Some(k1)).expect("h");
+        let h = hysteresis(&pts, |_, _| Some(k1)).expect("h");
         assert!((h.ug + 15.0).abs() < 1e-6, "{h:?}");
     }
 }

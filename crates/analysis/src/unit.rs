@@ -170,7 +170,14 @@ pub fn analyze_unit(
         (Some(p), Some(n)) => figures::asymmetry_ppm(p, n),
         _ => None,
     };
-    let hysteresis = figures::hysteresis(&all, k1_of);
+    // The local slope of each mounting's fit (method.md (2) differentiated).
+    let slope_of = |m: Mount, a: f64| {
+        fits.get(&m).map(|f| {
+            let c = f.fit.polynomial_coefficients();
+            c[1] + a * (2.0 * c[2] + 3.0 * c[3] * a)
+        })
+    };
+    let hysteresis = figures::hysteresis(&all, slope_of);
 
     let mut model_comparison = BTreeMap::new();
     for (&mount, points) in &by_mount {
@@ -244,20 +251,41 @@ pub fn repeatability_of(runs: &[&UnitAnalysis]) -> Option<Repeatability> {
 pub struct DatasetAnalysis {
     /// Model order used.
     pub order: ModelOrder,
-    /// One entry per unit (and run), in input order.
+    /// One entry per unit (and run) that could be reduced, in input order.
     pub units: Vec<UnitAnalysis>,
+    /// Each unit that could not be reduced, with why (the others are not held back by it).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub failed: Vec<UnitFailure>,
 }
 
-/// Reduce every unit; units that share a serial number across several runs
-/// also get the repeatability of their scale factor and bias.
-pub fn analyze_dataset(
-    inputs: &[UnitPoints],
-    options: AnalysisOptions,
-) -> Result<DatasetAnalysis, AnalysisError> {
-    let mut units = inputs
-        .iter()
-        .map(|u| analyze_unit(u, options))
-        .collect::<Result<Vec<_>, _>>()?;
+/// A unit of a batch that could not be reduced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct UnitFailure {
+    /// Serial number.
+    pub unit: String,
+    /// Run label, when the file has one.
+    pub run: Option<String>,
+    /// Why.
+    pub error: String,
+}
+
+/// Reduce every unit that can be reduced; each one that cannot is listed in
+/// [`DatasetAnalysis::failed`] with its error, and holds back no other.
+/// Units that share a serial number across several runs also get the
+/// repeatability of their scale factor and bias.
+pub fn analyze_dataset(inputs: &[UnitPoints], options: AnalysisOptions) -> DatasetAnalysis {
+    let mut units = Vec::with_capacity(inputs.len());
+    let mut failed = Vec::new();
+    for input in inputs {
+        match analyze_unit(input, options) {
+            Ok(u) => units.push(u),
+            Err(e) => failed.push(UnitFailure {
+                unit: input.unit.clone(),
+                run: input.run.clone(),
+                error: e.to_string(),
+            }),
+        }
+    }
 
     let mut by_serial: BTreeMap<String, Vec<usize>> = BTreeMap::new();
     for (i, u) in units.iter().enumerate() {
@@ -272,8 +300,68 @@ pub fn analyze_dataset(
             }
         }
     }
-    Ok(DatasetAnalysis {
+    DatasetAnalysis {
         order: options.order,
         units,
-    })
+        failed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::ieee1293_output;
+    use crate::points::infer_directions;
+
+    /// Perfect data with a large k2; the descent runs 10 ppm faster (20 ppm more g).
+    fn faster_descent(mount: Mount) -> UnitPoints {
+        let k = [0.01, 100.0, 300e-6, 0.5e-6];
+        let levels = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0];
+        let up = levels.iter().map(|&g| (g, 1.0));
+        let down = levels.iter().rev().skip(1).map(|&g| (g, 1.000_02));
+        let sign = mount.input_sign();
+        let mut points: Vec<Point> = up
+            .chain(down)
+            .map(|(g, scale)| Point {
+                mount,
+                g_nominal: g,
+                g_applied: sign * g * scale,
+                output: ieee1293_output(k, sign * g * scale),
+                direction: None,
+            })
+            .collect();
+        infer_directions(&mut points);
+        UnitPoints {
+            unit: "H".into(),
+            run: None,
+            points,
+        }
+    }
+
+    #[test]
+    fn a_faster_descent_on_perfect_data_is_no_hysteresis() {
+        for mount in [Mount::P, Mount::N] {
+            let a =
+                analyze_unit(&faster_descent(mount), AnalysisOptions::default()).expect("reduced");
+            let h = a.figures.hysteresis_ug.expect("hysteresis");
+            // With k1 alone this read 2·k2·a·Δa ≈ −59 µg at 70 g.
+            assert!(h.abs() < 0.1, "{mount}: {h} µg");
+        }
+    }
+
+    #[test]
+    fn one_unit_that_cannot_be_reduced_holds_back_no_other() {
+        let good = faster_descent(Mount::P);
+        let bad = UnitPoints {
+            unit: "ONE-LEVEL".into(),
+            run: None,
+            points: good.points[..1].to_vec(),
+        };
+        let d = analyze_dataset(&[bad, good], AnalysisOptions::default());
+        assert_eq!(d.units.len(), 1);
+        assert_eq!(d.units[0].unit, "H");
+        assert_eq!(d.failed.len(), 1);
+        assert_eq!(d.failed[0].unit, "ONE-LEVEL");
+        assert!(d.failed[0].error.contains("level"), "{}", d.failed[0].error);
+    }
 }

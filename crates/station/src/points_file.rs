@@ -514,6 +514,10 @@ fn parse_rows(
 
     let mut units: Vec<UnitPoints> = Vec::new();
     let mut count = 0usize;
+    // Every row's content (unit, run, mount, levels, output, direction, bit
+    // for bit) and where it was first seen: a row repeated exactly is a file
+    // appended twice, not a new point, and is refused by name.
+    let mut seen: std::collections::HashMap<String, u64> = Default::default();
     for row in rows {
         let cell = |i: usize| row.cells.get(i).unwrap_or(&Cell::Empty);
         let loc = |i: usize, name: &str| Some(at(row.number, Some((i, name))));
@@ -610,6 +614,26 @@ fn parse_rows(
             None => None,
         };
 
+        let key = format!(
+            "{unit}\u{1f}{run:?}\u{1f}{mount}\u{1f}{:x}\u{1f}{:x}\u{1f}{:x}\u{1f}{direction:?}",
+            g_nominal.to_bits(),
+            g_applied.to_bits(),
+            output.to_bits()
+        );
+        if let Some(first) = seen.get(&key) {
+            let first_place = match sheet {
+                Some(_) => format!("row {first}"),
+                None => format!("line {first}"),
+            };
+            return Err(fail(
+                Some(at(row.number, None)),
+                format!(
+                    "this row repeats {first_place} exactly (unit {unit}, mounting {mount}, {g_nominal} g, output {output}): \
+                     a file appended twice? Each averaged point may appear once; remove the repeated rows"
+                ),
+            ));
+        }
+        seen.insert(key, row.number);
         let point = Point {
             mount,
             g_nominal,
@@ -686,6 +710,22 @@ mod tests {
                 ("B".into(), Some("r2".into()), 1)
             ]
         );
+    }
+
+    #[test]
+    fn a_row_repeated_exactly_is_refused_naming_both_lines() {
+        let text = "unit,mount,g_nominal,g_applied,output\nA,P,0,0,1\nA,P,5,5,501\nA,P,0,0,1\n";
+        let e = parse(text).expect_err("duplicate");
+        let message = e.to_string();
+        assert!(
+            message.contains(":4") && message.contains("line 2"),
+            "{message}"
+        );
+        assert!(message.contains("appended twice"), "{message}");
+        // A level visited again with another reading is a new point.
+        let ok = parse("unit,mount,g_nominal,g_applied,output\nA,P,0,0,1\nA,P,0,0,1.0001\n")
+            .expect("a repeated visit");
+        assert_eq!(ok.rows, 2);
     }
 
     #[test]

@@ -57,6 +57,14 @@ pub fn render_dataset(source: &str, analysis: &DatasetAnalysis) -> String {
         out.push('\n');
         render_unit(&mut out, unit);
     }
+    for f in &analysis.failed {
+        let run = f
+            .run
+            .as_deref()
+            .map(|r| format!(" run {r}"))
+            .unwrap_or_default();
+        let _ = writeln!(out, "\n== {}{run} — NOT REDUCED ==\n  {}", f.unit, f.error);
+    }
     out
 }
 

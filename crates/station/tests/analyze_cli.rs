@@ -179,7 +179,7 @@ fn spreadsheet_input_gives_the_same_reduction_as_csv() {
 fn bad_input_exits_non_zero_with_file_line_and_column() {
     let dir = tempfile::tempdir().expect("tempdir");
     let head = "unit,mount,g_nominal,g_applied,output\n";
-    let three_levels = format!("{head}A,P,0,,1\nA,P,5,,501\nA,P,10,,1001\nA,P,5,,501\n");
+    let three_levels = format!("{head}A,P,0,,1\nA,P,5,,501\nA,P,10,,1001\nA,P,5,,501.0001\n");
     let cases: Vec<(&str, String, &str)> = vec![
         (
             "empty.csv",
@@ -219,7 +219,7 @@ fn bad_input_exits_non_zero_with_file_line_and_column() {
         (
             "few.csv",
             three_levels,
-            "few.csv: cannot reduce the points: unit 'A' mounting P has 3 distinct level(s); an order-3 fit needs at least 4",
+            "few.csv: 1 of 1 unit(s) could not be reduced (the others are above):\n  A: unit 'A' mounting P has 3 distinct level(s); an order-3 fit needs at least 4",
         ),
     ];
     for (name, text, want) in cases {
@@ -227,7 +227,16 @@ fn bad_input_exits_non_zero_with_file_line_and_column() {
         std::fs::write(&path, text).expect("write");
         let (code, stdout, stderr) = spinbench(&["analyze", path.to_str().expect("utf8")]);
         assert_eq!(code, 1, "{name}: {stderr}");
-        assert!(stdout.is_empty(), "{name}: printed {stdout}");
+        // A file that cannot be read prints nothing; one whose unit cannot be
+        // reduced prints what it could (here: that unit, not reduced).
+        if name == "few.csv" {
+            assert!(
+                stdout.contains("A — NOT REDUCED"),
+                "{name}: printed {stdout}"
+            );
+        } else {
+            assert!(stdout.is_empty(), "{name}: printed {stdout}");
+        }
         assert!(stderr.starts_with("error: "), "{name}: {stderr}");
         assert!(
             stderr.contains(want),
@@ -251,4 +260,27 @@ fn bad_input_exits_non_zero_with_file_line_and_column() {
     );
     let (code, _, _) = spinbench(&["analyze", "x.csv", "--order", "4"]);
     assert_eq!(code, 2, "clap refuses order 4 as a usage error");
+}
+
+#[test]
+fn a_unit_that_cannot_be_reduced_is_named_and_the_others_are_reduced() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("batch.csv");
+    let mut text = std::fs::read_to_string(repo_file("examples/points.csv")).expect("example");
+    // A unit with one level only: no order-3 fit.
+    text.push_str("LONELY,P,5,5,501\n");
+    std::fs::write(&path, text).expect("write");
+    let file = path.to_str().expect("utf-8");
+    let (code, stdout, stderr) = spinbench(&["analyze", "--json", file]);
+    assert_eq!(code, 1, "{stderr}");
+    let doc: Value = serde_json::from_str(&stdout).expect("the reduced units are printed");
+    assert!(!doc["units"].as_array().expect("units").is_empty());
+    assert_eq!(doc["failed"][0]["unit"], "LONELY");
+    assert!(
+        stderr.contains("LONELY") && stderr.contains("1 of"),
+        "{stderr}"
+    );
+    let (code, stdout, _) = spinbench(&["analyze", file]);
+    assert_eq!(code, 1);
+    assert!(stdout.contains("LONELY — NOT REDUCED"), "{stdout}");
 }

@@ -287,8 +287,7 @@ pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<Datas
     let order = ModelOrder::from_degree(order)
         .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
     let points = read_points_file(file, sheet)?;
-    analyze_dataset(&points.units, AnalysisOptions { order })
-        .with_context(|| format!("{}: cannot reduce the points", file.display()))
+    Ok(analyze_dataset(&points.units, AnalysisOptions { order }))
 }
 
 /// Run a parsed command line, writing its output to `out`.
@@ -310,6 +309,23 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                     "{}",
                     render_dataset(&file.display().to_string(), &analysis)
                 )?;
+            }
+            // Every unit that could be reduced is printed; the exit status
+            // says whether some could not (each named above, and here).
+            if !analysis.failed.is_empty() {
+                out.flush()?;
+                let names: Vec<String> = analysis
+                    .failed
+                    .iter()
+                    .map(|f| format!("{}: {}", f.unit, f.error))
+                    .collect();
+                anyhow::bail!(
+                    "{}: {} of {} unit(s) could not be reduced (the others are above):\n  {}",
+                    file.display(),
+                    analysis.failed.len(),
+                    analysis.failed.len() + analysis.units.len(),
+                    names.join("\n  ")
+                );
             }
             Ok(())
         }
