@@ -13,6 +13,8 @@
 //!   radius (3)–(4), each instrument's own radius (6)–(9);
 //! * [`model`] — the IEEE Std 1293 fit (2) per mounting and over the full
 //!   signed range, with standard errors and Student-t intervals;
+//! * [`diagnostics`] — does the model fit: lack of fit against pure error,
+//!   outlier levels, each level's influence on k2;
 //! * [`scale_factor`] — the scale-factor nonlinearity model (10)–(11);
 //! * [`figures`] — asymmetry, nonlinearity, hysteresis, repeatability;
 //! * [`compare`] — polynomial and non-polynomial model families side by side;
@@ -26,6 +28,7 @@
 
 pub mod centrifuge;
 pub mod compare;
+pub mod diagnostics;
 mod error;
 pub mod figures;
 pub mod lsq;

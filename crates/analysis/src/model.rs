@@ -203,6 +203,9 @@ pub struct MountingFit {
     /// The fit against the applied-acceleration magnitude.
     #[serde(flatten)]
     pub fit: Ieee1293Fit,
+    /// Does the model fit: lack of fit, outlier levels, influence.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnostics: Option<crate::diagnostics::Diagnostics>,
 }
 
 /// Fit method.md (2) to `points` under `convention`.
@@ -377,7 +380,20 @@ pub fn fit_mounting(
         )));
     }
     let fit = fit_ieee1293(points, order, Convention::PerMounting, what)?;
-    Ok(MountingFit { mount, fit })
+    let residuals: Vec<f64> = fit.residuals.iter().map(|r| r.residual).collect();
+    let diagnostics = crate::diagnostics::diagnose(
+        points,
+        &residuals,
+        usize::from(order.degree()),
+        fit.k1.abs(),
+        what,
+    )
+    .ok();
+    Ok(MountingFit {
+        mount,
+        fit,
+        diagnostics,
+    })
 }
 
 /// The two-sided 95 % Student-t quantile t(0.975, dof); `None` for dof = 0.

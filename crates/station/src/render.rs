@@ -165,6 +165,11 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
         "  figures: asymmetry {}; nonlinearity {nonlinearity}; hysteresis {hysteresis}; repeatability {repeatability}",
         opt(fig.asymmetry_ppm, 3, " ppm"),
     );
+    for fit in unit.fits.values() {
+        if let Some(d) = &fit.diagnostics {
+            let _ = writeln!(out, "  diagnostics {}: {}", fit.mount, diagnostics_line(d));
+        }
+    }
     for (mount, cmp) in &unit.model_comparison {
         let ranked: Vec<String> = cmp
             .candidates
@@ -186,4 +191,57 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
     for note in &unit.notes {
         let _ = writeln!(out, "  note: {note}");
     }
+}
+
+/// One mounting's fit diagnostics in a line: lack of fit, pure error,
+/// outlier levels, and the level whose removal moves k2 the most.
+pub fn diagnostics_line(d: &spinbench_analysis::diagnostics::Diagnostics) -> String {
+    let mut parts = Vec::new();
+    parts.push(match &d.lack_of_fit {
+        Some(l) => format!(
+            "lack of fit F {:.2} ({}, {}) p {:.2e}{}",
+            l.f,
+            l.dof[0],
+            l.dof[1],
+            l.p_value,
+            if l.p_value < 0.001 {
+                " — the model does not fit"
+            } else {
+                ""
+            }
+        ),
+        None => "lack of fit — (no replicated levels)".into(),
+    });
+    if let Some(pe) = d.pure_error_rms_ug {
+        parts.push(format!("pure error {pe:.1} µg RMS"));
+    }
+    if d.outlier_levels.is_empty() {
+        parts.push("no outlier level".into());
+    } else {
+        let levels: Vec<String> = d
+            .outlier_levels
+            .iter()
+            .map(|o| {
+                format!(
+                    "{} g ({:+.0} µg, t {:.1}, p {:.1e})",
+                    o.g, o.residual_ug, o.t, o.p
+                )
+            })
+            .collect();
+        parts.push(format!("OUTLIER LEVEL(S) {}", levels.join(", ")));
+    }
+    if let (Some(min), Some(max)) = (
+        d.influence
+            .iter()
+            .min_by(|a, b| a.k2_without_ug_per_g2.total_cmp(&b.k2_without_ug_per_g2)),
+        d.influence
+            .iter()
+            .max_by(|a, b| a.k2_without_ug_per_g2.total_cmp(&b.k2_without_ug_per_g2)),
+    ) {
+        parts.push(format!(
+            "k2 without one level {:.3} ({} g) to {:.3} ({} g) µg/g²",
+            min.k2_without_ug_per_g2, min.g, max.k2_without_ug_per_g2, max.g
+        ));
+    }
+    parts.join("; ")
 }

@@ -1,0 +1,124 @@
+//! The fit diagnostics against data whose truth is known: a displaced level
+//! is flagged and no other, a smooth misfit fails the lack-of-fit test, and
+//! on clean data neither fires more often than its nominal rate.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use spinbench_analysis::diagnostics::OUTLIER_ALPHA;
+use spinbench_analysis::model::{fit_mounting, ieee1293_output};
+use spinbench_analysis::points::{infer_directions, published_levels, up_down};
+use spinbench_analysis::{ModelOrder, Mount, Point};
+
+const K: [f64; 4] = [0.01, 46.5, 12e-6, 0.05e-6];
+/// Replicate scatter of one reading [µg] (the published up/down agreement).
+const SCATTER_UG: f64 = 150.0;
+
+/// A 0–70 g pass up and down in mounting P with white scatter, plus
+/// `extra_ug(g)` added to every reading of level g.
+fn pass(rng: &mut ChaCha8Rng, extra_ug: impl Fn(f64) -> f64) -> Vec<Point> {
+    let noise = Normal::new(0.0, SCATTER_UG * 1e-6).expect("normal");
+    let mut points: Vec<Point> = up_down(&published_levels(70.0))
+        .into_iter()
+        .map(|g| Point {
+            mount: Mount::P,
+            g_nominal: g,
+            g_applied: g,
+            output: ieee1293_output(K, g) + K[1] * (noise.sample(rng) + extra_ug(g) * 1e-6),
+            direction: None,
+        })
+        .collect();
+    infer_directions(&mut points);
+    points
+}
+
+fn diagnose(points: &[Point]) -> spinbench_analysis::diagnostics::Diagnostics {
+    fit_mounting(points, Mount::P, ModelOrder::Cubic, "synthetic")
+        .expect("fit")
+        .diagnostics
+        .expect("diagnostics")
+}
+
+#[test]
+fn one_level_displaced_both_ways_is_flagged_and_no_other() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (mut trials, mut others) = (0usize, 0usize);
+    for displaced in [5.0, 25.0, 40.0, 65.0, 70.0] {
+        for _ in 0..50 {
+            let points = pass(&mut rng, |g| if g == displaced { 15_000.0 } else { 0.0 });
+            let d = diagnose(&points);
+            // The displaced level, first (the most significant), every time.
+            let o = d.outlier_levels.first().unwrap_or_else(|| panic!("{d:?}"));
+            assert_eq!(o.g, displaced, "{d:?}");
+            assert!((o.residual_ug - 15_000.0).abs() < 1_000.0, "{o:?}");
+            assert!(o.p < 1e-6, "{o:?}");
+            // k2 without each level, every level.
+            assert_eq!(d.influence.len(), 16);
+            trials += 1;
+            others += usize::from(d.outlier_levels.len() > 1);
+        }
+    }
+    // Any other level only at the test's nominal false-alarm rate (the
+    // displaced level does not swamp its neighbours).
+    let rate = others as f64 / trials as f64;
+    let limit =
+        OUTLIER_ALPHA + 3.0 * (OUTLIER_ALPHA * (1.0 - OUTLIER_ALPHA) / trials as f64).sqrt();
+    println!("displaced level: another level flagged in {others} of {trials} passes");
+    assert!(
+        rate <= limit,
+        "another level flagged in {others} of {trials}"
+    );
+}
+
+#[test]
+fn a_smooth_misfit_twenty_times_the_replicate_scatter_fails_the_lack_of_fit_test() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    // A wave a cubic cannot follow, RMS 20 × the scatter.
+    let amplitude = 20.0 * SCATTER_UG * 2f64.sqrt();
+    for _ in 0..50 {
+        let points = pass(&mut rng, |g| {
+            amplitude * (g / 70.0 * 3.0 * std::f64::consts::PI).sin()
+        });
+        let d = diagnose(&points);
+        let lof = d.lack_of_fit.expect("replicated levels");
+        assert!(lof.p_value < 0.001, "{lof:?}");
+        let pe = d.pure_error_rms_ug.expect("pure error");
+        assert!((pe / SCATTER_UG - 1.0).abs() < 0.5, "pure error {pe} µg");
+    }
+}
+
+#[test]
+fn on_clean_data_neither_test_fires_above_its_nominal_rate() {
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let trials = 1000;
+    let (mut outlier_alarms, mut lof_below_5) = (0usize, 0usize);
+    for _ in 0..trials {
+        let d = diagnose(&pass(&mut rng, |_| 0.0));
+        outlier_alarms += usize::from(!d.outlier_levels.is_empty());
+        lof_below_5 += usize::from(d.lack_of_fit.expect("lof").p_value < 0.05);
+    }
+    let rate = |k: usize| k as f64 / trials as f64;
+    // Nominal 5 % each; three binomial standard deviations above (≈ 2 %).
+    let limit = 0.05 + 3.0 * (0.05_f64 * 0.95 / trials as f64).sqrt();
+    println!(
+        "clean data: outlier alarm rate {:.3} (nominal ≤ {OUTLIER_ALPHA}), lack-of-fit p < 0.05 rate {:.3} (nominal 0.05)",
+        rate(outlier_alarms),
+        rate(lof_below_5)
+    );
+    assert!(
+        rate(outlier_alarms) <= limit,
+        "outlier alarms {}",
+        rate(outlier_alarms)
+    );
+    assert!(
+        rate(lof_below_5) <= limit,
+        "lack-of-fit alarms {}",
+        rate(lof_below_5)
+    );
+    // And the lack-of-fit test is not dead: it fires near its nominal rate.
+    assert!(
+        rate(lof_below_5) >= 0.02,
+        "lack-of-fit alarms {}",
+        rate(lof_below_5)
+    );
+}
