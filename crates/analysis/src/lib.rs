@@ -13,6 +13,8 @@
 //!   radius (3)–(4), each instrument's own radius (6)–(9);
 //! * [`model`] — the IEEE Std 1293 fit (2) per mounting and over the full
 //!   signed range, with standard errors and Student-t intervals;
+//! * [`joint`] — the two mountings together: K2 (even) and the odd part
+//!   (Koq plus arm stretch), method.md (15);
 //! * [`diagnostics`] — does the model fit: lack of fit against pure error,
 //!   outlier levels, each level's influence on k2;
 //! * [`scale_factor`] — the scale-factor nonlinearity model (10)–(11);
@@ -31,6 +33,7 @@ pub mod compare;
 pub mod diagnostics;
 mod error;
 pub mod figures;
+pub mod joint;
 pub mod lsq;
 pub mod model;
 pub mod points;

@@ -96,6 +96,9 @@ pub struct UnitAnalysis {
     pub k2_max_ug_per_g2: Option<f64>,
     /// The mounting k2_max comes from.
     pub k2_max_mount: Option<Mount>,
+    /// Both mountings together: K2 (even) and the odd part, with U95.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint: Option<crate::joint::JointK2>,
     /// Full-range fit over signed input.
     pub full_range: Option<FullRangeFit>,
     /// Scale-factor nonlinearity model (10)–(11).
@@ -192,12 +195,17 @@ pub fn analyze_unit(
         }
     }
 
+    let joint = match (fits.get(&Mount::P), fits.get(&Mount::N)) {
+        (Some(p), Some(n)) => crate::joint::joint_k2(p, n),
+        _ => None,
+    };
     Ok(UnitAnalysis {
         unit: input.unit.clone(),
         run: input.run.clone(),
         fits,
         k2_max_ug_per_g2: k2_max.map(|(_, k2)| k2.abs()),
         k2_max_mount: k2_max.map(|(m, _)| m),
+        joint,
         full_range,
         scale_factor,
         figures: Figures {

@@ -122,3 +122,66 @@ fn on_clean_data_neither_test_fires_above_its_nominal_rate() {
         rate(lof_below_5)
     );
 }
+
+/// Mountings P and N from the instrument's K2 and a common part c' = Koq +
+/// arm stretch (method.md (15)), with white scatter.
+fn both_mountings(rng: &mut ChaCha8Rng, k2_even: f64, common: f64) -> Vec<Point> {
+    let noise = Normal::new(0.0, 20e-6).expect("normal");
+    let mut points = Vec::new();
+    for mount in [Mount::P, Mount::N] {
+        let sign = mount.input_sign();
+        let mut pass: Vec<Point> = up_down(&published_levels(70.0))
+            .into_iter()
+            .map(|g| {
+                // The signed input with the common part on its magnitude.
+                let a = sign * g * (1.0 + common * 1e-6 * g);
+                let k = [K[0], K[1], k2_even * 1e-6, K[3]];
+                Point {
+                    mount,
+                    g_nominal: g,
+                    g_applied: g,
+                    output: ieee1293_output(k, a) + K[1] * noise.sample(rng),
+                    direction: None,
+                }
+            })
+            .collect();
+        infer_directions(&mut pass);
+        points.extend(pass);
+    }
+    points
+}
+
+#[test]
+fn the_joint_reduction_separates_k2_from_the_odd_part_within_u() {
+    use spinbench_analysis::{AnalysisOptions, UnitPoints, analyze_dataset};
+    let mut rng = ChaCha8Rng::seed_from_u64(14);
+    let (k2_even, common) = (9.0, 4.0);
+    let trials = 400;
+    let (mut even_in, mut odd_in) = (0, 0);
+    for _ in 0..trials {
+        let units = [UnitPoints {
+            unit: "J".into(),
+            run: None,
+            points: both_mountings(&mut rng, k2_even, common),
+        }];
+        let a = analyze_dataset(&units, AnalysisOptions::default());
+        let j = a.units[0].joint.as_ref().expect("joint");
+        let u = j.k2_even_u95.expect("U95");
+        even_in += usize::from((j.k2_even_ug_per_g2 - k2_even).abs() <= u);
+        odd_in += usize::from((j.k2_odd_ug_per_g2 - common).abs() <= j.k2_odd_u95.expect("U95"));
+        // The published per-mounting k2 stay as the method defines them.
+        let fits = &a.units[0].fits;
+        let k2 = |m: Mount| fits[&m].fit.k2_ug_per_g2.expect("k2");
+        assert!((j.k2_even_ug_per_g2 - 0.5 * (k2(Mount::P) - k2(Mount::N))).abs() < 1e-12);
+    }
+    let coverage = |k: usize| k as f64 / trials as f64;
+    println!(
+        "joint: K2 within U95 {:.3}, odd part within U95 {:.3}",
+        coverage(even_in),
+        coverage(odd_in)
+    );
+    // 95 % nominal; three binomial standard deviations either side (≈ 3.3 %).
+    for c in [coverage(even_in), coverage(odd_in)] {
+        assert!((0.917..=0.983).contains(&c), "coverage {c}");
+    }
+}

@@ -109,6 +109,17 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
     if let (Some(k2), Some(m)) = (unit.k2_max_ug_per_g2, unit.k2_max_mount) {
         let _ = writeln!(out, "  k2_max = {k2:.3} µg/g² (mounting {m})");
     }
+    if let Some(j) = &unit.joint {
+        let u = |v: Option<f64>| v.map_or_else(|| "—".into(), |u| format!("{u:.3}"));
+        let _ = writeln!(
+            out,
+            "  both mountings (method.md (15)): K2 (even, the instrument's) = {:.3} ± {} µg/g²; odd part (Koq + arm stretch) = {:.3} ± {} µg/g² (U95)",
+            j.k2_even_ug_per_g2,
+            u(j.k2_even_u95),
+            j.k2_odd_ug_per_g2,
+            u(j.k2_odd_u95)
+        );
+    }
 
     if let Some(full) = &unit.full_range {
         let f = &full.fit;
