@@ -152,6 +152,76 @@ pub struct Limits {
     pub hysteresis_max_ug: Option<f64>,
     /// Above this fraction of a limit the result is marginal.
     pub marginal_fraction: f64,
+    /// How a value with an uncertainty is judged against its limit.
+    pub decision_rule: DecisionRule,
+}
+
+/// How a value with an uncertainty is judged against its limit (method.md §6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DecisionRule {
+    /// Guarded acceptance (ISO 14253-1, ILAC-G8): pass only when
+    /// |value| + U95 ≤ limit, fail only when |value| − U95 > limit,
+    /// otherwise inconclusive (retest advised).
+    #[default]
+    Guarded,
+    /// Simple acceptance: the value alone against the limit (the published
+    /// method's), said so in every record and report.
+    Simple,
+}
+
+/// A value judged against its limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Within the limit (guarded: with its whole interval).
+    Pass,
+    /// Passes, but within the marginal band of the limit.
+    Marginal,
+    /// The interval straddles the limit (guarded only).
+    Inconclusive,
+    /// Beyond the limit (guarded: with its whole interval).
+    Fail,
+}
+
+impl DecisionRule {
+    /// Judge |value| against `limit`, with its expanded uncertainty `u95`
+    /// when known; above `marginal_fraction`·limit a pass is marginal.
+    /// Guarded without an uncertainty cannot decide: inconclusive.
+    pub fn decide(
+        self,
+        value: f64,
+        u95: Option<f64>,
+        limit: f64,
+        marginal_fraction: f64,
+    ) -> Verdict {
+        let v = value.abs();
+        let (low, high) = match (self, u95) {
+            (DecisionRule::Simple, _) => (v, v),
+            (DecisionRule::Guarded, Some(u)) if u.is_finite() && u >= 0.0 => (v - u, v + u),
+            (DecisionRule::Guarded, _) => return Verdict::Inconclusive,
+        };
+        if low > limit {
+            Verdict::Fail
+        } else if high > limit {
+            Verdict::Inconclusive
+        } else if high > marginal_fraction * limit {
+            Verdict::Marginal
+        } else {
+            Verdict::Pass
+        }
+    }
+
+    /// How reports name the rule.
+    pub fn describe(self) -> &'static str {
+        match self {
+            DecisionRule::Guarded => {
+                "guarded acceptance (ISO 14253-1, ILAC-G8): pass only when |value| + U95 is within the limit, fail only when |value| − U95 is beyond it, otherwise inconclusive (retest)"
+            }
+            DecisionRule::Simple => {
+                "simple acceptance: the value alone against the limit, its uncertainty not considered"
+            }
+        }
+    }
 }
 
 impl Default for Limits {
@@ -162,6 +232,7 @@ impl Default for Limits {
             asymmetry_max_ppm: None,
             hysteresis_max_ug: None,
             marginal_fraction: 0.9,
+            decision_rule: DecisionRule::Guarded,
         }
     }
 }
@@ -649,6 +720,46 @@ impl TestPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_decision_rules_at_their_boundaries() {
+        use DecisionRule::{Guarded, Simple};
+        let (limit, band) = (20.0, 0.9);
+        let g = |v: f64, u: f64| Guarded.decide(v, Some(u), limit, band);
+        // Guarded: pass only with the whole interval inside.
+        assert_eq!(g(17.0, 3.0), Verdict::Marginal); // 20.0 ≤ 20: inside, in the band
+        assert_eq!(g(17.0, 3.000_001), Verdict::Inconclusive);
+        assert_eq!(g(14.0, 3.0), Verdict::Pass); // 17 ≤ 18 = 0.9 × 20
+        assert_eq!(g(15.0, 3.000_001), Verdict::Marginal);
+        // Fail only with the whole interval beyond.
+        assert_eq!(g(23.0, 3.0), Verdict::Inconclusive); // 20.0 is not beyond 20
+        assert_eq!(g(23.000_001, 3.0), Verdict::Fail);
+        // The web UI's case: 12.6 ± 19.3 against 20 is not a pass.
+        assert_eq!(g(12.6, 19.3), Verdict::Inconclusive);
+        assert_eq!(g(-25.0, 1.0), Verdict::Fail);
+        // Guarded with no uncertainty cannot decide.
+        assert_eq!(
+            Guarded.decide(1.0, None, limit, band),
+            Verdict::Inconclusive
+        );
+        assert_eq!(
+            Guarded.decide(1.0, Some(f64::NAN), limit, band),
+            Verdict::Inconclusive
+        );
+        // Simple: the value alone.
+        let s = |v: f64| Simple.decide(v, Some(19.3), limit, band);
+        assert_eq!(s(12.6), Verdict::Pass);
+        assert_eq!(s(18.0), Verdict::Pass);
+        assert_eq!(s(18.000_001), Verdict::Marginal);
+        assert_eq!(s(20.0), Verdict::Marginal);
+        assert_eq!(s(20.000_001), Verdict::Fail);
+        // The default is guarded, and a plan can say so either way.
+        assert_eq!(Limits::default().decision_rule, Guarded);
+        let plan =
+            TestPlan::from_toml("[serials]\n1 = \"A\"\n[limits]\ndecision_rule = \"simple\"\n")
+                .expect("plan");
+        assert_eq!(plan.limits.decision_rule, Simple);
+    }
 
     fn station(slots_modules: usize) -> StationConfig {
         let fmu: String = (0..slots_modules)

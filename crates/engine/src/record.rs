@@ -31,7 +31,8 @@ pub struct PointRecord {
     pub time_s: [f64; 2],
 }
 
-/// Pass, fail, marginal, or incomplete (never graded).
+/// Pass, fail, marginal, inconclusive (the interval straddles a limit), or
+/// incomplete (never graded).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
@@ -41,6 +42,9 @@ pub enum Outcome {
     Marginal,
     /// Outside the limits, dead, noisy, or not measurable.
     Fail,
+    /// Under the guarded decision rule (ISO 14253-1, ILAC-G8) the interval
+    /// value ± U straddles a limit: neither pass nor fail; retest advised.
+    Inconclusive,
     /// The run ended (aborted, faulted) before this instrument's part of
     /// the plan was done: not graded, the reasons say why.
     Incomplete,
@@ -70,6 +74,8 @@ pub enum ReasonCode {
     K2OverLimit,
     /// |k2| within the marginal band of its limit.
     K2NearLimit,
+    /// |k2| ± U95 straddles its limit (guarded decision rule): retest.
+    K2Inconclusive,
     /// Scale-factor nonlinearity above its limit.
     NonlinearityOverLimit,
     /// Nonlinearity within the marginal band.
@@ -156,11 +162,12 @@ impl std::fmt::Display for Reason {
 
 impl Outcome {
     /// Every outcome.
-    pub const ALL: [Outcome; 4] = [
+    pub const ALL: [Outcome; 5] = [
         Outcome::Pass,
         Outcome::Marginal,
         Outcome::Fail,
         Outcome::Incomplete,
+        Outcome::Inconclusive,
     ];
 
     /// Its serde name, as stored and shown: `pass`, `marginal`, `fail`, `incomplete`.
@@ -170,6 +177,7 @@ impl Outcome {
             Outcome::Marginal => "marginal",
             Outcome::Fail => "fail",
             Outcome::Incomplete => "incomplete",
+            Outcome::Inconclusive => "inconclusive",
         }
     }
 
@@ -209,6 +217,10 @@ pub struct UnitRecord {
     /// Why, when not a plain pass: a stable code (for a line's MES to
     /// filter on) beside the text for people.
     pub reasons: Vec<Reason>,
+    /// The decision rule the outcome was judged by (`None` in records made
+    /// before the rule was recorded: those compared the value alone).
+    #[serde(default)]
+    pub decision_rule: Option<crate::plan::DecisionRule>,
 }
 
 #[cfg(test)]

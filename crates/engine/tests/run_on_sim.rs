@@ -4,6 +4,7 @@
 
 use spinbench_analysis::Mount;
 use spinbench_engine::event::{Event, EventSink, RunState};
+use spinbench_engine::plan::DecisionRule;
 use spinbench_engine::{Bench, Executor, Outcome, RunOptions, RunSummary, StationConfig, TestPlan};
 use spinbench_sim::SimConfig;
 use spinbench_sim::config::SlotRef;
@@ -156,16 +157,27 @@ fn a_complete_run_measures_every_instrument() {
         assert_eq!(r.points.len(), 13, "{}: {:?}", r.serial, r.reasons);
         assert!(r.radius_m.contains_key(&Mount::P));
         assert!(r.analysis.is_some());
-        // The outcome follows k2_max against the limit (20 µg/g², marginal above 18).
+        // The outcome follows k2_max ± its U95 against the limit (20 µg/g²,
+        // marginal above 18) under the default, guarded, rule.
         let k2 = r.k2_max_ug_per_g2.expect("k2_max");
-        let want = if k2 > 20.0 {
+        let a = r.analysis.as_ref().expect("analysis");
+        let [lo, hi] = a.fits[&a.k2_max_mount.expect("mount")]
+            .fit
+            .ci95
+            .k2_ug_per_g2
+            .expect("interval");
+        let u = 0.5 * (hi - lo);
+        let want = if k2 - u > 20.0 {
             Outcome::Fail
-        } else if k2 > 18.0 {
+        } else if k2 + u > 20.0 {
+            Outcome::Inconclusive
+        } else if k2 + u > 18.0 {
             Outcome::Marginal
         } else {
             Outcome::Pass
         };
         assert_eq!(r.outcome, want, "{}: {:?}", r.serial, r.reasons);
+        assert_eq!(r.decision_rule, Some(DecisionRule::Guarded));
     }
     // Every point journaled once, every step once.
     let points = events

@@ -135,10 +135,21 @@ impl BatchReport {
 
     /// ", N incomplete" when there are any, for the totals line.
     pub fn incomplete_note(&self) -> String {
-        match self.incomplete() {
+        let inconclusive = self
+            .tests
+            .iter()
+            .filter(|t| t.outcome == Outcome::Inconclusive)
+            .count();
+        let mut note = match inconclusive {
             0 => String::new(),
-            n => format!(", {n} incomplete (not graded, not in the statistics)"),
+            n => format!(", {n} inconclusive (the interval straddles a limit: retest)"),
+        };
+        if let n @ 1.. = self.incomplete() {
+            note.push_str(&format!(
+                ", {n} incomplete (not graded, not in the statistics)"
+            ));
         }
+        note
     }
 }
 

@@ -308,6 +308,18 @@ fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
         ),
         ("plan", plan["name"].as_str().unwrap_or("").to_string()),
         (
+            "decision rule",
+            // Plans made before the rule was recorded were judged by value alone.
+            match serde_json::from_value::<spinbench_engine::plan::DecisionRule>(
+                plan["limits"]["decision_rule"].clone(),
+            ) {
+                Ok(rule) => rule.describe().to_string(),
+                Err(_) => spinbench_engine::plan::DecisionRule::Simple
+                    .describe()
+                    .to_string(),
+            },
+        ),
+        (
             "software",
             format!("spinbench {}", report.context.software_version),
         ),
@@ -415,7 +427,7 @@ pub fn html(report: &RunReport) -> String {
     h.push_str(
         "<style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
          table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #999;padding:2px 6px;text-align:right}\
-         th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}.incomplete{color:#555;font-style:italic}\
+         th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}.inconclusive{color:#1940b3;font-weight:bold}.incomplete{color:#555;font-style:italic}\
          section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
     );
     h.push_str(&format!(

@@ -49,7 +49,7 @@ pub struct DemoUnit {
     pub true_k1_hz_per_g: f64,
     /// The instrument's k2_max [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
-    /// Pass, fail or marginal.
+    /// Pass, marginal, inconclusive, fail or incomplete.
     pub outcome: Outcome,
 }
 

@@ -112,7 +112,14 @@ pub struct PointsFile {
     pub units: Vec<UnitPoints>,
     /// Number of data rows read.
     pub rows: usize,
+    /// Rows that repeat an earlier row exactly, one at a time (two readings
+    /// that agree to the printed digits): kept, and said so.
+    pub warnings: Vec<String>,
 }
+
+/// Consecutive rows repeating earlier rows exactly that make a repeated
+/// block (a file appended twice): refused.
+const REPEATED_BLOCK_ROWS: usize = 3;
 
 /// Read a points file; `sheet` picks a spreadsheet sheet (default: the first).
 pub fn read_points_file(path: &Path, sheet: Option<&str>) -> Result<PointsFile, PointsFileError> {
@@ -515,9 +522,13 @@ fn parse_rows(
     let mut units: Vec<UnitPoints> = Vec::new();
     let mut count = 0usize;
     // Every row's content (unit, run, mount, levels, output, direction, bit
-    // for bit) and where it was first seen: a row repeated exactly is a file
-    // appended twice, not a new point, and is refused by name.
+    // for bit) and where it was first seen. A block of rows repeated exactly
+    // is a file appended twice, not new points, and is refused by name; a
+    // single repeated row (two readings equal to the printed digits) is kept
+    // with a warning.
     let mut seen: std::collections::HashMap<String, u64> = Default::default();
+    let mut warnings = Vec::new();
+    let mut repeated_run: Vec<(u64, u64)> = Vec::new();
     for row in rows {
         let cell = |i: usize| row.cells.get(i).unwrap_or(&Cell::Empty);
         let loc = |i: usize, name: &str| Some(at(row.number, Some((i, name))));
@@ -620,20 +631,38 @@ fn parse_rows(
             g_applied.to_bits(),
             output.to_bits()
         );
-        if let Some(first) = seen.get(&key) {
-            let first_place = match sheet {
-                Some(_) => format!("row {first}"),
-                None => format!("line {first}"),
-            };
-            return Err(fail(
-                Some(at(row.number, None)),
-                format!(
-                    "this row repeats {first_place} exactly (unit {unit}, mounting {mount}, {g_nominal} g, output {output}): \
-                     a file appended twice? Each averaged point may appear once; remove the repeated rows"
-                ),
-            ));
+        let place = |n: u64| match sheet {
+            Some(_) => format!("row {n}"),
+            None => format!("line {n}"),
+        };
+        match seen.get(&key) {
+            Some(&first) => {
+                repeated_run.push((row.number, first));
+                if repeated_run.len() >= REPEATED_BLOCK_ROWS {
+                    let (start, original) = repeated_run[0];
+                    return Err(fail(
+                        Some(at(start, None)),
+                        format!(
+                            "{} and the rows after it repeat {} onwards exactly ({} rows in a row): \
+                             a file appended twice? Each averaged point may appear once; remove the repeated rows",
+                            place(start),
+                            place(original),
+                            repeated_run.len()
+                        ),
+                    ));
+                }
+                warnings.push(format!(
+                    "{}: {} repeats {} exactly (unit {unit}, mounting {mount}, {g_nominal} g, output {output}); kept as a second reading",
+                    path.display(),
+                    place(row.number),
+                    place(first)
+                ));
+            }
+            None => {
+                repeated_run.clear();
+                seen.insert(key, row.number);
+            }
         }
-        seen.insert(key, row.number);
         let point = Point {
             mount,
             g_nominal,
@@ -657,7 +686,11 @@ fn parse_rows(
             "the header is followed by no data rows; expected one row per averaged point".into(),
         ));
     }
-    Ok(PointsFile { units, rows: count })
+    Ok(PointsFile {
+        units,
+        rows: count,
+        warnings,
+    })
 }
 
 #[cfg(test)]
@@ -713,15 +746,24 @@ mod tests {
     }
 
     #[test]
-    fn a_row_repeated_exactly_is_refused_naming_both_lines() {
-        let text = "unit,mount,g_nominal,g_applied,output\nA,P,0,0,1\nA,P,5,5,501\nA,P,0,0,1\n";
-        let e = parse(text).expect_err("duplicate");
+    fn a_repeated_block_is_refused_and_a_single_repeated_row_is_said() {
+        let head = "unit,mount,g_nominal,g_applied,output\n";
+        let block = "A,P,0,0,1\nA,P,5,5,501\nA,P,10,10,1001\n";
+        let e = parse(&format!("{head}{block}{block}")).expect_err("appended twice");
         let message = e.to_string();
         assert!(
-            message.contains(":4") && message.contains("line 2"),
+            message.contains(":5") && message.contains("line 2"),
             "{message}"
         );
         assert!(message.contains("appended twice"), "{message}");
+        let one = parse(&format!("{head}{block}A,P,5,5,501\n")).expect("a coincident reading");
+        assert_eq!(one.rows, 4);
+        assert_eq!(one.warnings.len(), 1);
+        assert!(
+            one.warnings[0].contains("line 5 repeats line 3"),
+            "{:?}",
+            one.warnings
+        );
         // A level visited again with another reading is a new point.
         let ok = parse("unit,mount,g_nominal,g_applied,output\nA,P,0,0,1\nA,P,0,0,1.0001\n")
             .expect("a repeated visit");

@@ -56,6 +56,7 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         k2_max_ug_per_g2: Some(k2),
         outcome: Outcome::Pass,
         reasons: Vec::new(),
+        decision_rule: Some(spinbench_engine::plan::DecisionRule::Guarded),
     }
 }
 

@@ -2,6 +2,7 @@
 //! the plan's limits, into its record and outcome.
 
 use super::*;
+use crate::plan::{DecisionRule, Verdict};
 
 impl Executor<'_> {
     /// The steps of the plan that measure `slot` (tumble, radius, levels
@@ -126,27 +127,63 @@ impl Executor<'_> {
                             ),
                         ];
                         outcome = Outcome::Pass;
+                        // k2's U95: its mounting's interval half-width.
+                        let k2_u95 = a
+                            .k2_max_mount
+                            .and_then(|m| a.fits.get(&m))
+                            .and_then(|f| f.fit.ci95.k2_ug_per_g2)
+                            .map(|[lo, hi]| 0.5 * (hi - lo));
+                        let rule = limits.decision_rule;
                         for (name, value, limit, unit, [over, near]) in checks {
                             let (Some(v), Some(l)) = (value, limit) else {
                                 continue;
                             };
-                            if v > l {
-                                reasons.push(Reason::new(
-                                    over,
-                                    format!("{name} {v:.3} {unit} above the limit {l} {unit}"),
-                                ));
-                                outcome = Outcome::Fail;
-                            } else if v > limits.marginal_fraction * l {
-                                reasons.push(Reason::new(
-                                    near,
-                                    format!(
-                                        "{name} {v:.3} {unit} within {:.0} % of the limit {l} {unit}",
-                                        (1.0 - limits.marginal_fraction) * 100.0
-                                    ),
-                                ));
-                                if outcome == Outcome::Pass {
-                                    outcome = Outcome::Marginal;
+                            // k2 carries its U95; the other figures carry no
+                            // uncertainty yet and are judged by their value.
+                            let (rule, u) = if over == ReasonCode::K2OverLimit {
+                                (rule, k2_u95)
+                            } else {
+                                (DecisionRule::Simple, None)
+                            };
+                            let shown = match (rule, u) {
+                                (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
+                                _ => format!("{v:.3}"),
+                            };
+                            let guarded = if rule == DecisionRule::Guarded {
+                                " (guarded rule)"
+                            } else {
+                                ""
+                            };
+                            match rule.decide(v, u, l, limits.marginal_fraction) {
+                                Verdict::Fail => {
+                                    reasons.push(Reason::new(
+                                        over,
+                                        format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
+                                    ));
+                                    outcome = Outcome::Fail;
                                 }
+                                Verdict::Inconclusive => {
+                                    reasons.push(Reason::new(
+                                        ReasonCode::K2Inconclusive,
+                                        format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
+                                    ));
+                                    if outcome != Outcome::Fail {
+                                        outcome = Outcome::Inconclusive;
+                                    }
+                                }
+                                Verdict::Marginal => {
+                                    reasons.push(Reason::new(
+                                        near,
+                                        format!(
+                                            "{name} {shown} {unit} within {:.0} % of the limit {l} {unit}{guarded}",
+                                            (1.0 - limits.marginal_fraction) * 100.0
+                                        ),
+                                    ));
+                                    if outcome == Outcome::Pass {
+                                        outcome = Outcome::Marginal;
+                                    }
+                                }
+                                Verdict::Pass => {}
                             }
                         }
                         if k2_max.is_none() {
@@ -177,6 +214,7 @@ impl Executor<'_> {
                 k2_max_ug_per_g2: k2_max,
                 outcome,
                 reasons,
+                decision_rule: Some(limits.decision_rule),
             });
         }
         out

@@ -312,6 +312,7 @@ impl Canvas {
                 let color = match cell.as_str() {
                     "fail" => (0.7, 0.0, 0.0),
                     "marginal" => (0.65, 0.4, 0.0),
+                    "inconclusive" => (0.1, 0.25, 0.7),
                     "pass" => (0.0, 0.4, 0.0),
                     _ => BLACK,
                 };

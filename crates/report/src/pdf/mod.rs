@@ -161,6 +161,7 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
         Outcome::Fail => (0.7, 0.0, 0.0),
         Outcome::Marginal => (0.65, 0.4, 0.0),
         Outcome::Incomplete => (0.35, 0.35, 0.35),
+        Outcome::Inconclusive => (0.1, 0.25, 0.7),
         Outcome::Pass => (0.0, 0.4, 0.0),
     };
     c.text_colored(x, y, 14.0, u.result.outcome.as_str(), Align::Left, color);

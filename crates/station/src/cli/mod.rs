@@ -287,6 +287,9 @@ pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<Datas
     let order = ModelOrder::from_degree(order)
         .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
     let points = read_points_file(file, sheet)?;
+    for w in &points.warnings {
+        eprintln!("warning: {w}");
+    }
     Ok(analyze_dataset(&points.units, AnalysisOptions { order }))
 }
 
