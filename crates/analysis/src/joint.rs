@@ -3,8 +3,10 @@
 //! while arm stretch and the odd-quadratic term Koq enter both alike. In
 //! the per-mounting convention k2_P = K2 + c' and k2_N = c' − K2, so
 //!
-//!     K2 = (k2_P − k2_N)/2   (even, the instrument's)
-//!     c' = (k2_P + k2_N)/2   (odd: Koq plus arm stretch)
+//! ```text
+//! K2 = (k2_P − k2_N)/2   (even, the instrument's)
+//! c' = (k2_P + k2_N)/2   (odd: Koq plus arm stretch)
+//! ```
 //!
 //! The two passes are independent fits: u² = (u_P² + u_N²)/4, with the
 //! effective degrees of freedom by Welch–Satterthwaite and U = t₀.₉₇₅(ν)·u.

@@ -449,6 +449,60 @@ impl World {
         }
     }
 
+    /// What a perfect per-mounting fit of method.md (2) of `order` over the
+    /// nominal levels `levels_g` (at the drawing radius) returns for
+    /// instrument `i` in `mount`: the instrument's noise-free output at the
+    /// true input of each level (its physics with arm stretch and the
+    /// Earth's rate, a table turning counter-clockwise), fitted against the
+    /// input the station computes (the rate, the position's radius). Unlike
+    /// the sum K2 ± (c + Koq) this holds every cross term (k3 times the
+    /// stretch is ~0.02 µg/g² at 8 µg/g² of stretch). `None` if it cannot fit.
+    pub fn perfect_fit_k2(
+        &self,
+        i: usize,
+        mount: spinbench_analysis::Mount,
+        levels_g: &[f64],
+        order: spinbench_analysis::ModelOrder,
+    ) -> Option<f64> {
+        use spinbench_analysis::{Mount, Point, model::fit_mounting};
+        // The instrument as built: no random walk, warm-up or temperature
+        // (the world may have run on in real time since the run ended).
+        let v = Vba::new(self.instruments.get(i)?.truth);
+        let p = self.positions.get(i)?;
+        let (g, t) = (self.config.g_local_m_s2, &self.config.centrifuge);
+        let r = match mount {
+            Mount::P => p.radius_p_m,
+            Mount::N => p.radius_n_m,
+        };
+        let points: Vec<Point> = levels_g
+            .iter()
+            .map(|&level| {
+                let w2 = level * g / t.arm_radius_m;
+                let inertial = w2.sqrt() + self.earth_rate_vertical_rad_s();
+                let a_true = if level == 0.0 {
+                    0.0
+                } else {
+                    inertial * inertial * (r + t.arm_stretch_m_per_rad2_s2 * w2) / g
+                };
+                let (f1, f2) = v.resonators(&Inputs {
+                    a_g: mount.input_sign() * a_true,
+                    ..Inputs::default()
+                });
+                Point {
+                    mount,
+                    g_nominal: level,
+                    g_applied: w2 * r / g,
+                    output: f1 - f2,
+                    direction: None,
+                }
+            })
+            .collect();
+        fit_mounting(&points, mount, order, "perfect fit")
+            .ok()?
+            .fit
+            .k2_ug_per_g2
+    }
+
     /// The vertical component of the Earth's rate here [rad/s].
     pub fn earth_rate_vertical_rad_s(&self) -> f64 {
         EARTH_RATE_RAD_S * self.config.latitude_deg.to_radians().sin()

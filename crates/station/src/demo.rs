@@ -53,8 +53,14 @@ pub struct DemoUnit {
     pub outcome: Outcome,
 }
 
-/// Compare a finished demo run with the simulator's truth.
-pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) -> Vec<DemoUnit> {
+/// Compare a finished demo run with the simulator's truth; `perfect_k2`
+/// gives what a perfect per-mounting fit would return for (slot, mounting)
+/// (`None`: the analytic sum of method.md (15)).
+pub fn compare_with_truth(
+    records: &[UnitRecord],
+    truth: &spinbench_sim::Truth,
+    perfect_k2: &dyn Fn(usize, Mount) -> Option<f64>,
+) -> Vec<DemoUnit> {
     let mut out = Vec::new();
     for r in records {
         let Some(t) = truth.instruments.get(r.slot) else {
@@ -84,10 +90,10 @@ pub fn compare_with_truth(records: &[UnitRecord], truth: &spinbench_sim::Truth) 
                 k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
                 true_k2_ug_per_g2: sign * t.vba.k2_ug_per_g2,
                 true_instrument_k2_ug_per_g2: t.instrument_k2_ug_per_g2,
-                true_mounting_k2_ug_per_g2: match mount {
+                true_mounting_k2_ug_per_g2: perfect_k2(r.slot, mount).unwrap_or(match mount {
                     Mount::P => t.per_mounting_k2.p_ug_per_g2,
                     Mount::N => t.per_mounting_k2.n_ug_per_g2,
-                },
+                }),
                 k1_hz_per_g: fit.map(|f| f.k1),
                 true_k1_hz_per_g: sign * t.vba.k1_hz_per_g,
                 k2_max_ug_per_g2: r.k2_max_ug_per_g2,
@@ -168,6 +174,10 @@ pub fn demo(
     let (sim, station) = start_sim(choice)?;
     let realism = sim.with_world(|w| w.config().realism);
     let plan = demo_plan(station.slots());
+    let (plan_range_g, plan_order) = (
+        plan.range_g,
+        spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default(),
+    );
     if !json {
         writeln!(
             out,
@@ -198,8 +208,15 @@ pub fn demo(
         RunControl::abort_only(abort),
     )?;
     let truth = sim.with_world(|w| w.truth());
+    // The demo plan's levels, up and down, as its fits see them.
+    let levels = spinbench_analysis::points::up_down(
+        &spinbench_analysis::points::published_levels(plan_range_g),
+    );
+    let perfect = |slot: usize, mount: Mount| {
+        sim.with_world(|w| w.perfect_fit_k2(slot, mount, &levels, plan_order))
+    };
+    let units = compare_with_truth(&finished.summary.records, &truth, &perfect);
     sim.shutdown();
-    let units = compare_with_truth(&finished.summary.records, &truth);
     std::fs::write(
         finished.dir.join("truth.json"),
         serde_json::to_string_pretty(&truth)?,

@@ -267,36 +267,41 @@ fn arm_stretch_is_the_part_of_k2_common_to_both_mountings_end_to_end() {
             "K2 {own:.3}, true {true_own:.3}: {p}"
         );
     }
-    // The station's joint reduction separates them (within 0.05 µg/g², 0.6 %
-    // of c; the Type A U95 alone, a few thousandths, does not yet cover a
-    // stretch this large: the Type B terms of the GUM budget are to come).
+    // The station's joint reduction separates them: within its U95 of what
+    // perfect fits would return (the demo's per-mounting truths hold every
+    // cross term, e.g. k3 times the stretch) for most instruments, within
+    // twice it (about 4 σ) for every one.
     let run_dir = Path::new(doc["run"]["dir"].as_str().expect("dir"));
-    let read = |name: &str| -> Value {
-        serde_json::from_str(&std::fs::read_to_string(run_dir.join(name)).expect("read"))
-            .expect("json")
-    };
-    let (results, truth) = (read("results.json"), read("truth.json"));
-    for r in results.as_array().expect("records") {
-        let slot = r["slot"].as_u64().expect("slot") as usize;
-        let t = &truth["instruments"][slot];
+    let results: Value = serde_json::from_str(
+        &std::fs::read_to_string(run_dir.join("results.json")).expect("results"),
+    )
+    .expect("json");
+    let records = results.as_array().expect("records");
+    let mut within = 0;
+    for (r, pair) in records.iter().zip(units.chunks(2)) {
+        assert_eq!(r["serial"], pair[0]["serial"]);
         let j = &r["analysis"]["joint"];
         let value = |k: &str| j[k].as_f64().unwrap_or_else(|| panic!("{k} in {j}"));
         let (even, odd) = (value("k2_even_ug_per_g2"), value("k2_odd_ug_per_g2"));
         let (u_even, u_odd) = (value("k2_even_U95"), value("k2_odd_U95"));
-        let true_even = t["instrument_k2_ug_per_g2"].as_f64().expect("K2");
-        let true_odd = t["per_mounting_k2"]["common_ug_per_g2"]
-            .as_f64()
-            .expect("common");
+        let perfect = |u: &Value| u["true_mounting_k2_ug_per_g2"].as_f64().expect("truth");
+        let (tp, tn) = (perfect(&pair[0]), perfect(&pair[1]));
+        let (true_even, true_odd) = (0.5 * (tp - tn), 0.5 * (tp + tn));
         assert!(
-            (even - true_even).abs() <= 0.05,
+            (even - true_even).abs() <= 2.0 * u_even,
             "K2 {even} ± {u_even}, true {true_even}"
         );
         assert!(
-            (odd - true_odd).abs() <= 0.05,
+            (odd - true_odd).abs() <= 2.0 * u_odd,
             "odd {odd} ± {u_odd}, true {true_odd}"
         );
-        assert!(u_even > 0.0 && u_odd > 0.0 && u_even < 0.05, "U95 {u_even}");
+        within += usize::from((even - true_even).abs() <= u_even);
+        within += usize::from((odd - true_odd).abs() <= u_odd);
     }
+    assert!(
+        within >= 18,
+        "only {within} of 24 joint values within their U95"
+    );
 }
 
 #[test]
