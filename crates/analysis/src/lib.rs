@@ -20,6 +20,8 @@
 //! * [`scale_factor`] — the scale-factor nonlinearity model (10)–(11);
 //! * [`figures`] — asymmetry, nonlinearity, hysteresis, repeatability;
 //! * [`compare`] — polynomial and non-polynomial model families side by side;
+//! * [`exclusion`] — an engineer's exclusion of a level, with its reason,
+//!   applied before the fits and reported beside them;
 //! * [`unit`] — all of the above for one instrument, and [`unit::analyze_dataset`]
 //!   for a batch.
 //!
@@ -32,6 +34,7 @@ pub mod centrifuge;
 pub mod compare;
 pub mod diagnostics;
 mod error;
+pub mod exclusion;
 pub mod figures;
 pub mod joint;
 pub mod lsq;

@@ -264,6 +264,9 @@ pub struct DatasetAnalysis {
     /// Each unit that could not be reduced, with why (the others are not held back by it).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub failed: Vec<UnitFailure>,
+    /// Levels an engineer excluded, with the reason and who (applied before the fits).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclusions: Vec<crate::exclusion::LevelExclusion>,
 }
 
 /// A unit of a batch that could not be reduced.
@@ -312,6 +315,7 @@ pub fn analyze_dataset(inputs: &[UnitPoints], options: AnalysisOptions) -> Datas
         order: options.order,
         units,
         failed,
+        exclusions: Vec::new(),
     }
 }
 

@@ -53,6 +53,21 @@ pub fn render_dataset(source: &str, analysis: &DatasetAnalysis) -> String {
         analysis.order.degree()
     );
     let _ = writeln!(out, "uncertainties are 95 % intervals (Student t)");
+    for e in &analysis.exclusions {
+        let _ = writeln!(
+            out,
+            "EXCLUDED by {}: mounting {} level {} g{} ({} reading(s)) — reason: {}",
+            e.by,
+            e.mount,
+            e.g,
+            e.unit
+                .as_deref()
+                .map(|u| format!(" of unit {u}"))
+                .unwrap_or_default(),
+            e.points_removed,
+            e.reason
+        );
+    }
     for unit in &analysis.units {
         out.push('\n');
         render_unit(&mut out, unit);

@@ -284,3 +284,67 @@ fn a_unit_that_cannot_be_reduced_is_named_and_the_others_are_reduced() {
     assert_eq!(code, 1);
     assert!(stdout.contains("LONELY — NOT REDUCED"), "{stdout}");
 }
+
+#[test]
+fn an_excluded_level_needs_a_reason_and_is_reported_with_it() {
+    let example = repo_file("examples/points.csv");
+    let file = example.to_str().expect("utf-8");
+    // No reason: refused, nothing reduced.
+    let (code, stdout, stderr) = spinbench(&["analyze", file, "--exclude-level", "P:40"]);
+    assert_eq!(code, 1);
+    assert!(
+        stdout.is_empty() && stderr.contains("a reason is required"),
+        "{stderr}"
+    );
+    // A level that is not in the file: refused (a typing mistake is no exclusion).
+    let (code, _, stderr) = spinbench(&[
+        "analyze",
+        file,
+        "--exclude-level",
+        "P:41",
+        "--reason",
+        "resonance",
+    ]);
+    assert_eq!(code, 1);
+    assert!(stderr.contains("no reading of that level"), "{stderr}");
+    // With a reason: the fits lose that level, and the output says so.
+    let (code, stdout, stderr) = spinbench(&[
+        "analyze",
+        "--json",
+        file,
+        "--exclude-level",
+        "P:40",
+        "--reason",
+        "structural resonance at 40 g",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let doc: Value = serde_json::from_str(&stdout).expect("json");
+    let e = &doc["exclusions"][0];
+    assert_eq!(e["mount"], "P");
+    assert_eq!(e["g"], 40.0);
+    assert_eq!(e["reason"], "structural resonance at 40 g");
+    assert!(e["points_removed"].as_u64().is_some_and(|n| n >= 2), "{e}");
+    for unit in doc["units"].as_array().expect("units") {
+        let residuals = unit["fits"]["P"]["residuals"]
+            .as_array()
+            .expect("residuals");
+        assert!(residuals.iter().all(|r| r["g_nominal"] != 40.0));
+        let n = unit["fits"]["N"]["residuals"].as_array().expect("N");
+        assert!(
+            n.iter().any(|r| r["g_nominal"] == 40.0),
+            "only P was excluded"
+        );
+    }
+    let (_, human, _) = spinbench(&[
+        "analyze",
+        file,
+        "--exclude-level",
+        "P:40",
+        "--reason",
+        "structural resonance at 40 g",
+    ]);
+    assert!(
+        human.contains("EXCLUDED by") && human.contains("structural resonance"),
+        "{human}"
+    );
+}

@@ -15,6 +15,7 @@ use crate::points_file::read_points_file;
 use crate::render::render_dataset;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
+use spinbench_analysis::exclusion::LevelExclusion;
 use spinbench_analysis::{AnalysisOptions, DatasetAnalysis, ModelOrder, analyze_dataset};
 use spinbench_store::StoreTarget;
 use std::io::Write;
@@ -56,6 +57,14 @@ pub enum Command {
         /// Spreadsheet sheet to read (default: the first).
         #[arg(long)]
         sheet: Option<String>,
+        /// Leave a level out of the fits: MOUNT:LEVEL (every unit, e.g. P:40)
+        /// or UNIT:MOUNT:LEVEL; repeatable; needs --reason. The exclusion,
+        /// its reason and who made it are printed with the results.
+        #[arg(long = "exclude-level", value_name = "[UNIT:]MOUNT:LEVEL")]
+        exclude_level: Vec<String>,
+        /// Why the levels are excluded (required with --exclude-level).
+        #[arg(long)]
+        reason: Option<String>,
     },
     /// The main job, with no hardware: a complete simulated station (virtual
     /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
@@ -284,13 +293,28 @@ fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
 
 /// Read and reduce a points file.
 pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<DatasetAnalysis> {
+    analyze_file_excluding(file, order, sheet, Vec::new())
+}
+
+/// Read a points file, leave out the excluded levels, reduce it; the
+/// exclusions (with how many readings each removed) are in the result.
+pub fn analyze_file_excluding(
+    file: &Path,
+    order: u8,
+    sheet: Option<&str>,
+    mut exclusions: Vec<LevelExclusion>,
+) -> Result<DatasetAnalysis> {
     let order = ModelOrder::from_degree(order)
         .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
-    let points = read_points_file(file, sheet)?;
+    let mut points = read_points_file(file, sheet)?;
     for w in &points.warnings {
         eprintln!("warning: {w}");
     }
-    Ok(analyze_dataset(&points.units, AnalysisOptions { order }))
+    spinbench_analysis::exclusion::apply(&mut points.units, &mut exclusions)
+        .with_context(|| file.display().to_string())?;
+    let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order });
+    analysis.exclusions = exclusions;
+    Ok(analysis)
 }
 
 /// Run a parsed command line, writing its output to `out`.
@@ -301,8 +325,15 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             json,
             order,
             sheet,
+            exclude_level,
+            reason,
         } => {
-            let analysis = analyze_file(&file, order, sheet.as_deref())?;
+            let by = std::env::var("USER").unwrap_or_else(|_| "unknown".into());
+            let exclusions = exclude_level
+                .iter()
+                .map(|e| LevelExclusion::parse(e, reason.as_deref().unwrap_or(""), &by))
+                .collect::<Result<Vec<_>, _>>()?;
+            let analysis = analyze_file_excluding(&file, order, sheet.as_deref(), exclusions)?;
             if json {
                 serde_json::to_writer_pretty(&mut *out, &analysis)?;
                 writeln!(out)?;
