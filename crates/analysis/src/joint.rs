@@ -63,3 +63,72 @@ pub fn joint_k2(p: &MountingFit, n: &MountingFit) -> Option<JointK2> {
         dof_eff: dof,
     })
 }
+
+/// The full-range fit over signed input with the odd-quadratic term of
+/// method.md (12): output = c0 + c1·a + c2·a² + c3·a³ + c_oq·a·|a| + c_e·|a|³.
+/// Across
+/// both mountings a² (even) and a·|a| (odd) part, so K2 and Koq (plus arm
+/// stretch, which enters as c·a·|a| on the signed input) come out together.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FullRangeKoq {
+    /// K2, the even second-order term [µg/g²].
+    pub k2_ug_per_g2: f64,
+    /// Its 95 % interval.
+    pub k2_ci95: Option<[f64; 2]>,
+    /// Koq (plus arm stretch), the odd-quadratic term [µg/g²].
+    pub koq_ug_per_g2: f64,
+    /// Its 95 % interval.
+    pub koq_ci95: Option<[f64; 2]>,
+    /// RMS of the residuals as acceleration [µg].
+    pub residual_rms_ug: f64,
+}
+
+/// Fit the full range with Koq; `None` unless both signs of input and at
+/// least seven levels are present.
+pub fn full_range_koq(points: &[crate::Point], what: &str) -> Option<FullRangeKoq> {
+    use crate::lsq;
+    let x: Vec<f64> = points.iter().map(crate::Point::g_signed).collect();
+    let y: Vec<f64> = points.iter().map(|p| p.output).collect();
+    let both_signs = x.iter().any(|&a| a > 0.0) && x.iter().any(|&a| a < 0.0);
+    let mut levels: Vec<f64> = points
+        .iter()
+        .map(|p| p.mount.input_sign() * p.g_nominal.abs())
+        .collect();
+    levels.sort_by(f64::total_cmp);
+    levels.dedup();
+    if !both_signs || levels.len() < 7 {
+        return None;
+    }
+    // The even cubic |a|³ too: K2 times the stretch (2·K2·c·|a|³) is even in
+    // signed input, and left out it would bias K2.
+    let design = nalgebra::DMatrix::from_fn(x.len(), 6, |i, j| {
+        let a = x[i];
+        match j {
+            4 => a * a.abs(),
+            5 => a.abs().powi(3),
+            _ => a.powi(j as i32),
+        }
+    });
+    let fit = lsq::solve(&design, &y, what).ok()?;
+    let c = &fit.coefficients;
+    let c1 = c[1];
+    if c1 == 0.0 || !c1.is_finite() {
+        return None;
+    }
+    let t = student_t_975(fit.stats.dof);
+    // k = c/c1: the interval from c's standard error over |c1| (c1's own
+    // relative uncertainty is parts per million against this).
+    let interval = |j: usize| -> Option<[f64; 2]> {
+        let se = fit.covariance.as_ref()?[(j, j)].max(0.0).sqrt() / c1.abs() * crate::UG_PER_G;
+        let v = c[j] / c1 * crate::UG_PER_G;
+        let t = t?;
+        Some([v - t * se, v + t * se])
+    };
+    Some(FullRangeKoq {
+        k2_ug_per_g2: c[2] / c1 * crate::UG_PER_G,
+        k2_ci95: interval(2),
+        koq_ug_per_g2: c[4] / c1 * crate::UG_PER_G,
+        koq_ci95: interval(4),
+        residual_rms_ug: fit.stats.residual_rms / c1.abs() * crate::UG_PER_G,
+    })
+}

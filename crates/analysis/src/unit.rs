@@ -51,6 +51,10 @@ pub struct FullRangeFit {
     /// The fit against signed input.
     #[serde(flatten)]
     pub fit: Ieee1293Fit,
+    /// The same range fitted with the odd-quadratic term Koq·a·|a| too
+    /// (method.md (12)): K2 and Koq (plus arm stretch) apart.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub with_koq: Option<crate::joint::FullRangeKoq>,
 }
 
 /// Repeatability of one unit across several runs (method.md §3.4).
@@ -156,6 +160,7 @@ pub fn analyze_unit(
         Ok(fit) => Some(FullRangeFit {
             mounts: by_mount.keys().copied().collect(),
             fit,
+            with_koq: crate::joint::full_range_koq(&all, &format!("{label} full range with Koq")),
         }),
         Err(e) => {
             note(e, "full-range fit");

@@ -158,6 +158,7 @@ fn the_joint_reduction_separates_k2_from_the_odd_part_within_u() {
     let (k2_even, common) = (9.0, 4.0);
     let trials = 400;
     let (mut even_in, mut odd_in) = (0, 0);
+    let (mut full_k2_in, mut full_koq_in) = (0, 0);
     for _ in 0..trials {
         let units = [UnitPoints {
             unit: "J".into(),
@@ -169,6 +170,15 @@ fn the_joint_reduction_separates_k2_from_the_odd_part_within_u() {
         let u = j.k2_even_u95.expect("U95");
         even_in += usize::from((j.k2_even_ug_per_g2 - k2_even).abs() <= u);
         odd_in += usize::from((j.k2_odd_ug_per_g2 - common).abs() <= j.k2_odd_u95.expect("U95"));
+        // The full-range fit with Koq·a·|a| separates them too.
+        let full = a.units[0]
+            .full_range
+            .as_ref()
+            .and_then(|f| f.with_koq.as_ref())
+            .expect("full range with Koq");
+        let inside = |v: f64, ci: Option<[f64; 2]>| ci.is_some_and(|[lo, hi]| lo <= v && v <= hi);
+        full_k2_in += usize::from(inside(k2_even, full.k2_ci95));
+        full_koq_in += usize::from(inside(common, full.koq_ci95));
         // The published per-mounting k2 stay as the method defines them.
         let fits = &a.units[0].fits;
         let k2 = |m: Mount| fits[&m].fit.k2_ug_per_g2.expect("k2");
@@ -176,12 +186,19 @@ fn the_joint_reduction_separates_k2_from_the_odd_part_within_u() {
     }
     let coverage = |k: usize| k as f64 / trials as f64;
     println!(
-        "joint: K2 within U95 {:.3}, odd part within U95 {:.3}",
+        "joint: K2 within U95 {:.3}, odd part within U95 {:.3}; full range with Koq: K2 {:.3}, Koq {:.3}",
         coverage(even_in),
-        coverage(odd_in)
+        coverage(odd_in),
+        coverage(full_k2_in),
+        coverage(full_koq_in)
     );
     // 95 % nominal; three binomial standard deviations either side (≈ 3.3 %).
-    for c in [coverage(even_in), coverage(odd_in)] {
+    for c in [
+        coverage(even_in),
+        coverage(odd_in),
+        coverage(full_k2_in),
+        coverage(full_koq_in),
+    ] {
         assert!((0.917..=0.983).contains(&c), "coverage {c}");
     }
 }

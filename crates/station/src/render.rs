@@ -152,6 +152,23 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
             f.residual_rms_ug,
         );
     }
+    if let Some(k) = unit.full_range.as_ref().and_then(|f| f.with_koq.as_ref()) {
+        let ci = |c: Option<[f64; 2]>| {
+            c.map_or_else(
+                || "—".into(),
+                |[lo, hi]| format!("± {:.3}", 0.5 * (hi - lo)),
+            )
+        };
+        let _ = writeln!(
+            out,
+            "  full range with Koq·a·|a| (method.md (12)): K2 = {:.3} {} µg/g², Koq (+ arm stretch) = {:.3} {} µg/g², residual RMS {:.3} µg",
+            k.k2_ug_per_g2,
+            ci(k.k2_ci95),
+            k.koq_ug_per_g2,
+            ci(k.koq_ci95),
+            k.residual_rms_ug
+        );
+    }
     if let Some(sf) = &unit.scale_factor {
         let _ = writeln!(
             out,
