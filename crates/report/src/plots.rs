@@ -158,7 +158,30 @@ fn draw_output_vs_g<DB: DrawingBackend>(
     }
 }
 
-/// Fit residuals [µg] vs level [g]: up as circles, down as crosses.
+/// Where to ring each outlier level on the residual plot: (signed level,
+/// mean residual of its readings [µg]).
+pub fn outlier_marks(u: &UnitReport, res: &[ResidualPoint]) -> Vec<(f64, f64)> {
+    let mut out = Vec::new();
+    let fits = u.record().analysis.as_ref().map(|a| &a.fits);
+    for (mount, fit) in fits.into_iter().flatten() {
+        let m = mount.to_string();
+        for o in fit.diagnostics.iter().flat_map(|d| &d.outlier_levels) {
+            let at: Vec<f64> = res
+                .iter()
+                .filter(|r| r.mount == m && r.g_nominal.abs() == o.g)
+                .map(|r| r.residual_ug)
+                .collect();
+            if !at.is_empty() {
+                let mean = at.iter().sum::<f64>() / at.len() as f64;
+                out.push((sign(&m) * o.g, mean));
+            }
+        }
+    }
+    out
+}
+
+/// Fit residuals [µg] vs level [g]: up as circles, down as crosses, the
+/// diagnostics' outlier levels ringed.
 fn draw_residuals_vs_g<DB: DrawingBackend>(
     u: &UnitReport,
     root: &DrawingArea<DB, Shift>,
@@ -200,6 +223,19 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
             .ok()?
             .label("down")
             .legend(|(x, y)| Cross::new((x, y), 4, RED));
+        // The levels the diagnostics flag as off the curve, ringed.
+        let flagged = outlier_marks(u, &res);
+        if !flagged.is_empty() {
+            chart
+                .draw_series(
+                    flagged
+                        .iter()
+                        .map(|&(x, y)| Circle::new((x, y), 9, MAGENTA.stroke_width(2))),
+                )
+                .ok()?
+                .label("outlier level")
+                .legend(|(x, y)| Circle::new((x, y), 5, MAGENTA.stroke_width(2)));
+        }
         // Upper left: the residuals of the top levels sit upper right.
         chart
             .configure_series_labels()

@@ -221,6 +221,43 @@ fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
             "the disturbed level is off by {size:.0} µg only"
         );
     }
+    // The station's diagnostics flag it, in the JSON and in the report
+    // (ringed on the residual plot), and the report names its decision rule.
+    for unit in analysis["units"].as_array().expect("units") {
+        for fit in unit["fits"].as_object().expect("fits").values() {
+            let d = &fit["diagnostics"];
+            assert_eq!(d["outlier_levels"][0]["g"].as_f64(), Some(disturbed), "{d}");
+            assert!(
+                d["lack_of_fit"]["p_value"]
+                    .as_f64()
+                    .is_some_and(|p| p < 0.001),
+                "{d}"
+            );
+        }
+    }
+    let run_dir = Path::new(doc["run"]["dir"].as_str().expect("dir"));
+    let html = std::fs::read_dir(run_dir)
+        .expect("run dir")
+        .filter_map(Result::ok)
+        .find(|e| e.path().extension().is_some_and(|x| x == "html"))
+        .map(|e| std::fs::read_to_string(e.path()).expect("report"))
+        .expect("an HTML report");
+    assert!(
+        html.contains(&format!("outlier level(s): {disturbed} g")),
+        "no outlier line"
+    );
+    assert!(
+        html.contains("\noutlier level\n"),
+        "no ring on the residual plot"
+    );
+    assert!(
+        html.contains("guarded acceptance"),
+        "the decision rule is not named"
+    );
+    assert!(
+        html.contains("Both mountings (method.md (15))"),
+        "no joint reduction"
+    );
 }
 
 #[test]

@@ -182,6 +182,11 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
         c.text(MARGIN_MM, y, 8.5, &line, Align::Left);
         y += 4.2;
     }
+    for line in crate::diagnostic_lines(u) {
+        let text = c.fit(&line, 8.0, PAGE_W_MM - 2.0 * MARGIN_MM);
+        c.text(MARGIN_MM, y, 8.0, &text, Align::Left);
+        y += 4.0;
+    }
     if !u.record().reasons.is_empty() {
         let text = c.fit(&u.reasons_text(), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM);
         c.text_colored(MARGIN_MM, y, 8.5, &text, Align::Left, (0.7, 0.0, 0.0));
