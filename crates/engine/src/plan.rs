@@ -57,6 +57,25 @@ pub struct TestPlan {
     /// Pass/fail limits.
     #[serde(default)]
     pub limits: Limits,
+    /// Levels an engineer leaves out of the reduction, each with a reason
+    /// (recorded in every record it touches, and in the reports).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclusions: Vec<PlanExclusion>,
+}
+
+/// A level left out of the reduction by the plan.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanExclusion {
+    /// Only this serial number (absent: every instrument).
+    #[serde(default)]
+    pub serial: Option<String>,
+    /// The mounting.
+    pub mount: Mount,
+    /// The level [g], one of the plan's levels.
+    pub g: f64,
+    /// Why (required).
+    pub reason: String,
 }
 
 fn default_name() -> String {
@@ -331,6 +350,7 @@ impl Default for TestPlan {
             dwell: DwellConfig::default(),
             stability: StabilityConfig::default(),
             limits: Limits::default(),
+            exclusions: Vec::new(),
         }
     }
 }
@@ -519,6 +539,36 @@ impl TestPlan {
                     levels.len()
                 ),
             );
+        }
+        for (i, e) in self.exclusions.iter().enumerate() {
+            let key = format!("exclusions[{i}]");
+            if e.reason.trim().is_empty() {
+                return err(
+                    &key,
+                    "a reason is required: nothing is excluded without one".into(),
+                );
+            }
+            if !levels.contains(&e.g) {
+                return err(
+                    &key,
+                    format!("{} g is not one of the plan's levels {levels:?}", e.g),
+                );
+            }
+            if let Some(serial) = &e.serial
+                && !self.serials.values().any(|s| {
+                    let s = s.trim();
+                    s == serial
+                        || s.strip_prefix("P:")
+                            .or_else(|| s.strip_prefix("N:"))
+                            .map(str::trim)
+                            == Some(serial.as_str())
+                })
+            {
+                return err(
+                    &key,
+                    format!("no instrument '{serial}' in the plan's serials"),
+                );
+            }
         }
         if levels.len() < usize::from(self.order) + 2 {
             return err(
@@ -720,6 +770,26 @@ impl TestPlan {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_exclusion_needs_a_reason_a_level_of_the_plan_and_a_known_serial() {
+        let station = station(1);
+        let plan = |exclusion: &str| {
+            TestPlan::from_toml(&format!(
+                "range_g = 30\n[serials]\n1 = \"P:A\"\n[[exclusions]]\n{exclusion}\n"
+            ))
+            .expect("plan")
+            .compile(&station)
+        };
+        assert!(plan("mount = \"P\"\ng = 5\nreason = \"resonance\"").is_ok());
+        assert!(plan("serial = \"A\"\nmount = \"P\"\ng = 5\nreason = \"resonance\"").is_ok());
+        let e = plan("mount = \"P\"\ng = 5\nreason = \" \"").expect_err("no reason");
+        assert_eq!(e.key, "exclusions[0]");
+        let e = plan("mount = \"P\"\ng = 7\nreason = \"r\"").expect_err("not a level");
+        assert!(e.problem.contains("not one of the plan's levels"), "{e}");
+        let e = plan("serial = \"Z\"\nmount = \"P\"\ng = 5\nreason = \"r\"").expect_err("serial");
+        assert!(e.problem.contains("no instrument 'Z'"), "{e}");
+    }
 
     #[test]
     fn the_decision_rules_at_their_boundaries() {

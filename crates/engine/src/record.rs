@@ -221,6 +221,10 @@ pub struct UnitRecord {
     /// before the rule was recorded: those compared the value alone).
     #[serde(default)]
     pub decision_rule: Option<crate::plan::DecisionRule>,
+    /// The plan's exclusions that removed readings of this instrument (each
+    /// with its reason, who, and how many readings).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclusions: Vec<spinbench_analysis::exclusion::LevelExclusion>,
 }
 
 #[cfg(test)]

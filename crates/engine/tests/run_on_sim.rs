@@ -681,3 +681,35 @@ fn an_instrument_that_never_settles_fails_and_the_others_go_on() {
     }
     bench.shutdown();
 }
+
+#[test]
+fn a_plan_exclusion_leaves_its_level_out_and_is_recorded_with_its_reason() {
+    let mut plan = small_plan();
+    plan.operator = "eng. Li".into();
+    plan.exclusions.push(spinbench_engine::plan::PlanExclusion {
+        serial: Some("A2".into()),
+        mount: Mount::P,
+        g: 6.0,
+        reason: "fixture rattled at 6 g".into(),
+    });
+    let (summary, _events, bench) = run(SimConfig::default(), plan, None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    for r in &summary.records {
+        let fit = &r.analysis.as_ref().expect("analysis").fits[&Mount::P].fit;
+        let has_6g = fit.residuals.iter().any(|x| x.g_nominal == 6.0);
+        if r.serial == "A2" {
+            assert!(!has_6g, "A2 was fitted with the excluded level");
+            let e = &r.exclusions[0];
+            assert_eq!(
+                (e.g, e.reason.as_str(), e.by.as_str()),
+                (6.0, "fixture rattled at 6 g", "eng. Li")
+            );
+            assert!(e.points_removed >= 1);
+            // Its points are all kept in the record: nothing is deleted.
+            assert!(r.points.iter().any(|p| p.g_nominal == 6.0));
+        } else {
+            assert!(has_6g && r.exclusions.is_empty(), "{}", r.serial);
+        }
+    }
+    bench.shutdown();
+}

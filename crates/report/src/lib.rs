@@ -329,10 +329,20 @@ fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
 /// The reduction's own verdict on its model, a line per mounting, and the
 /// two mountings reduced together (method.md (15)).
 pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
+    let mut lines: Vec<String> = u
+        .record()
+        .exclusions
+        .iter()
+        .map(|e| {
+            format!(
+                "EXCLUDED by {}: mounting {} level {} g ({} reading(s)) — reason: {}",
+                e.by, e.mount, e.g, e.points_removed, e.reason
+            )
+        })
+        .collect();
     let Some(a) = u.record().analysis.as_ref() else {
-        return Vec::new();
+        return lines;
     };
-    let mut lines = Vec::new();
     for (mount, fit) in &a.fits {
         let Some(d) = &fit.diagnostics else { continue };
         let lof = d.lack_of_fit.as_ref().map_or_else(

@@ -57,6 +57,7 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         outcome: Outcome::Pass,
         reasons: Vec::new(),
         decision_rule: Some(spinbench_engine::plan::DecisionRule::Guarded),
+        exclusions: Vec::new(),
     }
 }
 

@@ -39,6 +39,8 @@ impl Executor<'_> {
             };
             let mut reasons = Vec::new();
             let mut analysis = None;
+            // The plan's exclusions for this instrument, applied to its points.
+            let (points, exclusions) = self.excluded(&serial, &u.points);
             let mut k2_max = None;
             let mut outcome = Outcome::Fail;
             let left = if run_complete || u.failed.is_some() {
@@ -57,7 +59,7 @@ impl Executor<'_> {
                         &UnitPoints {
                             unit: serial.clone(),
                             run: None,
-                            points: point_list(&u.points),
+                            points: points.clone(),
                         },
                         AnalysisOptions {
                             order: self.plan.order,
@@ -75,7 +77,7 @@ impl Executor<'_> {
                 let input = UnitPoints {
                     unit: serial.clone(),
                     run: None,
-                    points: point_list(&u.points),
+                    points: points.clone(),
                 };
                 match analyze_unit(
                     &input,
@@ -215,9 +217,54 @@ impl Executor<'_> {
                 outcome,
                 reasons,
                 decision_rule: Some(limits.decision_rule),
+                exclusions,
             });
         }
         out
+    }
+}
+
+impl Executor<'_> {
+    /// A unit's points with the plan's exclusions for it left out, and the
+    /// exclusions that removed something (by: the plan's operator).
+    fn excluded(
+        &self,
+        serial: &str,
+        records: &[PointRecord],
+    ) -> (
+        Vec<Point>,
+        Vec<spinbench_analysis::exclusion::LevelExclusion>,
+    ) {
+        let plan = &self.plan.plan;
+        let mut units = [UnitPoints {
+            unit: serial.to_string(),
+            run: None,
+            points: point_list(records),
+        }];
+        let mut applied = Vec::new();
+        for e in &plan.exclusions {
+            if e.serial.as_deref().is_some_and(|s| s != serial) {
+                continue;
+            }
+            let mut one = [spinbench_analysis::exclusion::LevelExclusion {
+                unit: Some(serial.to_string()),
+                mount: e.mount,
+                g: e.g,
+                reason: e.reason.clone(),
+                by: if plan.operator.is_empty() {
+                    "the plan".into()
+                } else {
+                    plan.operator.clone()
+                },
+                points_removed: 0,
+            }];
+            // An exclusion that matches none of this unit's readings removes nothing.
+            if spinbench_analysis::exclusion::apply(&mut units, &mut one).is_ok() {
+                applied.extend(one);
+            }
+        }
+        let [unit] = units;
+        (unit.points, applied)
     }
 }
 
