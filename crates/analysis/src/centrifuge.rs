@@ -3,6 +3,9 @@
 //! Rates are rad/s in these formulas; the station works in deg/s and allows
 //! rpm in configuration, so conversions live here too.
 
+/// The Earth's rate [rad/s] (sidereal).
+pub const EARTH_RATE_RAD_S: f64 = 7.292_115e-5;
+
 use crate::AnalysisError;
 
 /// Degrees per second to radians per second.

@@ -65,6 +65,12 @@ pub struct ArmConfig {
     pub position_radius_m: Vec<f64>,
     /// The largest acceleration the fixtures are rated for [g].
     pub max_g: f64,
+    /// Latitude of the station [degrees, north positive]: the Earth's
+    /// vertical rate Ω_E·sin(latitude) is added to the table's rate (positive
+    /// counter-clockwise seen from above) for the applied acceleration
+    /// (method.md §5). Absent: no Earth-rate correction.
+    #[serde(default)]
+    pub latitude_deg: Option<f64>,
 }
 
 /// Supply roles.
@@ -128,6 +134,24 @@ impl StationConfig {
     /// Number of instrument slots (6 per module).
     pub fn slots(&self) -> usize {
         self.fmu.len() * spinbench_wire::fmu::INSTRUMENTS_PER_MODULE
+    }
+
+    /// The vertical component of the Earth's rate at the station [rad/s]
+    /// (0 when the latitude is not configured).
+    pub fn earth_rate_vertical_rad_s(&self) -> f64 {
+        self.arm.latitude_deg.map_or(0.0, |lat| {
+            spinbench_analysis::centrifuge::EARTH_RATE_RAD_S * lat.to_radians().sin()
+        })
+    }
+
+    /// The table's rate in inertial space for a read-back rate [rad/s]: the
+    /// Earth's vertical rate added (method.md §5).
+    pub fn inertial_rate_rad_s(&self, table_rad_s: f64) -> f64 {
+        if table_rad_s == 0.0 {
+            0.0
+        } else {
+            table_rad_s + self.earth_rate_vertical_rad_s()
+        }
     }
 
     /// Drawing radius of slot `i` [m].
@@ -222,6 +246,13 @@ impl StationConfig {
         check_positive(self.arm.radius_m, MAX_ARM_RADIUS_M, "m", "MAX_ARM_RADIUS_M")
             .map_err(at("arm.radius_m"))?;
         check_positive(self.arm.max_g, MAX_ARM_G, "g", "MAX_ARM_G").map_err(at("arm.max_g"))?;
+        if let Some(lat) = self.arm.latitude_deg
+            && !(lat.is_finite() && (-90.0..=90.0).contains(&lat))
+        {
+            return Err(at("arm.latitude_deg")(format!(
+                "{lat} is not a latitude from -90 to 90 degrees"
+            )));
+        }
         if self.fmu.len() > MAX_MODULES {
             return err(
                 "fmu",

@@ -713,3 +713,41 @@ fn a_plan_exclusion_leaves_its_level_out_and_is_recorded_with_its_reason() {
     }
     bench.shutdown();
 }
+
+#[test]
+fn the_applied_acceleration_includes_the_earths_rate_at_the_stations_latitude() {
+    let sim = SimConfig {
+        latitude_deg: 60.0,
+        ..SimConfig::default()
+    };
+    let (summary, _events, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let station = station_for(&bench);
+    assert_eq!(
+        station.arm.latitude_deg,
+        Some(60.0),
+        "the bench's station config says where it stands"
+    );
+    let earth = 7.292_115e-5 * 60f64.to_radians().sin();
+    let g = station.g_local_m_s2;
+    let mut checked = 0;
+    for r in &summary.records {
+        let radius = r.radius_m[&Mount::P];
+        for p in r.points.iter().filter(|p| p.rate_deg_s != 0.0) {
+            let w = p.rate_deg_s.to_radians() + earth;
+            let want = w * w * radius / g;
+            assert!(
+                (p.g_applied - want).abs() <= 1e-12 * want,
+                "{} vs {want}",
+                p.g_applied
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 50, "{checked} points checked");
+    // A latitude that is none is refused, naming the key.
+    let text = station_toml(&bench, "").replace("latitude_deg = 60", "latitude_deg = 91");
+    bench.shutdown();
+    let e = StationConfig::from_toml(&text).expect_err("latitude 91");
+    assert!(e.to_string().contains("arm.latitude_deg"), "{e}");
+}

@@ -13,14 +13,21 @@ use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
 /// A complete station config (TOML) for the bench: its arm, the power roles
 /// and its device sections; `power_extra` adds lines to `[power]`.
 pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
-    let (r0, instruments, current_a) = bench.with_world(|w| {
+    let (r0, instruments, current_a, latitude_deg) = bench.with_world(|w| {
         let c = w.config();
         (
             c.centrifuge.arm_radius_m,
             c.modules * INSTRUMENTS_PER_MODULE,
             c.instruments.current_a,
+            c.latitude_deg,
         )
     });
+    // The station knows where it stands: the bench's latitude, for the Earth-rate correction.
+    let latitude = if latitude_deg == 0.0 {
+        String::new()
+    } else {
+        format!("latitude_deg = {latitude_deg}\n")
+    };
     // The rails' limit: the default 0.5 A, or a quarter above what a bigger bench draws.
     let mut limit = if power_extra.contains("rail_current_limit_a") {
         String::new()
@@ -35,7 +42,7 @@ pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
         limit.push_str(&format!("instrument_current_a = {current_a}\n"));
     }
     format!(
-        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{}",
+        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n{latitude}\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{}",
         bench.station_config_toml()
     )
 }

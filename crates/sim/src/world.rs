@@ -42,8 +42,8 @@ const WIRE_STREAM: u64 = 0x7769_7265;
 /// Seed offset of the error sources' draws ("errors"): the `ideal`
 /// population stays the one it always was.
 const ERRORS_STREAM: u64 = 0x0000_6572_726f_7273;
-/// The Earth's rate [rad/s].
-pub const EARTH_RATE_RAD_S: f64 = 7.292_115e-5;
+/// The Earth's rate [rad/s] (the station's own constant).
+pub const EARTH_RATE_RAD_S: f64 = spinbench_analysis::centrifuge::EARTH_RATE_RAD_S;
 /// Time constants of the low-frequency noise's relaxation processes [s]:
 /// equal shares of variance a decade apart approximate a 1/f spectrum
 /// between them.

@@ -191,7 +191,7 @@ impl Executor<'_> {
             .collect();
         let values = self.acquire(&mut slots)?;
         let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
-        let w_meas = rate.to_radians();
+        let w_meas = self.station.inertial_rate_rad_s(rate.to_radians());
         for slot in slots {
             let Some(mount) = self.plan.passes[pass][slot] else {
                 continue;
@@ -271,7 +271,8 @@ impl Executor<'_> {
             break (values, own_noise);
         };
         let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
-        let w_meas = rate.to_radians();
+        // The rate in inertial space: the Earth's vertical rate added (method.md §5).
+        let w_meas = self.station.inertial_rate_rad_s(rate.to_radians());
         let mut points = Vec::new();
         for slot in slots {
             let Some(mount) = self.plan.passes[pass][slot] else {
