@@ -226,3 +226,56 @@ pub fn diagnose(
         influence,
     })
 }
+
+impl std::fmt::Display for Diagnostics {
+    /// One line: lack of fit, pure error, outlier levels, and the range of
+    /// k2 with one level left out (the one wording `analyze` and the reports use).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.lack_of_fit {
+            Some(l) => write!(
+                f,
+                "lack of fit F = {:.2} ({}, {}), p = {:.2e}{}",
+                l.f,
+                l.dof[0],
+                l.dof[1],
+                l.p_value,
+                if l.p_value < 0.001 {
+                    ": the model does not fit"
+                } else {
+                    ""
+                }
+            )?,
+            None => f.write_str("lack of fit: no replicated levels")?,
+        }
+        if let Some(pe) = self.pure_error_rms_ug {
+            write!(f, "; pure error {pe:.1} µg RMS")?;
+        }
+        if self.outlier_levels.is_empty() {
+            f.write_str("; no outlier level")?;
+        } else {
+            f.write_str("; outlier level(s): ")?;
+            for (i, o) in self.outlier_levels.iter().enumerate() {
+                let sep = if i == 0 { "" } else { ", " };
+                write!(
+                    f,
+                    "{sep}{} g ({:+.0} µg, t = {:.1}, p = {:.1e})",
+                    o.g, o.residual_ug, o.t, o.p
+                )?;
+            }
+        }
+        let by_k2 = |a: &&Influence, b: &&Influence| {
+            a.k2_without_ug_per_g2.total_cmp(&b.k2_without_ug_per_g2)
+        };
+        if let (Some(lo), Some(hi)) = (
+            self.influence.iter().min_by(by_k2),
+            self.influence.iter().max_by(by_k2),
+        ) {
+            write!(
+                f,
+                "; k2 without one level {:.3} ({} g) to {:.3} ({} g) µg/g²",
+                lo.k2_without_ug_per_g2, lo.g, hi.k2_without_ug_per_g2, hi.g
+            )?;
+        }
+        Ok(())
+    }
+}

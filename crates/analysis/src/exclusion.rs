@@ -69,13 +69,28 @@ impl LevelExclusion {
     }
 }
 
-/// Remove the excluded levels' readings from `units`; each exclusion says
-/// how many it removed. An exclusion that matches nothing is an error (a
-/// typing mistake must not pass as a reduction that left something out).
-pub fn apply(
-    units: &mut [UnitPoints],
-    exclusions: &mut [LevelExclusion],
-) -> Result<(), AnalysisError> {
+impl std::fmt::Display for LevelExclusion {
+    /// One line for `analyze` and the reports.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "EXCLUDED by {}: mounting {} level {} g{} ({} reading(s)) — reason: {}",
+            self.by,
+            self.mount,
+            self.g,
+            self.unit
+                .as_deref()
+                .map(|u| format!(" of unit {u}"))
+                .unwrap_or_default(),
+            self.points_removed,
+            self.reason
+        )
+    }
+}
+
+/// Remove the excluded levels' readings from `units`; each exclusion's
+/// `points_removed` says how many it removed (0: it matched nothing).
+pub fn apply(units: &mut [UnitPoints], exclusions: &mut [LevelExclusion]) {
     for e in exclusions.iter_mut() {
         e.points_removed = 0;
     }
@@ -93,8 +108,17 @@ pub fn apply(
             }
         });
     }
-    if let Some(e) = exclusions.iter().find(|e| e.points_removed == 0) {
-        return Err(AnalysisError::InvalidInput(format!(
+}
+
+/// [`apply`], refusing an exclusion that matches nothing (a typing mistake
+/// must not pass as a reduction that left something out).
+pub fn apply_all(
+    units: &mut [UnitPoints],
+    exclusions: &mut [LevelExclusion],
+) -> Result<(), AnalysisError> {
+    apply(units, exclusions);
+    match exclusions.iter().find(|e| e.points_removed == 0) {
+        Some(e) => Err(AnalysisError::InvalidInput(format!(
             "exclusion of {} {} g{}: no reading of that level in the file",
             e.mount,
             e.g,
@@ -102,9 +126,9 @@ pub fn apply(
                 .as_deref()
                 .map(|u| format!(" of unit {u}"))
                 .unwrap_or_default()
-        )));
+        ))),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -136,7 +160,7 @@ mod tests {
             ],
         }];
         let mut ex = vec![LevelExclusion::parse("A:P:30", "resonance", "eng").expect("parse")];
-        apply(&mut units, &mut ex).expect("applied");
+        apply_all(&mut units, &mut ex).expect("applied");
         assert_eq!(units[0].points.len(), 2);
         assert_eq!(ex[0].points_removed, 2);
         assert_eq!(
@@ -144,6 +168,6 @@ mod tests {
             ("resonance", "eng")
         );
         // Nothing left to match: refused.
-        assert!(apply(&mut units, &mut ex).is_err());
+        assert!(apply_all(&mut units, &mut ex).is_err());
     }
 }

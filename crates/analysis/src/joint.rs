@@ -34,6 +34,21 @@ pub struct JointK2 {
     pub dof_eff: Option<f64>,
 }
 
+impl std::fmt::Display for JointK2 {
+    /// One line for `analyze` and the reports.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let u = |v: Option<f64>| v.map_or_else(|| "—".into(), |u| format!("{u:.3}"));
+        write!(
+            f,
+            "both mountings (method.md (15)): K2 (even, the instrument's) = {:.3} ± {} µg/g²; odd part (Koq + arm stretch) = {:.3} ± {} µg/g² (U95)",
+            self.k2_even_ug_per_g2,
+            u(self.k2_even_u95),
+            self.k2_odd_ug_per_g2,
+            u(self.k2_odd_u95)
+        )
+    }
+}
+
 /// Combine the two mountings' fits; `None` unless both have k2.
 pub fn joint_k2(p: &MountingFit, n: &MountingFit) -> Option<JointK2> {
     let (kp, kn) = (p.fit.k2_ug_per_g2?, n.fit.k2_ug_per_g2?);

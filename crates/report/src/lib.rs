@@ -333,61 +333,18 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
         .record()
         .exclusions
         .iter()
-        .map(|e| {
-            format!(
-                "EXCLUDED by {}: mounting {} level {} g ({} reading(s)) — reason: {}",
-                e.by, e.mount, e.g, e.points_removed, e.reason
-            )
-        })
+        .map(ToString::to_string)
         .collect();
     let Some(a) = u.record().analysis.as_ref() else {
         return lines;
     };
     for (mount, fit) in &a.fits {
-        let Some(d) = &fit.diagnostics else { continue };
-        let lof = d.lack_of_fit.as_ref().map_or_else(
-            || "lack of fit: no replicated levels".to_string(),
-            |l| {
-                format!(
-                    "lack of fit F = {:.2} ({}, {}), p = {:.2e}{}",
-                    l.f,
-                    l.dof[0],
-                    l.dof[1],
-                    l.p_value,
-                    if l.p_value < 0.001 {
-                        ": the model does not fit"
-                    } else {
-                        ""
-                    }
-                )
-            },
-        );
-        let outliers = if d.outlier_levels.is_empty() {
-            "no outlier level".to_string()
-        } else {
-            format!(
-                "outlier level(s): {}",
-                d.outlier_levels
-                    .iter()
-                    .map(|o| format!("{} g ({:+.0} µg, p = {:.1e})", o.g, o.residual_ug, o.p))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
-        };
-        let pure = d
-            .pure_error_rms_ug
-            .map_or_else(String::new, |p| format!("; pure error {p:.1} µg RMS"));
-        lines.push(format!("Mounting {mount}: {lof}{pure}; {outliers}."));
+        if let Some(d) = &fit.diagnostics {
+            lines.push(format!("Mounting {mount}: {d}."));
+        }
     }
     if let Some(j) = &a.joint {
-        let u95 = |v: Option<f64>| v.map_or_else(|| "—".into(), |u| format!("{u:.3}"));
-        lines.push(format!(
-            "Both mountings (method.md (15)): K2 = {:.3} ± {} µg/g² (the instrument's, even); odd part (Koq + arm stretch) = {:.3} ± {} µg/g² (U95).",
-            j.k2_even_ug_per_g2,
-            u95(j.k2_even_u95),
-            j.k2_odd_ug_per_g2,
-            u95(j.k2_odd_u95)
-        ));
+        lines.push(format!("{j}."));
     }
     lines
 }

@@ -31,6 +31,8 @@ const MODULE_BUFFER_LIMIT: usize = 8 * 1024;
 /// client that reads the modules but never polls the rate still gets data;
 /// such a run is not reproducible).
 const LOCKSTEP_LIVENESS: Duration = Duration::from_secs(2);
+/// How often the virtual-time clock looks at the world.
+const LOCKSTEP_CLOCK_PERIOD: Duration = Duration::from_millis(5);
 
 /// Where a device can be reached.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -400,9 +402,7 @@ fn run_clock(
 fn lockstep_clock(world: &Shared<World>, buffers: &[Shared<VecDeque<u8>>], stop: &AtomicBool) {
     let mut free: Option<(Instant, u64)> = None;
     let mut last_second = (0u64, Instant::now());
-    let mut idle = IdleBackoff::default();
     while !stop.load(Ordering::Relaxed) {
-        let mut progressed = false;
         {
             let mut w = lock(world);
             if w.free_running() {
@@ -426,15 +426,12 @@ fn lockstep_clock(world: &Shared<World>, buffers: &[Shared<VecDeque<u8>>], stop:
                     && buffers.iter().all(|b| lock(b).is_empty())
                 {
                     w.advance_second();
-                    progressed = true;
                 }
             }
         }
-        thread::sleep(if progressed {
-            Duration::from_millis(1)
-        } else {
-            idle.next(false).max(Duration::from_millis(5))
-        });
+        // Nothing here needs to be quick: the station's own steps move the
+        // world; this thread only paces real time after a run and liveness.
+        thread::sleep(LOCKSTEP_CLOCK_PERIOD);
     }
 }
 

@@ -730,6 +730,8 @@ impl World {
         let reference_hz = self.config.reference_hz;
         let tick_ref = (reference_hz * TICK_S).round() as u64;
         let tick_start_ref = self.tick * tick_ref;
+        // The table's structural disturbance is one value per tick, for every instrument.
+        let disturbance = self.disturbance_g();
         let mut out = vec![Vec::new(); self.modules.len()];
         for (m, module_out) in out.iter_mut().enumerate() {
             let alive = self.module_alive(m);
@@ -739,7 +741,7 @@ impl World {
                 let i = m * INSTRUMENTS_PER_MODULE + slot;
                 let (f1, f2) =
                     if self.powered(i) && !self.is(&self.config.faults.dead_instruments, i) {
-                        self.frequencies(i, now)
+                        self.frequencies(i, now, disturbance)
                     } else {
                         (0.0, 0.0)
                     };
@@ -803,10 +805,10 @@ impl World {
         out
     }
 
-    /// The resonator frequencies of instrument `i` now, with noise.
-    fn frequencies(&mut self, i: usize, now: f64) -> (f64, f64) {
+    /// The resonator frequencies of instrument `i` now, with noise;
+    /// `disturbance` is the table's structural shift this tick [g].
+    fn frequencies(&mut self, i: usize, now: f64, disturbance: f64) -> (f64, f64) {
         let (a, cross) = self.input_g(i);
-        let disturbance = self.disturbance_g();
         let pc = &self.config.instruments;
         let v = &self.instruments[i];
         let since = v.powered_since_s.map_or(0.0, |t0| (now - t0).max(0.0));

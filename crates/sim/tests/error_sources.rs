@@ -126,77 +126,75 @@ fn assert_close(what: &str, got: f64, want: f64, relative: f64, absolute: f64) {
     );
 }
 
-#[test]
-fn arm_stretch_is_the_part_of_k2_common_to_mountings_p_and_n() {
-    let stretch = |c: &mut SimConfig| {
-        // c = 10 µg/g² at the drawing radius: k_s = c·R0²/g.
-        c.centrifuge.arm_stretch_m_per_rad2_s2 = 10e-6 * 0.64 / G;
-    };
+/// In both mountings at `g`: each instrument's shift with `change` (per
+/// mounting, per-mounting convention) over a², with its truth.
+fn shift_over_a2_per_mounting(
+    change: impl Fn(&mut SimConfig),
+    g: f64,
+) -> Vec<(Mounting, usize, f64, spinbench_sim::world::InstrumentTruth)> {
+    let mut out = Vec::new();
     for (mounting, sign) in [(Mounting::ArmP, 1.0), (Mounting::ArmN, -1.0)] {
-        let mut with = bench(mounting, stretch);
+        let mut with = bench(mounting, &change);
         let mut without = bench(mounting, |_| {});
-        let seen = at_level(&mut with, 60.0, 5);
-        let base = at_level(&mut without, 60.0, 5);
+        let seen = at_level(&mut with, g, 5);
+        let base = at_level(&mut without, g, 5);
         let truth = with.truth();
         let w = seen.mean_rate_rad_s();
         for (s, shift) in shift_ug(&seen, &base, &with, sign).into_iter().enumerate() {
-            let t = &truth.instruments[s];
+            let t = truth.instruments[s].clone();
             let r = match mounting {
                 Mounting::ArmP => t.position.radius_p_m,
                 _ => t.position.radius_n_m,
             };
             let a = w * w * r / G;
-            // The same in both mountings: + c·a² on the magnitude (method.md (15)).
-            assert_close(
-                &format!("slot {s} {mounting:?}: arm stretch / a² [µg/g²]"),
-                shift / (a * a),
-                t.per_mounting_k2.arm_stretch_ug_per_g2,
-                0.01,
-                0.0,
-            );
+            out.push((mounting, s, shift / (a * a), t));
         }
+    }
+    out
+}
+
+#[test]
+fn arm_stretch_is_the_part_of_k2_common_to_mountings_p_and_n() {
+    // c = 10 µg/g² at the drawing radius: k_s = c·R0²/g.
+    let stretch = |c: &mut SimConfig| c.centrifuge.arm_stretch_m_per_rad2_s2 = 10e-6 * 0.64 / G;
+    for (mounting, s, per_a2, t) in shift_over_a2_per_mounting(stretch, 60.0) {
+        // The same in both mountings: + c·a² on the magnitude (method.md (15)).
+        assert_close(
+            &format!("slot {s} {mounting:?}: arm stretch / a² [µg/g²]"),
+            per_a2,
+            t.per_mounting_k2.arm_stretch_ug_per_g2,
+            0.01,
+            0.0,
+        );
     }
 }
 
 #[test]
 fn koq_enters_both_mountings_alike_while_k2_changes_sign() {
-    for (mounting, sign) in [(Mounting::ArmP, 1.0), (Mounting::ArmN, -1.0)] {
-        let mut with = bench(mounting, |c| c.instruments.koq_max_ug_per_g2 = 20.0);
-        let mut without = bench(mounting, |_| {});
-        let seen = at_level(&mut with, 50.0, 5);
-        let base = at_level(&mut without, 50.0, 5);
-        let truth = with.truth();
-        let w = seen.mean_rate_rad_s();
-        for (s, shift) in shift_ug(&seen, &base, &with, sign).into_iter().enumerate() {
-            let t = &truth.instruments[s];
-            let r = match mounting {
-                Mounting::ArmP => t.position.radius_p_m,
-                _ => t.position.radius_n_m,
-            };
-            let a = w * w * r / G;
-            assert_close(
-                &format!("slot {s} {mounting:?}: Koq·a·|a| / a² [µg/g²]"),
-                shift / (a * a),
-                t.vba.koq_ug_per_g2,
-                0.02,
-                0.05,
-            );
-            let pm = &t.per_mounting_k2;
-            assert_close(
-                "k2_P − k2_N = 2·K2",
-                pm.p_ug_per_g2 - pm.n_ug_per_g2,
-                2.0 * t.instrument_k2_ug_per_g2,
-                1e-9,
-                1e-9,
-            );
-            assert_close(
-                "(k2_P + k2_N)/2 = Koq",
-                0.5 * (pm.p_ug_per_g2 + pm.n_ug_per_g2),
-                t.vba.koq_ug_per_g2,
-                1e-9,
-                1e-9,
-            );
-        }
+    let koq = |c: &mut SimConfig| c.instruments.koq_max_ug_per_g2 = 20.0;
+    for (mounting, s, per_a2, t) in shift_over_a2_per_mounting(koq, 50.0) {
+        assert_close(
+            &format!("slot {s} {mounting:?}: Koq·a·|a| / a² [µg/g²]"),
+            per_a2,
+            t.vba.koq_ug_per_g2,
+            0.02,
+            0.05,
+        );
+        let pm = &t.per_mounting_k2;
+        assert_close(
+            "k2_P − k2_N = 2·K2",
+            pm.p_ug_per_g2 - pm.n_ug_per_g2,
+            2.0 * t.instrument_k2_ug_per_g2,
+            1e-9,
+            1e-9,
+        );
+        assert_close(
+            "(k2_P + k2_N)/2 = Koq",
+            0.5 * (pm.p_ug_per_g2 + pm.n_ug_per_g2),
+            t.vba.koq_ug_per_g2,
+            1e-9,
+            1e-9,
+        );
     }
 }
 

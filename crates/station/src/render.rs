@@ -54,19 +54,7 @@ pub fn render_dataset(source: &str, analysis: &DatasetAnalysis) -> String {
     );
     let _ = writeln!(out, "uncertainties are 95 % intervals (Student t)");
     for e in &analysis.exclusions {
-        let _ = writeln!(
-            out,
-            "EXCLUDED by {}: mounting {} level {} g{} ({} reading(s)) — reason: {}",
-            e.by,
-            e.mount,
-            e.g,
-            e.unit
-                .as_deref()
-                .map(|u| format!(" of unit {u}"))
-                .unwrap_or_default(),
-            e.points_removed,
-            e.reason
-        );
+        let _ = writeln!(out, "{e}");
     }
     for unit in &analysis.units {
         out.push('\n');
@@ -125,15 +113,7 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
         let _ = writeln!(out, "  k2_max = {k2:.3} µg/g² (mounting {m})");
     }
     if let Some(j) = &unit.joint {
-        let u = |v: Option<f64>| v.map_or_else(|| "—".into(), |u| format!("{u:.3}"));
-        let _ = writeln!(
-            out,
-            "  both mountings (method.md (15)): K2 (even, the instrument's) = {:.3} ± {} µg/g²; odd part (Koq + arm stretch) = {:.3} ± {} µg/g² (U95)",
-            j.k2_even_ug_per_g2,
-            u(j.k2_even_u95),
-            j.k2_odd_ug_per_g2,
-            u(j.k2_odd_u95)
-        );
+        let _ = writeln!(out, "  {j}");
     }
 
     if let Some(full) = &unit.full_range {
@@ -210,7 +190,7 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
     );
     for fit in unit.fits.values() {
         if let Some(d) = &fit.diagnostics {
-            let _ = writeln!(out, "  diagnostics {}: {}", fit.mount, diagnostics_line(d));
+            let _ = writeln!(out, "  diagnostics {}: {d}", fit.mount);
         }
     }
     for (mount, cmp) in &unit.model_comparison {
@@ -234,57 +214,4 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
     for note in &unit.notes {
         let _ = writeln!(out, "  note: {note}");
     }
-}
-
-/// One mounting's fit diagnostics in a line: lack of fit, pure error,
-/// outlier levels, and the level whose removal moves k2 the most.
-pub fn diagnostics_line(d: &spinbench_analysis::diagnostics::Diagnostics) -> String {
-    let mut parts = Vec::new();
-    parts.push(match &d.lack_of_fit {
-        Some(l) => format!(
-            "lack of fit F {:.2} ({}, {}) p {:.2e}{}",
-            l.f,
-            l.dof[0],
-            l.dof[1],
-            l.p_value,
-            if l.p_value < 0.001 {
-                " — the model does not fit"
-            } else {
-                ""
-            }
-        ),
-        None => "lack of fit — (no replicated levels)".into(),
-    });
-    if let Some(pe) = d.pure_error_rms_ug {
-        parts.push(format!("pure error {pe:.1} µg RMS"));
-    }
-    if d.outlier_levels.is_empty() {
-        parts.push("no outlier level".into());
-    } else {
-        let levels: Vec<String> = d
-            .outlier_levels
-            .iter()
-            .map(|o| {
-                format!(
-                    "{} g ({:+.0} µg, t {:.1}, p {:.1e})",
-                    o.g, o.residual_ug, o.t, o.p
-                )
-            })
-            .collect();
-        parts.push(format!("OUTLIER LEVEL(S) {}", levels.join(", ")));
-    }
-    if let (Some(min), Some(max)) = (
-        d.influence
-            .iter()
-            .min_by(|a, b| a.k2_without_ug_per_g2.total_cmp(&b.k2_without_ug_per_g2)),
-        d.influence
-            .iter()
-            .max_by(|a, b| a.k2_without_ug_per_g2.total_cmp(&b.k2_without_ug_per_g2)),
-    ) {
-        parts.push(format!(
-            "k2 without one level {:.3} ({} g) to {:.3} ({} g) µg/g²",
-            min.k2_without_ug_per_g2, min.g, max.k2_without_ug_per_g2, max.g
-        ));
-    }
-    parts.join("; ")
 }

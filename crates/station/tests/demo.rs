@@ -255,7 +255,7 @@ fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
         "the decision rule is not named"
     );
     assert!(
-        html.contains("Both mountings (method.md (15))"),
+        html.contains("both mountings (method.md (15))"),
         "no joint reduction"
     );
 }

@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::plan::{DecisionRule, Verdict};
+use spinbench_analysis::exclusion::LevelExclusion;
 
 impl Executor<'_> {
     /// The steps of the plan that measure `slot` (tumble, radius, levels
@@ -241,30 +242,29 @@ impl Executor<'_> {
             run: None,
             points: point_list(records),
         }];
-        let mut applied = Vec::new();
-        for e in &plan.exclusions {
-            if e.serial.as_deref().is_some_and(|s| s != serial) {
-                continue;
-            }
-            let mut one = [spinbench_analysis::exclusion::LevelExclusion {
+        let by = if plan.operator.is_empty() {
+            "the plan".to_string()
+        } else {
+            plan.operator.clone()
+        };
+        let mut exclusions: Vec<LevelExclusion> = plan
+            .exclusions
+            .iter()
+            .filter(|e| e.serial.as_deref().is_none_or(|s| s == serial))
+            .map(|e| LevelExclusion {
                 unit: Some(serial.to_string()),
                 mount: e.mount,
                 g: e.g,
                 reason: e.reason.clone(),
-                by: if plan.operator.is_empty() {
-                    "the plan".into()
-                } else {
-                    plan.operator.clone()
-                },
+                by: by.clone(),
                 points_removed: 0,
-            }];
-            // An exclusion that matches none of this unit's readings removes nothing.
-            if spinbench_analysis::exclusion::apply(&mut units, &mut one).is_ok() {
-                applied.extend(one);
-            }
-        }
+            })
+            .collect();
+        spinbench_analysis::exclusion::apply(&mut units, &mut exclusions);
+        // One that removed nothing from this instrument is not its record's.
+        exclusions.retain(|e| e.points_removed > 0);
         let [unit] = units;
-        (unit.points, applied)
+        (unit.points, exclusions)
     }
 }
 

@@ -310,7 +310,7 @@ pub fn analyze_file_excluding(
     for w in &points.warnings {
         eprintln!("warning: {w}");
     }
-    spinbench_analysis::exclusion::apply(&mut points.units, &mut exclusions)
+    spinbench_analysis::exclusion::apply_all(&mut points.units, &mut exclusions)
         .with_context(|| file.display().to_string())?;
     let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order });
     analysis.exclusions = exclusions;
