@@ -8,11 +8,15 @@
 //! c' = (k2_P + k2_N)/2   (odd: Koq plus arm stretch)
 //! ```
 //!
-//! The two passes are independent fits: u² = (u_P² + u_N²)/4, with the
-//! effective degrees of freedom by Welch–Satterthwaite and U = t₀.₉₇₅(ν)·u.
+//! With both mountings' GUM budgets ([`crate::uncertainty`]) a source both
+//! share (the rate read-back, g_local, the timebase, the arm stretch) adds
+//! with its sign and each mounting's own sources in quadrature; without
+//! them the two fits' standard errors combine as u² = (u_P² + u_N²)/4. The
+//! effective degrees of freedom are by Welch–Satterthwaite and U = t₀.₉₇₅(ν)·u.
 //! The published per-mounting k2 and k2_max stay as the method defines them.
 
 use crate::model::{MountingFit, student_t_975};
+use crate::uncertainty::{MountingBudget, Uncertainty, joint_uncertainty};
 use serde::{Deserialize, Serialize};
 
 /// K2 and the odd part, each with its uncertainty.
@@ -28,10 +32,22 @@ pub struct JointK2 {
     /// Its expanded uncertainty at 95 % [µg/g²].
     #[serde(rename = "k2_odd_U95")]
     pub k2_odd_u95: Option<f64>,
-    /// Their (common) standard uncertainty [µg/g²].
+    /// K2's standard uncertainty [µg/g²] (the odd part's is in `uncertainty`).
     pub u_ug_per_g2: Option<f64>,
     /// Effective degrees of freedom (Welch–Satterthwaite).
     pub dof_eff: Option<f64>,
+    /// The GUM budgets of K2 and of the odd part, when both mountings have one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<JointUncertainty>,
+}
+
+/// The GUM uncertainty of K2 and of the odd part.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct JointUncertainty {
+    /// Of K2 (even) [µg/g²].
+    pub k2_even_ug_per_g2: Uncertainty,
+    /// Of the odd part [µg/g²].
+    pub k2_odd_ug_per_g2: Uncertainty,
 }
 
 impl std::fmt::Display for JointK2 {
@@ -49,9 +65,28 @@ impl std::fmt::Display for JointK2 {
     }
 }
 
-/// Combine the two mountings' fits; `None` unless both have k2.
-pub fn joint_k2(p: &MountingFit, n: &MountingFit) -> Option<JointK2> {
+/// Combine the two mountings' fits (and their GUM budgets, when given);
+/// `None` unless both have k2.
+pub fn joint_k2(
+    p: &MountingFit,
+    n: &MountingFit,
+    budgets: Option<(&MountingBudget, &MountingBudget)>,
+) -> Option<JointK2> {
     let (kp, kn) = (p.fit.k2_ug_per_g2?, n.fit.k2_ug_per_g2?);
+    if let Some((even, odd)) = budgets.and_then(|(bp, bn)| joint_uncertainty(bp, bn)) {
+        return Some(JointK2 {
+            k2_even_ug_per_g2: 0.5 * (kp - kn),
+            k2_even_u95: Some(even.u95),
+            k2_odd_ug_per_g2: 0.5 * (kp + kn),
+            k2_odd_u95: Some(odd.u95),
+            u_ug_per_g2: Some(even.u),
+            dof_eff: even.dof_eff,
+            uncertainty: Some(JointUncertainty {
+                k2_even_ug_per_g2: even,
+                k2_odd_ug_per_g2: odd,
+            }),
+        });
+    }
     let sp = p.fit.std_error.k2_ug_per_g2;
     let sn = n.fit.std_error.k2_ug_per_g2;
     let (u, dof) = match (sp, sn) {
@@ -76,6 +111,7 @@ pub fn joint_k2(p: &MountingFit, n: &MountingFit) -> Option<JointK2> {
         k2_odd_u95: expanded,
         u_ug_per_g2: u,
         dof_eff: dof,
+        uncertainty: None,
     })
 }
 

@@ -43,6 +43,7 @@ pub mod points;
 pub mod radius;
 pub mod scale_factor;
 pub mod tumble;
+pub mod uncertainty;
 pub mod unit;
 
 pub use error::AnalysisError;

@@ -206,6 +206,10 @@ pub struct MountingFit {
     /// Does the model fit: lack of fit, outlier levels, influence.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub diagnostics: Option<crate::diagnostics::Diagnostics>,
+    /// The GUM uncertainty of each coefficient: Type A (repeatability) and
+    /// the Type B inputs given ([`crate::uncertainty`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<Coefficients<Option<crate::uncertainty::Uncertainty>>>,
 }
 
 /// Fit method.md (2) to `points` under `convention`.
@@ -393,6 +397,7 @@ pub fn fit_mounting(
         mount,
         fit,
         diagnostics,
+        uncertainty: None,
     })
 }
 

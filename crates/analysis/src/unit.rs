@@ -20,6 +20,8 @@ use std::collections::BTreeMap;
 pub struct AnalysisOptions {
     /// Order of the model (2) fitted per mounting and over the full range.
     pub order: ModelOrder,
+    /// The Type B inputs of the GUM budget (all zero: Type A only).
+    pub type_b: crate::uncertainty::TypeBInputs,
 }
 
 /// The points of one unit (serial number) from one run, in the order taken.
@@ -137,9 +139,18 @@ pub fn analyze_unit(
     let all: Vec<Point> = by_mount.values().flatten().copied().collect();
 
     let mut fits = BTreeMap::new();
+    let mut budgets = BTreeMap::new();
     for (&mount, points) in &by_mount {
         let what = format!("{label} mounting {mount}");
-        fits.insert(mount, fit_mounting(points, mount, options.order, &what)?);
+        let mut fit = fit_mounting(points, mount, options.order, &what)?;
+        match crate::uncertainty::mounting_budget(points, options.order, &options.type_b, &what) {
+            Ok(budget) => {
+                fit.uncertainty = Some(budget.uncertainties());
+                budgets.insert(mount, budget);
+            }
+            Err(e) => notes.push(format!("mounting {mount} uncertainty budget left out: {e}")),
+        }
+        fits.insert(mount, fit);
     }
 
     let k2_max = fits
@@ -201,7 +212,9 @@ pub fn analyze_unit(
     }
 
     let joint = match (fits.get(&Mount::P), fits.get(&Mount::N)) {
-        (Some(p), Some(n)) => crate::joint::joint_k2(p, n),
+        (Some(p), Some(n)) => {
+            crate::joint::joint_k2(p, n, budgets.get(&Mount::P).zip(budgets.get(&Mount::N)))
+        }
         _ => None,
     };
     Ok(UnitAnalysis {

@@ -103,7 +103,7 @@ proptest! {
             })
             .collect();
         let units = [UnitPoints { unit: "X".into(), run: None, points }];
-        let a = analyze_dataset(&units, AnalysisOptions { order });
+        let a = analyze_dataset(&units, AnalysisOptions { order, ..Default::default() });
         // Reduced or said why, never both, never neither.
         prop_assert_eq!(a.units.len() + a.failed.len(), 1);
         for unit in &a.units {

@@ -57,7 +57,13 @@ fn per_mounting_fits_recover_the_truth_to_1e_9() {
                     run: None,
                     points,
                 }];
-                let analysis = analyze_dataset(&units, AnalysisOptions { order });
+                let analysis = analyze_dataset(
+                    &units,
+                    AnalysisOptions {
+                        order,
+                        ..Default::default()
+                    },
+                );
                 assert!(analysis.failed.is_empty(), "{:?}", analysis.failed);
                 let unit = &analysis.units[0];
                 for (mount, fit) in &unit.fits {

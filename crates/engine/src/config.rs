@@ -44,6 +44,12 @@ pub struct StationConfig {
     pub fmu: Vec<FmuConfig>,
     /// The programmable supplies.
     pub power_supply: Vec<PowerSupplyConfig>,
+    /// The Type B inputs of every instrument's GUM uncertainty budget
+    /// (method.md §6): the controller's read-back accuracy and resolution,
+    /// g_local, the counters' timebase, the arm-stretch coefficient's
+    /// uncertainty, the radius and the temperature. Absent: Type A only.
+    #[serde(default)]
+    pub uncertainty: spinbench_analysis::uncertainty::TypeBInputs,
 }
 
 fn default_station_name() -> String {
@@ -71,6 +77,12 @@ pub struct ArmConfig {
     /// (method.md §5). Absent: no Earth-rate correction.
     #[serde(default)]
     pub latitude_deg: Option<f64>,
+    /// Arm stretch c [µg/g²] (method.md (13), c = k_s·g/R0²): the radius
+    /// grows as R(ω) = R·(1 + c·a) with the acceleration a at R0, and every
+    /// applied acceleration includes it. Its uncertainty is
+    /// `uncertainty.arm_stretch_u_ug_per_g2`. Default 0.
+    #[serde(default)]
+    pub stretch_ug_per_g2: f64,
 }
 
 /// Supply roles.
@@ -103,6 +115,9 @@ fn default_rail_a() -> f64 {
 fn default_instrument_a() -> f64 {
     0.04
 }
+
+/// The largest arm stretch accepted [µg/g²] (a real arm stretches a few).
+pub const MAX_STRETCH_UG_PER_G2: f64 = 1000.0;
 
 /// A station config that cannot work; names the key.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -151,6 +166,24 @@ impl StationConfig {
             0.0
         } else {
             table_rad_s + self.earth_rate_vertical_rad_s()
+        }
+    }
+
+    /// The radius at rate ω relative to the radius at 1 g: the arm stretch
+    /// 1 + c·(a − 1) with a = ω²·R0/g (method.md (13)). The radius step
+    /// finds each instrument's radius at 1 g, so only the stretch beyond it counts.
+    pub fn stretch_factor(&self, rate_rad_s: f64) -> f64 {
+        let a = rate_rad_s * rate_rad_s * self.arm.radius_m / self.g_local_m_s2;
+        1.0 + self.arm.stretch_ug_per_g2 * 1e-6 * (a - 1.0)
+    }
+
+    /// The Type B inputs of slot `i`'s budget: the configured ones with the
+    /// slot's radius and g_local.
+    pub fn type_b(&self, i: usize) -> spinbench_analysis::uncertainty::TypeBInputs {
+        spinbench_analysis::uncertainty::TypeBInputs {
+            arm_radius_m: self.drawing_radius_m(i),
+            g_local_m_s2: self.g_local_m_s2,
+            ..self.uncertainty
         }
     }
 
@@ -311,6 +344,20 @@ impl StationConfig {
                 &format!("arm.position_radius_m[{i}]"),
                 format!("{r} is not a positive length in metres"),
             );
+        }
+        if !(self.arm.stretch_ug_per_g2.is_finite()
+            && self.arm.stretch_ug_per_g2.abs() <= MAX_STRETCH_UG_PER_G2)
+        {
+            return err(
+                "arm.stretch_ug_per_g2",
+                format!(
+                    "{} is not an arm stretch from -{MAX_STRETCH_UG_PER_G2} to {MAX_STRETCH_UG_PER_G2} µg/g² (MAX_STRETCH_UG_PER_G2)",
+                    self.arm.stretch_ug_per_g2
+                ),
+            );
+        }
+        if let Err(problem) = self.type_b(0).validate() {
+            return err("uncertainty", problem);
         }
         if !(self.arm.max_g > 0.0 && self.arm.max_g.is_finite()) {
             return err("arm.max_g", "must be a positive acceleration in g".into());

@@ -157,16 +157,17 @@ fn a_complete_run_measures_every_instrument() {
         assert_eq!(r.points.len(), 13, "{}: {:?}", r.serial, r.reasons);
         assert!(r.radius_m.contains_key(&Mount::P));
         assert!(r.analysis.is_some());
-        // The outcome follows k2_max ± its U95 against the limit (20 µg/g²,
+        // The outcome follows k2_max ± its GUM U95 against the limit (20 µg/g²,
         // marginal above 18) under the default, guarded, rule.
         let k2 = r.k2_max_ug_per_g2.expect("k2_max");
         let a = r.analysis.as_ref().expect("analysis");
-        let [lo, hi] = a.fits[&a.k2_max_mount.expect("mount")]
-            .fit
-            .ci95
-            .k2_ug_per_g2
-            .expect("interval");
-        let u = 0.5 * (hi - lo);
+        // U95 of the GUM budget (Type A repeatability and the station's Type B).
+        let u = a.fits[&a.k2_max_mount.expect("mount")]
+            .uncertainty
+            .as_ref()
+            .and_then(|u| u.k2_ug_per_g2.as_ref())
+            .expect("k2 budget")
+            .u95;
         let want = if k2 - u > 20.0 {
             Outcome::Fail
         } else if k2 + u > 20.0 {

@@ -13,13 +13,14 @@ use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
 /// A complete station config (TOML) for the bench: its arm, the power roles
 /// and its device sections; `power_extra` adds lines to `[power]`.
 pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
-    let (r0, instruments, current_a, latitude_deg) = bench.with_world(|w| {
+    let (r0, instruments, current_a, latitude_deg, uncertainty) = bench.with_world(|w| {
         let c = w.config();
         (
             c.centrifuge.arm_radius_m,
             c.modules * INSTRUMENTS_PER_MODULE,
             c.instruments.current_a,
             c.latitude_deg,
+            uncertainty_toml(c),
         )
     });
     // The station knows where it stands: the bench's latitude, for the Earth-rate correction.
@@ -42,8 +43,34 @@ pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
         limit.push_str(&format!("instrument_current_a = {current_a}\n"));
     }
     format!(
-        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n{latitude}\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{}",
+        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n{latitude}\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{uncertainty}{}",
         bench.station_config_toml()
+    )
+}
+
+/// The `[uncertainty]` section a station on this bench would carry: what
+/// its equipment's specifications say (the controller's read-back accuracy
+/// and resolution, the timebase, the instruments' and the arm's temperature
+/// coefficients, the windage heating and the radius found through a 1 g
+/// reading that gravity across the axis shifts), as bounds the bench's
+/// errors lie within. The station is not told the errors themselves.
+fn uncertainty_toml(c: &crate::config::SimConfig) -> String {
+    let t = &c.centrifuge;
+    let p = &c.instruments;
+    if t.readback_scale_ppm == 0.0 && t.windage_c_at_100g == 0.0 {
+        return String::new();
+    }
+    // The 1 g radius reading: gravity across the axis shifts it by up to
+    // the cross-axis coefficient (rectangular); the noise of its average is smaller.
+    let radius_ppm = p.cross_axis_max_ug_per_g / 3f64.sqrt();
+    format!(
+        "[uncertainty]\nradius_ppm = {radius_ppm}\nrate_accuracy_ppm = {}\nrate_resolution_deg_s = {}\ntimebase_ppm = 0.1\ntemperature_rise_c_at_100g = {}\nk0_tempco_ug_per_c = {}\nk1_tempco_ppm_per_c = {}\narm_expansion_ppm_per_c = {}\n\n",
+        t.readback_scale_ppm.abs().max(1.0),
+        t.readback_resolution_deg_s,
+        t.windage_c_at_100g,
+        p.temp_coeff_ug_per_c,
+        p.k1_temp_coeff_ppm_per_c,
+        t.arm_expansion_ppm_per_c,
     )
 }
 

@@ -467,7 +467,8 @@ impl World {
         use spinbench_analysis::{Mount, Point, model::fit_mounting};
         // The instrument as built: no random walk, warm-up or temperature
         // (the world may have run on in real time since the run ended).
-        let v = Vba::new(self.instruments.get(i)?.truth);
+        let v_truth = self.instruments.get(i)?.truth;
+        let v = Vba::new(v_truth);
         let p = self.positions.get(i)?;
         let (g, t) = (self.config.g_local_m_s2, &self.config.centrifuge);
         let r = match mount {
@@ -479,10 +480,19 @@ impl World {
             .map(|&level| {
                 let w2 = level * g / t.arm_radius_m;
                 let inertial = w2.sqrt() + self.earth_rate_vertical_rad_s();
+                // The arm's structural disturbance at this level is part of
+                // the acceleration applied on this centrifuge.
+                let disturbance_g = t
+                    .disturbances
+                    .iter()
+                    .map(|d| d.shift_ug(level))
+                    .sum::<f64>()
+                    * 1e-6
+                    * v_truth.disturbance_gain;
                 let a_true = if level == 0.0 {
                     0.0
                 } else {
-                    inertial * inertial * (r + t.arm_stretch_m_per_rad2_s2 * w2) / g
+                    inertial * inertial * (r + t.arm_stretch_m_per_rad2_s2 * w2) / g + disturbance_g
                 };
                 let (f1, f2) = v.resonators(&Inputs {
                     a_g: mount.input_sign() * a_true,
@@ -816,12 +826,19 @@ impl World {
         let temp_offset =
             self.instrument_temperature_c(i) - (self.config.ambient_c + pc.self_heating_c);
         let warmup = pc.warmup_ug * 1e-6 * (-since / pc.warmup_tau_s).exp();
+        // The structural disturbance is the arm's: an acceleration along the
+        // radius, outward in both mountings (its gain is the fixture's coupling).
+        let radial_sign = match v.mounting {
+            Mounting::ArmP => 1.0,
+            Mounting::ArmN => -1.0,
+            Mounting::TumbleUp | Mounting::TumbleDown => 0.0,
+        };
         let (mut f1, mut f2) = v.resonators(&Inputs {
-            a_g: a,
+            a_g: a + radial_sign * disturbance * v.truth.disturbance_gain,
             cross_g: cross,
             temp_offset_c: temp_offset,
             warmup_g: warmup,
-            extra_g: disturbance * v.truth.disturbance_gain + self.flicker_g[i].iter().sum::<f64>(),
+            extra_g: self.flicker_g[i].iter().sum::<f64>(),
         });
         if self.is(&self.config.faults.drifting_instruments, i) {
             let rate = match self.config.faults.drift_ug_per_s {

@@ -35,6 +35,14 @@ pub struct DemoUnit {
     pub k2_ug_per_g2: Option<f64>,
     /// Its 95 % interval.
     pub k2_ci95: Option<[f64; 2]>,
+    /// Its expanded GUM uncertainty at 95 % (Type A and the station's Type B).
+    #[serde(rename = "k2_U95")]
+    pub k2_u95: Option<f64>,
+    /// K2 of both mountings together (method.md (15)), on the instrument's entries of both mountings.
+    pub k2_even_ug_per_g2: Option<f64>,
+    /// Its expanded GUM uncertainty at 95 %.
+    #[serde(rename = "k2_even_U95")]
+    pub k2_even_u95: Option<f64>,
     /// The instrument's K2 in the same per-mounting convention (N flips the sign).
     pub true_k2_ug_per_g2: f64,
     /// The instrument's own K2 (the even, IEEE value; the same in both mountings).
@@ -67,11 +75,9 @@ pub fn compare_with_truth(
             continue;
         };
         for mount in [Mount::P, Mount::N] {
-            let fit = r
-                .analysis
-                .as_ref()
-                .and_then(|a| a.fits.get(&mount))
-                .map(|f| &f.fit);
+            let mounting = r.analysis.as_ref().and_then(|a| a.fits.get(&mount));
+            let fit = mounting.map(|f| &f.fit);
+            let joint = r.analysis.as_ref().and_then(|a| a.joint.as_ref());
             if fit.is_none() && !r.radius_m.contains_key(&mount) {
                 continue;
             }
@@ -88,6 +94,12 @@ pub fn compare_with_truth(
                 drawing_radius_m: t.position.drawing_radius_m,
                 k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
                 k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
+                k2_u95: mounting
+                    .and_then(|f| f.uncertainty.as_ref())
+                    .and_then(|u| u.k2_ug_per_g2.as_ref())
+                    .map(|u| u.u95),
+                k2_even_ug_per_g2: joint.map(|j| j.k2_even_ug_per_g2),
+                k2_even_u95: joint.and_then(|j| j.k2_even_u95),
                 true_k2_ug_per_g2: sign * t.vba.k2_ug_per_g2,
                 true_instrument_k2_ug_per_g2: t.instrument_k2_ug_per_g2,
                 true_mounting_k2_ug_per_g2: perfect_k2(r.slot, mount).unwrap_or(match mount {

@@ -6,6 +6,23 @@ use crate::plan::{DecisionRule, Verdict};
 use spinbench_analysis::exclusion::LevelExclusion;
 
 impl Executor<'_> {
+    /// How `slot`'s points are reduced: the plan's order and the station's
+    /// Type B inputs with the slot's radius.
+    pub(super) fn analysis_options(&self, slot: usize) -> AnalysisOptions {
+        AnalysisOptions {
+            order: self.plan.order,
+            type_b: spinbench_analysis::uncertainty::TypeBInputs {
+                // Each point averages its dwell's one-second read-backs.
+                // (the fewest an adaptive dwell takes).
+                readings_per_point: f64::from(match self.plan.plan.dwell.sem_target_ug {
+                    Some(_) => self.plan.plan.dwell.min_seconds.max(1),
+                    None => self.plan.plan.dwell.seconds.max(1),
+                }),
+                ..self.station.type_b(slot)
+            },
+        }
+    }
+
     /// The steps of the plan that measure `slot` (tumble, radius, levels
     /// of the passes it takes part in) and were not all done.
     pub(super) fn steps_left(&self, slot: usize) -> usize {
@@ -62,9 +79,7 @@ impl Executor<'_> {
                             run: None,
                             points: points.clone(),
                         },
-                        AnalysisOptions {
-                            order: self.plan.order,
-                        },
+                        self.analysis_options(slot),
                     )
                 {
                     k2_max = a.k2_max_ug_per_g2;
@@ -80,12 +95,7 @@ impl Executor<'_> {
                     run: None,
                     points: points.clone(),
                 };
-                match analyze_unit(
-                    &input,
-                    AnalysisOptions {
-                        order: self.plan.order,
-                    },
-                ) {
+                match analyze_unit(&input, self.analysis_options(slot)) {
                     Ok(a) => {
                         k2_max = a.k2_max_ug_per_g2;
                         // Each figure against its limit; the outcome is the worst.
@@ -130,12 +140,15 @@ impl Executor<'_> {
                             ),
                         ];
                         outcome = Outcome::Pass;
-                        // k2's U95: its mounting's interval half-width.
-                        let k2_u95 = a
-                            .k2_max_mount
-                            .and_then(|m| a.fits.get(&m))
-                            .and_then(|f| f.fit.ci95.k2_ug_per_g2)
-                            .map(|[lo, hi]| 0.5 * (hi - lo));
+                        // k2's U95: its mounting's GUM budget (Type A and the
+                        // station's Type B inputs), else its interval half-width.
+                        let k2_u95 = a.k2_max_mount.and_then(|m| a.fits.get(&m)).and_then(|f| {
+                            f.uncertainty
+                                .as_ref()
+                                .and_then(|u| u.k2_ug_per_g2.as_ref())
+                                .map(|u| u.u95)
+                                .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)))
+                        });
                         let rule = limits.decision_rule;
                         for (name, value, limit, unit, [over, near]) in checks {
                             let (Some(v), Some(l)) = (value, limit) else {

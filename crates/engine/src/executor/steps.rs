@@ -310,8 +310,8 @@ impl Executor<'_> {
                 mount,
                 g_nominal,
                 direction,
-                // method.md (9): each instrument's own radius.
-                g_applied: w_meas * w_meas * radius / g,
+                // method.md (9), (13): each instrument's own radius, stretched.
+                g_applied: w_meas * w_meas * radius * self.station.stretch_factor(w_meas) / g,
                 rate_deg_s: rate,
                 output_hz: mean,
                 std_hz: std,

@@ -312,7 +312,13 @@ pub fn analyze_file_excluding(
     }
     spinbench_analysis::exclusion::apply_all(&mut points.units, &mut exclusions)
         .with_context(|| file.display().to_string())?;
-    let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order });
+    let mut analysis = analyze_dataset(
+        &points.units,
+        AnalysisOptions {
+            order,
+            ..Default::default()
+        },
+    );
     analysis.exclusions = exclusions;
     Ok(analysis)
 }

@@ -1,0 +1,647 @@
+//! The GUM uncertainty of one mounting's coefficients (JCGM 100; method.md §6)
+//! and of the two mountings' K2 and odd part (method.md (15)).
+//!
+//! Every source is propagated through its sensitivity coefficients, found
+//! by refitting method.md (2) to the points with that source's input moved
+//! (central differences; the fit is linear in the outputs and smooth in the
+//! inputs, so this is the GUM's first-order propagation without hand-derived
+//! derivatives that could drift from the fit):
+//!
+//! | source | model | distribution | shared |
+//! |---|---|---|---|
+//! | repeatability (Type A) | the fit's covariance with the pure-error variance of replicated levels (up, down, repeated visits), a drift linear in time taken out ([`pure_error`]) | Student t, ν = pure-error dof | per mounting |
+//! | fit scatter (Type A) | the fit's covariance with the residual variance, when no level is replicated | Student t, ν = fit dof | per mounting |
+//! | radius | a → a·(1 + δR/R), method.md (9) | normal, u = `radius_ppm` | per mounting (R+ and R− measured apart) |
+//! | rate accuracy | a → a·(1 + 2·δω/ω), method.md (14) | rectangular ± `rate_accuracy_ppm` | common |
+//! | rate resolution | δa_i = 2·δω·√(a_i·R/g) per point, averaged over its n read-backs | rectangular ± step/2, /√n | per point |
+//! | g_local | a → a·(1 − δg/g), method.md (3) | normal, u = `g_local_ppm` | common |
+//! | timebase | output → output·(1 + ε) | rectangular ± `timebase_ppm` | common |
+//! | arm stretch | a → a + δc·a², method.md (13) | normal, u = `arm_stretch_u_ug_per_g2` | common |
+//! | temperature (bias) | output error k1·k0'·ΔT(a) | rectangular ± `k0_tempco_ug_per_c` | common |
+//! | temperature (scale) | a → a·(1 + (k1' + α_arm)·ΔT(a)) | rectangular ± the coefficients' sum | common |
+//!
+//! ΔT(a) = `temperature_rise_c_at_100g`·(a/100 g)^1.5 is the windage heating
+//! of the instruments and the arm, which rises with ω³ (method.md §5); a
+//! slow drift of the room cancels between the ascending and descending
+//! readings of a level to first order and is not modelled.
+//!
+//! Combined: u_c² = Σ uᵢ²; effective degrees of freedom by Welch–Satterthwaite
+//! ν_eff = u_c⁴ / Σ uᵢ⁴/νᵢ (Type B sources ν = ∞); U95 = t₀.₉₇₅(ν_eff)·u_c.
+//!
+//! The Type A part is the repeatability (pure error) because the measurand
+//! is the published method's coefficient over the plan's levels on this
+//! centrifuge: a misfit that repeats in every reading (a level displaced up
+//! and down alike) is part of what that coefficient is, and the
+//! diagnostics ([`crate::diagnostics`]) say how large it is and where; the
+//! joint K2 ([`joint_uncertainty`]) is where the centrifuge's part is
+//! separated from the instrument's.
+
+use crate::AnalysisError;
+use crate::model::{Coefficients, ModelOrder, student_t_975};
+use crate::points::Point;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The largest relative Type B input accepted [ppm] (10 %).
+pub const MAX_TYPE_B_PPM: f64 = 1e5;
+/// The largest arm-stretch uncertainty accepted [µg/g²].
+pub const MAX_STRETCH_U_UG_PER_G2: f64 = 1e4;
+/// The largest temperature span accepted [°C].
+pub const MAX_TEMPERATURE_SPAN_C: f64 = 200.0;
+/// The largest temperature coefficient accepted [µg/°C or ppm/°C].
+pub const MAX_TEMPCO: f64 = 1e5;
+/// The largest rate-read-back resolution accepted [°/s].
+pub const MAX_RESOLUTION_DEG_S: f64 = 100.0;
+/// The largest arm radius accepted [m].
+pub const MAX_ARM_RADIUS_M: f64 = 20.0;
+
+/// The Type B inputs of a reduction: the station config's `[uncertainty]`
+/// section, or `analyze --type-b FILE` for legacy data. Every field
+/// defaults to 0 (that source contributes nothing).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TypeBInputs {
+    /// Standard uncertainty of each instrument's radius, relative [ppm]
+    /// (the tumble's noise and the 1 g reading, method.md (5)–(8)).
+    pub radius_ppm: f64,
+    /// The controller's rate read-back accuracy, ± half-width [ppm of rate].
+    pub rate_accuracy_ppm: f64,
+    /// The rate read-back's resolution (one step) [°/s].
+    pub rate_resolution_deg_s: f64,
+    /// The arm radius the resolution is turned into acceleration with [m]
+    /// (needed only with `rate_resolution_deg_s`).
+    pub arm_radius_m: f64,
+    /// Rate read-backs averaged into each point (the point's one-second
+    /// values; 0 or 1: one). The table's ripple dithers the read-back's
+    /// quantisation, so its error averages as 1/√n.
+    pub readings_per_point: f64,
+    /// Local gravity [m/s²] for the same (default standard gravity).
+    pub g_local_m_s2: f64,
+    /// Standard uncertainty of g_local, relative [ppm].
+    pub g_local_ppm: f64,
+    /// The counters' timebase accuracy, ± half-width [ppm].
+    pub timebase_ppm: f64,
+    /// Standard uncertainty of the arm-stretch coefficient c [µg/g²]
+    /// (method.md (13); the stretch itself is in the applied acceleration).
+    pub arm_stretch_u_ug_per_g2: f64,
+    /// The instruments' and the arm's temperature rise with speed at 100 g
+    /// (windage heating; ∝ ω³ below and above) [°C].
+    pub temperature_rise_c_at_100g: f64,
+    /// Bound of the bias temperature coefficient [µg/°C].
+    pub k0_tempco_ug_per_c: f64,
+    /// Bound of the scale-factor temperature coefficient [ppm/°C].
+    pub k1_tempco_ppm_per_c: f64,
+    /// Bound of the arm's thermal expansion coefficient [ppm/°C] (method.md (13)).
+    pub arm_expansion_ppm_per_c: f64,
+}
+
+impl TypeBInputs {
+    /// Check every field: finite, not negative, within its named bound; the
+    /// error names the key.
+    pub fn validate(&self) -> Result<(), String> {
+        let checks: [(&str, f64, f64); 13] = [
+            ("readings_per_point", self.readings_per_point, 1e5),
+            ("radius_ppm", self.radius_ppm, MAX_TYPE_B_PPM),
+            ("rate_accuracy_ppm", self.rate_accuracy_ppm, MAX_TYPE_B_PPM),
+            (
+                "rate_resolution_deg_s",
+                self.rate_resolution_deg_s,
+                MAX_RESOLUTION_DEG_S,
+            ),
+            ("arm_radius_m", self.arm_radius_m, MAX_ARM_RADIUS_M),
+            ("g_local_m_s2", self.g_local_m_s2, 20.0),
+            ("g_local_ppm", self.g_local_ppm, MAX_TYPE_B_PPM),
+            ("timebase_ppm", self.timebase_ppm, MAX_TYPE_B_PPM),
+            (
+                "arm_stretch_u_ug_per_g2",
+                self.arm_stretch_u_ug_per_g2,
+                MAX_STRETCH_U_UG_PER_G2,
+            ),
+            (
+                "temperature_rise_c_at_100g",
+                self.temperature_rise_c_at_100g,
+                MAX_TEMPERATURE_SPAN_C,
+            ),
+            (
+                "arm_expansion_ppm_per_c",
+                self.arm_expansion_ppm_per_c,
+                MAX_TEMPCO,
+            ),
+            ("k0_tempco_ug_per_c", self.k0_tempco_ug_per_c, MAX_TEMPCO),
+            ("k1_tempco_ppm_per_c", self.k1_tempco_ppm_per_c, MAX_TEMPCO),
+        ];
+        for (key, value, bound) in checks {
+            if !value.is_finite() || value < 0.0 || value > bound {
+                return Err(format!("{key} = {value} is not a number from 0 to {bound}"));
+            }
+        }
+        if self.rate_resolution_deg_s > 0.0 && self.arm_radius_m <= 0.0 {
+            return Err(
+                "rate_resolution_deg_s needs arm_radius_m (the radius that turns the rate into acceleration)"
+                    .into(),
+            );
+        }
+        Ok(())
+    }
+
+    /// True when no Type B source is given.
+    pub fn is_empty(&self) -> bool {
+        let z = TypeBInputs {
+            arm_radius_m: self.arm_radius_m,
+            readings_per_point: self.readings_per_point,
+            g_local_m_s2: self.g_local_m_s2,
+            ..TypeBInputs::default()
+        };
+        *self == z
+    }
+
+    fn g_local(&self) -> f64 {
+        if self.g_local_m_s2 > 0.0 {
+            self.g_local_m_s2
+        } else {
+            crate::STANDARD_GRAVITY_M_S2
+        }
+    }
+}
+
+/// A source of uncertainty.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Source {
+    /// Type A: the pure error of replicated levels.
+    Repeatability,
+    /// Type A: the residual scatter, when no level is replicated.
+    FitScatter,
+    /// Each instrument's radius.
+    Radius,
+    /// The rate read-back's accuracy.
+    RateAccuracy,
+    /// The rate read-back's resolution.
+    RateResolution,
+    /// Local gravity.
+    GLocal,
+    /// The counters' timebase.
+    Timebase,
+    /// The arm-stretch coefficient.
+    ArmStretch,
+    /// The temperature rise with speed, through the bias.
+    TemperatureBias,
+    /// The temperature rise with speed, through the scale factor and the arm.
+    TemperatureScale,
+}
+
+impl Source {
+    /// Whether both mountings share this source's error (so it is added
+    /// with its sign between them) or each has its own.
+    pub fn shared_by_mountings(self) -> bool {
+        matches!(
+            self,
+            Source::RateAccuracy
+                | Source::GLocal
+                | Source::Timebase
+                | Source::ArmStretch
+                | Source::TemperatureBias
+                | Source::TemperatureScale
+        )
+    }
+
+    /// Type A (statistical) or B.
+    pub fn is_type_a(self) -> bool {
+        matches!(self, Source::Repeatability | Source::FitScatter)
+    }
+}
+
+impl fmt::Display for Source {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Source::Repeatability => "repeatability (A)",
+            Source::FitScatter => "fit scatter (A)",
+            Source::Radius => "radius",
+            Source::RateAccuracy => "rate accuracy",
+            Source::RateResolution => "rate resolution",
+            Source::GLocal => "g_local",
+            Source::Timebase => "timebase",
+            Source::ArmStretch => "arm stretch",
+            Source::TemperatureBias => "temperature (bias)",
+            Source::TemperatureScale => "temperature (scale, arm)",
+        })
+    }
+}
+
+/// One source's contribution |cᵢ|·u(xᵢ) to a coefficient's uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Contribution {
+    /// The source.
+    pub source: Source,
+    /// Its contribution, in the coefficient's unit.
+    pub u: f64,
+}
+
+/// A coefficient's GUM uncertainty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Uncertainty {
+    /// Combined standard uncertainty, in the coefficient's unit.
+    pub u: f64,
+    /// Expanded uncertainty at 95 %: t₀.₉₇₅(ν_eff)·u.
+    #[serde(rename = "U95")]
+    pub u95: f64,
+    /// Effective degrees of freedom (Welch–Satterthwaite); `None` = infinite.
+    pub dof_eff: Option<f64>,
+    /// Each source's contribution, largest first.
+    pub budget: Vec<Contribution>,
+}
+
+impl fmt::Display for Uncertainty {
+    /// "U95 2.10 (u 1.02, ν 14.2: repeatability (A) 0.98, radius 0.20, …)".
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let dof = self
+            .dof_eff
+            .map_or_else(|| "∞".to_string(), |d| format!("{d:.1}"));
+        let parts: Vec<String> = self
+            .budget
+            .iter()
+            .map(|c| format!("{} {}", c.source, sig(c.u)))
+            .collect();
+        write!(
+            f,
+            "U95 {} (u {}, ν {dof}: {})",
+            sig(self.u95),
+            sig(self.u),
+            parts.join(", ")
+        )
+    }
+}
+
+/// Three significant figures, for budget lines.
+fn sig(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let digits = (2 - v.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    format!("{v:.digits$}")
+}
+
+/// One source's effect on k0 [g], k1, k2 [µg/g²], k3 [µg/g³] of one mounting:
+/// signed for a source the mountings share, an RSS over points otherwise.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Effect {
+    /// The source.
+    pub source: Source,
+    /// Its standard-uncertainty contribution to each coefficient.
+    pub delta: [f64; 4],
+    /// Its degrees of freedom; `None` = infinite (Type B).
+    pub dof: Option<f64>,
+}
+
+/// Every source's effect on one mounting's coefficients.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MountingBudget {
+    /// Which coefficients the model has (k0, k1, k2, k3).
+    pub present: [bool; 4],
+    /// The effects, in source order.
+    pub effects: Vec<Effect>,
+}
+
+impl MountingBudget {
+    /// The combined uncertainty of each coefficient.
+    pub fn uncertainties(&self) -> Coefficients<Option<Uncertainty>> {
+        let of = |j: usize| {
+            self.present[j].then(|| {
+                combine(
+                    self.effects
+                        .iter()
+                        .map(|e| (e.source, e.delta[j], e.dof))
+                        .collect(),
+                )
+            })
+        };
+        Coefficients {
+            k0_g: of(0),
+            k1: of(1),
+            k2_ug_per_g2: of(2),
+            k3_ug_per_g3: of(3),
+        }
+    }
+}
+
+/// Combine components (source, contribution, dof) into one uncertainty;
+/// components of one source are merged in the budget (RSS).
+pub fn combine(components: Vec<(Source, f64, Option<f64>)>) -> Uncertainty {
+    let u2: f64 = components.iter().map(|(_, d, _)| d * d).sum();
+    let u = u2.sqrt();
+    let ws: f64 = components
+        .iter()
+        .filter_map(|(_, d, dof)| dof.map(|n| d.powi(4) / n.max(1.0)))
+        .sum();
+    let dof_eff = (ws > 0.0).then(|| u2 * u2 / ws).filter(|d| d.is_finite());
+    let k = match dof_eff {
+        // Rounded down to a whole number (conservative), at least 1.
+        Some(d) if d < 1e6 => student_t_975(d.floor().max(1.0) as usize).unwrap_or(1.959_964),
+        _ => 1.959_964,
+    };
+    let mut budget: Vec<Contribution> = Vec::new();
+    for (source, d, _) in components {
+        match budget.iter_mut().find(|c| c.source == source) {
+            Some(c) => c.u = c.u.hypot(d),
+            None => budget.push(Contribution { source, u: d.abs() }),
+        }
+    }
+    budget.sort_by(|a, b| b.u.total_cmp(&a.u));
+    Uncertainty {
+        u,
+        u95: k * u,
+        dof_eff,
+        budget,
+    }
+}
+
+/// The coefficients k0 [g], k1, k2 [µg/g²], k3 [µg/g³] of the per-mounting fit
+/// of `points` (magnitude convention), 0 where the order has none.
+fn coefficients(
+    points: &[Point],
+    order: ModelOrder,
+    what: &str,
+) -> Result<[f64; 4], AnalysisError> {
+    let fit =
+        crate::model::fit_ieee1293(points, order, crate::model::Convention::PerMounting, what)?;
+    Ok([
+        fit.k0_g,
+        fit.k1,
+        fit.k2_ug_per_g2.unwrap_or(0.0),
+        fit.k3_ug_per_g3.unwrap_or(0.0),
+    ])
+}
+
+/// Central difference of the coefficients under a family of moved inputs.
+fn sensitivity(
+    points: &[Point],
+    order: ModelOrder,
+    step: f64,
+    moved: impl Fn(&Point, f64) -> Point,
+    what: &str,
+) -> Result<[f64; 4], AnalysisError> {
+    let at = |h: f64| {
+        let ps: Vec<Point> = points.iter().map(|p| moved(p, h)).collect();
+        coefficients(&ps, order, what)
+    };
+    let (plus, minus) = (at(step)?, at(-step)?);
+    Ok(std::array::from_fn(|j| (plus[j] - minus[j]) / (2.0 * step)))
+}
+
+/// The budget of one mounting's fit of `points` with `inputs`.
+pub fn mounting_budget(
+    points: &[Point],
+    order: ModelOrder,
+    inputs: &TypeBInputs,
+    what: &str,
+) -> Result<MountingBudget, AnalysisError> {
+    let fit =
+        crate::model::fit_ieee1293(points, order, crate::model::Convention::PerMounting, what)?;
+    let p = order.coefficients();
+    let present: [bool; 4] = std::array::from_fn(|j| j < p);
+    let mut effects = Vec::new();
+
+    // Type A: the fit's standard errors rescaled from the residual variance
+    // to the pure-error variance where levels are replicated.
+    let residuals: Vec<f64> = fit.residuals.iter().map(|r| r.residual).collect();
+    let (ss_pe, dof_pe) = pure_error(points, &residuals);
+    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    let se = [
+        fit.std_error.k0_g,
+        fit.std_error.k1,
+        fit.std_error.k2_ug_per_g2,
+        fit.std_error.k3_ug_per_g3,
+    ];
+    if fit.dof > 0 && rss > 0.0 {
+        let (source, scale, dof) = if dof_pe > 0 {
+            let ratio = (ss_pe / dof_pe as f64) / (rss / fit.dof as f64);
+            (Source::Repeatability, ratio.sqrt(), dof_pe)
+        } else {
+            (Source::FitScatter, 1.0, fit.dof)
+        };
+        effects.push(Effect {
+            source,
+            delta: std::array::from_fn(|j| se[j].unwrap_or(0.0) * scale),
+            dof: Some(dof as f64),
+        });
+    }
+
+    let scaled = |p: &Point, h: f64| Point {
+        g_applied: p.g_applied * (1.0 + h),
+        ..*p
+    };
+    let need_scale =
+        inputs.radius_ppm > 0.0 || inputs.rate_accuracy_ppm > 0.0 || inputs.g_local_ppm > 0.0;
+    if need_scale {
+        let d = sensitivity(points, order, 1e-6, scaled, what)?;
+        let mut push = |source: Source, u_rel: f64| {
+            if u_rel != 0.0 {
+                effects.push(Effect {
+                    source,
+                    delta: d.map(|x| x * u_rel),
+                    dof: None,
+                });
+            }
+        };
+        push(Source::Radius, inputs.radius_ppm * 1e-6);
+        // a ∝ ω²: twice the rate's relative error (rectangular).
+        push(
+            Source::RateAccuracy,
+            2.0 * inputs.rate_accuracy_ppm * 1e-6 / 3f64.sqrt(),
+        );
+        // a ∝ 1/g_local.
+        push(Source::GLocal, -inputs.g_local_ppm * 1e-6);
+    }
+    if inputs.timebase_ppm > 0.0 {
+        let d = sensitivity(
+            points,
+            order,
+            1e-6,
+            |p, h| Point {
+                output: p.output * (1.0 + h),
+                ..*p
+            },
+            what,
+        )?;
+        let u_rel = inputs.timebase_ppm * 1e-6 / 3f64.sqrt();
+        effects.push(Effect {
+            source: Source::Timebase,
+            delta: d.map(|x| x * u_rel),
+            dof: None,
+        });
+    }
+    if inputs.arm_stretch_u_ug_per_g2 > 0.0 {
+        // c in µg/g²: a → a + c·1e-6·a².
+        let d = sensitivity(
+            points,
+            order,
+            1.0,
+            |p, h| Point {
+                g_applied: p.g_applied + h * 1e-6 * p.g_applied * p.g_applied,
+                ..*p
+            },
+            what,
+        )?;
+        effects.push(Effect {
+            source: Source::ArmStretch,
+            delta: d.map(|x| x * inputs.arm_stretch_u_ug_per_g2),
+            dof: None,
+        });
+    }
+
+    // The windage heating ΔT(a), rising with ω³ ∝ a^1.5; its effect's sign
+    // is unknown (rectangular), the same in both passes.
+    let rise = |a: f64| inputs.temperature_rise_c_at_100g * (a / 100.0).powf(1.5);
+    if inputs.temperature_rise_c_at_100g > 0.0 && inputs.k0_tempco_ug_per_c > 0.0 {
+        let k1 = fit.k1;
+        let d = sensitivity(
+            points,
+            order,
+            1.0,
+            |p, h| Point {
+                // h µg/°C of bias moves the output by k1·h·1e-6·ΔT in the instrument's
+                // own sense (k1 of mounting N is the instrument's k1 negated).
+                output: p.output + k1 * p.mount.input_sign() * h * 1e-6 * rise(p.g_magnitude()),
+                ..*p
+            },
+            what,
+        )?;
+        let u = inputs.k0_tempco_ug_per_c / 3f64.sqrt();
+        effects.push(Effect {
+            source: Source::TemperatureBias,
+            delta: d.map(|x| x * u),
+            dof: None,
+        });
+    }
+    let scale_tempco = inputs.k1_tempco_ppm_per_c + inputs.arm_expansion_ppm_per_c;
+    if inputs.temperature_rise_c_at_100g > 0.0 && scale_tempco > 0.0 {
+        let d = sensitivity(
+            points,
+            order,
+            1.0,
+            |p, h| Point {
+                g_applied: p.g_applied * (1.0 + h * 1e-6 * rise(p.g_magnitude())),
+                ..*p
+            },
+            what,
+        )?;
+        let u = scale_tempco / 3f64.sqrt();
+        effects.push(Effect {
+            source: Source::TemperatureScale,
+            delta: d.map(|x| x * u),
+            dof: None,
+        });
+    }
+
+    // The read-back's resolution: each point's own error, independent of the others.
+    if inputs.rate_resolution_deg_s > 0.0 {
+        let c = fit.polynomial_coefficients();
+        let y_scale = points
+            .iter()
+            .fold(0.0_f64, |m, p| m.max(p.output.abs()))
+            .max(1.0);
+        let mut res2 = [0.0; 4];
+        for i in 0..points.len() {
+            // The fit is linear in the outputs: this difference is exact.
+            let step = 1e-6 * y_scale;
+            let at = |h: f64| {
+                let mut ps = points.to_vec();
+                ps[i].output += h;
+                coefficients(&ps, order, what)
+            };
+            let (plus, minus) = (at(step)?, at(-step)?);
+            let a = points[i].g_magnitude();
+            // δa = 2·δω·√(a·R/g), δω rectangular over one step.
+            let u_w = inputs.rate_resolution_deg_s.to_radians()
+                / 12f64.sqrt()
+                / inputs.readings_per_point.max(1.0).sqrt();
+            let u_a = 2.0 * u_w * (a * inputs.arm_radius_m / inputs.g_local()).sqrt();
+            let slope = c[1] + a * (2.0 * c[2] + 3.0 * c[3] * a);
+            for j in 0..4 {
+                res2[j] += ((plus[j] - minus[j]) / (2.0 * step) * slope * u_a).powi(2);
+            }
+        }
+        effects.push(Effect {
+            source: Source::RateResolution,
+            delta: res2.map(f64::sqrt),
+            dof: None,
+        });
+    }
+    Ok(MountingBudget { present, effects })
+}
+
+/// Sum of squares and dof of the replicated levels' residuals about their
+/// level's mean (levels by |g_nominal|), with a drift linear in time taken
+/// out first (the points' order is the order taken, their index the time):
+/// the published up-then-down sequence visits each level symmetrically
+/// about the top, so such a drift cancels in the fit, and left in the pure
+/// error it would be counted as scatter it is not. One dof is spent on the
+/// drift when there are at least two.
+pub fn pure_error(points: &[Point], residuals: &[f64]) -> (f64, usize) {
+    // (level, [(time index, residual)])
+    let mut levels: Vec<(f64, Vec<(f64, f64)>)> = Vec::new();
+    for (i, (p, &r)) in points.iter().zip(residuals).enumerate() {
+        let g = p.g_nominal.abs();
+        match levels.iter_mut().find(|(l, _)| *l == g) {
+            Some((_, rs)) => rs.push((i as f64, r)),
+            None => levels.push((g, vec![(i as f64, r)])),
+        }
+    }
+    // Deviations from each replicated level's mean time and residual.
+    let mut dev: Vec<(f64, f64)> = Vec::new();
+    let mut dof = 0;
+    for (_, rs) in levels.iter().filter(|(_, rs)| rs.len() >= 2) {
+        let n = rs.len() as f64;
+        let (tm, rm) = (
+            rs.iter().map(|x| x.0).sum::<f64>() / n,
+            rs.iter().map(|x| x.1).sum::<f64>() / n,
+        );
+        dev.extend(rs.iter().map(|&(t, r)| (t - tm, r - rm)));
+        dof += rs.len() - 1;
+    }
+    let stt: f64 = dev.iter().map(|d| d.0 * d.0).sum();
+    let drift = if dof >= 2 && stt > 0.0 {
+        dof -= 1;
+        dev.iter().map(|d| d.0 * d.1).sum::<f64>() / stt
+    } else {
+        0.0
+    };
+    let ss = dev.iter().map(|&(t, r)| (r - drift * t).powi(2)).sum();
+    (ss, dof)
+}
+
+/// K2 = (k2_P − k2_N)/2 and the odd part (k2_P + k2_N)/2, method.md (15):
+/// a source both mountings share adds with its sign, each mounting's own
+/// sources in quadrature. `None` unless both budgets have k2.
+pub fn joint_uncertainty(
+    p: &MountingBudget,
+    n: &MountingBudget,
+) -> Option<(Uncertainty, Uncertainty)> {
+    if !(p.present[2] && n.present[2]) {
+        return None;
+    }
+    let (mut even, mut odd) = (Vec::new(), Vec::new());
+    for e in &p.effects {
+        let shared = e.source.shared_by_mountings();
+        let other = n.effects.iter().find(|o| o.source == e.source);
+        match (shared, other) {
+            (true, Some(o)) => {
+                even.push((e.source, 0.5 * (e.delta[2] - o.delta[2]), e.dof));
+                odd.push((e.source, 0.5 * (e.delta[2] + o.delta[2]), e.dof));
+            }
+            _ => {
+                even.push((e.source, 0.5 * e.delta[2], e.dof));
+                odd.push((e.source, 0.5 * e.delta[2], e.dof));
+            }
+        }
+    }
+    for o in &n.effects {
+        let shared_and_done =
+            o.source.shared_by_mountings() && p.effects.iter().any(|e| e.source == o.source);
+        if !shared_and_done {
+            even.push((o.source, 0.5 * o.delta[2], o.dof));
+            odd.push((o.source, 0.5 * o.delta[2], o.dof));
+        }
+    }
+    Some((combine(even), combine(odd)))
+}

@@ -1,0 +1,230 @@
+//! The linearised GUM budget ([`spinbench_analysis::uncertainty`]) against a
+//! Monte Carlo propagation of the same input distributions (JCGM 101): every
+//! Type B input drawn from its distribution, the station's points made from
+//! the perturbed truth, refitted as the station would, many times over.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Uniform};
+use spinbench_analysis::model::{Convention, fit_ieee1293, ieee1293_output};
+use spinbench_analysis::uncertainty::{TypeBInputs, joint_uncertainty, mounting_budget};
+use spinbench_analysis::{ModelOrder, Mount, Point};
+
+const K: [f64; 4] = [0.002, 120.0, 20e-6, 0.5e-6];
+
+fn inputs() -> TypeBInputs {
+    TypeBInputs {
+        radius_ppm: 30.0,
+        rate_accuracy_ppm: 10.0,
+        rate_resolution_deg_s: 0.002,
+        readings_per_point: 1.0,
+        arm_radius_m: 0.8,
+        g_local_m_s2: 9.8,
+        g_local_ppm: 5.0,
+        timebase_ppm: 2.0,
+        arm_stretch_u_ug_per_g2: 0.5,
+        temperature_rise_c_at_100g: 1.5,
+        k0_tempco_ug_per_c: 20.0,
+        k1_tempco_ppm_per_c: 15.0,
+        arm_expansion_ppm_per_c: 12.0,
+    }
+}
+
+/// The published levels, up then down.
+fn levels() -> Vec<f64> {
+    let mut up = vec![0.0, 1.0];
+    up.extend((1..=14).map(|i| 5.0 * f64::from(i)));
+    let down: Vec<f64> = up.iter().rev().skip(1).copied().collect();
+    up.into_iter().chain(down).collect()
+}
+
+/// One draw of every Type B error: (shared by both mountings, per mounting).
+struct Draw {
+    rate: f64,
+    g: f64,
+    timebase: f64,
+    stretch: f64,
+    k0_tc: f64,
+    scale_tc: f64,
+    radius: [f64; 2],
+    resolution: Vec<[f64; 2]>,
+}
+
+fn draw(rng: &mut ChaCha8Rng, b: &TypeBInputs, points: usize) -> Draw {
+    let normal = |rng: &mut ChaCha8Rng, u: f64| Normal::new(0.0, u).map_or(0.0, |n| n.sample(rng));
+    let rect = |rng: &mut ChaCha8Rng, half: f64| {
+        Uniform::new_inclusive(-half, half).map_or(0.0, |u| u.sample(rng))
+    };
+    Draw {
+        rate: rect(rng, b.rate_accuracy_ppm * 1e-6),
+        g: normal(rng, b.g_local_ppm * 1e-6),
+        timebase: rect(rng, b.timebase_ppm * 1e-6),
+        stretch: normal(rng, b.arm_stretch_u_ug_per_g2) * 1e-6,
+        k0_tc: rect(rng, b.k0_tempco_ug_per_c) * 1e-6,
+        scale_tc: rect(rng, b.k1_tempco_ppm_per_c + b.arm_expansion_ppm_per_c) * 1e-6,
+        radius: [
+            normal(rng, b.radius_ppm * 1e-6),
+            normal(rng, b.radius_ppm * 1e-6),
+        ],
+        resolution: (0..points)
+            .map(|_| {
+                let q = b.rate_resolution_deg_s.to_radians() / 2.0;
+                [rect(rng, q), rect(rng, q)]
+            })
+            .collect(),
+    }
+}
+
+/// The points the station records in `mount` when the inputs are off by `d`
+/// (`None`: the nominal, error-free points).
+fn points(mount: Mount, b: &TypeBInputs, d: Option<&Draw>) -> Vec<Point> {
+    let m = usize::from(mount == Mount::N);
+    levels()
+        .iter()
+        .enumerate()
+        .map(|(i, &g)| {
+            // The true applied acceleration and the station's value of it.
+            let mut a_station = g;
+            let mut output_scale = 1.0;
+            let mut bias = 0.0;
+            if let Some(d) = d {
+                let rise = b.temperature_rise_c_at_100g * (g / 100.0).powf(1.5);
+                let dw = d.resolution[i][m];
+                let w = (g * b.g_local_m_s2 / b.arm_radius_m).sqrt();
+                a_station = g
+                    * (1.0 + d.radius[m])
+                    * (1.0 + 2.0 * d.rate)
+                    * (1.0 - d.g)
+                    * (1.0 + d.scale_tc * rise)
+                    + d.stretch * g * g
+                    + 2.0 * dw * w * b.arm_radius_m / b.g_local_m_s2;
+                output_scale = 1.0 + d.timebase;
+                bias = d.k0_tc * rise;
+            }
+            let sign = mount.input_sign();
+            Point {
+                mount,
+                g_nominal: g,
+                g_applied: a_station.abs(),
+                output: ieee1293_output(K, sign * g) * output_scale + K[1] * bias,
+                direction: None,
+            }
+        })
+        .collect()
+}
+
+fn coefficients(points: &[Point]) -> [f64; 4] {
+    let f = fit_ieee1293(points, ModelOrder::Cubic, Convention::PerMounting, "mc").expect("fit");
+    [
+        f.k0_g,
+        f.k1,
+        f.k2_ug_per_g2.expect("k2"),
+        f.k3_ug_per_g3.expect("k3"),
+    ]
+}
+
+fn std_dev(v: &[f64]) -> f64 {
+    let m = v.iter().sum::<f64>() / v.len() as f64;
+    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+}
+
+/// Half-width of the shortest... the symmetric 95 % interval about the mean.
+fn half_width_95(v: &[f64]) -> f64 {
+    let m = v.iter().sum::<f64>() / v.len() as f64;
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - m).abs()).collect();
+    dev.sort_by(f64::total_cmp);
+    dev[(0.95 * dev.len() as f64) as usize]
+}
+
+#[test]
+fn the_linearised_budget_agrees_with_a_monte_carlo_propagation() {
+    let b = inputs();
+    let budget_p =
+        mounting_budget(&points(Mount::P, &b, None), ModelOrder::Cubic, &b, "P").expect("budget P");
+    let budget_n =
+        mounting_budget(&points(Mount::N, &b, None), ModelOrder::Cubic, &b, "N").expect("budget N");
+    let lin = budget_p.uncertainties();
+    let (even, odd) = joint_uncertainty(&budget_p, &budget_n).expect("joint");
+
+    let mut rng = ChaCha8Rng::seed_from_u64(101);
+    let trials = 20_000;
+    let n = levels().len();
+    let (mut coef, mut k2_even, mut k2_odd) = (vec![Vec::new(); 4], Vec::new(), Vec::new());
+    for _ in 0..trials {
+        let d = draw(&mut rng, &b, n);
+        let p = coefficients(&points(Mount::P, &b, Some(&d)));
+        let q = coefficients(&points(Mount::N, &b, Some(&d)));
+        for j in 0..4 {
+            coef[j].push(p[j]);
+        }
+        k2_even.push(0.5 * (p[2] - q[2]));
+        k2_odd.push(0.5 * (p[2] + q[2]));
+    }
+    let linear = [
+        lin.k0_g.expect("k0").u,
+        lin.k1.expect("k1").u,
+        lin.k2_ug_per_g2.as_ref().expect("k2").u,
+        lin.k3_ug_per_g3.as_ref().expect("k3").u,
+    ];
+    for (j, name) in ["k0", "k1", "k2", "k3"].iter().enumerate() {
+        let mc = std_dev(&coef[j]);
+        let ratio = mc / linear[j];
+        println!(
+            "{name}: u linear {:.4e}, Monte Carlo {mc:.4e}, ratio {ratio:.4}",
+            linear[j]
+        );
+        // 20,000 draws: the Monte Carlo standard deviation is good to about 0.5 %.
+        assert!((ratio - 1.0).abs() < 0.03, "{name}: ratio {ratio}");
+    }
+    let k2 = lin.k2_ug_per_g2.expect("k2");
+    let mc95 = half_width_95(&coef[2]);
+    println!(
+        "k2 U95: linear {:.4}, Monte Carlo 95 % half-width {mc95:.4}",
+        k2.u95
+    );
+    assert!((mc95 / k2.u95 - 1.0).abs() < 0.06, "{mc95} vs {}", k2.u95);
+    for (name, lin, mc) in [("K2", &even, &k2_even), ("odd", &odd, &k2_odd)] {
+        let ratio = std_dev(mc) / lin.u;
+        println!(
+            "{name}: u linear {:.4e}, Monte Carlo {:.4e}, ratio {ratio:.4}",
+            lin.u,
+            std_dev(mc)
+        );
+        assert!((ratio - 1.0).abs() < 0.03, "{name}: ratio {ratio}");
+    }
+    // Every source is in the budget, and the largest is named first.
+    let sources = k2.budget.iter().filter(|c| !c.source.is_type_a()).count();
+    assert_eq!(sources, 8, "{:?}", k2.budget);
+    assert!(k2.budget.windows(2).all(|w| w[0].u >= w[1].u));
+}
+
+#[test]
+fn type_b_inputs_are_refused_out_of_bounds_by_name() {
+    for (text_key, bad) in [
+        (
+            "radius_ppm",
+            TypeBInputs {
+                radius_ppm: -1.0,
+                ..TypeBInputs::default()
+            },
+        ),
+        (
+            "timebase_ppm",
+            TypeBInputs {
+                timebase_ppm: f64::NAN,
+                ..TypeBInputs::default()
+            },
+        ),
+        (
+            "rate_resolution_deg_s",
+            TypeBInputs {
+                rate_resolution_deg_s: 0.001,
+                ..TypeBInputs::default()
+            },
+        ),
+    ] {
+        let e = bad.validate().expect_err("refused");
+        assert!(e.contains(text_key), "{e}");
+    }
+    assert_eq!(inputs().validate(), Ok(()));
+}
