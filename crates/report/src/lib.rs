@@ -342,9 +342,24 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
         if let Some(d) = &fit.diagnostics {
             lines.push(format!("Mounting {mount}: {d}."));
         }
+        if let Some(k2) = fit
+            .uncertainty
+            .as_ref()
+            .and_then(|u| u.k2_ug_per_g2.as_ref())
+        {
+            lines.push(format!(
+                "Mounting {mount} k2 uncertainty (GUM, µg/g²): {k2}."
+            ));
+        }
     }
     if let Some(j) = &a.joint {
         lines.push(format!("{j}."));
+        if let Some(u) = &j.uncertainty {
+            lines.push(format!(
+                "K2 uncertainty (GUM, µg/g²): {}.",
+                u.k2_even_ug_per_g2
+            ));
+        }
     }
     lines
 }

@@ -192,6 +192,16 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
         if let Some(d) = &fit.diagnostics {
             let _ = writeln!(out, "  diagnostics {}: {d}", fit.mount);
         }
+        if let Some(u) = fit
+            .uncertainty
+            .as_ref()
+            .and_then(|u| u.k2_ug_per_g2.as_ref())
+        {
+            let _ = writeln!(out, "  k2 {} budget (GUM, µg/g²): {u}", fit.mount);
+        }
+    }
+    if let Some(u) = unit.joint.as_ref().and_then(|j| j.uncertainty.as_ref()) {
+        let _ = writeln!(out, "  K2 budget (GUM, µg/g²): {}", u.k2_even_ug_per_g2);
     }
     for (mount, cmp) in &unit.model_comparison {
         let ranked: Vec<String> = cmp

@@ -348,3 +348,60 @@ fn an_excluded_level_needs_a_reason_and_is_reported_with_it() {
         "{human}"
     );
 }
+
+#[test]
+fn type_b_inputs_from_a_file_enter_every_budget_and_bad_ones_are_refused_by_key() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let good = dir.path().join("type_b.toml");
+    std::fs::write(
+        &good,
+        "radius_ppm = 30\nrate_accuracy_ppm = 10\ntemperature_rise_c_at_100g = 1.5\nk1_tempco_ppm_per_c = 15\n",
+    )
+    .expect("write");
+    let example = repo_file("examples/points.csv");
+    let example = example.to_str().expect("path");
+    let (code, out, err) = spinbench(&[
+        "analyze",
+        example,
+        "--json",
+        "--type-b",
+        good.to_str().expect("path"),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let doc: serde_json::Value = serde_json::from_str(&out).expect("json");
+    let k2 = &doc["units"][0]["fits"]["P"]["uncertainty"]["k2_ug_per_g2"];
+    let sources: Vec<&str> = k2["budget"]
+        .as_array()
+        .expect("budget")
+        .iter()
+        .filter_map(|c| c["source"].as_str())
+        .collect();
+    for s in [
+        "repeatability",
+        "radius",
+        "rate_accuracy",
+        "temperature_scale",
+    ] {
+        assert!(sources.contains(&s), "{s} in {sources:?}");
+    }
+    let u = k2["u"].as_f64().expect("u");
+    let u95 = k2["U95"].as_f64().expect("U95");
+    assert!(u > 0.0 && u95 > 1.9 * u, "{u} {u95}");
+    // Without the file the budget is Type A only, and smaller.
+    let (_, plain, _) = spinbench(&["analyze", example, "--json"]);
+    let plain: serde_json::Value = serde_json::from_str(&plain).expect("json");
+    let plain_u = plain["units"][0]["fits"]["P"]["uncertainty"]["k2_ug_per_g2"]["u"]
+        .as_f64()
+        .expect("u");
+    assert!(plain_u < u, "{plain_u} vs {u}");
+
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "timebase_ppm = -2\n").expect("write");
+    let (code, _, err) = spinbench(&["analyze", example, "--type-b", bad.to_str().expect("path")]);
+    assert_ne!(code, 0);
+    assert!(err.contains("timebase_ppm"), "{err}");
+    std::fs::write(&bad, "radius = 3\n").expect("write");
+    let (code, _, err) = spinbench(&["analyze", example, "--type-b", bad.to_str().expect("path")]);
+    assert_ne!(code, 0);
+    assert!(err.contains("radius"), "{err}");
+}

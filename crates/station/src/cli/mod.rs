@@ -16,6 +16,7 @@ use crate::render::render_dataset;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use spinbench_analysis::exclusion::LevelExclusion;
+use spinbench_analysis::uncertainty::TypeBInputs;
 use spinbench_analysis::{AnalysisOptions, DatasetAnalysis, ModelOrder, analyze_dataset};
 use spinbench_store::StoreTarget;
 use std::io::Write;
@@ -65,6 +66,15 @@ pub enum Command {
         /// Why the levels are excluded (required with --exclude-level).
         #[arg(long)]
         reason: Option<String>,
+        /// Type B inputs of the GUM budget for legacy data: a TOML file with
+        /// the keys of a station config's [uncertainty] section (radius_ppm,
+        /// rate_accuracy_ppm, rate_resolution_deg_s with arm_radius_m,
+        /// g_local_ppm, timebase_ppm, arm_stretch_u_ug_per_g2,
+        /// temperature_rise_c_at_100g, k0_tempco_ug_per_c,
+        /// k1_tempco_ppm_per_c, arm_expansion_ppm_per_c). Without it the
+        /// budget is Type A only, and says so.
+        #[arg(long = "type-b", value_name = "FILE")]
+        type_b: Option<PathBuf>,
     },
     /// The main job, with no hardware: a complete simulated station (virtual
     /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
@@ -293,7 +303,25 @@ fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
 
 /// Read and reduce a points file.
 pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<DatasetAnalysis> {
-    analyze_file_excluding(file, order, sheet, Vec::new())
+    analyze_file_excluding(file, order, sheet, Vec::new(), TypeBInputs::default())
+}
+
+/// Read and check a Type B inputs file (`analyze --type-b`).
+pub fn read_type_b(file: &Path) -> Result<TypeBInputs> {
+    let text = std::fs::read_to_string(file)
+        .with_context(|| format!("cannot read the Type B inputs {}", file.display()))?;
+    anyhow::ensure!(
+        text.len() <= 64 * 1024,
+        "{}: a Type B inputs file is a few lines; this one is {} bytes",
+        file.display(),
+        text.len()
+    );
+    let inputs: TypeBInputs =
+        toml::from_str(&text).with_context(|| format!("{}: not Type B inputs", file.display()))?;
+    inputs
+        .validate()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    Ok(inputs)
 }
 
 /// Read a points file, leave out the excluded levels, reduce it; the
@@ -303,6 +331,7 @@ pub fn analyze_file_excluding(
     order: u8,
     sheet: Option<&str>,
     mut exclusions: Vec<LevelExclusion>,
+    type_b: TypeBInputs,
 ) -> Result<DatasetAnalysis> {
     let order = ModelOrder::from_degree(order)
         .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
@@ -312,13 +341,7 @@ pub fn analyze_file_excluding(
     }
     spinbench_analysis::exclusion::apply_all(&mut points.units, &mut exclusions)
         .with_context(|| file.display().to_string())?;
-    let mut analysis = analyze_dataset(
-        &points.units,
-        AnalysisOptions {
-            order,
-            ..Default::default()
-        },
-    );
+    let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order, type_b });
     analysis.exclusions = exclusions;
     Ok(analysis)
 }
@@ -333,13 +356,20 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             sheet,
             exclude_level,
             reason,
+            type_b,
         } => {
+            let type_b = type_b
+                .as_deref()
+                .map(read_type_b)
+                .transpose()?
+                .unwrap_or_default();
             let by = std::env::var("USER").unwrap_or_else(|_| "unknown".into());
             let exclusions = exclude_level
                 .iter()
                 .map(|e| LevelExclusion::parse(e, reason.as_deref().unwrap_or(""), &by))
                 .collect::<Result<Vec<_>, _>>()?;
-            let analysis = analyze_file_excluding(&file, order, sheet.as_deref(), exclusions)?;
+            let analysis =
+                analyze_file_excluding(&file, order, sheet.as_deref(), exclusions, type_b)?;
             if json {
                 serde_json::to_writer_pretty(&mut *out, &analysis)?;
                 writeln!(out)?;
