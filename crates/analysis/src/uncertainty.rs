@@ -144,17 +144,6 @@ impl TypeBInputs {
         Ok(())
     }
 
-    /// True when no Type B source is given.
-    pub fn is_empty(&self) -> bool {
-        let z = TypeBInputs {
-            arm_radius_m: self.arm_radius_m,
-            readings_per_point: self.readings_per_point,
-            g_local_m_s2: self.g_local_m_s2,
-            ..TypeBInputs::default()
-        };
-        *self == z
-    }
-
     fn g_local(&self) -> f64 {
         if self.g_local_m_s2 > 0.0 {
             self.g_local_m_s2
@@ -541,6 +530,10 @@ pub fn mounting_budget(
             .fold(0.0_f64, |m, p| m.max(p.output.abs()))
             .max(1.0);
         let mut res2 = [0.0; 4];
+        // δa = 2·δω·√(a·R/g), δω rectangular over one step, averaged over the read-backs.
+        let u_w = inputs.rate_resolution_deg_s.to_radians()
+            / 12f64.sqrt()
+            / inputs.readings_per_point.max(1.0).sqrt();
         for i in 0..points.len() {
             // The fit is linear in the outputs: this difference is exact.
             let step = 1e-6 * y_scale;
@@ -551,10 +544,6 @@ pub fn mounting_budget(
             };
             let (plus, minus) = (at(step)?, at(-step)?);
             let a = points[i].g_magnitude();
-            // δa = 2·δω·√(a·R/g), δω rectangular over one step.
-            let u_w = inputs.rate_resolution_deg_s.to_radians()
-                / 12f64.sqrt()
-                / inputs.readings_per_point.max(1.0).sqrt();
             let u_a = 2.0 * u_w * (a * inputs.arm_radius_m / inputs.g_local()).sqrt();
             let slope = c[1] + a * (2.0 * c[2] + 3.0 * c[3] * a);
             for j in 0..4 {
