@@ -5,7 +5,7 @@
 use crate::AnalysisError;
 use crate::centrifuge::applied_acceleration_g;
 use crate::points::Mount;
-use crate::tumble::TumbleCalibration;
+use crate::tumble::{CrossAxisSensitivity, MeanReading, TumbleCalibration};
 use serde::{Deserialize, Serialize};
 
 /// The radius found for one instrument in one mounting.
@@ -36,14 +36,27 @@ impl RadiusCalibration {
         drawing_radius_m: f64,
         mount: Mount,
     ) -> Result<Self, AnalysisError> {
-        Self::from_reading(output, cal, drawing_radius_m, 1.0, mount)
+        Self::from_reading(output, cal, None, drawing_radius_m, 1.0, mount)
     }
 
     /// The general form of [`Self::from_one_g`]: the rate applied `nominal_g` at
     /// R0, so R = R0 · |a_meas| / nominal_g (method.md (7) with a scaled rate).
+    ///
+    /// With `cross_axis` from a four-position tumble, gravity's part of the
+    /// reading is taken out first: on the arm gravity lies along the cross
+    /// axis that the tumble's "as on the arm" position put vertical, in both
+    /// mountings (the remount turns the instrument about the vertical), so
+    ///
+    /// ```text
+    /// a_meas = (F − k0')/k1' − c        (method.md (6), corrected)
+    /// ```
+    ///
+    /// Without it, c stays in the radius as a relative error of ±c (the
+    /// mounting's sign), which the budget's `cross_axis` source bounds.
     pub fn from_reading(
         output: f64,
         cal: &TumbleCalibration,
+        cross_axis: Option<CrossAxisSensitivity>,
         drawing_radius_m: f64,
         nominal_g: f64,
         mount: Mount,
@@ -64,7 +77,7 @@ impl RadiusCalibration {
                 "radius step level must be positive, got {nominal_g} g"
             )));
         }
-        let a_meas = cal.acceleration_g(output);
+        let a_meas = cal.acceleration_g(output) - cross_axis.map_or(0.0, |c| c.g_per_g);
         let signed = mount.input_sign() * a_meas;
         if signed.is_nan() || signed <= 0.0 {
             return Err(AnalysisError::InvalidInput(format!(
@@ -84,6 +97,38 @@ impl RadiusCalibration {
             nominal_g,
             radius_m: signed / nominal_g * drawing_radius_m,
         })
+    }
+
+    /// The radius's relative standard uncertainty from the noise of the
+    /// readings it was found from [ppm]: the tumble's IA-up and IA-down
+    /// readings, the reading at the radius step and, when measured, the
+    /// cross-axis sensitivity. By method.md (5)–(7) with k0' = (U + D)/2,
+    /// k1' = (U − D)/2 and m = (F − k0')/k1':
+    ///
+    /// ```text
+    /// u(a)² = (u_F/k1')² + ((1 + m)·u_U/(2k1'))² + ((m − 1)·u_D/(2k1'))² + u(c)²
+    /// u(R)/R = u(a)/|a|
+    /// ```
+    ///
+    /// (Standard errors of one-second means: a drift within a step is not in them.)
+    pub fn reading_u_ppm(
+        &self,
+        up: MeanReading,
+        down: MeanReading,
+        at_radius_step: MeanReading,
+        cross_axis: Option<CrossAxisSensitivity>,
+    ) -> f64 {
+        let k1 = (up.output - down.output) / 2.0;
+        if k1 == 0.0 || self.measured_g == 0.0 {
+            return 0.0;
+        }
+        let k0 = (up.output + down.output) / 2.0;
+        let m = (at_radius_step.output - k0) / k1;
+        let u_a = (at_radius_step.standard_error / k1)
+            .hypot((1.0 + m) * up.standard_error / (2.0 * k1))
+            .hypot((m - 1.0) * down.standard_error / (2.0 * k1))
+            .hypot(cross_axis.map_or(0.0, |c| c.u_g_per_g));
+        1e6 * u_a.abs() / self.measured_g.abs()
     }
 
     /// Radius minus drawing radius [mm].
@@ -121,6 +166,55 @@ mod tests {
         let w50 = rate_for_acceleration_rad_s(50.0, r0, G).expect("rate");
         let a50 = rp.applied_g(w50, G).expect("a");
         assert!((a50 - 50.0 * r_true / r0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn gravity_across_the_axis_is_taken_out_of_the_radius() {
+        // 40 µg/g across: on the arm gravity adds 40 µg in both mountings.
+        let (k0, k1, c) = (40.0, 100.0, 40e-6);
+        let cal = TumbleCalibration::from_up_down(k0 + k1, k0 - k1).expect("tumble");
+        let r = |output| MeanReading {
+            output,
+            standard_error: 0.0,
+        };
+        let cross = CrossAxisSensitivity::from_readings(&cal, r(k0 + k1 * c), r(k0 - k1 * c))
+            .expect("cross");
+        for mount in [Mount::P, Mount::N] {
+            let out = k0 + k1 * (mount.input_sign() * 1.0 + c);
+            let plain = RadiusCalibration::from_one_g(out, &cal, 0.8, mount).expect("plain");
+            let corrected =
+                RadiusCalibration::from_reading(out, &cal, Some(cross), 0.8, 1.0, mount)
+                    .expect("corrected");
+            assert!((corrected.radius_m - 0.8).abs() < 1e-12, "{mount}");
+            // Uncorrected, the radius is off by c with the mounting's sign.
+            let off = (plain.radius_m / 0.8 - 1.0) / c;
+            assert!((off - mount.input_sign()).abs() < 1e-6, "{mount}: {off}");
+        }
+    }
+
+    #[test]
+    fn the_reading_uncertainty_follows_each_readings_noise() {
+        let cal = TumbleCalibration::from_up_down(140.0, -60.0).expect("tumble");
+        let reading = |output, standard_error| MeanReading {
+            output,
+            standard_error,
+        };
+        let r = RadiusCalibration::from_one_g(140.0, &cal, 0.8, Mount::P).expect("P");
+        // In P at 1 g: (u_F/k1)² + (2·u_U/(2k1))² + 0·u_D = (1e-3/100)² + (1e-3/100)².
+        let u = r.reading_u_ppm(
+            reading(140.0, 1e-3),
+            reading(-60.0, 5.0),
+            reading(140.0, 1e-3),
+            None,
+        );
+        assert!((u - 1e6 * 2f64.sqrt() * 1e-5).abs() < 1e-9, "{u}");
+        let noiseless = r.reading_u_ppm(
+            reading(140.0, 0.0),
+            reading(-60.0, 0.0),
+            reading(140.0, 0.0),
+            None,
+        );
+        assert_eq!(noiseless, 0.0);
     }
 
     #[test]

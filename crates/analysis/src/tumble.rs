@@ -54,6 +54,103 @@ impl TumbleCalibration {
     }
 }
 
+/// One averaged reading: the mean of a step's one-second outputs and its
+/// standard error (their standard deviation over √n).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MeanReading {
+    /// Mean output [output units].
+    pub output: f64,
+    /// Standard error of the mean [output units] (0 when unknown).
+    pub standard_error: f64,
+}
+
+impl MeanReading {
+    /// The mean and standard error of one-second values; `None` for none.
+    pub fn of(values: &[f64]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let var = if values.len() > 1 {
+            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
+        } else {
+            0.0
+        };
+        Some(MeanReading {
+            output: mean,
+            standard_error: (var / n).sqrt(),
+        })
+    }
+}
+
+/// The largest cross-axis sensitivity accepted [g per g]: 0.1 is an input
+/// axis about 6° off its fixture, far beyond any instrument; more means the
+/// extra positions were not taken with the input axis horizontal.
+pub const MAX_CROSS_AXIS_G_PER_G: f64 = 0.1;
+
+/// The instrument's sensitivity to gravity across its input axis, from the
+/// two extra positions of a four-position tumble (issue 14, part 1): the
+/// input axis horizontal, gravity along the cross axis that is vertical on
+/// the centrifuge, once as on the arm and once inverted.
+///
+/// ```text
+/// c = (F(as on arm) − F(inverted)) / (2·k1')      [g per g]
+/// ```
+///
+/// On the arm gravity adds c to every reading; at the 1 g radius step it
+/// reads as a radius error of c (relative), with the sign of the mounting,
+/// which the radius then corrects ([`crate::radius::RadiusCalibration::from_reading`]).
+/// The difference of the two positions holds no k2 term (the input axis sees
+/// 0 g in both), so c is exact to first order.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CrossAxisSensitivity {
+    /// c: output per g across the input axis, in g per g.
+    pub g_per_g: f64,
+    /// Its standard uncertainty from the two readings' noise [g per g].
+    pub u_g_per_g: f64,
+}
+
+impl CrossAxisSensitivity {
+    /// From the readings as on the arm and inverted, with the tumble's `cal`.
+    pub fn from_readings(
+        cal: &TumbleCalibration,
+        as_on_arm: MeanReading,
+        inverted: MeanReading,
+    ) -> Result<Self, AnalysisError> {
+        for (what, v) in [
+            ("cross-axis reading as on the arm", as_on_arm.output),
+            ("cross-axis reading inverted", inverted.output),
+        ] {
+            if !v.is_finite() {
+                return Err(AnalysisError::NonFinite {
+                    what: what.into(),
+                    value: v,
+                });
+            }
+        }
+        let two_k1 = 2.0 * cal.scale_factor;
+        let g_per_g = (as_on_arm.output - inverted.output) / two_k1;
+        if g_per_g.abs() > MAX_CROSS_AXIS_G_PER_G {
+            return Err(AnalysisError::InvalidInput(format!(
+                "four-position tumble: the cross-axis readings differ by {:.3} g, more than an \
+                 instrument's cross-axis sensitivity; check that the input axis was horizontal \
+                 in both extra positions",
+                2.0 * g_per_g
+            )));
+        }
+        Ok(CrossAxisSensitivity {
+            g_per_g,
+            u_g_per_g: as_on_arm.standard_error.hypot(inverted.standard_error) / two_k1.abs(),
+        })
+    }
+
+    /// c in µg/g.
+    pub fn ug_per_g(&self) -> f64 {
+        self.g_per_g * 1e6
+    }
+}
+
 /// One reading of a multi-position tumble.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TumbleReading {
@@ -210,6 +307,32 @@ mod tests {
             assert!((t.scale_factor - k1).abs() < 1e-9, "n={n}");
             assert!((t.misalignment_rad - delta).abs() < 1e-12, "n={n}");
         }
+    }
+
+    #[test]
+    fn cross_axis_positions_give_the_sensitivity_and_its_noise() {
+        // k1 = 100 Hz/g, bias 40 Hz, 30 µg/g across: as on the arm 40 + 0.003,
+        // inverted 40 − 0.003.
+        let cal = TumbleCalibration::from_up_down(140.0, -60.0).expect("cal");
+        let r = |output, standard_error| MeanReading {
+            output,
+            standard_error,
+        };
+        let c =
+            CrossAxisSensitivity::from_readings(&cal, r(40.003, 3e-4), r(39.997, 4e-4)).expect("c");
+        assert!((c.ug_per_g() - 30.0).abs() < 1e-6, "{}", c.ug_per_g());
+        assert!((c.u_g_per_g - 5e-4 / 200.0).abs() < 1e-15);
+        let err = CrossAxisSensitivity::from_readings(&cal, r(140.0, 0.0), r(40.0, 0.0))
+            .expect_err("an IA-up reading given as a cross position");
+        assert!(err.to_string().contains("horizontal"), "{err}");
+    }
+
+    #[test]
+    fn a_mean_reading_has_the_standard_error_of_its_values() {
+        let m = MeanReading::of(&[1.0, 2.0, 3.0, 4.0]).expect("values");
+        assert_eq!(m.output, 2.5);
+        assert!((m.standard_error - (5.0f64 / 3.0 / 4.0).sqrt()).abs() < 1e-15);
+        assert!(MeanReading::of(&[]).is_none());
     }
 
     #[test]

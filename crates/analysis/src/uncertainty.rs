@@ -11,7 +11,9 @@
 //! |---|---|---|---|
 //! | repeatability (Type A) | the fit's covariance with the pure-error variance of replicated levels (up, down, repeated visits), a drift linear in time taken out ([`pure_error`]) | Student t, ν = pure-error dof | per mounting |
 //! | fit scatter (Type A) | the fit's covariance with the residual variance, when no level is replicated | Student t, ν = fit dof | per mounting |
-//! | radius | a → a·(1 + δR/R), method.md (9) | normal, u = `radius_ppm` | per mounting (R+ and R− measured apart) |
+//! | radius | a → a·(1 + δR/R), method.md (9) | normal, u = `radius_ppm` (the fixture, the drawing) | per mounting (R+ and R− measured apart) |
+//! | radius reading | the same, from the noise of the tumble's and the radius step's readings | normal, u = `radius_reading_ppm_p`/`_n` (measured per instrument) | per mounting |
+//! | cross axis | a → a·(1 ± c): gravity across the input axis in the 1 g radius reading, when no four-position tumble measured it | rectangular ± `cross_axis_ug_per_g`, sign + in P, − in N | common, with the mounting's sign |
 //! | rate accuracy | a → a·(1 + 2·δω/ω), method.md (14) | rectangular ± `rate_accuracy_ppm` | common |
 //! | rate resolution | δa_i = 2·δω·√(a_i·R/g) per point, averaged over its n read-backs | rectangular ± step/2, /√n | per point |
 //! | g_local | a → a·(1 − δg/g), method.md (3) | normal, u = `g_local_ppm` | common |
@@ -64,6 +66,16 @@ pub struct TypeBInputs {
     /// Standard uncertainty of each instrument's radius, relative [ppm]
     /// (the tumble's noise and the 1 g reading, method.md (5)–(8)).
     pub radius_ppm: f64,
+    /// The radius's relative standard uncertainty from the noise of the
+    /// readings that found it in mounting P [ppm] (the station measures it
+    /// per instrument, [`crate::radius::RadiusCalibration::reading_u_ppm`]).
+    pub radius_reading_ppm_p: f64,
+    /// The same in mounting N [ppm].
+    pub radius_reading_ppm_n: f64,
+    /// Bound of the instruments' sensitivity to gravity across the input
+    /// axis, ± half-width [µg/g], which shifts the 1 g radius reading; 0 when
+    /// a four-position tumble measured it and the radius was corrected.
+    pub cross_axis_ug_per_g: f64,
     /// The controller's rate read-back accuracy, ± half-width [ppm of rate].
     pub rate_accuracy_ppm: f64,
     /// The rate read-back's resolution (one step) [°/s].
@@ -99,9 +111,24 @@ impl TypeBInputs {
     /// Check every field: finite, not negative, within its named bound; the
     /// error names the key.
     pub fn validate(&self) -> Result<(), String> {
-        let checks: [(&str, f64, f64); 13] = [
+        let checks: [(&str, f64, f64); 16] = [
             ("readings_per_point", self.readings_per_point, 1e5),
             ("radius_ppm", self.radius_ppm, MAX_TYPE_B_PPM),
+            (
+                "radius_reading_ppm_p",
+                self.radius_reading_ppm_p,
+                MAX_TYPE_B_PPM,
+            ),
+            (
+                "radius_reading_ppm_n",
+                self.radius_reading_ppm_n,
+                MAX_TYPE_B_PPM,
+            ),
+            (
+                "cross_axis_ug_per_g",
+                self.cross_axis_ug_per_g,
+                MAX_TYPE_B_PPM,
+            ),
             ("rate_accuracy_ppm", self.rate_accuracy_ppm, MAX_TYPE_B_PPM),
             (
                 "rate_resolution_deg_s",
@@ -161,8 +188,12 @@ pub enum Source {
     Repeatability,
     /// Type A: the residual scatter, when no level is replicated.
     FitScatter,
-    /// Each instrument's radius.
+    /// Each instrument's radius (the fixture's bound).
     Radius,
+    /// Each instrument's radius, from its readings' noise.
+    RadiusReading,
+    /// Gravity across the input axis in the radius reading.
+    CrossAxis,
     /// The rate read-back's accuracy.
     RateAccuracy,
     /// The rate read-back's resolution.
@@ -186,6 +217,7 @@ impl Source {
         matches!(
             self,
             Source::RateAccuracy
+                | Source::CrossAxis
                 | Source::GLocal
                 | Source::Timebase
                 | Source::ArmStretch
@@ -206,6 +238,8 @@ impl fmt::Display for Source {
             Source::Repeatability => "repeatability (A)",
             Source::FitScatter => "fit scatter (A)",
             Source::Radius => "radius",
+            Source::RadiusReading => "radius reading",
+            Source::CrossAxis => "cross axis",
             Source::RateAccuracy => "rate accuracy",
             Source::RateResolution => "rate resolution",
             Source::GLocal => "g_local",
@@ -419,8 +453,16 @@ pub fn mounting_budget(
         g_applied: p.g_applied * (1.0 + h),
         ..*p
     };
-    let need_scale =
-        inputs.radius_ppm > 0.0 || inputs.rate_accuracy_ppm > 0.0 || inputs.g_local_ppm > 0.0;
+    let mount = points.first().map_or(crate::points::Mount::P, |p| p.mount);
+    let radius_reading_ppm = match mount {
+        crate::points::Mount::P => inputs.radius_reading_ppm_p,
+        crate::points::Mount::N => inputs.radius_reading_ppm_n,
+    };
+    let need_scale = inputs.radius_ppm > 0.0
+        || radius_reading_ppm > 0.0
+        || inputs.cross_axis_ug_per_g > 0.0
+        || inputs.rate_accuracy_ppm > 0.0
+        || inputs.g_local_ppm > 0.0;
     if need_scale {
         let d = sensitivity(points, order, 1e-6, scaled, what)?;
         let mut push = |source: Source, u_rel: f64| {
@@ -433,6 +475,13 @@ pub fn mounting_budget(
             }
         };
         push(Source::Radius, inputs.radius_ppm * 1e-6);
+        push(Source::RadiusReading, radius_reading_ppm * 1e-6);
+        // Gravity across the axis reads as +c in P's radius and −c in N's
+        // (rectangular); both mountings share the instrument's c.
+        push(
+            Source::CrossAxis,
+            mount.input_sign() * inputs.cross_axis_ug_per_g * 1e-6 / 3f64.sqrt(),
+        );
         // a ∝ ω²: twice the rate's relative error (rectangular).
         push(
             Source::RateAccuracy,

@@ -359,6 +359,16 @@ impl StationConfig {
         if let Err(problem) = self.type_b(0).validate() {
             return err("uncertainty", problem);
         }
+        if self.uncertainty.radius_reading_ppm_p != 0.0
+            || self.uncertainty.radius_reading_ppm_n != 0.0
+        {
+            return err(
+                "uncertainty.radius_reading_ppm_p",
+                "the radius's reading noise is measured per instrument by the station; \
+                 give the fixture's part as radius_ppm"
+                    .into(),
+            );
+        }
         if !(self.arm.max_g > 0.0 && self.arm.max_g.is_finite()) {
             return err("arm.max_g", "must be a positive acceleration in g".into());
         }

@@ -102,6 +102,22 @@ pub enum Event {
         up: bool,
         /// Mean output [Hz].
         output_hz: f64,
+        /// Standard error of the mean [Hz] (0 in journals made before it was kept).
+        #[serde(default)]
+        standard_error_hz: f64,
+    },
+    /// A reading of a four-position tumble's extra positions: the input
+    /// axis horizontal, gravity along the cross axis that is vertical on
+    /// the centrifuge (as on the arm, or inverted).
+    CrossTumbleDone {
+        /// Slot (0-based).
+        slot: usize,
+        /// As on the arm (else inverted).
+        as_on_arm: bool,
+        /// Mean output [Hz].
+        output_hz: f64,
+        /// Standard error of the mean [Hz].
+        standard_error_hz: f64,
     },
     /// The radius of one instrument in one mounting (method.md (6)–(8)).
     RadiusDone {
@@ -113,6 +129,10 @@ pub enum Event {
         drawing_radius_m: f64,
         /// Radius found [m].
         radius_m: f64,
+        /// Its relative standard uncertainty from the readings' noise [ppm]
+        /// (0 in journals made before it was kept).
+        #[serde(default)]
+        reading_u_ppm: f64,
     },
     /// An averaged point of every measured instrument at one level.
     PointDone {

@@ -42,6 +42,12 @@ pub struct TestPlan {
     /// Mountings to run, in order (default: as the serials' prefixes say, else P).
     #[serde(default)]
     pub passes: Vec<Mount>,
+    /// Tumble positions: 2 (IA up, IA down; method.md (5)) or 4 (also the
+    /// two with gravity along the cross axis that is vertical on the arm, as
+    /// on the arm and inverted, which measure the cross-axis sensitivity and
+    /// take it out of the radius). Default 2.
+    #[serde(default = "default_tumble_positions")]
+    pub tumble_positions: u8,
     /// Warm-up after power-on [s] (default 60).
     #[serde(default = "default_warmup")]
     pub warmup_s: f64,
@@ -92,6 +98,10 @@ fn default_true() -> bool {
 
 fn default_warmup() -> f64 {
     60.0
+}
+
+fn default_tumble_positions() -> u8 {
+    2
 }
 
 fn default_order() -> u8 {
@@ -275,6 +285,12 @@ pub enum Fixture {
     Down,
     /// On the arm, mounting P or N.
     Arm(Mount),
+    /// On the bench, input axis horizontal, with gravity along the cross
+    /// axis that is vertical on the arm: as on the arm, or inverted.
+    Crosswise {
+        /// As on the arm (else upside down).
+        as_on_arm: bool,
+    },
 }
 
 /// One step of a compiled plan.
@@ -298,6 +314,12 @@ pub enum Step {
     Tumble {
         /// Up (+1 g) or down (−1 g).
         up: bool,
+    },
+    /// Record the output with the input axis horizontal and gravity along
+    /// the cross axis that is vertical on the arm (four-position tumble).
+    CrossTumble {
+        /// As on the arm (else inverted).
+        as_on_arm: bool,
     },
     /// Spin to 1 g at R0 and find each instrument's radius (method.md (6)–(8)).
     Radius {
@@ -345,6 +367,7 @@ impl Default for TestPlan {
             levels: None,
             up_down: true,
             passes: Vec::new(),
+            tumble_positions: default_tumble_positions(),
             warmup_s: default_warmup(),
             order: default_order(),
             dwell: DwellConfig::default(),
@@ -517,6 +540,15 @@ impl TestPlan {
             })
         };
         self.validate()?;
+        if !matches!(self.tumble_positions, 2 | 4) {
+            return err(
+                "tumble_positions",
+                format!(
+                    "{} is not 2 (IA up, IA down) or 4 (also the two cross-axis positions)",
+                    self.tumble_positions
+                ),
+            );
+        }
         let order = ModelOrder::from_degree(self.order).ok_or_else(|| PlanError {
             key: "order".into(),
             problem: format!("{} is not 1, 2 or 3", self.order),
@@ -734,6 +766,14 @@ impl TestPlan {
             },
             Step::Tumble { up: false },
         ];
+        if self.tumble_positions == 4 {
+            for as_on_arm in [true, false] {
+                steps.push(Step::Mount {
+                    fixtures: all(Fixture::Crosswise { as_on_arm }),
+                });
+                steps.push(Step::CrossTumble { as_on_arm });
+            }
+        }
         for (p, pass) in passes.iter().enumerate() {
             steps.push(Step::Mount {
                 fixtures: pass.iter().map(|m| m.map(Fixture::Arm)).collect(),

@@ -202,10 +202,17 @@ pub struct UnitRecord {
     pub serial: String,
     /// Tumble bias k0' [Hz] and scale factor k1' [Hz/g] (method.md (5)).
     pub tumble: Option<[f64; 2]>,
+    /// Sensitivity to gravity across the input axis, from a four-position
+    /// tumble [µg/g] (taken out of the radius; `None` with two positions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cross_axis_ug_per_g: Option<f64>,
     /// Drawing radius R0 [m].
     pub drawing_radius_m: f64,
     /// Radius found per mounting [m].
     pub radius_m: BTreeMap<Mount, f64>,
+    /// Each radius's relative standard uncertainty from its readings' noise [ppm].
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub radius_reading_u_ppm: BTreeMap<Mount, f64>,
     /// The averaged points.
     pub points: Vec<PointRecord>,
     /// The reduction (fits, figures), when it could be made.

@@ -752,3 +752,94 @@ fn the_applied_acceleration_includes_the_earths_rate_at_the_stations_latitude() 
     let e = StationConfig::from_toml(&text).expect_err("latitude 91");
     assert!(e.to_string().contains("arm.latitude_deg"), "{e}");
 }
+
+/// Run `small_plan` in both mountings with `positions` tumble positions on
+/// a bench whose instruments are 2000 µg/g sensitive across the axis (far
+/// more than a good one), so gravity's part of the 1 g radius reading
+/// (±2000 ppm, ±1.6 mm) stands far above the readings' noise.
+fn run_cross_axis(positions: u8) -> (RunSummary, spinbench_sim::world::Truth) {
+    let sim = SimConfig {
+        instruments: spinbench_sim::config::PopulationConfig {
+            cross_axis_max_ug_per_g: 2000.0,
+            ..Default::default()
+        },
+        ..SimConfig::default()
+    };
+    let mut plan = small_plan();
+    plan.passes = vec![Mount::P, Mount::N];
+    plan.tumble_positions = positions;
+    // Warmed up (5 time constants of the bench's 150 µg warm-up transient),
+    // so the readings do not drift between the positions.
+    plan.warmup_s = 600.0;
+    let (summary, _, bench) = run(sim, plan, None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let truth = bench.with_world(|w| w.truth());
+    bench.shutdown();
+    (summary, truth)
+}
+
+#[test]
+fn a_four_position_tumble_takes_gravity_across_the_axis_out_of_the_radius() {
+    let (two, truth) = run_cross_axis(2);
+    let (four, _) = run_cross_axis(4);
+    let slots = spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
+    let mut large = 0;
+    for (r2, r4) in two.records.iter().zip(&four.records) {
+        let t = truth
+            .instruments
+            .iter()
+            .find(|t| t.module * slots + t.slot == r4.slot)
+            .expect("truth of the slot");
+        let c = t.vba.cross_axis_ug_per_g;
+        // Measured by the extra positions.
+        let found = r4.cross_axis_ug_per_g.expect("four positions measure c");
+        assert!((found - c).abs() < 20.0, "{}: c {found} vs {c}", r4.serial);
+        assert!(r2.cross_axis_ug_per_g.is_none());
+        for mount in [Mount::P, Mount::N] {
+            let true_r = match mount {
+                Mount::P => t.position.radius_p_m,
+                Mount::N => t.position.radius_n_m,
+            };
+            let ppm = |r: &spinbench_engine::record::UnitRecord| {
+                (r.radius_m[&mount] / true_r - 1.0) * 1e6
+            };
+            // Corrected: within the readings' noise; uncorrected: off by c,
+            // with the mounting's sign.
+            assert!(
+                ppm(r4).abs() < 25.0,
+                "{} {mount}: {} ppm",
+                r4.serial,
+                ppm(r4)
+            );
+            let expected = mount.input_sign() * c;
+            assert!(
+                (ppm(r2) - expected).abs() < 25.0,
+                "{} {mount}: {} ppm, c {c}",
+                r2.serial,
+                ppm(r2)
+            );
+            // The readings' noise is in the budget, measured per instrument.
+            let u = r4.radius_reading_u_ppm[&mount];
+            assert!(u > 0.0 && u < 25.0, "{} {mount}: u {u} ppm", r4.serial);
+        }
+        large += usize::from(c.abs() > 500.0);
+        // The unmeasured cross-axis bound enters the budget only without the
+        // extra positions.
+        let has_cross = |r: &spinbench_engine::record::UnitRecord| {
+            let fit = &r.analysis.as_ref().expect("analysis").fits[&Mount::P];
+            let k1 = fit
+                .uncertainty
+                .as_ref()
+                .and_then(|u| u.k1.as_ref())
+                .expect("k1 budget");
+            k1.budget
+                .iter()
+                .any(|b| b.source == spinbench_analysis::uncertainty::Source::CrossAxis)
+        };
+        assert!(has_cross(r2) && !has_cross(r4), "{}", r4.serial);
+    }
+    assert!(
+        large >= 3,
+        "too few instruments with |c| > 500 µg/g to tell: {large}"
+    );
+}

@@ -335,6 +335,30 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
         .iter()
         .map(ToString::to_string)
         .collect();
+    let r = u.record();
+    if !r.radius_reading_u_ppm.is_empty() || r.cross_axis_ug_per_g.is_some() {
+        let radius: Vec<String> = r
+            .radius_reading_u_ppm
+            .iter()
+            .map(|(m, u)| {
+                let name = match m {
+                    spinbench_analysis::Mount::P => "R+",
+                    spinbench_analysis::Mount::N => "R−",
+                };
+                format!("{name} ±{u:.1} ppm")
+            })
+            .collect();
+        lines.push(match r.cross_axis_ug_per_g {
+            Some(c) => format!(
+                "Radius from the readings: {}; cross-axis sensitivity {c:+.1} µg/g (four-position tumble), taken out of the radius.",
+                radius.join(", ")
+            ),
+            None => format!(
+                "Radius from the readings: {}; cross-axis sensitivity not measured (two-position tumble), bounded in the budget.",
+                radius.join(", ")
+            ),
+        });
+    }
     let Some(a) = u.record().analysis.as_ref() else {
         return lines;
     };

@@ -57,14 +57,17 @@ pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
 fn uncertainty_toml(c: &crate::config::SimConfig) -> String {
     let t = &c.centrifuge;
     let p = &c.instruments;
-    if t.readback_scale_ppm == 0.0 && t.windage_c_at_100g == 0.0 {
+    if t.readback_scale_ppm == 0.0 && t.windage_c_at_100g == 0.0 && p.cross_axis_max_ug_per_g == 0.0
+    {
         return String::new();
     }
-    // The 1 g radius reading: gravity across the axis shifts it by up to
-    // the cross-axis coefficient (rectangular); the noise of its average is smaller.
-    let radius_ppm = p.cross_axis_max_ug_per_g / 3f64.sqrt();
+    // The 1 g radius reading: gravity across the axis shifts it by up to the
+    // cross-axis coefficient (the budget's rectangular `cross_axis`, unless a
+    // four-position tumble measures it); the readings' noise the station
+    // measures itself; the bench's drawing-to-true radius is what the step finds.
     format!(
-        "[uncertainty]\nradius_ppm = {radius_ppm}\nrate_accuracy_ppm = {}\nrate_resolution_deg_s = {}\ntimebase_ppm = 0.1\ntemperature_rise_c_at_100g = {}\nk0_tempco_ug_per_c = {}\nk1_tempco_ppm_per_c = {}\narm_expansion_ppm_per_c = {}\n\n",
+        "[uncertainty]\ncross_axis_ug_per_g = {}\nrate_accuracy_ppm = {}\nrate_resolution_deg_s = {}\ntimebase_ppm = 0.1\ntemperature_rise_c_at_100g = {}\nk0_tempco_ug_per_c = {}\nk1_tempco_ppm_per_c = {}\narm_expansion_ppm_per_c = {}\n\n",
+        p.cross_axis_max_ug_per_g,
         t.readback_scale_ppm.abs().max(1.0),
         t.readback_resolution_deg_s,
         t.windage_c_at_100g,
@@ -81,6 +84,7 @@ pub fn mounting(fixture: Fixture) -> Mounting {
         Fixture::Down => Mounting::TumbleDown,
         Fixture::Arm(Mount::P) => Mounting::ArmP,
         Fixture::Arm(Mount::N) => Mounting::ArmN,
+        Fixture::Crosswise { as_on_arm } => Mounting::TumbleCrosswise { as_on_arm },
     }
 }
 

@@ -19,16 +19,24 @@ pub enum Mounting {
     ArmP,
     /// On the arm, input axis away from the spin axis: −a.
     ArmN,
+    /// On the bench, input axis horizontal, gravity along the cross axis
+    /// that is vertical on the arm: +1 g across as on the arm, −1 g inverted.
+    TumbleCrosswise {
+        /// As on the arm (else inverted).
+        as_on_arm: bool,
+    },
 }
 
 impl Mounting {
-    /// Parse `UP`, `DOWN`, `P` or `N` (any case).
+    /// Parse `UP`, `DOWN`, `P`, `N`, `CROSS` or `CROSS-INVERTED` (any case).
     pub fn parse(text: &str) -> Option<Mounting> {
         match text.trim().to_ascii_uppercase().as_str() {
             "UP" => Some(Mounting::TumbleUp),
             "DOWN" => Some(Mounting::TumbleDown),
             "P" => Some(Mounting::ArmP),
             "N" => Some(Mounting::ArmN),
+            "CROSS" => Some(Mounting::TumbleCrosswise { as_on_arm: true }),
+            "CROSS-INVERTED" => Some(Mounting::TumbleCrosswise { as_on_arm: false }),
             _ => None,
         }
     }
@@ -212,5 +220,9 @@ mod tests {
         );
         assert_eq!(Mounting::parse("down"), Some(Mounting::TumbleDown));
         assert_eq!(Mounting::parse("x"), None);
+        assert_eq!(
+            Mounting::parse("cross-inverted"),
+            Some(Mounting::TumbleCrosswise { as_on_arm: false })
+        );
     }
 }

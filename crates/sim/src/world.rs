@@ -633,6 +633,7 @@ impl World {
         match self.instruments[i].mounting {
             Mounting::TumbleUp => (1.0, 0.0),
             Mounting::TumbleDown => (-1.0, 0.0),
+            Mounting::TumbleCrosswise { as_on_arm } => (0.0, if as_on_arm { 1.0 } else { -1.0 }),
             Mounting::ArmP => (radial(p.radius_p_m) + tilt, 1.0),
             Mounting::ArmN => (-(radial(p.radius_n_m) + tilt), 1.0),
         }
@@ -831,7 +832,7 @@ impl World {
         let radial_sign = match v.mounting {
             Mounting::ArmP => 1.0,
             Mounting::ArmN => -1.0,
-            Mounting::TumbleUp | Mounting::TumbleDown => 0.0,
+            Mounting::TumbleUp | Mounting::TumbleDown | Mounting::TumbleCrosswise { .. } => 0.0,
         };
         let (mut f1, mut f2) = v.resonators(&Inputs {
             a_g: a + radial_sign * disturbance * v.truth.disturbance_gain,

@@ -31,6 +31,15 @@ pub struct DemoUnit {
     pub true_radius_m: f64,
     /// Drawing radius [m].
     pub drawing_radius_m: f64,
+    /// The radius's relative standard uncertainty from its readings [ppm].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radius_reading_u_ppm: Option<f64>,
+    /// Sensitivity to gravity across the input axis found by a four-position
+    /// tumble [µg/g] (absent with two positions).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cross_axis_ug_per_g: Option<f64>,
+    /// The simulator's true cross-axis sensitivity [µg/g].
+    pub true_cross_axis_ug_per_g: f64,
     /// Measured k2 in this mounting [µg/g²].
     pub k2_ug_per_g2: Option<f64>,
     /// Its 95 % interval.
@@ -92,6 +101,9 @@ pub fn compare_with_truth(
                     Mount::N => t.position.radius_n_m,
                 },
                 drawing_radius_m: t.position.drawing_radius_m,
+                radius_reading_u_ppm: r.radius_reading_u_ppm.get(&mount).copied(),
+                cross_axis_ug_per_g: r.cross_axis_ug_per_g,
+                true_cross_axis_ug_per_g: t.vba.cross_axis_ug_per_g,
                 k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
                 k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
                 k2_u95: mounting
@@ -117,8 +129,8 @@ pub fn compare_with_truth(
 }
 
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
-/// a 10-minute warm-up (virtual time is cheap).
-pub fn demo_plan(slots: usize) -> TestPlan {
+/// a 10-minute warm-up (virtual time is cheap), `tumble_positions` (2 or 4).
+pub fn demo_plan(slots: usize, tumble_positions: u8) -> TestPlan {
     TestPlan {
         name: "demo: ±70 g, mountings P and N".into(),
         operator: "demo".into(),
@@ -127,6 +139,7 @@ pub fn demo_plan(slots: usize) -> TestPlan {
             .collect(),
         passes: vec![Mount::P, Mount::N],
         warmup_s: 600.0,
+        tumble_positions,
         ..TestPlan::default()
     }
 }
@@ -176,6 +189,7 @@ pub fn start_sim(choice: &BenchChoice) -> Result<(RunningBench, StationConfig)> 
 /// `spinbench demo`.
 pub fn demo(
     choice: &BenchChoice,
+    tumble_positions: u8,
     json: bool,
     data_dir: &Path,
     db: Option<&StoreTarget>,
@@ -185,7 +199,7 @@ pub fn demo(
     let seed = choice.seed;
     let (sim, station) = start_sim(choice)?;
     let realism = sim.with_world(|w| w.config().realism);
-    let plan = demo_plan(station.slots());
+    let plan = demo_plan(station.slots(), tumble_positions);
     let (plan_range_g, plan_order) = (
         plan.range_g,
         spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default(),

@@ -380,12 +380,66 @@ fn a_run_through_the_api_from_start_to_report() {
         "catch-up starts after {middle}"
     );
 
-    // The audit log has the operator's actions.
+    // An engineer leaves a level out of the finished run, with a reason: the
+    // record is graded again, the report and the audit log say who and why.
     let mut admin = Client::login(&server, "admin", "admin-password");
+    let exclusions = format!("/api/runs/{run_id}/exclusions");
+    let ask = |serial: &str, g: f64, reason: &str| {
+        json!({"serial": serial, "mount": "P", "g": g, "reason": reason}).to_string()
+    };
+    let r = op.send("POST", &exclusions, Some(&ask("API-1", 4.0, "knock")));
+    assert_eq!(r.status, 403, "an operator may not: {:?}", r.json());
+    let r = admin.send(
+        "POST",
+        &exclusions,
+        Some(&ask("API-1", 4.0, "fixture knocked at 4 g")),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let left_out = r.json();
+    assert_eq!(left_out["exclusions"][0]["by"], "admin", "{left_out}");
+    assert!(
+        left_out["exclusions"][0]["points_removed"].as_u64() >= Some(1),
+        "{left_out}"
+    );
+    for (body, status, says) in [
+        (ask("API-1", 4.0, "again"), 400, "already left out"),
+        (ask("API-1", 5.0, "no such level"), 400, "no reading at 5 g"),
+        (ask("API-1", 2.0, "  "), 400, "reason"),
+        (ask("API-9", 2.0, "nobody"), 404, "no instrument 'API-9'"),
+        (ask("API-1", f64::MAX, "huge"), 400, "levels"),
+    ] {
+        let r = admin.send("POST", &exclusions, Some(&body));
+        assert_eq!(r.status, status, "{body}: {:?}", r.json());
+        let error = r.json()["error"].as_str().unwrap_or_default().to_string();
+        assert!(error.contains(says), "{body}: {error}");
+    }
+    let r = admin.send(
+        "POST",
+        "/api/runs/no-such-run/exclusions",
+        Some(&ask("API-1", 2.0, "x")),
+    );
+    assert_eq!(r.status, 404);
+    let html = admin.send("GET", &format!("/api/runs/{run_id}/report/html"), None);
+    assert!(
+        String::from_utf8_lossy(&html.body).contains("fixture knocked at 4 g"),
+        "the report names the exclusion and its reason"
+    );
+
+    // The audit log has the operator's and the engineer's actions.
     let log = admin.get_json("/api/audit", 200).to_string();
-    for action in ["start run", "answer prompt: done", "pause", "resume"] {
+    for action in [
+        "start run",
+        "answer prompt: done",
+        "pause",
+        "resume",
+        "exclude level",
+    ] {
         assert!(log.contains(action), "{action} in the audit log");
     }
+    assert!(
+        log.contains("fixture knocked at 4 g") && log.contains("k2_max"),
+        "{log}"
+    );
 }
 
 #[test]

@@ -108,6 +108,7 @@ impl StoreSink {
                 mount,
                 drawing_radius_m,
                 radius_m,
+                ..
             } => {
                 let serial = self
                     .serials

@@ -133,6 +133,53 @@ impl Store {
             .map_err(self.err("write the audit log"))
     }
 
+    /// Replace one instrument's stored result with `record` (an engineer's
+    /// change after the run, such as a level left out) and record that
+    /// `who` did `action` in the audit log, in one transaction: both or
+    /// neither. The points and one-second values are untouched.
+    pub fn replace_result(
+        &self,
+        run_id: &str,
+        record: &spinbench_engine::UnitRecord,
+        who: &str,
+        action: &str,
+        detail: &str,
+    ) -> Result<(), StoreError> {
+        let json =
+            serde_json::to_string(record).map_err(|e| self.err("encode a result")(Box::new(e)))?;
+        self.db
+            .borrow_mut()
+            .transaction(|db| {
+                let changed = db.execute(
+                    "UPDATE results SET outcome = $3, k2_max_ug_per_g2 = $4, record_json = $5
+                     WHERE run_id = $1 AND slot = $2",
+                    &[
+                        run_id.into(),
+                        (record.slot as i64).into(),
+                        record.outcome.as_str().into(),
+                        record.k2_max_ug_per_g2.into(),
+                        json.as_str().into(),
+                    ],
+                )?;
+                if changed != 1 {
+                    return Err(
+                        format!("run {run_id} has no result for slot {}", record.slot + 1).into(),
+                    );
+                }
+                db.execute(
+                    "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
+                    &[
+                        Value::Int(Some(now_s())),
+                        who.into(),
+                        action.into(),
+                        detail.into(),
+                    ],
+                )
+                .map(|_| ())
+            })
+            .map_err(self.err("replace a result"))
+    }
+
     /// The newest `limit` audit entries, newest first.
     pub fn audit_log(&self, limit: i64) -> Result<Vec<AuditRow>, StoreError> {
         Ok(self

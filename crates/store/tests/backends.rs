@@ -49,8 +49,10 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         slot,
         serial: serial.into(),
         tumble: None,
+        cross_axis_ug_per_g: Some(21.5),
         drawing_radius_m: 0.8,
         radius_m: Default::default(),
+        radius_reading_u_ppm: [(Mount::P, 3.5)].into_iter().collect(),
         points: Vec::new(),
         analysis: None,
         k2_max_ug_per_g2: Some(k2),
@@ -91,6 +93,7 @@ fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
             mount: Mount::P,
             drawing_radius_m: 0.8,
             radius_m: 0.8003,
+            reading_u_ppm: 12.0,
         },
         Event::Values {
             time_s: 1.0,

@@ -6,21 +6,16 @@ use crate::plan::{DecisionRule, Verdict};
 use spinbench_analysis::exclusion::LevelExclusion;
 
 impl Executor<'_> {
-    /// How `slot`'s points are reduced: the plan's order and the station's
-    /// Type B inputs with the slot's radius.
+    /// How `slot`'s points are reduced ([`analysis_options`]).
     pub(super) fn analysis_options(&self, slot: usize) -> AnalysisOptions {
-        AnalysisOptions {
-            order: self.plan.order,
-            type_b: spinbench_analysis::uncertainty::TypeBInputs {
-                // Each point averages its dwell's one-second read-backs.
-                // (the fewest an adaptive dwell takes).
-                readings_per_point: f64::from(match self.plan.plan.dwell.sem_target_ug {
-                    Some(_) => self.plan.plan.dwell.min_seconds.max(1),
-                    None => self.plan.plan.dwell.seconds.max(1),
-                }),
-                ..self.station.type_b(slot)
-            },
-        }
+        let u = &self.units[slot];
+        analysis_options(
+            &self.plan,
+            self.station,
+            slot,
+            &u.radius_reading_u_ppm,
+            u.cross_axis.is_some(),
+        )
     }
 
     /// The steps of the plan that measure `slot` (tumble, radius, levels
@@ -31,7 +26,7 @@ impl Executor<'_> {
             .iter()
             .enumerate()
             .filter(|(_, step)| match step {
-                Step::Tumble { .. } => true,
+                Step::Tumble { .. } | Step::CrossTumble { .. } => true,
                 Step::Radius { pass } | Step::Level { pass, .. } => self
                     .plan
                     .passes
@@ -90,139 +85,23 @@ impl Executor<'_> {
             } else if u.points.is_empty() {
                 reasons.push(Reason::new(ReasonCode::NoPoints, "no points were taken"));
             } else {
-                let input = UnitPoints {
-                    unit: serial.clone(),
-                    run: None,
-                    points: points.clone(),
-                };
-                match analyze_unit(&input, self.analysis_options(slot)) {
-                    Ok(a) => {
-                        k2_max = a.k2_max_ug_per_g2;
-                        // Each figure against its limit; the outcome is the worst.
-                        let f = &a.figures;
-                        let checks = [
-                            (
-                                "|k2|",
-                                k2_max,
-                                Some(limits.k2_max_ug_per_g2),
-                                "µg/g²",
-                                [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
-                            ),
-                            (
-                                "nonlinearity",
-                                f.nonlinearity_ppm_fs,
-                                limits.nonlinearity_max_ppm_fs,
-                                "ppm FS",
-                                [
-                                    ReasonCode::NonlinearityOverLimit,
-                                    ReasonCode::NonlinearityNearLimit,
-                                ],
-                            ),
-                            (
-                                "|asymmetry|",
-                                f.asymmetry_ppm.map(f64::abs),
-                                limits.asymmetry_max_ppm,
-                                "ppm",
-                                [
-                                    ReasonCode::AsymmetryOverLimit,
-                                    ReasonCode::AsymmetryNearLimit,
-                                ],
-                            ),
-                            (
-                                "|hysteresis|",
-                                f.hysteresis_ug.map(f64::abs),
-                                limits.hysteresis_max_ug,
-                                "µg",
-                                [
-                                    ReasonCode::HysteresisOverLimit,
-                                    ReasonCode::HysteresisNearLimit,
-                                ],
-                            ),
-                        ];
-                        outcome = Outcome::Pass;
-                        // k2's U95: its mounting's GUM budget (Type A and the
-                        // station's Type B inputs), else its interval half-width.
-                        let k2_u95 = a.k2_max_mount.and_then(|m| a.fits.get(&m)).and_then(|f| {
-                            f.uncertainty
-                                .as_ref()
-                                .and_then(|u| u.k2_ug_per_g2.as_ref())
-                                .map(|u| u.u95)
-                                .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)))
-                        });
-                        let rule = limits.decision_rule;
-                        for (name, value, limit, unit, [over, near]) in checks {
-                            let (Some(v), Some(l)) = (value, limit) else {
-                                continue;
-                            };
-                            // k2 carries its U95; the other figures carry no
-                            // uncertainty yet and are judged by their value.
-                            let (rule, u) = if over == ReasonCode::K2OverLimit {
-                                (rule, k2_u95)
-                            } else {
-                                (DecisionRule::Simple, None)
-                            };
-                            let shown = match (rule, u) {
-                                (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
-                                _ => format!("{v:.3}"),
-                            };
-                            let guarded = if rule == DecisionRule::Guarded {
-                                " (guarded rule)"
-                            } else {
-                                ""
-                            };
-                            match rule.decide(v, u, l, limits.marginal_fraction) {
-                                Verdict::Fail => {
-                                    reasons.push(Reason::new(
-                                        over,
-                                        format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
-                                    ));
-                                    outcome = Outcome::Fail;
-                                }
-                                Verdict::Inconclusive => {
-                                    reasons.push(Reason::new(
-                                        ReasonCode::K2Inconclusive,
-                                        format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
-                                    ));
-                                    if outcome != Outcome::Fail {
-                                        outcome = Outcome::Inconclusive;
-                                    }
-                                }
-                                Verdict::Marginal => {
-                                    reasons.push(Reason::new(
-                                        near,
-                                        format!(
-                                            "{name} {shown} {unit} within {:.0} % of the limit {l} {unit}{guarded}",
-                                            (1.0 - limits.marginal_fraction) * 100.0
-                                        ),
-                                    ));
-                                    if outcome == Outcome::Pass {
-                                        outcome = Outcome::Marginal;
-                                    }
-                                }
-                                Verdict::Pass => {}
-                            }
-                        }
-                        if k2_max.is_none() {
-                            reasons
-                                .push(Reason::new(ReasonCode::NoK2, "the model order has no k2"));
-                        }
-                        reasons.extend(
-                            a.notes
-                                .iter()
-                                .map(|n| Reason::new(ReasonCode::AnalysisNote, n.clone())),
-                        );
-                        analysis = Some(a);
-                    }
-                    Err(e) => reasons.push(Reason::new(
-                        ReasonCode::CannotReduce,
-                        format!("cannot reduce: {e}"),
-                    )),
-                }
+                let graded = grade(
+                    &serial,
+                    points.clone(),
+                    self.analysis_options(slot),
+                    &limits,
+                );
+                analysis = graded.analysis;
+                k2_max = graded.k2_max_ug_per_g2;
+                outcome = graded.outcome;
+                reasons.extend(graded.reasons);
             }
             out.push(UnitRecord {
                 slot,
                 serial,
                 tumble: u.cal.map(|c| [c.bias_output, c.scale_factor]),
+                cross_axis_ug_per_g: u.cross_axis.map(|c| c.ug_per_g()),
+                radius_reading_u_ppm: u.radius_reading_u_ppm.clone(),
                 drawing_radius_m: self.station.drawing_radius_m(slot),
                 radius_m: u.radius.clone(),
                 points: u.points.clone(),
@@ -278,6 +157,279 @@ impl Executor<'_> {
         exclusions.retain(|e| e.points_removed > 0);
         let [unit] = units;
         (unit.points, exclusions)
+    }
+}
+
+/// How an instrument's points are reduced: the plan's order; the station's
+/// Type B inputs with the slot's radius, the dwell's read-backs per point
+/// (the fewest an adaptive dwell takes), and what the instrument's own
+/// readings measured — its radii's reading noise and, after a four-position
+/// tumble, no unmeasured cross-axis bound (its radius was corrected).
+pub fn analysis_options(
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    slot: usize,
+    radius_reading_u_ppm: &BTreeMap<Mount, f64>,
+    cross_axis_measured: bool,
+) -> AnalysisOptions {
+    let reading = |m: Mount| radius_reading_u_ppm.get(&m).copied().unwrap_or(0.0);
+    let station_b = station.type_b(slot);
+    let dwell = &plan.plan.dwell;
+    AnalysisOptions {
+        // A plan read back from the store has no compiled order: its degree says it.
+        order: spinbench_analysis::ModelOrder::from_degree(plan.plan.order).unwrap_or(plan.order),
+        type_b: spinbench_analysis::uncertainty::TypeBInputs {
+            readings_per_point: f64::from(match dwell.sem_target_ug {
+                Some(_) => dwell.min_seconds.max(1),
+                None => dwell.seconds.max(1),
+            }),
+            radius_reading_ppm_p: reading(Mount::P),
+            radius_reading_ppm_n: reading(Mount::N),
+            cross_axis_ug_per_g: if cross_axis_measured {
+                0.0
+            } else {
+                station_b.cross_axis_ug_per_g
+            },
+            ..station_b
+        },
+    }
+}
+
+/// A finished instrument's record reduced again with one more level left
+/// out, by an engineer after the run (the web UI): the exclusions it
+/// already had and `exclusion` applied to its points, which stay in the
+/// record; graded again by the plan's limits. Refused, with what to do, for
+/// a record that was never graded (incomplete, or the instrument failed), a
+/// level already left out, or one with no reading to leave out.
+pub fn exclude_after_run(
+    record: &UnitRecord,
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    mut exclusion: LevelExclusion,
+) -> Result<UnitRecord, String> {
+    if record.outcome == Outcome::Incomplete || record.analysis.is_none() {
+        return Err(format!(
+            "{} was not graded ({}): there is no reduction to leave a level out of; retest it",
+            record.serial, record.outcome
+        ));
+    }
+    if exclusion.reason.trim().is_empty() {
+        return Err("a reason is required: say why the level is left out".into());
+    }
+    if record
+        .exclusions
+        .iter()
+        .any(|e| e.mount == exclusion.mount && e.g == exclusion.g)
+    {
+        return Err(format!(
+            "{} g in mounting {} of {} is already left out",
+            exclusion.g, exclusion.mount, record.serial
+        ));
+    }
+    exclusion.unit = Some(record.serial.clone());
+    exclusion.points_removed = 0;
+    let mut exclusions: Vec<LevelExclusion> = record
+        .exclusions
+        .iter()
+        .cloned()
+        .chain(std::iter::once(exclusion))
+        .map(|e| LevelExclusion {
+            points_removed: 0,
+            ..e
+        })
+        .collect();
+    let mut units = [UnitPoints {
+        unit: record.serial.clone(),
+        run: None,
+        points: point_list(&record.points),
+    }];
+    spinbench_analysis::exclusion::apply(&mut units, &mut exclusions);
+    if exclusions.last().is_some_and(|e| e.points_removed == 0) {
+        return Err(format!(
+            "{} has no reading at {} g in mounting {}; give one of its levels",
+            record.serial,
+            exclusions.last().map_or(0.0, |e| e.g),
+            exclusions.last().map_or(Mount::P, |e| e.mount)
+        ));
+    }
+    let [unit] = units;
+    let options = analysis_options(
+        plan,
+        station,
+        record.slot,
+        &record.radius_reading_u_ppm,
+        record.cross_axis_ug_per_g.is_some(),
+    );
+    let graded = grade(&record.serial, unit.points, options, &plan.plan.limits);
+    Ok(UnitRecord {
+        analysis: graded.analysis,
+        k2_max_ug_per_g2: graded.k2_max_ug_per_g2,
+        outcome: graded.outcome,
+        reasons: graded.reasons,
+        decision_rule: Some(plan.plan.limits.decision_rule),
+        exclusions,
+        ..record.clone()
+    })
+}
+
+/// One graded instrument: its reduction, k2_max, outcome and reasons.
+#[derive(Debug, Clone)]
+pub struct Graded {
+    /// The reduction, when it could be made.
+    pub analysis: Option<spinbench_analysis::UnitAnalysis>,
+    /// The larger |k2| of the mountings [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// The worst verdict of its figures.
+    pub outcome: Outcome,
+    /// Why, when not a plain pass.
+    pub reasons: Vec<Reason>,
+}
+
+/// Reduce the points of an instrument that completed its part of the plan
+/// and hold each figure against its limit, under the limits' decision rule
+/// (k2 with its GUM U95; the other figures by their value).
+pub fn grade(
+    serial: &str,
+    points: Vec<Point>,
+    options: AnalysisOptions,
+    limits: &crate::plan::Limits,
+) -> Graded {
+    let mut reasons = Vec::new();
+    let mut analysis = None;
+    let mut k2_max = None;
+    let mut outcome = Outcome::Fail;
+    let input = UnitPoints {
+        unit: serial.to_string(),
+        run: None,
+        points,
+    };
+    match analyze_unit(&input, options) {
+        Ok(a) => {
+            k2_max = a.k2_max_ug_per_g2;
+            // Each figure against its limit; the outcome is the worst.
+            let f = &a.figures;
+            let checks = [
+                (
+                    "|k2|",
+                    k2_max,
+                    Some(limits.k2_max_ug_per_g2),
+                    "µg/g²",
+                    [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
+                ),
+                (
+                    "nonlinearity",
+                    f.nonlinearity_ppm_fs,
+                    limits.nonlinearity_max_ppm_fs,
+                    "ppm FS",
+                    [
+                        ReasonCode::NonlinearityOverLimit,
+                        ReasonCode::NonlinearityNearLimit,
+                    ],
+                ),
+                (
+                    "|asymmetry|",
+                    f.asymmetry_ppm.map(f64::abs),
+                    limits.asymmetry_max_ppm,
+                    "ppm",
+                    [
+                        ReasonCode::AsymmetryOverLimit,
+                        ReasonCode::AsymmetryNearLimit,
+                    ],
+                ),
+                (
+                    "|hysteresis|",
+                    f.hysteresis_ug.map(f64::abs),
+                    limits.hysteresis_max_ug,
+                    "µg",
+                    [
+                        ReasonCode::HysteresisOverLimit,
+                        ReasonCode::HysteresisNearLimit,
+                    ],
+                ),
+            ];
+            outcome = Outcome::Pass;
+            // k2's U95: its mounting's GUM budget (Type A and the
+            // station's Type B inputs), else its interval half-width.
+            let k2_u95 = a.k2_max_mount.and_then(|m| a.fits.get(&m)).and_then(|f| {
+                f.uncertainty
+                    .as_ref()
+                    .and_then(|u| u.k2_ug_per_g2.as_ref())
+                    .map(|u| u.u95)
+                    .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)))
+            });
+            let rule = limits.decision_rule;
+            for (name, value, limit, unit, [over, near]) in checks {
+                let (Some(v), Some(l)) = (value, limit) else {
+                    continue;
+                };
+                // k2 carries its U95; the other figures carry no
+                // uncertainty yet and are judged by their value.
+                let (rule, u) = if over == ReasonCode::K2OverLimit {
+                    (rule, k2_u95)
+                } else {
+                    (DecisionRule::Simple, None)
+                };
+                let shown = match (rule, u) {
+                    (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
+                    _ => format!("{v:.3}"),
+                };
+                let guarded = if rule == DecisionRule::Guarded {
+                    " (guarded rule)"
+                } else {
+                    ""
+                };
+                match rule.decide(v, u, l, limits.marginal_fraction) {
+                    Verdict::Fail => {
+                        reasons.push(Reason::new(
+                            over,
+                            format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
+                        ));
+                        outcome = Outcome::Fail;
+                    }
+                    Verdict::Inconclusive => {
+                        reasons.push(Reason::new(
+                            ReasonCode::K2Inconclusive,
+                            format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
+                        ));
+                        if outcome != Outcome::Fail {
+                            outcome = Outcome::Inconclusive;
+                        }
+                    }
+                    Verdict::Marginal => {
+                        reasons.push(Reason::new(
+                            near,
+                            format!(
+                                "{name} {shown} {unit} within {:.0} % of the limit {l} {unit}{guarded}",
+                                (1.0 - limits.marginal_fraction) * 100.0
+                            ),
+                        ));
+                        if outcome == Outcome::Pass {
+                            outcome = Outcome::Marginal;
+                        }
+                    }
+                    Verdict::Pass => {}
+                }
+            }
+            if k2_max.is_none() {
+                reasons.push(Reason::new(ReasonCode::NoK2, "the model order has no k2"));
+            }
+            reasons.extend(
+                a.notes
+                    .iter()
+                    .map(|n| Reason::new(ReasonCode::AnalysisNote, n.clone())),
+            );
+            analysis = Some(a);
+        }
+        Err(e) => reasons.push(Reason::new(
+            ReasonCode::CannotReduce,
+            format!("cannot reduce: {e}"),
+        )),
+    }
+    Graded {
+        analysis,
+        k2_max_ug_per_g2: k2_max,
+        outcome,
+        reasons,
     }
 }
 

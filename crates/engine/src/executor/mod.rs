@@ -31,6 +31,7 @@ pub mod state;
 mod steps;
 
 pub use crate::bench::Bench;
+pub use judge::{Graded, analysis_options, exclude_after_run, grade};
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
 pub use steps::label;
@@ -41,7 +42,7 @@ use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState};
 use crate::plan::{CompiledPlan, Fixture, Step};
 use crate::record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
 use spinbench_analysis::radius::RadiusCalibration;
-use spinbench_analysis::tumble::TumbleCalibration;
+use spinbench_analysis::tumble::{CrossAxisSensitivity, MeanReading, TumbleCalibration};
 use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
 use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
 use spinbench_devices::{Centrifuge, DeviceError, DeviceErrorKind};
@@ -157,12 +158,28 @@ pub struct RunOptions {
 
 #[derive(Debug, Clone, Default)]
 struct UnitState {
-    up: Option<f64>,
-    down: Option<f64>,
+    up: Option<MeanReading>,
+    down: Option<MeanReading>,
     cal: Option<TumbleCalibration>,
+    /// The four-position tumble's extra readings: [as on the arm, inverted].
+    crosswise: [Option<MeanReading>; 2],
+    cross_axis: Option<CrossAxisSensitivity>,
     radius: BTreeMap<Mount, f64>,
+    /// Each radius's relative standard uncertainty from its readings [ppm].
+    radius_reading_u_ppm: BTreeMap<Mount, f64>,
     points: Vec<PointRecord>,
     failed: Option<Reason>,
+}
+
+impl UnitState {
+    /// The cross-axis sensitivity once the tumble and both cross positions
+    /// are read (nothing until then).
+    fn find_cross_axis(&mut self) -> Result<(), spinbench_analysis::AnalysisError> {
+        if let (Some(cal), [Some(on_arm), Some(inverted)]) = (self.cal, self.crosswise) {
+            self.cross_axis = Some(CrossAxisSensitivity::from_readings(&cal, on_arm, inverted)?);
+        }
+        Ok(())
+    }
 }
 
 /// One second of the whole station.
@@ -458,6 +475,7 @@ impl<'a> Executor<'a> {
                 Step::WarmUp { seconds } => self.warm_up(*seconds)?,
                 Step::Mount { fixtures } => self.mount(fixtures)?,
                 Step::Tumble { up } => self.tumble(*up)?,
+                Step::CrossTumble { as_on_arm } => self.cross_tumble(*as_on_arm)?,
                 Step::Radius { pass } => self.radius(*pass)?,
                 Step::Level {
                     pass,

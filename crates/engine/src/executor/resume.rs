@@ -25,26 +25,48 @@ impl Executor<'_> {
                     slot,
                     up,
                     output_hz,
+                    standard_error_hz,
                 } => {
                     if let Some(u) = self.units.get_mut(*slot) {
+                        let reading = Some(MeanReading {
+                            output: *output_hz,
+                            standard_error: *standard_error_hz,
+                        });
                         if *up {
-                            u.up = Some(*output_hz);
+                            u.up = reading;
                         } else {
-                            u.down = Some(*output_hz);
+                            u.down = reading;
                         }
                         if let (Some(up), Some(down)) = (u.up, u.down) {
-                            u.cal = TumbleCalibration::from_up_down(up, down).ok();
+                            u.cal = TumbleCalibration::from_up_down(up.output, down.output).ok();
                         }
+                    }
+                }
+                Event::CrossTumbleDone {
+                    slot,
+                    as_on_arm,
+                    output_hz,
+                    standard_error_hz,
+                } => {
+                    if let Some(u) = self.units.get_mut(*slot) {
+                        u.crosswise[usize::from(!*as_on_arm)] = Some(MeanReading {
+                            output: *output_hz,
+                            standard_error: *standard_error_hz,
+                        });
+                        // A failure was journalled as UnitFailed when it happened.
+                        let _ = u.find_cross_axis();
                     }
                 }
                 Event::RadiusDone {
                     slot,
                     mount,
                     radius_m,
+                    reading_u_ppm,
                     ..
                 } => {
                     if let Some(u) = self.units.get_mut(*slot) {
                         u.radius.insert(*mount, *radius_m);
+                        u.radius_reading_u_ppm.insert(*mount, *reading_u_ppm);
                     }
                 }
                 Event::PointDone { step, points } => {

@@ -155,26 +155,59 @@ impl Executor<'_> {
                 )?;
                 continue;
             }
-            let (mean, _) = mean_std(&y);
+            let Some(reading) = MeanReading::of(&y) else {
+                continue;
+            };
             let u = &mut self.units[slot];
             if up {
-                u.up = Some(mean);
+                u.up = Some(reading);
             } else {
-                u.down = Some(mean);
+                u.down = Some(reading);
             }
             self.emit(Event::TumbleDone {
                 slot,
                 up,
-                output_hz: mean,
+                output_hz: reading.output,
+                standard_error_hz: reading.standard_error,
             })?;
             let u = &self.units[slot];
             if let (Some(a), Some(b)) = (u.up, u.down) {
-                match TumbleCalibration::from_up_down(a, b) {
+                match TumbleCalibration::from_up_down(a.output, b.output) {
                     Ok(cal) => self.units[slot].cal = Some(cal),
                     Err(e) => {
                         self.fail_unit(slot, ReasonCode::TumbleFailed, format!("tumble: {e}"))?
                     }
                 }
+            }
+        }
+        Ok(())
+    }
+
+    /// One of a four-position tumble's extra readings; after both, each
+    /// instrument's cross-axis sensitivity (taken out of its radius).
+    pub(super) fn cross_tumble(&mut self, as_on_arm: bool) -> Result<(), EngineError> {
+        self.command_rate(0.0)?;
+        let mut slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
+        let values = self.acquire(&mut slots)?;
+        for slot in slots {
+            let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
+            let Some(reading) = MeanReading::of(&y) else {
+                self.fail_unit(
+                    slot,
+                    ReasonCode::NoOutput,
+                    "no output during a cross-axis tumble reading".into(),
+                )?;
+                continue;
+            };
+            self.units[slot].crosswise[usize::from(!as_on_arm)] = Some(reading);
+            self.emit(Event::CrossTumbleDone {
+                slot,
+                as_on_arm,
+                output_hz: reading.output,
+                standard_error_hz: reading.standard_error,
+            })?;
+            if let Err(e) = self.units[slot].find_cross_axis() {
+                self.fail_unit(slot, ReasonCode::TumbleFailed, format!("tumble: {e}"))?;
             }
         }
         Ok(())
@@ -208,18 +241,36 @@ impl Executor<'_> {
                 )?;
                 continue;
             }
-            let (mean, _) = mean_std(&y);
+            let Some(reading) = MeanReading::of(&y) else {
+                continue;
+            };
             let r0_i = self.station.drawing_radius_m(slot);
             // method.md (6)–(8) at the measured rate: the rate applies ω²·R0/g at R0.
             let nominal_g = w_meas * w_meas * r0_i / g;
-            match RadiusCalibration::from_reading(mean, &cal, r0_i, nominal_g, mount) {
+            let u = &self.units[slot];
+            let cross = u.cross_axis;
+            match RadiusCalibration::from_reading(
+                reading.output,
+                &cal,
+                cross,
+                r0_i,
+                nominal_g,
+                mount,
+            ) {
                 Ok(r) => {
-                    self.units[slot].radius.insert(mount, r.radius_m);
+                    let reading_u_ppm = match (u.up, u.down) {
+                        (Some(up), Some(down)) => r.reading_u_ppm(up, down, reading, cross),
+                        _ => 0.0,
+                    };
+                    let u = &mut self.units[slot];
+                    u.radius.insert(mount, r.radius_m);
+                    u.radius_reading_u_ppm.insert(mount, reading_u_ppm);
                     self.emit(Event::RadiusDone {
                         slot,
                         mount,
                         drawing_radius_m: r0_i,
                         radius_m: r.radius_m,
+                        reading_u_ppm,
                     })?;
                 }
                 Err(e) => self.fail_unit(
@@ -344,6 +395,12 @@ fn mount_text(fixtures: &[Option<Fixture>]) -> String {
         Fixture::Arm(Mount::N) => {
             "on the arm in mounting N (input axis away from the spin axis)".to_string()
         }
+        Fixture::Crosswise { as_on_arm: true } => "on the tumble fixture, input axis horizontal, \
+            the face that is up on the arm UP (gravity across the axis as on the arm)"
+            .to_string(),
+        Fixture::Crosswise { as_on_arm: false } => "on the tumble fixture, input axis horizontal, \
+            the face that is up on the arm DOWN (gravity across the axis inverted)"
+            .to_string(),
     };
     match fixtures.iter().flatten().next() {
         Some(f) if kinds.len() == 1 => format!("Mount every instrument {}", describe(f)),
@@ -366,6 +423,14 @@ pub fn label(step: &Step) -> String {
         Step::WarmUp { seconds } => format!("warm-up {seconds:.0} s"),
         Step::Mount { fixtures } => mount_text(fixtures),
         Step::Tumble { up } => format!("tumble, input axis {}", if *up { "up" } else { "down" }),
+        Step::CrossTumble { as_on_arm } => format!(
+            "tumble, input axis horizontal, {}",
+            if *as_on_arm {
+                "as on the arm"
+            } else {
+                "inverted"
+            }
+        ),
         Step::Radius { pass } => format!("radius at 1 g (pass {})", pass + 1),
         Step::Level {
             pass,

@@ -91,6 +91,11 @@ pub enum Command {
         /// Bench configuration (TOML) to start from (its keys over its realism preset).
         #[arg(long, value_name = "FILE")]
         sim_config: Option<PathBuf>,
+        /// Tumble positions: 2 (IA up and down, the published method) or 4
+        /// (also the two cross-axis positions, which take gravity across the
+        /// axis out of each radius).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=4))]
+        tumble_positions: u8,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,
@@ -403,6 +408,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             seed,
             realism,
             sim_config,
+            tumble_positions,
             json,
             data,
             db,
@@ -412,7 +418,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 realism,
                 config: sim_config,
             };
-            crate::demo::demo(&bench, json, &data, db.as_ref(), out)
+            crate::demo::demo(&bench, tumble_positions, json, &data, db.as_ref(), out)
         }
         Command::Run {
             plan,

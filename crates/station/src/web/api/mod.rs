@@ -162,6 +162,11 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("post", "/api/runs", post(runs::start_run)),
         ("get", "/api/runs/{id}", get(runs::run)),
         ("get", "/api/runs/{id}/report/{format}", get(runs::report)),
+        (
+            "post",
+            "/api/runs/{id}/exclusions",
+            post(runs::exclude_level),
+        ),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),
         ("post", "/api/run/resume", post(runs::resume)),

@@ -249,3 +249,107 @@ pub(super) async fn unit(
         })).collect::<Vec<_>>(),
     })))
 }
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ExcludeLevel {
+    serial: String,
+    mount: spinbench_analysis::Mount,
+    g: f64,
+    reason: String,
+}
+
+/// Leave a level of one instrument of a finished run out of its reduction
+/// (an engineer, with a reason): the record is reduced and graded again by
+/// the run's own plan and station config, its exclusions list who, why and
+/// how many readings, and the audit log keeps the figures before and after.
+/// The readings themselves stay.
+pub(super) async fn exclude_level(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let ask: ExcludeLevel = parse_json(&body)?;
+    if !(ask.g.is_finite() && (0.0..=spinbench_engine::bounds::MAX_LEVEL_G).contains(&ask.g)) {
+        return Err(ApiError::bad(format!(
+            "g = {}: give one of the run's levels in g",
+            ask.g
+        )));
+    }
+    if ask.reason.trim().is_empty() || ask.reason.len() > 500 {
+        return Err(ApiError::bad(
+            "reason: say why the level is left out (1 to 500 characters)",
+        ));
+    }
+    if app.runner.active().as_deref() == Some(id.as_str()) {
+        return Err(ApiError::conflict(format!(
+            "run {id} is still going; leave levels out once it has ended"
+        )));
+    }
+    let store = store(&app);
+    let run = store
+        .run(&id)?
+        .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
+    let context = store
+        .run_context(&id)?
+        .ok_or_else(|| ApiError::not_found(format!("no run '{id}'")))?;
+    let station_toml = context.station_config.ok_or_else(|| {
+        ApiError::conflict(format!(
+            "run {id} did not record its station config, so it cannot be reduced again here; use `spinbench analyze --exclude-level`"
+        ))
+    })?;
+    let station = spinbench_engine::StationConfig::from_toml(&station_toml)
+        .map_err(|e| ApiError::internal(format!("run {id}'s station config: {e}")))?;
+    let plan: TestPlan = serde_json::from_str(&context.plan_json)
+        .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
+    let compiled = plan
+        .compile(&station)
+        .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
+    let result = store
+        .results(&id)?
+        .into_iter()
+        .find(|r| r.serial == ask.serial)
+        .ok_or_else(|| {
+            ApiError::not_found(format!(
+                "run {id} ({}) has no instrument '{}'",
+                run.state, ask.serial
+            ))
+        })?;
+    let exclusion = spinbench_analysis::exclusion::LevelExclusion {
+        unit: Some(ask.serial.clone()),
+        mount: ask.mount,
+        g: ask.g,
+        reason: ask.reason.trim().to_string(),
+        by: session.user.clone(),
+        points_removed: 0,
+    };
+    let before = &result.record;
+    let after =
+        spinbench_engine::executor::exclude_after_run(before, &compiled, &station, exclusion)
+            .map_err(ApiError::bad)?;
+    let k2 = |r: &spinbench_engine::UnitRecord| {
+        r.k2_max_ug_per_g2
+            .map_or("—".to_string(), |k| format!("{k:.3}"))
+    };
+    let detail = format!(
+        "{id} {} {}:{} g ({}): k2_max {} → {} µg/g², outcome {} → {}",
+        ask.serial,
+        ask.mount,
+        ask.g,
+        ask.reason.trim(),
+        k2(before),
+        k2(&after),
+        before.outcome,
+        after.outcome
+    );
+    store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
+    Ok(axum::Json(json!({
+        "run_id": id,
+        "serial": after.serial,
+        "outcome": after.outcome,
+        "k2_max_ug_per_g2": after.k2_max_ug_per_g2,
+        "exclusions": after.exclusions,
+    })))
+}

@@ -348,7 +348,40 @@ async function showRun(id) {
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
     }
     box.appendChild(t);
+    if (state.session && state.session.role !== "operator" && r.results.length) box.appendChild(excludeForm(r));
   } catch (e) { show(e.message); }
+}
+
+// An engineer leaves a level of one instrument out of a finished run's
+// reduction, with a reason; the server reduces and grades it again and
+// keeps who, why and the figures before and after in the audit log.
+function excludeForm(r) {
+  const form = document.createElement("form");
+  form.id = "exclude-form";
+  const field = (label, el) => { const l = document.createElement("label"); l.append(label + " ", el); form.append(l, " "); return el; };
+  const serial = field("Leave out: serial", document.createElement("select"));
+  serial.id = "exclude-serial";
+  for (const s of [...new Set(r.results.map((u) => u.serial))]) serial.add(new Option(s, s));
+  const mount = field("mounting", document.createElement("select"));
+  mount.id = "exclude-mount";
+  for (const m of ["P", "N"]) mount.add(new Option(m, m));
+  const g = field("level [g]", document.createElement("input"));
+  Object.assign(g, { id: "exclude-g", type: "number", min: "0", step: "any", required: true });
+  const reason = field("reason", document.createElement("input"));
+  Object.assign(reason, { id: "exclude-reason", required: true, maxLength: 500, size: 40 });
+  const button = document.createElement("button");
+  button.type = "submit"; button.id = "exclude-button"; button.textContent = "Leave level out";
+  form.append(button);
+  form.addEventListener("submit", async (ev) => {
+    ev.preventDefault();
+    try {
+      const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/exclusions",
+        { serial: serial.value, mount: mount.value, g: Number(g.value), reason: reason.value });
+      show(res.serial + ": " + mount.value + " " + g.value + " g left out; outcome " + res.outcome, true);
+      await showRun(r.id);
+    } catch (e) { show(e.message); }
+  });
+  return form;
 }
 
 function showReports(box, id) {
