@@ -112,9 +112,16 @@ impl UnitReport {
         &self.result.record
     }
 
-    /// Its reasons in one line.
+    /// Its reasons in one line, then any level left out (who, why), so a
+    /// result that was reduced without some readings says so wherever it is shown.
     pub fn reasons_text(&self) -> String {
-        self.result.record.reasons.join("; ")
+        let r = &self.result.record;
+        r.reasons
+            .iter()
+            .map(ToString::to_string)
+            .chain(r.exclusions.iter().map(ToString::to_string))
+            .collect::<Vec<_>>()
+            .join("; ")
     }
 }
 
@@ -174,8 +181,11 @@ pub struct SummaryRow {
     pub k1_hz_per_g: Option<f64>,
     /// k2 [µg/g²].
     pub k2_ug_per_g2: Option<f64>,
-    /// Half-width of k2's 95 % interval [µg/g²].
+    /// Half-width of k2's 95 % interval from the fit alone (Type A) [µg/g²].
     pub k2_ci95_half_ug_per_g2: Option<f64>,
+    /// k2's expanded uncertainty at 95 % from its GUM budget (Type A and B),
+    /// the one the guarded decision uses [µg/g²].
+    pub k2_u95_ug_per_g2: Option<f64>,
     /// k3 [µg/g³].
     pub k3_ug_per_g3: Option<f64>,
     /// k2_max of the instrument [µg/g²].
@@ -218,6 +228,10 @@ pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
                 k2_ci95_half_ug_per_g2: fit
                     .and_then(|f| f.ci95.k2_ug_per_g2)
                     .map(|[a, b]| (b - a) / 2.0),
+                k2_u95_ug_per_g2: entry
+                    .and_then(|(_, f)| f.uncertainty.as_ref())
+                    .and_then(|u| u.k2_ug_per_g2.as_ref())
+                    .map(|u| u.u95),
                 k3_ug_per_g3: fit.and_then(|f| f.k3_ug_per_g3),
                 k2_max_ug_per_g2: u.result.k2_max_ug_per_g2,
                 sf_nonlinearity_ppm: analysis
@@ -411,7 +425,9 @@ fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
         row.k0_g,
         row.k1_hz_per_g,
         row.k2_ug_per_g2,
-        row.k2_ci95_half_ug_per_g2,
+        // The ±95 % shown is the one the decision uses: the GUM U95 where
+        // there is a budget, else the fit's interval.
+        row.k2_u95_ug_per_g2.or(row.k2_ci95_half_ug_per_g2),
         row.k3_ug_per_g3,
         row.k2_max_ug_per_g2,
         row.sf_nonlinearity_ppm,

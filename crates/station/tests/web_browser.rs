@@ -22,6 +22,7 @@ fn plan() -> String {
 fn an_operator_runs_a_test_in_the_browser() {
     let dir = tempfile::tempdir().expect("tempdir");
     web::add_user(dir.path(), "op", "operator", "op-password");
+    web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(dir.path().join("plans").join("browser.toml"), plan()).expect("plan");
     // 10× real time: a few seconds per level, so the curves visibly move,
@@ -162,6 +163,55 @@ fn an_operator_runs_a_test_in_the_browser() {
         "return document.getElementById('run-detail').textContent.includes('WEB-2')",
     );
     b.screenshot(&shots.join("5-history.png"));
+    assert_eq!(
+        b.script("return !!document.getElementById('exclude-form')"),
+        Value::Bool(false),
+        "an operator cannot leave levels out"
+    );
+
+    // An engineer leaves a level out of the finished run, with a reason.
+    b.click("#logout-button");
+    log_in(&b, &server.base, "eng", "eng-password");
+    b.click("#nav-history");
+    b.wait_for(
+        10,
+        "the runs table",
+        "return document.querySelectorAll('#runs-table tbody tr').length > 0",
+    );
+    b.click("#runs-table tbody tr a");
+    b.wait_for(
+        10,
+        "the exclusion form",
+        "return !!document.getElementById('exclude-form')",
+    );
+    b.script("const s = document.getElementById('exclude-serial'); s.value = 'WEB-2';");
+    b.script("document.getElementById('exclude-mount').value = 'N';");
+    b.type_into("#exclude-g", "3");
+    b.type_into(
+        "#exclude-reason",
+        "fixture screw found loose after the 3 g level",
+    );
+    b.click("#exclude-button");
+    b.wait_for(
+        20,
+        "the exclusion's confirmation",
+        "return document.getElementById('message').textContent.includes('left out')",
+    );
+    b.wait_for(
+        10,
+        "the results naming the exclusion",
+        "return document.getElementById('run-detail').textContent.includes('EXCLUDED by eng: mounting N level 3 g')",
+    );
+    b.screenshot(&shots.join("5b-level-left-out.png"));
+    let html = b.script_async(
+        "const done = arguments[0]; fetch(document.getElementById('report-html').href)\
+         .then(r => r.text().then(done)).catch(e => done(String(e)));",
+    );
+    assert!(
+        html.as_str()
+            .is_some_and(|h| h.contains("fixture screw found loose")),
+        "the report names the exclusion and its reason"
+    );
 }
 
 #[test]

@@ -176,6 +176,7 @@ pub(super) async fn run(
                 "radius_m": r.radius_m, "drawing_radius_m": r.drawing_radius_m,
                 "k0_g": r.k0_g, "k1_hz_per_g": r.k1_hz_per_g,
                 "k2_ug_per_g2": r.k2_ug_per_g2, "k2_ci95_half_ug_per_g2": r.k2_ci95_half_ug_per_g2,
+                "k2_U95": r.k2_u95_ug_per_g2,
                 "k3_ug_per_g3": r.k3_ug_per_g3, "k2_max_ug_per_g2": r.k2_max_ug_per_g2,
                 "sf_nonlinearity_ppm": r.sf_nonlinearity_ppm, "asymmetry_ppm": r.asymmetry_ppm,
                 "hysteresis_ug": r.hysteresis_ug, "outcome": r.outcome, "reasons": r.reasons,

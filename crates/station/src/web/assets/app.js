@@ -339,12 +339,12 @@ async function showRun(id) {
     const h = document.createElement("h3"); h.textContent = "Run " + r.id + " — " + r.state; box.appendChild(h);
     showReports(box, r.id);
     const t = document.createElement("table");
-    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "±95 %", "k2_max", "outcome", "reasons"];
+    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "k2_max", "outcome", "reasons"];
     t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = x; return th; }));
     const f = (v, d) => v === null ? "—" : Number(v).toFixed(d);
     for (const u of r.results) {
       const tr = t.insertRow();
-      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), u.outcome, u.reasons]
+      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), u.outcome, u.reasons]
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
     }
     box.appendChild(t);
