@@ -22,6 +22,10 @@ pub const MAX_RESTARTS: u32 = 1_000;
 pub const MAX_RATE_TOLERANCE_PPM: f64 = 10_000.0;
 /// Largest drift, noise and standard-error thresholds [µg] or [µg/s] (1 g).
 pub const MAX_UG: f64 = 1e6;
+/// Largest temperature change accepted as a limit [°C].
+pub const MAX_TEMPERATURE_CHANGE_C: f64 = 100.0;
+/// The instrument temperatures a limit may name [°C] (a VBA's whole range and then some).
+pub const INSTRUMENT_TEMPERATURE_RANGE_C: (f64, f64) = (-100.0, 200.0);
 /// Largest k2 limit [µg/g²] and other figure limits [ppm, µg].
 pub const MAX_FIGURE_LIMIT: f64 = 1e6;
 /// Longest serial number, plan name or operator name [characters].

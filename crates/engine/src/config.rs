@@ -50,6 +50,18 @@ pub struct StationConfig {
     /// uncertainty, the radius and the temperature. Absent: Type A only.
     #[serde(default)]
     pub uncertainty: spinbench_analysis::uncertainty::TypeBInputs,
+    /// The instruments' temperature limit. Absent: not checked.
+    #[serde(default)]
+    pub temperature: TemperatureLimits,
+}
+
+/// `[temperature]`: what the station does with the instruments' temperatures.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemperatureLimits {
+    /// An instrument that reports more than this [°C] stops the run (into
+    /// the safe state, the instrument and its temperature recorded).
+    pub instrument_max_c: Option<f64>,
 }
 
 fn default_station_name() -> String {
@@ -355,6 +367,17 @@ impl StationConfig {
                     self.arm.stretch_ug_per_g2
                 ),
             );
+        }
+        if let Some(t) = self.temperature.instrument_max_c {
+            let (lo, hi) = crate::bounds::INSTRUMENT_TEMPERATURE_RANGE_C;
+            if !(t.is_finite() && (lo..=hi).contains(&t)) {
+                return err(
+                    "temperature.instrument_max_c",
+                    format!(
+                        "{t} is not an instrument temperature from {lo} to {hi} °C (INSTRUMENT_TEMPERATURE_RANGE_C)"
+                    ),
+                );
+            }
         }
         if let Err(problem) = self.type_b(0).validate() {
             return err("uncertainty", problem);

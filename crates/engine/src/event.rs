@@ -84,6 +84,10 @@ pub enum Event {
         on_speed: bool,
         /// dF per slot [Hz] (`None`: no output).
         outputs_hz: Vec<Option<f64>>,
+        /// Each slot's latest temperature [°C] (`None`: none reported);
+        /// empty in journals made before temperatures were kept.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        temperatures_c: Vec<Option<f64>>,
     },
     /// Waiting for stability or averaging at a level.
     Progress {

@@ -152,6 +152,11 @@ pub struct StabilityConfig {
     pub max_restarts: u32,
     /// An instrument whose 1-s values scatter more than this is failed as noisy [µg].
     pub noise_limit_ug: f64,
+    /// Largest change of an instrument's temperature during a point's
+    /// averaging [°C]: a point over it is measured again (up to
+    /// `max_restarts`), then kept and flagged. Absent: not checked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature_change_max_c: Option<f64>,
 }
 
 impl Default for StabilityConfig {
@@ -163,6 +168,7 @@ impl Default for StabilityConfig {
             max_settle_s: 180,
             max_restarts: 5,
             noise_limit_ug: 300.0,
+            temperature_change_max_c: None,
         }
     }
 }
@@ -476,6 +482,15 @@ impl TestPlan {
             .map_err(at("stability.drift_limit_ug_per_s"))?;
         check_positive(s.noise_limit_ug, MAX_UG, "µg", "MAX_UG")
             .map_err(at("stability.noise_limit_ug"))?;
+        if let Some(c) = s.temperature_change_max_c {
+            check_positive(
+                c,
+                MAX_TEMPERATURE_CHANGE_C,
+                "°C",
+                "MAX_TEMPERATURE_CHANGE_C",
+            )
+            .map_err(at("stability.temperature_change_max_c"))?;
+        }
         for (key, v, min, max, bound) in [
             (
                 "stability.hold_s",

@@ -29,6 +29,25 @@ pub struct PointRecord {
     pub n: u32,
     /// Station time of the first and last value [s].
     pub time_s: [f64; 2],
+    /// Mean of the instrument's temperature over the point's values [°C]
+    /// (as its counter module reports it; absent when it reports none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_c: Option<f64>,
+    /// Its change over the point: highest minus lowest [°C].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_change_c: Option<f64>,
+    /// Mean f1 + f2 [Hz], the resonators' common mode: a thermal proxy
+    /// (it moves with temperature, hardly with acceleration).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resonator_sum_hz: Option<f64>,
+    /// Its change over the point: highest minus lowest, relative [ppm].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resonator_sum_change_ppm: Option<f64>,
+    /// Taken while the temperature changed by more than the plan's
+    /// `stability.temperature_change_max_c` and it could not be measured
+    /// again within `max_restarts`.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub temperature_unsettled: bool,
 }
 
 /// Pass, fail, marginal, inconclusive (the interval straddles a limit), or
@@ -94,6 +113,10 @@ pub enum ReasonCode {
     AnalysisNote,
     /// The run ended before its part of the plan was done.
     Incomplete,
+    /// Points were taken while its temperature moved more than the plan allows.
+    TemperatureUnsettled,
+    /// It reported a temperature above the station's limit: the run stopped.
+    OverTemperature,
     /// Anything else (and every reason of a record written before codes existed).
     #[default]
     Other,

@@ -52,7 +52,7 @@ fn run(
     plan: TestPlan,
     abort_after_windows: Option<u64>,
 ) -> (RunSummary, Vec<Event>, RunningBench) {
-    run_paused(sim, plan, abort_after_windows, None)
+    run_paused(sim, plan, abort_after_windows, None, &|_| {})
 }
 
 /// As `run`, pausing at window `pause.0` and resuming at window `pause.1` when given.
@@ -61,10 +61,12 @@ fn run_paused(
     plan: TestPlan,
     abort_after_windows: Option<u64>,
     pause_windows: Option<(u64, u64)>,
+    adjust_station: &dyn Fn(&mut StationConfig),
 ) -> (RunSummary, Vec<Event>, RunningBench) {
     let bench = RunningBench::start(SimConfig { speed: 0.0, ..sim }, ServeOptions::default())
         .expect("bench");
-    let station = station_for(&bench);
+    let mut station = station_for(&bench);
+    adjust_station(&mut station);
     let compiled = plan.compile(&station).expect("plan fits the station");
     let events = Arc::new(Mutex::new(Vec::new()));
     let abort = spinbench_engine::AbortFlag::new();
@@ -429,8 +431,13 @@ fn an_abort_ends_in_the_safe_state() {
 
 #[test]
 fn a_paused_run_holds_between_steps_and_then_completes() {
-    let (summary, events, bench) =
-        run_paused(SimConfig::default(), small_plan(), None, Some((5, 15)));
+    let (summary, events, bench) = run_paused(
+        SimConfig::default(),
+        small_plan(),
+        None,
+        Some((5, 15)),
+        &|_| {},
+    );
     assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
     let states: Vec<RunState> = events
         .iter()
@@ -842,4 +849,97 @@ fn a_four_position_tumble_takes_gravity_across_the_axis_out_of_the_radius() {
         large >= 3,
         "too few instruments with |c| > 500 µg/g to tell: {large}"
     );
+}
+
+#[test]
+fn every_point_carries_the_instruments_temperature_and_the_one_second_values_too() {
+    let (summary, events, bench) = run(SimConfig::default(), small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let temperatures = bench.with_world(|w| w.instrument_temperature_c(0));
+    bench.shutdown();
+    for r in &summary.records {
+        for p in &r.points {
+            let t = p.temperature_c.expect("a temperature per point");
+            // Ambient 23 °C plus up to 4 °C of self-heating.
+            assert!((22.9..27.1).contains(&t), "{}: {t} °C", r.serial);
+            assert!(
+                p.temperature_change_c
+                    .is_some_and(|d| (0.0..1.0).contains(&d))
+            );
+            let sum = p.resonator_sum_hz.expect("f1 + f2");
+            assert!(sum > 1e4, "{}: f1 + f2 = {sum} Hz", r.serial);
+            assert!(!p.temperature_unsettled);
+        }
+    }
+    assert!((22.9..27.1).contains(&temperatures), "{temperatures}");
+    let with_temperature = events
+        .iter()
+        .filter(|e| matches!(e, Event::Values { temperatures_c, .. } if temperatures_c.first().is_some_and(Option::is_some)))
+        .count();
+    assert!(
+        with_temperature > 10,
+        "one-second values with temperatures: {with_temperature}"
+    );
+}
+
+#[test]
+fn a_point_taken_while_the_temperature_moves_is_measured_again_then_flagged() {
+    // The laboratory warms by 36 °C an hour (0.01 °C/s): every 3-s point moves
+    // by more than the plan's 0.005 °C.
+    let sim = SimConfig {
+        ambient_drift_c_per_h: 36.0,
+        ..SimConfig::default()
+    };
+    let mut plan = small_plan();
+    plan.stability.temperature_change_max_c = Some(0.005);
+    plan.stability.max_restarts = 1;
+    let (summary, events, bench) = run(sim, plan, None);
+    bench.shutdown();
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let again = events
+        .iter()
+        .filter(|e| matches!(e, Event::Notice { message } if message.contains("temperature_change_max_c")))
+        .count();
+    assert!(again >= 7, "each level measured again once: {again}");
+    for r in &summary.records {
+        assert!(
+            r.points.iter().all(|p| p.temperature_unsettled),
+            "{}",
+            r.serial
+        );
+        assert!(
+            r.reasons
+                .iter()
+                .any(|x| x.code == spinbench_engine::ReasonCode::TemperatureUnsettled),
+            "{}: {:?}",
+            r.serial,
+            r.reasons
+        );
+        assert_ne!(r.outcome, Outcome::Incomplete, "flagged, still graded");
+    }
+}
+
+#[test]
+fn an_instrument_over_its_temperature_limit_stops_the_run_in_the_safe_state() {
+    // The instruments run at 23 °C and more; the station allows 20 °C.
+    let (summary, events, bench) = run_paused(
+        SimConfig::default(),
+        small_plan(),
+        None,
+        None,
+        &|s: &mut StationConfig| s.temperature.instrument_max_c = Some(20.0),
+    );
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    let why = reason(&summary);
+    assert!(
+        why.contains("slot 1") && why.contains("instrument_max_c"),
+        "{why}"
+    );
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::RunFinished { .. }))
+    );
+    assert_safe(&bench, true);
+    bench.shutdown();
 }

@@ -350,6 +350,9 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
         .map(ToString::to_string)
         .collect();
     let r = u.record();
+    if let Some(line) = temperature_line(&r.points) {
+        lines.push(line);
+    }
     if !r.radius_reading_u_ppm.is_empty() || r.cross_axis_ug_per_g.is_some() {
         let radius: Vec<String> = r
             .radius_reading_u_ppm
@@ -400,6 +403,43 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
         }
     }
     lines
+}
+
+/// The instrument's temperatures over its points, when its module reported
+/// them: the range of the points' means, the largest change within one
+/// point, how far f1 + f2 (the thermal proxy) moved, and the points taken
+/// while the temperature moved more than the plan allowed.
+pub fn temperature_line(points: &[spinbench_engine::PointRecord]) -> Option<String> {
+    let means: Vec<f64> = points.iter().filter_map(|p| p.temperature_c).collect();
+    if means.is_empty() {
+        return None;
+    }
+    let (lo, hi) = means
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
+            (lo.min(t), hi.max(t))
+        });
+    let within = points
+        .iter()
+        .filter_map(|p| p.temperature_change_c)
+        .fold(0.0, f64::max);
+    let sums: Vec<f64> = points.iter().filter_map(|p| p.resonator_sum_hz).collect();
+    let proxy = match (
+        sums.iter().copied().reduce(f64::min),
+        sums.iter().copied().reduce(f64::max),
+    ) {
+        (Some(a), Some(b)) if a > 0.0 => format!("; f1 + f2 moved {:.1} ppm", (b - a) / a * 1e6),
+        _ => String::new(),
+    };
+    let unsettled = points.iter().filter(|p| p.temperature_unsettled).count();
+    let flagged = if unsettled > 0 {
+        format!("; {unsettled} point(s) taken while it moved more than the plan allows")
+    } else {
+        String::new()
+    };
+    Some(format!(
+        "Temperature {lo:.2}–{hi:.2} °C over the points (largest change within a point {within:.3} °C){proxy}{flagged}."
+    ))
 }
 
 /// The station's devices and their identities, when recorded: (role, identity).

@@ -424,6 +424,10 @@ fn a_run_through_the_api_from_start_to_report() {
         String::from_utf8_lossy(&html.body).contains("fixture knocked at 4 g"),
         "the report names the exclusion and its reason"
     );
+    assert!(
+        String::from_utf8_lossy(&html.body).contains("°C over the points"),
+        "the report gives each instrument's temperatures"
+    );
 
     // The audit log has the operator's and the engineer's actions.
     let log = admin.get_json("/api/audit", 200).to_string();

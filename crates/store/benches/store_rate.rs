@@ -76,6 +76,9 @@ fn bench(name: &str, target: &StoreTarget, measuring: bool, size_bytes: &dyn Fn(
             demand_deg_s: 1234.5,
             on_speed: true,
             outputs_hz: outputs,
+            temperatures_c: (0..instruments)
+                .map(|i| Some(25.0 + i as f64 * 0.01))
+                .collect(),
         })
         .expect("values");
     }

@@ -66,6 +66,10 @@ pub struct PointRow {
     pub n: i64,
     /// Times of the first and last one-second value averaged [s of the run].
     pub time_s: [f64; 2],
+    /// The instrument's mean temperature over the point [°C].
+    pub temperature_c: Option<f64>,
+    /// Its change over the point, highest minus lowest [°C].
+    pub temperature_change_c: Option<f64>,
 }
 
 /// One stored one-second value.
@@ -79,6 +83,8 @@ pub struct ValueRow {
     pub output_hz: Option<f64>,
     /// Measured rate [deg/s].
     pub rate_deg_s: f64,
+    /// The instrument's temperature [°C], when its module reported one.
+    pub temperature_c: Option<f64>,
 }
 
 /// One instrument's radius in one mounting (method.md (6)–(8)).
@@ -238,7 +244,7 @@ impl Store {
         let rows = self.query(
             "read points",
             "SELECT step, slot, serial, mount, g_nominal, direction, g_applied, rate_deg_s,
-                    output_hz, std_hz, n, t0_s, t1_s
+                    output_hz, std_hz, n, t0_s, t1_s, temperature_c, temperature_change_c
              FROM points WHERE run_id = $1 ORDER BY step, slot",
             &[run_id.into()],
         )?;
@@ -257,6 +263,8 @@ impl Store {
                 std_hz: r.real(9),
                 n: r.int(10),
                 time_s: [r.real(11), r.real(12)],
+                temperature_c: r.opt_real(13),
+                temperature_change_c: r.opt_real(14),
             })
             .collect())
     }
@@ -265,7 +273,7 @@ impl Store {
     pub fn values(&self, run_id: &str) -> Result<Vec<ValueRow>, StoreError> {
         let rows = self.query(
             "read one-second values",
-            "SELECT t_s, slot, output_hz, rate_deg_s FROM values_1s WHERE run_id = $1 ORDER BY t_s, slot",
+            "SELECT t_s, slot, output_hz, rate_deg_s, temperature_c FROM values_1s WHERE run_id = $1 ORDER BY t_s, slot",
             &[run_id.into()],
         )?;
         Ok(rows
@@ -275,6 +283,7 @@ impl Store {
                 slot: r.int(1),
                 output_hz: r.opt_real(2),
                 rate_deg_s: r.real(3),
+                temperature_c: r.opt_real(4),
             })
             .collect())
     }

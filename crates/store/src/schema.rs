@@ -157,6 +157,15 @@ pub const MIGRATIONS: &[Migration] = &[
         detail TEXT NOT NULL
     );",
     },
+    Migration {
+        what: "the instruments' temperatures: each one-second value's, each point's mean and change",
+        sqlite: "ALTER TABLE values_1s ADD COLUMN temperature_c REAL;
+    ALTER TABLE points ADD COLUMN temperature_c REAL;
+    ALTER TABLE points ADD COLUMN temperature_change_c REAL;",
+        postgres: "ALTER TABLE values_1s ADD COLUMN temperature_c DOUBLE PRECISION;
+    ALTER TABLE points ADD COLUMN temperature_c DOUBLE PRECISION;
+    ALTER TABLE points ADD COLUMN temperature_change_c DOUBLE PRECISION;",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

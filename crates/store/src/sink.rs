@@ -27,6 +27,7 @@ impl StoreSink {
                 rate_deg_s,
                 on_speed,
                 outputs_hz,
+                temperatures_c,
                 ..
             } => {
                 let serials = &self.serials;
@@ -34,10 +35,11 @@ impl StoreSink {
                     for (slot, v) in outputs_hz.iter().enumerate() {
                         if serials.get(slot).is_some_and(Option::is_some) {
                             db.execute(
-                                "INSERT INTO values_1s (run_id, t_s, slot, output_hz, rate_deg_s, on_speed)
-                                 VALUES ($1, $2, $3, $4, $5, $6)
+                                "INSERT INTO values_1s (run_id, t_s, slot, output_hz, rate_deg_s, on_speed, temperature_c)
+                                 VALUES ($1, $2, $3, $4, $5, $6, $7)
                                  ON CONFLICT (run_id, t_s, slot) DO UPDATE SET output_hz = excluded.output_hz,
-                                   rate_deg_s = excluded.rate_deg_s, on_speed = excluded.on_speed",
+                                   rate_deg_s = excluded.rate_deg_s, on_speed = excluded.on_speed,
+                                   temperature_c = excluded.temperature_c",
                                 &[
                                     run_id.as_str().into(),
                                     (*time_s).into(),
@@ -45,6 +47,7 @@ impl StoreSink {
                                     (*v).into(),
                                     (*rate_deg_s).into(),
                                     i64::from(*on_speed).into(),
+                                    temperatures_c.get(slot).copied().flatten().into(),
                                 ],
                             )?;
                         }
@@ -150,14 +153,16 @@ impl StoreSink {
                         // A step redone after a resume replaces its row: nothing doubled.
                         db.execute(
                             "INSERT INTO points (run_id, step, slot, serial, mount, g_nominal, direction,
-                               g_applied, rate_deg_s, output_hz, std_hz, n, t0_s, t1_s)
-                             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)
+                               g_applied, rate_deg_s, output_hz, std_hz, n, t0_s, t1_s,
+                               temperature_c, temperature_change_c)
+                             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14, $15, $16)
                              ON CONFLICT (run_id, step, slot) DO UPDATE SET serial = excluded.serial,
                                mount = excluded.mount, g_nominal = excluded.g_nominal,
                                direction = excluded.direction, g_applied = excluded.g_applied,
                                rate_deg_s = excluded.rate_deg_s, output_hz = excluded.output_hz,
                                std_hz = excluded.std_hz, n = excluded.n, t0_s = excluded.t0_s,
-                               t1_s = excluded.t1_s",
+                               t1_s = excluded.t1_s, temperature_c = excluded.temperature_c,
+                               temperature_change_c = excluded.temperature_change_c",
                             &[
                                 run_id.as_str().into(),
                                 (*step as i64).into(),
@@ -173,6 +178,8 @@ impl StoreSink {
                                 i64::from(p.n).into(),
                                 p.time_s[0].into(),
                                 p.time_s[1].into(),
+                                p.temperature_c.into(),
+                                p.temperature_change_c.into(),
                             ],
                         )?;
                     }

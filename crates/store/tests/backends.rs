@@ -41,6 +41,11 @@ fn point(slot: usize, g: f64, output_hz: f64) -> PointRecord {
         std_hz: 0.001,
         n: 10,
         time_s: [1.0, 10.0],
+        temperature_c: Some(25.0 + 0.01 * g),
+        temperature_change_c: Some(0.02),
+        resonator_sum_hz: Some(60_000.0),
+        resonator_sum_change_ppm: Some(0.5),
+        temperature_unsettled: false,
     }
 }
 
@@ -101,6 +106,7 @@ fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
             demand_deg_s: 10.0,
             on_speed: true,
             outputs_hz: vec![Some(1.5), None],
+            temperatures_c: vec![Some(24.75), None],
         },
         Event::PointDone {
             step: 3,
@@ -171,12 +177,22 @@ fn a_run_is_stored_whole_and_a_redone_step_replaces_its_points() {
             "{target}: the redo replaced the first take"
         );
         assert_eq!(points[1].serial, "中文-7");
+        assert_eq!(
+            points[0].temperature_c,
+            Some(25.0 + 0.01 * points[0].g_nominal)
+        );
+        assert_eq!(points[0].temperature_change_c, Some(0.02));
         let results = store.results("r1").expect("results");
         assert_eq!(results[1].k2_max_ug_per_g2, Some(-7.5));
         assert_eq!(store.unit_history("中文-7").expect("history").len(), 1);
         assert_eq!(store.value_count("r1").expect("values"), 2);
         let values = store.values("r1").expect("values");
         assert_eq!(values[0].output_hz, Some(1.5));
+        assert_eq!(values[0].temperature_c, Some(24.75), "{target}");
+        assert_eq!(
+            values[1].temperature_c, None,
+            "no temperature stored as none"
+        );
         assert_eq!(
             values[1].output_hz, None,
             "a missing output is stored as missing"

@@ -96,6 +96,23 @@ impl Executor<'_> {
                 outcome = graded.outcome;
                 reasons.extend(graded.reasons);
             }
+            let unsettled: Vec<String> = u
+                .points
+                .iter()
+                .filter(|p| p.temperature_unsettled)
+                .map(|p| format!("{}:{} g", p.mount, p.g_nominal))
+                .collect();
+            if !unsettled.is_empty() {
+                reasons.push(Reason::new(
+                    ReasonCode::TemperatureUnsettled,
+                    format!(
+                        "{} point(s) taken while its temperature moved more than stability.temperature_change_max_c = {} °C ({}); retest advised",
+                        unsettled.len(),
+                        self.plan.plan.stability.temperature_change_max_c.unwrap_or(0.0),
+                        unsettled.join(", ")
+                    ),
+                ));
+            }
             out.push(UnitRecord {
                 slot,
                 serial,

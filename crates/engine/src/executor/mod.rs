@@ -46,7 +46,9 @@ use spinbench_analysis::tumble::{CrossAxisSensitivity, MeanReading, TumbleCalibr
 use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
 use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
 use spinbench_devices::{Centrifuge, DeviceError, DeviceErrorKind};
-use spinbench_wire::fmu::{INSTRUMENTS_PER_MODULE, WindowAccumulator, WindowConfig, WindowValue};
+use spinbench_wire::fmu::{
+    INSTRUMENTS_PER_MODULE, Message, WindowAccumulator, WindowConfig, WindowValue,
+};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -114,6 +116,18 @@ pub enum EngineError {
     SupplyTripped {
         /// Measured output voltage.
         volts: f64,
+    },
+    /// An instrument reported a temperature above the station's limit.
+    #[error(
+        "slot {slot} reported {celsius:.2} °C, above temperature.instrument_max_c = {limit_c} °C; the run was stopped (check the instrument and the chamber)"
+    )]
+    OverTemperature {
+        /// Slot (1-based).
+        slot: usize,
+        /// The temperature it reported [°C].
+        celsius: f64,
+        /// The limit [°C].
+        limit_c: f64,
     },
     /// The rate or the outputs did not become stable.
     #[error("{0}")]
@@ -191,6 +205,8 @@ struct Window {
     outputs: Vec<Option<f64>>,
     /// (f1, f2) per slot.
     resonators: Vec<(Option<f64>, Option<f64>)>,
+    /// Each slot's latest reported temperature [°C].
+    temperatures_c: Vec<Option<f64>>,
 }
 
 /// The summary of a finished run.
@@ -225,6 +241,8 @@ pub struct Executor<'a> {
     resumed: bool,
     accumulators: Vec<WindowAccumulator>,
     pending: Vec<VecDeque<WindowValue>>,
+    /// Each slot's latest temperature from its module's temperature frames [°C].
+    temperatures_c: Vec<Option<f64>>,
     last_data: Vec<Instant>,
     windows: u64,
     demand_deg_s: f64,
@@ -273,6 +291,7 @@ impl<'a> Executor<'a> {
             resumed: false,
             accumulators,
             pending: vec![VecDeque::new(); modules],
+            temperatures_c: vec![None; slots],
             last_data: vec![Instant::now(); modules],
             windows: 0,
             demand_deg_s: 0.0,

@@ -4,7 +4,30 @@
 
 use super::*;
 
+/// A temperature frame's value that means "no sensor" (i16::MIN centi-°C).
+const NO_TEMPERATURE: i16 = i16::MIN;
+
 impl Executor<'_> {
+    /// Module `m`'s messages: counts into its accumulator (windows queued),
+    /// temperatures into each of its slots' latest value.
+    fn take_in(&mut self, m: usize, messages: Vec<Message>) {
+        for msg in messages {
+            if let Message::Temperatures { centi_celsius, .. } = &msg {
+                for (k, &c) in centi_celsius.iter().enumerate() {
+                    let slot = m * INSTRUMENTS_PER_MODULE + k;
+                    if let Some(t) = self.temperatures_c.get_mut(slot) {
+                        *t = (c != NO_TEMPERATURE).then(|| f64::from(c) / 100.0);
+                    }
+                }
+                continue;
+            }
+            self.accumulators[m].feed(&msg);
+            while let Some(window) = self.accumulators[m].decode() {
+                self.pending[m].push_back(window);
+            }
+        }
+    }
+
     /// Read every module's port for `time` without using the data beyond
     /// keeping each module's freshest window (a held run must not let the
     /// ports overrun).
@@ -20,12 +43,7 @@ impl Executor<'_> {
                 if !got.is_empty() {
                     self.last_data[m] = Instant::now();
                 }
-                for msg in got {
-                    self.accumulators[m].feed(&msg);
-                    while let Some(window) = self.accumulators[m].decode() {
-                        self.pending[m].push_back(window);
-                    }
-                }
+                self.take_in(m, got);
                 while self.pending[m].len() > 1 {
                     self.pending[m].pop_front();
                     self.dropped_windows += 1;
@@ -72,12 +90,7 @@ impl Executor<'_> {
                 if !got.is_empty() {
                     self.last_data[m] = Instant::now();
                 }
-                for msg in got {
-                    self.accumulators[m].feed(&msg);
-                    while let Some(window) = self.accumulators[m].decode() {
-                        self.pending[m].push_back(window);
-                    }
-                }
+                self.take_in(m, got);
                 let silent = self.last_data[m].max(waiting_since).elapsed();
                 if silent > self.options.module_silence {
                     return Err(EngineError::ModuleSilent {
@@ -98,12 +111,7 @@ impl Executor<'_> {
                     break;
                 }
                 self.last_data[m] = Instant::now();
-                for msg in got {
-                    self.accumulators[m].feed(&msg);
-                    while let Some(window) = self.accumulators[m].decode() {
-                        self.pending[m].push_back(window);
-                    }
-                }
+                self.take_in(m, got);
             }
             if let Some(newest) = self.pending[m].pop_back() {
                 self.dropped_windows += 1 + self.pending[m].len() as u64;
@@ -168,11 +176,27 @@ impl Executor<'_> {
                 }
             }
         }
+        // An instrument over the station's temperature limit stops the run.
+        if let Some(limit_c) = self.station.temperature.instrument_max_c {
+            for (slot, t) in self.temperatures_c.iter().enumerate() {
+                if let Some(celsius) = *t
+                    && celsius > limit_c
+                    && self.plan.serials[slot].is_some()
+                {
+                    return Err(EngineError::OverTemperature {
+                        slot: slot + 1,
+                        celsius,
+                        limit_c,
+                    });
+                }
+            }
+        }
         let window = Window {
             time_s: self.windows as f64,
             rate_deg_s: rate,
             outputs,
             resonators,
+            temperatures_c: self.temperatures_c.clone(),
         };
         let on_speed = self.on_speed(rate);
         // The raw bytes of this second reach the capture's file before its
@@ -187,6 +211,7 @@ impl Executor<'_> {
             demand_deg_s: self.demand_deg_s,
             on_speed,
             outputs_hz: window.outputs.clone(),
+            temperatures_c: window.temperatures_c.clone(),
         })?;
         Ok(window)
     }

@@ -74,6 +74,20 @@ pub fn sem_ug(y: &[f64], k1_hz_per_g: f64) -> Option<f64> {
     Some(std / (y.len() as f64).sqrt() / k1_hz_per_g * UG_PER_G)
 }
 
+/// The mean of `y` and its spread (highest minus lowest); `None` for no values.
+pub fn mean_spread(y: &[f64]) -> Option<(f64, f64)> {
+    if y.is_empty() {
+        return None;
+    }
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| {
+            (lo.min(v), hi.max(v))
+        });
+    Some((mean, hi - lo))
+}
+
 /// Mean and sample standard deviation (0 for one value).
 pub fn mean_std(y: &[f64]) -> (f64, f64) {
     let n = y.len() as f64;

@@ -319,6 +319,31 @@ impl Executor<'_> {
                 })?;
                 continue;
             }
+            // An instrument whose temperature moved too much while the
+            // point was averaged: measure the point again, then flag it.
+            if let Some(limit) = self.plan.plan.stability.temperature_change_max_c {
+                let moved: Vec<usize> = slots
+                    .iter()
+                    .copied()
+                    .filter(|&s| temperature_of(&values, s).is_some_and(|(_, d)| d > limit))
+                    .collect();
+                if !moved.is_empty() && table_restarts < self.plan.plan.stability.max_restarts {
+                    table_restarts += 1;
+                    self.emit(Event::Notice {
+                        message: format!(
+                            "the temperature of slot(s) {} changed by more than {limit} °C \
+                             (stability.temperature_change_max_c) while averaging at {g_nominal} g; \
+                             measuring the point again ({table_restarts})",
+                            moved
+                                .iter()
+                                .map(|s| (s + 1).to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    })?;
+                    continue;
+                }
+            }
             break (values, own_noise);
         };
         let rate = values.iter().map(|w| w.rate_deg_s).sum::<f64>() / values.len().max(1) as f64;
@@ -356,7 +381,30 @@ impl Executor<'_> {
                 .get(&mount)
                 .copied()
                 .unwrap_or_else(|| self.station.drawing_radius_m(slot));
+            let temperature = temperature_of(&values, slot);
+            let resonator_sum = stability::mean_spread(
+                &values
+                    .iter()
+                    .filter_map(|w| match w.resonators[slot] {
+                        (Some(f1), Some(f2)) => Some(f1 + f2),
+                        _ => None,
+                    })
+                    .collect::<Vec<_>>(),
+            );
             points.push(PointRecord {
+                temperature_c: temperature.map(|t| t.0),
+                temperature_change_c: temperature.map(|t| t.1),
+                temperature_unsettled: self
+                    .plan
+                    .plan
+                    .stability
+                    .temperature_change_max_c
+                    .zip(temperature)
+                    .is_some_and(|(limit, (_, change))| change > limit),
+                resonator_sum_hz: resonator_sum.map(|r| r.0),
+                resonator_sum_change_ppm: resonator_sum
+                    .filter(|r| r.0 != 0.0)
+                    .map(|r| r.1 / r.0.abs() * 1e6),
                 slot,
                 mount,
                 g_nominal,
@@ -378,6 +426,15 @@ impl Executor<'_> {
         }
         self.emit(Event::PointDone { step, points })
     }
+}
+
+/// A slot's temperature over a point's windows: (mean, highest − lowest) [°C].
+fn temperature_of(values: &[Window], slot: usize) -> Option<(f64, f64)> {
+    let t: Vec<f64> = values
+        .iter()
+        .filter_map(|w| w.temperatures_c.get(slot).copied().flatten())
+        .collect();
+    stability::mean_spread(&t)
 }
 
 fn mount_text(fixtures: &[Option<Fixture>]) -> String {

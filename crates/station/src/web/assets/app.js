@@ -118,6 +118,7 @@ function connect() {
   on("values", (e) => {
     if (state.history.length !== e.outputs_hz.length) state.history = e.outputs_hz.map(() => []);
     e.outputs_hz.forEach((v, i) => { if (v !== null) push(state.history[i], [e.time_s, v]); });
+    state.temperatures = e.temperatures_c || [];
     push(state.rate, [e.time_s, e.rate_deg_s]);
     state.values += 1;
     $("curves").dataset.values = String(state.values);
@@ -195,7 +196,8 @@ function draw() {
   const rows = Math.ceil(n / cols);
   const w = c.width / cols, h = (c.height - strip) / rows;
   slots.forEach((slot, k) => {
-    const label = "slot " + (slot + 1) + " " + (state.serials[slot] || "");
+    const t = (state.temperatures || [])[slot];
+    const label = "slot " + (slot + 1) + " " + (state.serials[slot] || "") + (t == null ? "" : "  " + t.toFixed(2) + " °C");
     cell(g, (k % cols) * w, strip + Math.floor(k / cols) * h, w, h, state.history[slot], label, "Hz", "#1d3557");
   });
 }
