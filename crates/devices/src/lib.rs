@@ -1,8 +1,9 @@
 //! The hardware interface layer: device traits and their drivers.
 //!
-//! * [`Centrifuge`], [`PowerSupply`], [`CounterModule`] — what the engine
+//! * [`Centrifuge`], [`PowerSupply`], [`CounterModule`], [`Chamber`] — what the engine
 //!   asks of the hardware, in engineering units (deg/s, volts, amperes);
-//! * [`DialectCentrifuge`], [`ScpiPowerSupply`], [`FmuDriver`] — drivers,
+//! * [`DialectCentrifuge`], [`ScpiPowerSupply`], [`FmuDriver`],
+//!   [`ModbusChamber`], [`LineChamber`] — drivers,
 //!   each generic over its [`Transport`], so the same code talks to a real
 //!   serial port, a pseudo-terminal, a TCP socket or a test [`Transcript`];
 //! * [`config`] — the device sections of the station config (TOML) and
@@ -15,6 +16,7 @@
 
 pub mod capture;
 pub mod centrifuge;
+pub mod chamber;
 pub mod config;
 mod error;
 pub mod fmu;
@@ -24,6 +26,7 @@ pub mod transcript;
 pub mod transport;
 
 pub use centrifuge::{Centrifuge, DialectCentrifuge};
+pub use chamber::{Chamber, LineChamber, ModbusChamber};
 pub use error::{DeviceError, DeviceErrorKind};
 pub use fmu::{CounterModule, FmuDriver, LinkStats};
 pub use line::{IoPolicy, LineChannel};

@@ -17,6 +17,7 @@
 //! the bytes. Every decoder accepts arbitrary input without panicking.
 
 pub mod centrifuge;
+pub mod chamber;
 pub mod fmu;
 pub mod psu;
 pub mod scpi;

@@ -1,0 +1,392 @@
+//! The `Chamber` trait (a temperature chamber: setpoint, air temperature,
+//! run/stop, alarms, the dry-air purge) and its two drivers: Modbus RTU or
+//! TCP with a register map ([`ModbusChamber`]) and a templated line dialect
+//! ([`LineChamber`]); the `[chamber]` section of the station config.
+
+use crate::config::{ConfigError, ConnectError, TransportConfig};
+use crate::error::{DeviceError, DeviceErrorKind};
+use crate::line::{IoPolicy, LineChannel};
+use crate::transport::Transport;
+use serde::Deserialize;
+use spinbench_wire::chamber::{
+    ChamberCodecError, ChamberOp, ChamberReply, LineChamberDialect, LineExpect, ModbusChamberCodec,
+    ModbusFraming, RegisterMap,
+};
+use std::io;
+use std::time::Instant;
+
+/// A temperature chamber, in °C.
+pub trait Chamber: Send {
+    /// Set the setpoint [°C].
+    fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError>;
+    /// The setpoint the controller holds [°C].
+    fn setpoint_c(&mut self) -> Result<f64, DeviceError>;
+    /// The air temperature (process value) [°C].
+    fn temperature_c(&mut self) -> Result<f64, DeviceError>;
+    /// Run (true) or stop the controller.
+    fn set_running(&mut self, on: bool) -> Result<(), DeviceError>;
+    /// The alarm word (0: no alarm; 0 too for a controller without one).
+    fn alarms(&mut self) -> Result<u16, DeviceError>;
+    /// Switch the dry-air purge on or off.
+    fn set_purge(&mut self, on: bool) -> Result<(), DeviceError>;
+}
+
+/// Largest or smallest setpoint any chamber driver sends [°C].
+pub const SETPOINT_RANGE_C: (f64, f64) = (-100.0, 200.0);
+
+fn check_setpoint(device: &str, celsius: f64) -> Result<(), DeviceError> {
+    let (lo, hi) = SETPOINT_RANGE_C;
+    if celsius.is_finite() && (lo..=hi).contains(&celsius) {
+        Ok(())
+    } else {
+        Err(DeviceError {
+            device: device.to_string(),
+            command: format!("set setpoint {celsius} °C"),
+            kind: DeviceErrorKind::Rejected(format!(
+                "a setpoint must be from {lo} to {hi} °C (SETPOINT_RANGE_C)"
+            )),
+        })
+    }
+}
+
+/// A chamber controller on Modbus RTU (serial) or TCP. Each operation is one
+/// request and its reply; a timeout or a garbled reply is retried as the
+/// I/O policy says, a Modbus exception is the controller's refusal (final).
+pub struct ModbusChamber<T: Transport> {
+    transport: T,
+    codec: ModbusChamberCodec,
+    device: String,
+    policy: IoPolicy,
+}
+
+enum Attempt {
+    Timeout,
+    Garbled(String, String),
+    Io(io::Error),
+}
+
+impl<T: Transport> ModbusChamber<T> {
+    /// A driver for the chamber named `name`.
+    pub fn new(
+        transport: T,
+        map: RegisterMap,
+        framing: ModbusFraming,
+        name: &str,
+        policy: IoPolicy,
+    ) -> Self {
+        let device = format!(
+            "chamber '{name}' (Modbus {framing:?} at {})",
+            transport.describe()
+        );
+        ModbusChamber {
+            transport,
+            codec: ModbusChamberCodec::new(map, framing),
+            device,
+            policy,
+        }
+    }
+
+    fn error(&self, op: ChamberOp, kind: DeviceErrorKind) -> DeviceError {
+        DeviceError {
+            device: self.device.clone(),
+            command: op.name().to_string(),
+            kind,
+        }
+    }
+
+    fn exchange(&mut self, op: ChamberOp) -> Result<ChamberReply, DeviceError> {
+        let attempts = self.policy.retries + 1;
+        let mut last = Attempt::Timeout;
+        for attempt in 1..=attempts {
+            if attempt > 1 {
+                if let Attempt::Io(_) = last {
+                    if let Err(e) = self.transport.reopen() {
+                        last = Attempt::Io(e);
+                        continue;
+                    }
+                } else {
+                    // A late reply to the failed attempt must not answer this one.
+                    let _ = self.transport.discard_input();
+                }
+            }
+            let (frame, pending) = self
+                .codec
+                .request(op)
+                .map_err(|e| self.error(op, DeviceErrorKind::Rejected(e.to_string())))?;
+            let deadline = Instant::now() + self.policy.timeout();
+            if let Err(e) = self.transport.write_all(&frame, deadline) {
+                last = if e.kind() == io::ErrorKind::TimedOut {
+                    Attempt::Timeout
+                } else {
+                    Attempt::Io(e)
+                };
+                continue;
+            }
+            let mut reply: Vec<u8> = Vec::new();
+            let mut buf = [0u8; 260];
+            let mut failure = None;
+            let complete = loop {
+                if let Some(n) = self.codec.reply_len(&reply)
+                    && reply.len() >= n
+                {
+                    break true;
+                }
+                // No Modbus frame is this long: stop reading a babbling line.
+                if reply.len() > 512 {
+                    break true;
+                }
+                match self.transport.read(&mut buf, deadline) {
+                    Ok(n) => reply.extend_from_slice(&buf[..n]),
+                    Err(e) if e.kind() == io::ErrorKind::TimedOut => break false,
+                    Err(e) => {
+                        failure = Some(e);
+                        break false;
+                    }
+                }
+            };
+            if !complete {
+                last = match failure {
+                    Some(e) => Attempt::Io(e),
+                    None if reply.is_empty() => Attempt::Timeout,
+                    None => Attempt::Garbled(hex(&reply), "a complete Modbus reply".into()),
+                };
+                continue;
+            }
+            match self.codec.parse(&pending, &reply) {
+                Ok(r) => return Ok(r),
+                Err(ChamberCodecError::Exception(code)) => {
+                    return Err(self.error(
+                        op,
+                        DeviceErrorKind::Refused(format!("Modbus exception {code}")),
+                    ));
+                }
+                Err(e) => last = Attempt::Garbled(hex(&reply), e.to_string()),
+            }
+        }
+        Err(self.error(
+            op,
+            match last {
+                Attempt::Timeout => DeviceErrorKind::Timeout {
+                    waited: self.policy.timeout(),
+                    attempts,
+                },
+                Attempt::Garbled(reply, expected) => DeviceErrorKind::Garbled {
+                    reply,
+                    expected,
+                    attempts,
+                },
+                Attempt::Io(e) => DeviceErrorKind::Io(e.to_string()),
+            },
+        ))
+    }
+
+    fn celsius(&mut self, op: ChamberOp) -> Result<f64, DeviceError> {
+        match self.exchange(op)? {
+            ChamberReply::Celsius(c) => Ok(c),
+            other => Err(self.error(
+                op,
+                DeviceErrorKind::Garbled {
+                    reply: format!("{other:?}"),
+                    expected: "a temperature".into(),
+                    attempts: 1,
+                },
+            )),
+        }
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes
+        .iter()
+        .take(64)
+        .map(|b| format!("{b:02X}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+impl<T: Transport> Chamber for ModbusChamber<T> {
+    fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
+        check_setpoint(&self.device, celsius)?;
+        self.exchange(ChamberOp::SetSetpoint(celsius)).map(|_| ())
+    }
+
+    fn setpoint_c(&mut self) -> Result<f64, DeviceError> {
+        self.celsius(ChamberOp::ReadSetpoint)
+    }
+
+    fn temperature_c(&mut self) -> Result<f64, DeviceError> {
+        self.celsius(ChamberOp::ReadTemperature)
+    }
+
+    fn set_running(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.exchange(ChamberOp::Run(on)).map(|_| ())
+    }
+
+    fn alarms(&mut self) -> Result<u16, DeviceError> {
+        match self.exchange(ChamberOp::ReadAlarms) {
+            Ok(ChamberReply::Alarms(a)) => Ok(a),
+            Ok(_) => Ok(0),
+            Err(DeviceError {
+                kind: DeviceErrorKind::Rejected(_),
+                ..
+            }) => Ok(0),
+            Err(e) => Err(e),
+        }
+    }
+
+    fn set_purge(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.exchange(ChamberOp::Purge(on)).map(|_| ())
+    }
+}
+
+/// A chamber controller that speaks lines ([`LineChamberDialect`]).
+pub struct LineChamber<T: Transport> {
+    channel: LineChannel<T>,
+    dialect: LineChamberDialect,
+}
+
+impl<T: Transport> LineChamber<T> {
+    /// A driver for the chamber named `name`.
+    pub fn new(transport: T, dialect: LineChamberDialect, name: &str, policy: IoPolicy) -> Self {
+        let ending = dialect.line_ending.clone();
+        LineChamber {
+            channel: LineChannel::new(transport, format!("chamber '{name}'"), &ending, policy),
+            dialect,
+        }
+    }
+
+    fn run_op(&mut self, op: ChamberOp) -> Result<ChamberReply, DeviceError> {
+        let (line, expect) = self.dialect.line(op).map_err(|e| DeviceError {
+            device: self.channel.device().to_string(),
+            command: op.name().to_string(),
+            kind: DeviceErrorKind::Rejected(e.to_string()),
+        })?;
+        let dialect = &self.dialect;
+        match expect {
+            LineExpect::Nothing => self.channel.send(&line).map(|_| ChamberReply::Done),
+            LineExpect::Ack | LineExpect::Number => {
+                self.channel.query(&line, |reply| dialect.parse(op, reply))
+            }
+        }
+    }
+
+    fn celsius(&mut self, op: ChamberOp) -> Result<f64, DeviceError> {
+        match self.run_op(op)? {
+            ChamberReply::Celsius(c) => Ok(c),
+            other => Err(DeviceError {
+                device: self.channel.device().to_string(),
+                command: op.name().to_string(),
+                kind: DeviceErrorKind::Garbled {
+                    reply: format!("{other:?}"),
+                    expected: "a temperature".into(),
+                    attempts: 1,
+                },
+            }),
+        }
+    }
+}
+
+impl<T: Transport> Chamber for LineChamber<T> {
+    fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
+        check_setpoint(self.channel.device(), celsius)?;
+        self.run_op(ChamberOp::SetSetpoint(celsius)).map(|_| ())
+    }
+
+    fn setpoint_c(&mut self) -> Result<f64, DeviceError> {
+        self.celsius(ChamberOp::ReadSetpoint)
+    }
+
+    fn temperature_c(&mut self) -> Result<f64, DeviceError> {
+        self.celsius(ChamberOp::ReadTemperature)
+    }
+
+    fn set_running(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.run_op(ChamberOp::Run(on)).map(|_| ())
+    }
+
+    fn alarms(&mut self) -> Result<u16, DeviceError> {
+        if self.dialect.read_alarms.is_none() {
+            return Ok(0);
+        }
+        match self.run_op(ChamberOp::ReadAlarms)? {
+            ChamberReply::Alarms(a) => Ok(a),
+            _ => Ok(0),
+        }
+    }
+
+    fn set_purge(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.run_op(ChamberOp::Purge(on)).map(|_| ())
+    }
+}
+
+/// The chamber controller's protocol in the station config.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum ChamberProtocol {
+    /// Modbus RTU over the serial transport.
+    ModbusRtu(RegisterMap),
+    /// Modbus TCP.
+    ModbusTcp(RegisterMap),
+    /// A line dialect (ASCII/SCPI).
+    Line(Box<LineChamberDialect>),
+}
+
+/// The `[chamber]` section.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChamberConfig {
+    /// Name in messages.
+    pub name: String,
+    /// How to reach it.
+    pub transport: TransportConfig,
+    /// Its protocol and register map or dialect.
+    pub protocol: ChamberProtocol,
+    /// Deadlines and retries.
+    #[serde(default)]
+    pub io: IoPolicy,
+}
+
+impl ChamberConfig {
+    /// Check the section; the error names the key.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        self.io.validate("chamber")?;
+        if let ChamberProtocol::ModbusRtu(map) | ChamberProtocol::ModbusTcp(map) = &self.protocol {
+            map.validate().map_err(|problem| ConfigError {
+                key: "chamber.protocol".into(),
+                problem,
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Open the transport and build the driver.
+    pub fn connect(&self) -> Result<Box<dyn Chamber>, ConnectError> {
+        self.validate()?;
+        let transport = self.transport.open().map_err(|e| ConnectError::Open {
+            device: self.name.clone(),
+            error: e.to_string(),
+        })?;
+        Ok(match &self.protocol {
+            ChamberProtocol::ModbusRtu(map) => Box::new(ModbusChamber::new(
+                transport,
+                map.clone(),
+                ModbusFraming::Rtu,
+                &self.name,
+                self.io,
+            )),
+            ChamberProtocol::ModbusTcp(map) => Box::new(ModbusChamber::new(
+                transport,
+                map.clone(),
+                ModbusFraming::Tcp,
+                &self.name,
+                self.io,
+            )),
+            ChamberProtocol::Line(dialect) => Box::new(LineChamber::new(
+                transport,
+                (**dialect).clone(),
+                &self.name,
+                self.io,
+            )),
+        })
+    }
+}

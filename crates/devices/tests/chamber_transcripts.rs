@@ -1,0 +1,154 @@
+//! Transcript tests of both chamber drivers (expected writes, scripted
+//! replies): every operation, a lost reply retried, a garbled reply, a
+//! Modbus exception as a final refusal, a setpoint out of range never sent.
+
+use spinbench_devices::chamber::{Chamber, LineChamber, ModbusChamber};
+use spinbench_devices::{DeviceErrorKind, IoPolicy, Step, Transcript};
+use spinbench_wire::chamber::{LineChamberDialect, ModbusFraming, RegisterMap};
+
+const POLICY: IoPolicy = IoPolicy {
+    timeout_ms: 50,
+    retries: 2,
+};
+
+fn crc(frame: &[u8]) -> Vec<u8> {
+    let mut out = frame.to_vec();
+    let c = crc::Crc::<u16>::new(&crc::CRC_16_MODBUS).checksum(frame);
+    out.extend_from_slice(&c.to_le_bytes());
+    out
+}
+
+fn map() -> RegisterMap {
+    toml::from_str("setpoint = 100\nprocess_value = 101\nrun = 102\nalarms = 103\npurge = 104\n")
+        .expect("map")
+}
+
+fn rtu(steps: Vec<Step>) -> (ModbusChamber<Transcript>, Transcript) {
+    let t = Transcript::new(steps);
+    (
+        ModbusChamber::new(t.clone(), map(), ModbusFraming::Rtu, "climate", POLICY),
+        t,
+    )
+}
+
+#[test]
+fn modbus_rtu_every_operation() {
+    let write = |reg: u8, hi: u8, lo: u8| crc(&[1, 6, 0, reg, hi, lo]);
+    let read = |reg: u8| crc(&[1, 3, 0, reg, 0, 1]);
+    let (mut c, t) = rtu(vec![
+        // setpoint −40.0 °C = −400 = 0xFE70; a write is echoed.
+        Step::Write(write(100, 0xFE, 0x70)),
+        Step::Reply(write(100, 0xFE, 0x70)),
+        Step::Write(read(100)),
+        Step::Reply(crc(&[1, 3, 2, 0xFE, 0x70])),
+        // the air at 23.5 °C, in two pieces.
+        Step::Write(read(101)),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])[..3].to_vec()),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])[3..].to_vec()),
+        Step::Write(write(102, 0, 1)),
+        Step::Reply(write(102, 0, 1)),
+        Step::Write(read(103)),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0x04])),
+        Step::Write(write(104, 0, 1)),
+        Step::Reply(write(104, 0, 1)),
+        Step::Write(write(102, 0, 0)),
+        Step::Reply(write(102, 0, 0)),
+    ]);
+    c.set_setpoint_c(-40.0).expect("setpoint");
+    assert_eq!(c.setpoint_c().expect("setpoint back"), -40.0);
+    assert_eq!(c.temperature_c().expect("air"), 23.5);
+    c.set_running(true).expect("run");
+    assert_eq!(c.alarms().expect("alarms"), 4);
+    c.set_purge(true).expect("purge");
+    c.set_running(false).expect("stop");
+    t.verify().expect("transcript followed");
+}
+
+#[test]
+fn modbus_a_lost_reply_is_retried_a_bad_crc_is_garbled_and_an_exception_is_final() {
+    let read = crc(&[1, 3, 0, 101, 0, 1]);
+    let mut bad = crc(&[1, 3, 2, 0x00, 0xEB]);
+    bad[4] ^= 0xFF;
+    let (mut c, t) = rtu(vec![
+        Step::Write(read.clone()),
+        Step::Silence,
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])),
+        Step::Write(read.clone()),
+        Step::Reply(bad.clone()),
+        Step::Write(read.clone()),
+        Step::Reply(bad.clone()),
+        Step::Write(read.clone()),
+        Step::Reply(bad),
+        Step::Write(crc(&[1, 6, 0, 102, 0, 1])),
+        Step::Reply(crc(&[1, 0x86, 0x04])),
+    ]);
+    assert_eq!(c.temperature_c().expect("retried"), 23.5);
+    let e = c.temperature_c().expect_err("three bad CRCs");
+    assert!(
+        matches!(e.kind, DeviceErrorKind::Garbled { attempts: 3, .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("climate"), "{e}");
+    let e = c.set_running(true).expect_err("exception");
+    assert_eq!(
+        e.kind,
+        DeviceErrorKind::Refused("Modbus exception 4".into()),
+        "{e}"
+    );
+    let e = c.set_setpoint_c(f64::NAN).expect_err("never sent");
+    assert!(matches!(e.kind, DeviceErrorKind::Rejected(_)));
+    t.verify().expect("transcript followed");
+}
+
+#[test]
+fn modbus_tcp_frames_carry_the_mbap_header() {
+    // transaction 1, protocol 0, length 6, unit 1, function 3, register 101, 1 word.
+    let t = Transcript::new(vec![
+        Step::Write(vec![0, 1, 0, 0, 0, 6, 1, 3, 0, 101, 0, 1]),
+        Step::Reply(vec![0, 1, 0, 0, 0, 5, 1, 3, 2, 0xFF, 0x38]),
+    ]);
+    let mut c = ModbusChamber::new(t.clone(), map(), ModbusFraming::Tcp, "climate", POLICY);
+    assert_eq!(c.temperature_c().expect("air"), -20.0);
+    t.verify().expect("transcript followed");
+}
+
+#[test]
+fn line_dialect_every_operation_and_a_refusal() {
+    let dialect: LineChamberDialect = toml::from_str(
+        "line_ending = \"\\n\"\nset_setpoint = \"SETP {value}\"\nread_setpoint = \"SETP?\"\nread_temperature = \"TEMP?\"\nrun = \"RUN\"\nstop = \"STOP\"\nread_alarms = \"ALRM?\"\npurge_on = \"PURGE 1\"\npurge_off = \"PURGE 0\"\nack = \"OK\"\n",
+    )
+    .expect("dialect");
+    let w = |s: &str| Step::write(&format!("{s}\n"));
+    let r = |s: &str| Step::reply(&format!("{s}\n"));
+    let t = Transcript::new(vec![
+        w("SETP 70.00"),
+        r("OK"),
+        w("SETP?"),
+        r("70.0"),
+        w("TEMP?"),
+        r("T=+24.87 C"),
+        w("RUN"),
+        r("OK"),
+        w("ALRM?"),
+        r("0"),
+        w("PURGE 1"),
+        r("OK"),
+        w("PURGE 0"),
+        r("ERR 12 valve fault"),
+    ]);
+    let mut c = LineChamber::new(t.clone(), dialect, "climate", POLICY);
+    c.set_setpoint_c(70.0).expect("setpoint");
+    assert_eq!(c.setpoint_c().expect("back"), 70.0);
+    assert_eq!(c.temperature_c().expect("air"), 24.87);
+    c.set_running(true).expect("run");
+    assert_eq!(c.alarms().expect("alarms"), 0);
+    c.set_purge(true).expect("purge");
+    let e = c.set_purge(false).expect_err("refused");
+    assert!(matches!(e.kind, DeviceErrorKind::Refused(_)), "{e}");
+    assert!(
+        c.set_setpoint_c(500.0).is_err(),
+        "beyond the setpoint range, never sent"
+    );
+    t.verify().expect("transcript followed");
+}
