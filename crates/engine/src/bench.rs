@@ -1,6 +1,6 @@
 //! The hardware of a station, as the engine sees it: the device traits.
 
-use spinbench_devices::{Centrifuge, CounterModule, PowerSupply};
+use spinbench_devices::{Centrifuge, Chamber, CounterModule, PowerSupply};
 
 /// The hardware of a station.
 pub struct Bench {
@@ -12,4 +12,6 @@ pub struct Bench {
     pub instrument_supply: Box<dyn PowerSupply>,
     /// The modules' supply, if the station switches it.
     pub module_supply: Option<Box<dyn PowerSupply>>,
+    /// The temperature chamber, if the station has one.
+    pub chamber: Option<Box<dyn Chamber>>,
 }

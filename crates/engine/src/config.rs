@@ -53,15 +53,35 @@ pub struct StationConfig {
     /// The instruments' temperature limit. Absent: not checked.
     #[serde(default)]
     pub temperature: TemperatureLimits,
+    /// The temperature chamber, if the station has one.
+    #[serde(default)]
+    pub chamber: Option<spinbench_devices::chamber::ChamberConfig>,
 }
 
 /// `[temperature]`: what the station does with the instruments' temperatures.
-#[derive(Debug, Clone, Copy, PartialEq, Default, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TemperatureLimits {
     /// An instrument that reports more than this [°C] stops the run (into
     /// the safe state, the instrument and its temperature recorded).
     pub instrument_max_c: Option<f64>,
+    /// Where the chamber goes in the safe state, with the purge on [°C]
+    /// (default 23, the laboratory).
+    #[serde(default = "default_ambient_c")]
+    pub ambient_c: f64,
+}
+
+fn default_ambient_c() -> f64 {
+    23.0
+}
+
+impl Default for TemperatureLimits {
+    fn default() -> Self {
+        TemperatureLimits {
+            instrument_max_c: None,
+            ambient_c: default_ambient_c(),
+        }
+    }
 }
 
 fn default_station_name() -> String {
@@ -263,6 +283,7 @@ impl StationConfig {
                 .as_deref()
                 .map(supply)
                 .transpose()?,
+            chamber: self.chamber.as_ref().map(|c| c.connect()).transpose()?,
         })
     }
 
@@ -365,6 +386,24 @@ impl StationConfig {
                 format!(
                     "{} is not an arm stretch from -{MAX_STRETCH_UG_PER_G2} to {MAX_STRETCH_UG_PER_G2} µg/g² (MAX_STRETCH_UG_PER_G2)",
                     self.arm.stretch_ug_per_g2
+                ),
+            );
+        }
+        if let Some(chamber) = &self.chamber {
+            chamber.validate().map_err(|e| StationConfigError {
+                key: e.key,
+                problem: e.problem,
+            })?;
+        }
+        let (lo, hi) = crate::bounds::INSTRUMENT_TEMPERATURE_RANGE_C;
+        if !(self.temperature.ambient_c.is_finite()
+            && (lo..=hi).contains(&self.temperature.ambient_c))
+        {
+            return err(
+                "temperature.ambient_c",
+                format!(
+                    "{} is not a temperature from {lo} to {hi} °C",
+                    self.temperature.ambient_c
                 ),
             );
         }

@@ -943,3 +943,29 @@ fn an_instrument_over_its_temperature_limit_stops_the_run_in_the_safe_state() {
     assert_safe(&bench, true);
     bench.shutdown();
 }
+
+#[test]
+fn an_abort_sends_the_chamber_to_the_laboratorys_temperature_with_the_purge_on() {
+    let sim = SimConfig {
+        chamber: Some(Default::default()),
+        ..SimConfig::default()
+    };
+    // The operator had set the chamber cold and running before the run.
+    let (summary, _, bench) = run_paused(sim, small_plan(), Some(40), None, &|s| {
+        s.temperature.ambient_c = 24.0;
+        if let Some(c) = &s.chamber {
+            let mut chamber = c.connect().expect("chamber");
+            chamber.set_setpoint_c(-40.0).expect("cold");
+            chamber.set_running(true).expect("run");
+        }
+    });
+    assert_eq!(summary.state, RunState::Aborted, "{}", reason(&summary));
+    let (setpoint, purge) = bench.with_world(|w| {
+        let c = w.chamber().expect("the bench has a chamber");
+        (c.setpoint_c, c.purge)
+    });
+    assert_eq!(setpoint, 24.0, "to the laboratory's temperature");
+    assert!(purge, "with the dry-air purge on");
+    assert_safe(&bench, true);
+    bench.shutdown();
+}

@@ -39,6 +39,9 @@ pub struct SimConfig {
     pub instruments: PopulationConfig,
     /// Faults to inject.
     pub faults: FaultConfig,
+    /// A temperature chamber around the instruments (absent: the room).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub chamber: Option<crate::chamber::ChamberSimConfig>,
 }
 
 impl Default for SimConfig {
@@ -56,6 +59,7 @@ impl Default for SimConfig {
             centrifuge: TableConfig::default(),
             instruments: PopulationConfig::default(),
             faults: FaultConfig::default(),
+            chamber: None,
         }
     }
 }
@@ -339,6 +343,11 @@ impl SimConfig {
                 problem,
             })
         };
+        if let Some(c) = &self.chamber
+            && let Err((key, problem)) = c.validate()
+        {
+            return err(&key, problem);
+        }
         let positive = [
             ("g_local_m_s2", self.g_local_m_s2),
             ("reference_hz", self.reference_hz),

@@ -12,6 +12,7 @@
 //! * [`serve`] — the bench behind real pseudo-terminals and TCP sockets,
 //!   paced in real time, N× faster, or as fast as the station reads.
 
+pub mod chamber;
 pub mod config;
 pub mod counter;
 pub mod realism;

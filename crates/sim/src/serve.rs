@@ -65,6 +65,8 @@ pub struct Endpoints {
     pub logic: Endpoint,
     /// The control socket (`MOUNT`, `TIME?`, `TRUTH?`).
     pub control: String,
+    /// The temperature chamber's controller (Modbus RTU), if the bench has one.
+    pub chamber: Option<Endpoint>,
 }
 
 /// How to expose the bench.
@@ -191,6 +193,18 @@ impl RunningBench {
             &mut slaves,
         )?;
 
+        // The chamber's controller: Modbus RTU on its own pty.
+        let has_chamber = lock(&world).chamber().is_some();
+        let chamber = if has_chamber {
+            let (master, slave) = TTYPort::pair().map_err(|e| io::Error::other(e.to_string()))?;
+            let path = slave.name().unwrap_or_default();
+            slaves.push(slave);
+            threads.push(serve_pty_modbus(master, world.clone(), stop.clone()));
+            Some(Endpoint::Pty(path))
+        } else {
+            None
+        };
+
         let control_listener = TcpListener::bind("127.0.0.1:0")?;
         let control = control_listener.local_addr()?.to_string();
         threads.push(serve_tcp_lines(
@@ -218,6 +232,7 @@ impl RunningBench {
                 rails,
                 logic,
                 control,
+                chamber,
             },
             stop,
             threads,
@@ -273,6 +288,20 @@ impl RunningBench {
             out.push_str(&format!(
                 "\n[[power_supply]]\nname = \"{name}\"\nchannels = {channels}\ntransport = {}\n",
                 endpoint.transport_toml(115_200)
+            ));
+        }
+        if let Some(endpoint) = &e.chamber {
+            let r = &crate::chamber::SIM_REGISTERS;
+            out.push_str(&format!(
+                "\n[chamber]\nname = \"sim-chamber\"\ntransport = {}\nprotocol = {{ kind = \"modbus-rtu\", unit_id = {}, setpoint = {}, process_value = {}, process_value_is_input = true, run = {}, alarms = {}, purge = {}, counts_per_c = {} }}\n",
+                endpoint.transport_toml(19_200),
+                r.unit_id,
+                r.setpoint,
+                r.process_value,
+                r.run,
+                r.alarms,
+                r.purge,
+                r.counts_per_c
             ));
         }
         out.push_str(&format!(
@@ -537,6 +566,59 @@ fn take_lines(pending: &mut Vec<u8>) -> Vec<String> {
         }
     }
     lines
+}
+
+/// Serves the chamber's controller on a pty: Modbus RTU requests, framed by
+/// their length (rmodbus's guess from the function code) and by the line
+/// falling silent (a partial frame is dropped after 50 ms, as RTU's 3.5
+/// characters of silence end a frame).
+fn serve_pty_modbus(
+    master: TTYPort,
+    world: Shared<World>,
+    stop: Arc<AtomicBool>,
+) -> JoinHandle<()> {
+    thread::spawn(move || {
+        let mut port = master;
+        let _ = set_nonblocking(&port);
+        let _ = port.set_timeout(Duration::from_millis(20));
+        let mut pending: Vec<u8> = Vec::new();
+        let mut last_byte = Instant::now();
+        let mut bytes = [0u8; 256];
+        while !stop.load(Ordering::Relaxed) {
+            match port.read(&mut bytes) {
+                Ok(n) => {
+                    pending.extend_from_slice(&bytes[..n]);
+                    last_byte = Instant::now();
+                }
+                Err(e) if e.kind() == io::ErrorKind::TimedOut => {}
+                Err(_) => {
+                    thread::sleep(Duration::from_millis(10));
+                    continue;
+                }
+            }
+            if !pending.is_empty() && last_byte.elapsed() > Duration::from_millis(50) {
+                pending.clear();
+            }
+            while pending.len() >= 8 {
+                let Ok(len) = rmodbus::guess_request_frame_len(&pending, rmodbus::ModbusProto::Rtu)
+                else {
+                    pending.clear();
+                    break;
+                };
+                let len = usize::from(len);
+                if pending.len() < len {
+                    break;
+                }
+                let frame: Vec<u8> = pending.drain(..len).collect();
+                let reply = lock(&world)
+                    .chamber_mut()
+                    .and_then(|c| c.answer_rtu(&frame));
+                if let Some(r) = reply {
+                    let _ = port.write_all(&r);
+                }
+            }
+        }
+    })
 }
 
 fn serve_pty_lines(

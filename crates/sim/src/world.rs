@@ -208,6 +208,8 @@ pub struct World {
     windage_c: f64,
     /// Low-frequency noise state per instrument [g], one per time constant.
     flicker_g: Vec<[f64; 4]>,
+    /// The temperature chamber the instruments sit in, if the bench has one.
+    chamber: Option<crate::chamber::ChamberModel>,
 }
 
 fn draw(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
@@ -302,6 +304,10 @@ impl World {
             lockstep_running: false,
             seconds_produced: 0,
             windage_c: 0.0,
+            chamber: config
+                .chamber
+                .clone()
+                .map(|c| crate::chamber::ChamberModel::new(c, config.ambient_c)),
             flicker_g: vec![[0.0; 4]; n],
             config,
         }
@@ -523,6 +529,24 @@ impl World {
         self.config.ambient_c + self.config.ambient_drift_c_per_h * self.now_s() / 3600.0
     }
 
+    /// What the instruments' surroundings are at now [°C]: the chamber's
+    /// air as they feel it (lagged), or the laboratory.
+    pub fn surroundings_c(&self) -> f64 {
+        self.chamber
+            .as_ref()
+            .map_or_else(|| self.ambient_c(), |c| c.instrument_air_c)
+    }
+
+    /// The temperature chamber, if the bench has one.
+    pub fn chamber(&self) -> Option<&crate::chamber::ChamberModel> {
+        self.chamber.as_ref()
+    }
+
+    /// The temperature chamber, to answer its controller's requests.
+    pub fn chamber_mut(&mut self) -> Option<&mut crate::chamber::ChamberModel> {
+        self.chamber.as_mut()
+    }
+
     /// Windage heating of the arm and the instruments now [°C].
     pub fn windage_c(&self) -> f64 {
         self.windage_c
@@ -535,7 +559,7 @@ impl World {
         self.instruments.get(i).map_or(f64::NAN, |v| {
             v.temperature_c(
                 self.now_s(),
-                self.ambient_c(),
+                self.surroundings_c(),
                 pc.self_heating_c,
                 pc.warmup_tau_s,
             ) + self.windage_c
@@ -668,6 +692,10 @@ impl World {
         // constant is ten seconds).
         if !self.tick.is_multiple_of(u64::from(TICKS_PER_SECOND)) {
             return;
+        }
+        let room_c = self.ambient_c();
+        if let Some(chamber) = self.chamber.as_mut() {
+            chamber.step(1.0, room_c);
         }
         for (state, v) in self.flicker_g.iter_mut().zip(&self.instruments) {
             if v.truth.flicker_ug == 0.0 {

@@ -203,3 +203,77 @@ fn the_bench_shuts_down_even_when_the_station_stopped_reading() {
     );
     drop(fmu);
 }
+
+#[derive(Deserialize)]
+struct ChamberOnly {
+    chamber: spinbench_devices::chamber::ChamberConfig,
+}
+
+fn chamber_bench(chamber: spinbench_sim::chamber::ChamberSimConfig) -> RunningBench {
+    let config = SimConfig {
+        // 200× real time: the air's minutes pass in a second.
+        chamber: Some(chamber),
+        ..quiet(200.0)
+    };
+    RunningBench::start(config, ServeOptions::default()).expect("bench")
+}
+
+#[test]
+fn the_modbus_chamber_driver_runs_the_benchs_chamber_over_a_real_pty() {
+    let bench = chamber_bench(Default::default());
+    let text = bench.station_config_toml();
+    let config: ChamberOnly = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let mut chamber = config.chamber.connect().expect("chamber");
+    let start = chamber.temperature_c().expect("air");
+    assert!((start - 23.0).abs() < 0.2, "the room: {start}");
+    chamber.set_setpoint_c(40.0).expect("setpoint");
+    assert_eq!(chamber.setpoint_c().expect("setpoint back"), 40.0);
+    chamber.set_running(true).expect("run");
+    chamber.set_purge(true).expect("purge");
+    // 1.5 s of wall time: 300 s of the bench, the air at 3 °C/min.
+    std::thread::sleep(Duration::from_millis(1500));
+    let warm = chamber.temperature_c().expect("air");
+    assert!(warm > start + 5.0, "heating: {start} → {warm} °C");
+    assert_eq!(chamber.alarms().expect("alarms"), 0);
+    let (purge, running, setpoint) = bench.with_world(|w| {
+        let c = w.chamber().expect("a chamber");
+        (c.purge, c.running, c.setpoint_c)
+    });
+    assert!(purge && running && setpoint == 40.0);
+    bench.shutdown();
+}
+
+#[test]
+fn a_silent_chamber_is_a_timeout_naming_it_and_a_runaway_sets_its_alarm() {
+    use spinbench_sim::chamber::{ChamberFault, ChamberSimConfig};
+    let silent = chamber_bench(ChamberSimConfig {
+        fault: ChamberFault::Silent,
+        ..Default::default()
+    });
+    let text = silent.station_config_toml();
+    let config: ChamberOnly = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let mut chamber = config.chamber.connect().expect("chamber");
+    let e = chamber.temperature_c().expect_err("silent");
+    assert!(
+        matches!(e.kind, spinbench_devices::DeviceErrorKind::Timeout { .. }),
+        "{e}"
+    );
+    assert!(e.to_string().contains("sim-chamber"), "{e}");
+    silent.shutdown();
+
+    let runaway = chamber_bench(ChamberSimConfig {
+        fault: ChamberFault::Runaway,
+        ..Default::default()
+    });
+    let text = runaway.station_config_toml();
+    let config: ChamberOnly = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let mut chamber = config.chamber.connect().expect("chamber");
+    chamber.set_setpoint_c(23.0).expect("setpoint");
+    std::thread::sleep(Duration::from_millis(1500));
+    assert_ne!(
+        chamber.alarms().expect("alarms"),
+        0,
+        "over-temperature alarm"
+    );
+    runaway.shutdown();
+}

@@ -64,6 +64,12 @@ impl Executor<'_> {
         for ch in [1, 2] {
             note(self.bench.instrument_supply.set_output(ch, false));
         }
+        // The chamber back to the laboratory's temperature with the purge on
+        // first, so cold air never meets humid air on the instruments.
+        if let Some(chamber) = self.bench.chamber.as_mut() {
+            note(chamber.set_purge(true));
+            note(chamber.set_setpoint_c(self.station.temperature.ambient_c));
+        }
         self.demand_deg_s = 0.0;
         problems
     }
