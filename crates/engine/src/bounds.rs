@@ -22,6 +22,8 @@ pub const MAX_RESTARTS: u32 = 1_000;
 pub const MAX_RATE_TOLERANCE_PPM: f64 = 10_000.0;
 /// Largest drift, noise and standard-error thresholds [µg] or [µg/s] (1 g).
 pub const MAX_UG: f64 = 1e6;
+/// Most chamber temperatures in one plan.
+pub const MAX_TEMPERATURES: usize = 20;
 /// Largest temperature change accepted as a limit [°C].
 pub const MAX_TEMPERATURE_CHANGE_C: f64 = 100.0;
 /// The instrument temperatures a limit may name [°C] (a VBA's whole range and then some).

@@ -69,6 +69,15 @@ pub struct TemperatureLimits {
     /// (default 23, the laboratory).
     #[serde(default = "default_ambient_c")]
     pub ambient_c: f64,
+    /// The laboratory air's dew point [°C] (default 10): the dry-air purge
+    /// goes on before the chamber is set below it (plus 2 °C) and stays on
+    /// until the chamber is warm again.
+    #[serde(default = "default_dew_point_c")]
+    pub dew_point_c: f64,
+}
+
+fn default_dew_point_c() -> f64 {
+    10.0
 }
 
 fn default_ambient_c() -> f64 {
@@ -80,6 +89,7 @@ impl Default for TemperatureLimits {
         TemperatureLimits {
             instrument_max_c: None,
             ambient_c: default_ambient_c(),
+            dew_point_c: default_dew_point_c(),
         }
     }
 }
@@ -396,16 +406,16 @@ impl StationConfig {
             })?;
         }
         let (lo, hi) = crate::bounds::INSTRUMENT_TEMPERATURE_RANGE_C;
-        if !(self.temperature.ambient_c.is_finite()
-            && (lo..=hi).contains(&self.temperature.ambient_c))
-        {
-            return err(
-                "temperature.ambient_c",
-                format!(
-                    "{} is not a temperature from {lo} to {hi} °C",
-                    self.temperature.ambient_c
-                ),
-            );
+        for (key, t) in [
+            ("temperature.ambient_c", self.temperature.ambient_c),
+            ("temperature.dew_point_c", self.temperature.dew_point_c),
+        ] {
+            if !(t.is_finite() && (lo..=hi).contains(&t)) {
+                return err(
+                    key,
+                    format!("{t} is not a temperature from {lo} to {hi} °C"),
+                );
+            }
         }
         if let Some(t) = self.temperature.instrument_max_c {
             let (lo, hi) = crate::bounds::INSTRUMENT_TEMPERATURE_RANGE_C;

@@ -42,6 +42,14 @@ pub struct TestPlan {
     /// Mountings to run, in order (default: as the serials' prefixes say, else P).
     #[serde(default)]
     pub passes: Vec<Mount>,
+    /// Chamber temperatures at which the range test runs [°C] (absent: the
+    /// room, no chamber). Each pass visits them in turn, soaked as `[soak]`
+    /// says, in the order [`crate::soak::visiting_order`] gives.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub temperatures_c: Vec<f64>,
+    /// When a chamber temperature counts as reached.
+    #[serde(default, skip_serializing_if = "crate::soak::SoakConfig::is_default")]
+    pub soak: crate::soak::SoakConfig,
     /// Tumble positions: 2 (IA up, IA down; method.md (5)) or 4 (also the
     /// two with gravity along the cross axis that is vertical on the arm, as
     /// on the arm and inverted, which measure the cross-axis sensitivity and
@@ -321,6 +329,12 @@ pub enum Step {
         /// Up (+1 g) or down (−1 g).
         up: bool,
     },
+    /// Bring the chamber to a temperature and wait until it and the
+    /// instruments have soaked (`[soak]`).
+    Soak {
+        /// Chamber setpoint [°C].
+        setpoint_c: f64,
+    },
     /// Record the output with the input axis horizontal and gravity along
     /// the cross axis that is vertical on the arm (four-position tumble).
     CrossTumble {
@@ -374,6 +388,8 @@ impl Default for TestPlan {
             up_down: true,
             passes: Vec::new(),
             tumble_positions: default_tumble_positions(),
+            temperatures_c: Vec::new(),
+            soak: crate::soak::SoakConfig::default(),
             warmup_s: default_warmup(),
             order: default_order(),
             dwell: DwellConfig::default(),
@@ -555,6 +571,40 @@ impl TestPlan {
             })
         };
         self.validate()?;
+        if !self.temperatures_c.is_empty() {
+            if station.chamber.is_none() {
+                return err(
+                    "temperatures_c",
+                    "the station has no [chamber] to reach them; add one to the station config or leave temperatures_c out".into(),
+                );
+            }
+            let (lo, hi) = spinbench_devices::chamber::SETPOINT_RANGE_C;
+            if let Some(t) = self
+                .temperatures_c
+                .iter()
+                .find(|t| !(t.is_finite() && (lo..=hi).contains(*t)))
+            {
+                return err(
+                    "temperatures_c",
+                    format!(
+                        "{t} is not a chamber temperature from {lo} to {hi} °C (SETPOINT_RANGE_C)"
+                    ),
+                );
+            }
+            if self.temperatures_c.len() > crate::bounds::MAX_TEMPERATURES {
+                return err(
+                    "temperatures_c",
+                    format!(
+                        "{} temperatures; at most {} (MAX_TEMPERATURES)",
+                        self.temperatures_c.len(),
+                        crate::bounds::MAX_TEMPERATURES
+                    ),
+                );
+            }
+            if let Err((key, problem)) = self.soak.validate() {
+                return err(&key, problem);
+            }
+        }
         if !matches!(self.tumble_positions, 2 | 4) {
             return err(
                 "tumble_positions",
@@ -789,28 +839,40 @@ impl TestPlan {
                 steps.push(Step::CrossTumble { as_on_arm });
             }
         }
+        let orders = crate::soak::visiting_order(&self.temperatures_c, passes.len());
         for (p, pass) in passes.iter().enumerate() {
             steps.push(Step::Mount {
                 fixtures: pass.iter().map(|m| m.map(Fixture::Arm)).collect(),
             });
-            steps.push(Step::Radius { pass: p });
-            let mut passed_top = false;
-            for &level in &sequence {
-                let direction = if passed_top {
-                    Direction::Down
-                } else {
-                    Direction::Up
-                };
-                if level == top {
-                    passed_top = true;
+            // Without temperatures: one visit at the room's.
+            let temperatures: Vec<Option<f64>> = match orders.get(p) {
+                Some(o) if !o.is_empty() => o.iter().copied().map(Some).collect(),
+                _ => vec![None],
+            };
+            for setpoint in temperatures {
+                if let Some(setpoint_c) = setpoint {
+                    steps.push(Step::Soak { setpoint_c });
                 }
-                steps.push(Step::Level {
-                    pass: p,
-                    g_nominal: level,
-                    direction,
-                });
+                // The radius again at each temperature: the arm and the fixture expand.
+                steps.push(Step::Radius { pass: p });
+                let mut passed_top = false;
+                for &level in &sequence {
+                    let direction = if passed_top {
+                        Direction::Down
+                    } else {
+                        Direction::Up
+                    };
+                    if level == top {
+                        passed_top = true;
+                    }
+                    steps.push(Step::Level {
+                        pass: p,
+                        g_nominal: level,
+                        direction,
+                    });
+                }
+                steps.push(Step::Stop);
             }
-            steps.push(Step::Stop);
         }
         Ok(CompiledPlan {
             plan: self.clone(),

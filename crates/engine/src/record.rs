@@ -29,6 +29,9 @@ pub struct PointRecord {
     pub n: u32,
     /// Station time of the first and last value [s].
     pub time_s: [f64; 2],
+    /// The chamber's setpoint while the point was taken [°C] (absent: no chamber).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub setpoint_c: Option<f64>,
     /// Mean of the instrument's temperature over the point's values [°C]
     /// (as its counter module reports it; absent when it reports none).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -969,3 +969,154 @@ fn an_abort_sends_the_chamber_to_the_laboratorys_temperature_with_the_purge_on()
     assert_safe(&bench, true);
     bench.shutdown();
 }
+
+/// A quick chamber: 30 °C/min, the instruments 20 s behind the air.
+fn quick_chamber() -> spinbench_sim::chamber::ChamberSimConfig {
+    spinbench_sim::chamber::ChamberSimConfig {
+        heat_rate_c_per_min: 30.0,
+        cool_rate_c_per_min: 30.0,
+        overshoot_c: 0.2,
+        settle_tau_s: 10.0,
+        instrument_lag_s: 20.0,
+        ..Default::default()
+    }
+}
+
+/// A bench with `chamber` and the small plan at `temperatures`, soaked for
+/// 20 s in ±0.5 °C.
+fn chamber_run(
+    chamber: spinbench_sim::chamber::ChamberSimConfig,
+    temperatures: &[f64],
+    max_soak_s: u32,
+) -> (RunSummary, Vec<Event>, RunningBench) {
+    let sim = SimConfig {
+        chamber: Some(chamber),
+        ..SimConfig::default()
+    };
+    let mut plan = small_plan();
+    plan.temperatures_c = temperatures.to_vec();
+    plan.soak = spinbench_engine::soak::SoakConfig {
+        tolerance_c: 0.5,
+        window_s: 20,
+        max_soak_s,
+    };
+    run(sim, plan, None)
+}
+
+#[test]
+fn a_plan_with_temperatures_soaks_at_each_and_keeps_every_point_with_its_setpoint() {
+    let (summary, events, bench) = chamber_run(quick_chamber(), &[40.0, 5.0], 1800);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let soaks: Vec<String> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::StepStarted { label, .. } if label.starts_with("soak") => Some(label.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        soaks,
+        ["soak the chamber at 5 °C", "soak the chamber at 40 °C"],
+        "ascending"
+    );
+    for r in &summary.records {
+        for setpoint in [5.0, 40.0] {
+            let at: Vec<&spinbench_engine::PointRecord> = r
+                .points
+                .iter()
+                .filter(|p| p.setpoint_c == Some(setpoint))
+                .collect();
+            assert_eq!(at.len(), 13, "{}: points at {setpoint} °C", r.serial);
+            let t = at[0].temperature_c.expect("measured");
+            // The instruments run about 4 °C above the air they sit in.
+            assert!(
+                (t - setpoint - 4.0).abs() < 1.5,
+                "{}: {t} °C at {setpoint} °C",
+                r.serial
+            );
+        }
+        assert!(
+            r.reasons
+                .iter()
+                .any(|x| x.text.contains("reference temperature")),
+            "{:?}",
+            r.reasons
+        );
+        assert_ne!(r.outcome, Outcome::Incomplete);
+    }
+    // The run ended in the safe state: the chamber back to the room, purge on.
+    let (setpoint, purge) = bench.with_world(|w| {
+        let c = w.chamber().expect("chamber");
+        (c.setpoint_c, c.purge)
+    });
+    assert_eq!((setpoint, purge), (23.0, true));
+    bench.shutdown();
+}
+
+#[test]
+fn chamber_faults_during_a_run_end_in_the_safe_state_with_the_reason() {
+    use spinbench_sim::chamber::{ChamberFault, ChamberSimConfig};
+    // A controller that falls silent during the soak.
+    let (summary, _, bench) = chamber_run(
+        ChamberSimConfig {
+            fault: ChamberFault::Silent,
+            fault_at_s: 30.0,
+            ..quick_chamber()
+        },
+        &[40.0],
+        1800,
+    );
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("sim-chamber"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe(&bench, true);
+    bench.shutdown();
+
+    // A heater that runs away: the over-temperature alarm stops the run.
+    let (summary, _, bench) = chamber_run(
+        ChamberSimConfig {
+            fault: ChamberFault::Runaway,
+            fault_at_s: 30.0,
+            ..quick_chamber()
+        },
+        &[30.0],
+        1800,
+    );
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("alarm word"),
+        "{}",
+        reason(&summary)
+    );
+    assert_safe(&bench, true);
+    let purge = bench.with_world(|w| w.chamber().map(|c| c.purge));
+    assert_eq!(purge, Some(true), "the purge on in the safe state");
+    bench.shutdown();
+
+    // A chamber that cannot get there in time.
+    let (summary, _, bench) = chamber_run(
+        ChamberSimConfig {
+            heat_rate_c_per_min: 0.5,
+            ..quick_chamber()
+        },
+        &[60.0],
+        120,
+    );
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("did not soak"),
+        "{}",
+        reason(&summary)
+    );
+    assert!(
+        summary
+            .records
+            .iter()
+            .all(|r| r.outcome == Outcome::Incomplete)
+    );
+    assert_safe(&bench, true);
+    bench.shutdown();
+}

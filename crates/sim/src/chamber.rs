@@ -143,6 +143,10 @@ pub struct ChamberModel {
     pub purge: bool,
     /// Over-temperature alarm (latched until the air is back in band).
     pub alarm: bool,
+    /// The air above this is over temperature [°C]: the band above the
+    /// setpoint, or above where the air was when it was set (a chamber
+    /// cooling down is not over temperature).
+    ceiling_c: f64,
     /// Overshoot still to decay [°C] and its sign.
     overshoot_left_c: f64,
     /// The air was moving toward the setpoint (to know when it arrives).
@@ -154,6 +158,7 @@ pub struct ChamberModel {
 impl ChamberModel {
     /// A chamber at room temperature `room_c`, stopped.
     pub fn new(config: ChamberSimConfig, room_c: f64) -> Self {
+        let ceiling_c = room_c + config.alarm_band_c;
         ChamberModel {
             config,
             air_c: room_c,
@@ -162,6 +167,7 @@ impl ChamberModel {
             running: false,
             purge: false,
             alarm: false,
+            ceiling_c,
             overshoot_left_c: 0.0,
             approaching: false,
             registers: ModbusStorageSmall::default(),
@@ -202,9 +208,13 @@ impl ChamberModel {
         }
         self.instrument_air_c +=
             (self.air_c - self.instrument_air_c) * (1.0 - (-dt_s / c.instrument_lag_s).exp());
-        if self.air_c > self.setpoint_c + c.alarm_band_c {
+        // Once the air is back near the setpoint, the band is the setpoint's.
+        if (self.air_c - self.setpoint_c).abs() < 0.5 * c.alarm_band_c {
+            self.ceiling_c = self.setpoint_c + c.alarm_band_c;
+        }
+        if self.air_c > self.ceiling_c {
             self.alarm = true;
-        } else if self.air_c < self.setpoint_c + 0.5 * c.alarm_band_c {
+        } else if self.air_c < self.ceiling_c - 0.5 * c.alarm_band_c {
             self.alarm = false;
         }
     }
@@ -215,6 +225,7 @@ impl ChamberModel {
             self.overshoot_left_c = if celsius > self.air_c { 1e-9 } else { -1e-9 };
             self.approaching = true;
             self.setpoint_c = celsius;
+            self.ceiling_c = celsius.max(self.air_c) + self.config.alarm_band_c;
         }
     }
 

@@ -41,6 +41,7 @@ fn point(slot: usize, g: f64, output_hz: f64) -> PointRecord {
         std_hz: 0.001,
         n: 10,
         time_s: [1.0, 10.0],
+        setpoint_c: None,
         temperature_c: Some(25.0 + 0.01 * g),
         temperature_change_c: Some(0.02),
         resonator_sum_hz: Some(60_000.0),

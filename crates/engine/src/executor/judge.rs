@@ -18,6 +18,18 @@ impl Executor<'_> {
         )
     }
 
+    /// The plan's temperature nearest the laboratory's, where the outcome
+    /// is graded (`None`: the plan has no temperatures).
+    fn reference_temperature_c(&self) -> Option<f64> {
+        let room = self.station.temperature.ambient_c;
+        self.plan
+            .plan
+            .temperatures_c
+            .iter()
+            .copied()
+            .min_by(|a, b| (a - room).abs().total_cmp(&(b - room).abs()))
+    }
+
     /// The steps of the plan that measure `slot` (tumble, radius, levels
     /// of the passes it takes part in) and were not all done.
     pub(super) fn steps_left(&self, slot: usize) -> usize {
@@ -52,8 +64,17 @@ impl Executor<'_> {
             };
             let mut reasons = Vec::new();
             let mut analysis = None;
+            // With temperatures, the grade is at the reference temperature
+            // (the one nearest the laboratory's); every point stays in the record.
+            let reference_c = self.reference_temperature_c();
+            let graded_points: Vec<PointRecord> = u
+                .points
+                .iter()
+                .filter(|p| reference_c.is_none() || p.setpoint_c == reference_c)
+                .cloned()
+                .collect();
             // The plan's exclusions for this instrument, applied to its points.
-            let (points, exclusions) = self.excluded(&serial, &u.points);
+            let (points, exclusions) = self.excluded(&serial, &graded_points);
             let mut k2_max = None;
             let mut outcome = Outcome::Fail;
             let left = if run_complete || u.failed.is_some() {
@@ -95,6 +116,15 @@ impl Executor<'_> {
                 k2_max = graded.k2_max_ug_per_g2;
                 outcome = graded.outcome;
                 reasons.extend(graded.reasons);
+            }
+            if let Some(t) = reference_c {
+                reasons.push(Reason::new(
+                    ReasonCode::AnalysisNote,
+                    format!(
+                        "graded at the reference temperature {t} °C (of {:?} °C); the points at every temperature are in the record",
+                        self.plan.plan.temperatures_c
+                    ),
+                ));
             }
             let unsettled: Vec<String> = u
                 .points

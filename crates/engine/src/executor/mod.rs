@@ -26,6 +26,7 @@ mod judge;
 mod ports;
 mod resume;
 mod safety;
+mod soak;
 pub mod stability;
 pub mod state;
 mod steps;
@@ -116,6 +117,21 @@ pub enum EngineError {
     SupplyTripped {
         /// Measured output voltage.
         volts: f64,
+    },
+    /// The plan has temperatures and the station no chamber (refused when compiled).
+    #[error("the plan has temperatures_c but the station has no [chamber]")]
+    NoChamber,
+    /// The chamber raised an alarm.
+    #[error(
+        "the chamber raised alarm word {word:#06x} at {air_c:.1} °C (setpoint {setpoint_c} °C); the run was stopped and the chamber sent to the laboratory's temperature with the purge on (check the chamber)"
+    )]
+    ChamberAlarm {
+        /// The controller's alarm word.
+        word: u16,
+        /// The air temperature then [°C].
+        air_c: f64,
+        /// The setpoint [°C].
+        setpoint_c: f64,
     },
     /// An instrument reported a temperature above the station's limit.
     #[error(
@@ -243,6 +259,10 @@ pub struct Executor<'a> {
     pending: Vec<VecDeque<WindowValue>>,
     /// Each slot's latest temperature from its module's temperature frames [°C].
     temperatures_c: Vec<Option<f64>>,
+    /// The chamber's setpoint since the last soak [°C].
+    setpoint_c: Option<f64>,
+    /// The dry-air purge is on.
+    purge_on: bool,
     last_data: Vec<Instant>,
     windows: u64,
     demand_deg_s: f64,
@@ -292,6 +312,8 @@ impl<'a> Executor<'a> {
             accumulators,
             pending: vec![VecDeque::new(); modules],
             temperatures_c: vec![None; slots],
+            setpoint_c: None,
+            purge_on: false,
             last_data: vec![Instant::now(); modules],
             windows: 0,
             demand_deg_s: 0.0,
@@ -495,6 +517,7 @@ impl<'a> Executor<'a> {
                 Step::Mount { fixtures } => self.mount(fixtures)?,
                 Step::Tumble { up } => self.tumble(*up)?,
                 Step::CrossTumble { as_on_arm } => self.cross_tumble(*as_on_arm)?,
+                Step::Soak { setpoint_c } => self.soak(*setpoint_c)?,
                 Step::Radius { pass } => self.radius(*pass)?,
                 Step::Level {
                     pass,

@@ -392,6 +392,7 @@ impl Executor<'_> {
                     .collect::<Vec<_>>(),
             );
             points.push(PointRecord {
+                setpoint_c: self.setpoint_c,
                 temperature_c: temperature.map(|t| t.0),
                 temperature_change_c: temperature.map(|t| t.1),
                 temperature_unsettled: self
@@ -480,6 +481,7 @@ pub fn label(step: &Step) -> String {
         Step::WarmUp { seconds } => format!("warm-up {seconds:.0} s"),
         Step::Mount { fixtures } => mount_text(fixtures),
         Step::Tumble { up } => format!("tumble, input axis {}", if *up { "up" } else { "down" }),
+        Step::Soak { setpoint_c } => format!("soak the chamber at {setpoint_c} °C"),
         Step::CrossTumble { as_on_arm } => format!(
             "tumble, input axis horizontal, {}",
             if *as_on_arm {

@@ -1,0 +1,157 @@
+//! Temperatures in a plan (issue 15, part 4): when a chamber temperature
+//! counts as reached (`[soak]`), and the order the temperatures are visited
+//! in so the chamber and the operator change as little as possible.
+
+use serde::{Deserialize, Serialize};
+
+/// `[soak]`: a temperature is reached when the chamber's air is within
+/// `tolerance_c` of the setpoint and no instrument's temperature moved more
+/// than `tolerance_c` over the last `window_s` seconds; not within
+/// `max_soak_s` stops the run.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SoakConfig {
+    /// Band around the setpoint, and the instruments' largest change over the window [°C].
+    pub tolerance_c: f64,
+    /// How long everything must stay in band [s].
+    pub window_s: u32,
+    /// The longest soak before the run stops [s].
+    pub max_soak_s: u32,
+}
+
+impl Default for SoakConfig {
+    fn default() -> Self {
+        SoakConfig {
+            tolerance_c: 0.5,
+            window_s: 300,
+            max_soak_s: 4 * 3600,
+        }
+    }
+}
+
+impl SoakConfig {
+    /// Whether it is the default (a plan file without `[soak]` stays so).
+    pub fn is_default(&self) -> bool {
+        *self == SoakConfig::default()
+    }
+
+    /// Check every number against its bound; `Err((key, problem))`.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        use crate::bounds::{MAX_SETTLE_S, MAX_TEMPERATURE_CHANGE_C};
+        if !(self.tolerance_c.is_finite()
+            && self.tolerance_c > 0.0
+            && self.tolerance_c <= MAX_TEMPERATURE_CHANGE_C)
+        {
+            return Err((
+                "soak.tolerance_c".into(),
+                format!(
+                    "{} is not a band from 0 to {MAX_TEMPERATURE_CHANGE_C} °C (MAX_TEMPERATURE_CHANGE_C)",
+                    self.tolerance_c
+                ),
+            ));
+        }
+        for (key, v) in [
+            ("soak.window_s", self.window_s),
+            ("soak.max_soak_s", self.max_soak_s),
+        ] {
+            if !(1..=MAX_SETTLE_S).contains(&v) {
+                return Err((
+                    key.into(),
+                    format!("{v} is not from 1 to {MAX_SETTLE_S} s (MAX_SETTLE_S)"),
+                ));
+            }
+        }
+        if self.window_s > self.max_soak_s {
+            return Err((
+                "soak.window_s".into(),
+                format!(
+                    "{} s is longer than soak.max_soak_s = {} s: no soak could ever finish",
+                    self.window_s, self.max_soak_s
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The temperatures of each pass, in the order visited: ascending in the
+/// first pass, then each pass starts where the last one ended (a snake), so
+/// the chamber makes one transition fewer per pass and the remount between
+/// passes happens at the temperature already reached.
+pub fn visiting_order(temperatures_c: &[f64], passes: usize) -> Vec<Vec<f64>> {
+    let mut ascending = temperatures_c.to_vec();
+    ascending.sort_by(f64::total_cmp);
+    ascending.dedup();
+    (0..passes)
+        .map(|p| {
+            if p % 2 == 0 {
+                ascending.clone()
+            } else {
+                ascending.iter().rev().copied().collect()
+            }
+        })
+        .collect()
+}
+
+/// The chamber's transitions a visiting order makes from `start_c` (the room).
+pub fn transitions(order: &[Vec<f64>], start_c: f64) -> usize {
+    let mut at = start_c;
+    let mut n = 0;
+    for t in order.iter().flatten() {
+        if *t != at {
+            n += 1;
+            at = *t;
+        }
+    }
+    n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn passes_snake_through_the_temperatures_and_make_the_fewest_transitions() {
+        let order = visiting_order(&[70.0, -40.0, 25.0], 2);
+        assert_eq!(
+            order,
+            vec![vec![-40.0, 25.0, 70.0], vec![70.0, 25.0, -40.0]]
+        );
+        // Every order of visiting both passes' three temperatures: none fewer.
+        let snake = transitions(&order, 23.0);
+        assert_eq!(snake, 5);
+        let t = [-40.0, 25.0, 70.0];
+        let perms = [
+            [0, 1, 2],
+            [0, 2, 1],
+            [1, 0, 2],
+            [1, 2, 0],
+            [2, 0, 1],
+            [2, 1, 0],
+        ];
+        for a in perms {
+            for b in perms {
+                let other = vec![a.map(|i| t[i]).to_vec(), b.map(|i| t[i]).to_vec()];
+                assert!(transitions(&other, 23.0) >= snake, "{other:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_soak_window_longer_than_the_longest_soak_is_refused() {
+        let s = SoakConfig {
+            window_s: 600,
+            max_soak_s: 300,
+            ..SoakConfig::default()
+        };
+        assert_eq!(
+            s.validate().err().map(|e| e.0),
+            Some("soak.window_s".into())
+        );
+        let s = SoakConfig {
+            tolerance_c: f64::NAN,
+            ..SoakConfig::default()
+        };
+        assert!(s.validate().is_err());
+    }
+}
