@@ -7,6 +7,7 @@
 //!
 //! The data flow of a reduction is:
 //!
+//! * [`temperature`] — temperature coefficients of k0, k1 and K2 (weighted lines);
 //! * [`tumble`] — bias and scale factor from 1 g readings, method.md (5), and
 //!   a multi-position tumble with input-axis misalignment;
 //! * [`centrifuge`] and [`radius`] — applied acceleration from rate and
@@ -42,6 +43,7 @@ pub mod model;
 pub mod points;
 pub mod radius;
 pub mod scale_factor;
+pub mod temperature;
 pub mod tumble;
 pub mod uncertainty;
 pub mod unit;

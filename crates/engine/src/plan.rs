@@ -839,7 +839,13 @@ impl TestPlan {
                 steps.push(Step::CrossTumble { as_on_arm });
             }
         }
-        let orders = crate::soak::visiting_order(&self.temperatures_c, passes.len());
+        let orders = crate::soak::visiting_order(
+            &self.temperatures_c,
+            passes.len(),
+            station.temperature.ambient_c,
+        );
+        let reference =
+            crate::soak::reference_c(&self.temperatures_c, station.temperature.ambient_c);
         for (p, pass) in passes.iter().enumerate() {
             steps.push(Step::Mount {
                 fixtures: pass.iter().map(|m| m.map(Fixture::Arm)).collect(),
@@ -853,8 +859,11 @@ impl TestPlan {
                 if let Some(setpoint_c) = setpoint {
                     steps.push(Step::Soak { setpoint_c });
                 }
-                // The radius again at each temperature: the arm and the fixture expand.
-                steps.push(Step::Radius { pass: p });
+                // The radius at the reference temperature (or the room's),
+                // which each pass visits first (see `soak::visiting_order`).
+                if setpoint == reference {
+                    steps.push(Step::Radius { pass: p });
+                }
                 let mut passed_top = false;
                 for &level in &sequence {
                     let direction = if passed_top {

@@ -254,6 +254,12 @@ pub struct UnitRecord {
     /// before the rule was recorded: those compared the value alone).
     #[serde(default)]
     pub decision_rule: Option<crate::plan::DecisionRule>,
+    /// Its figures at each chamber temperature of the plan (absent without temperatures).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub at_temperatures: Vec<spinbench_analysis::temperature::AtTemperature>,
+    /// Its temperature coefficients of k0, k1 and K2, with U95.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_coefficients: Option<spinbench_analysis::temperature::TemperatureCoefficients>,
     /// The plan's exclusions that removed readings of this instrument (each
     /// with its reason, who, and how many readings).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

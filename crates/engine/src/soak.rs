@@ -74,21 +74,45 @@ impl SoakConfig {
     }
 }
 
-/// The temperatures of each pass, in the order visited: ascending in the
-/// first pass, then each pass starts where the last one ended (a snake), so
-/// the chamber makes one transition fewer per pass and the remount between
-/// passes happens at the temperature already reached.
-pub fn visiting_order(temperatures_c: &[f64], passes: usize) -> Vec<Vec<f64>> {
+/// The plan's temperature nearest the laboratory's `room_c`: the reference,
+/// where each pass finds its radius and the outcome is graded.
+pub fn reference_c(temperatures_c: &[f64], room_c: f64) -> Option<f64> {
+    temperatures_c
+        .iter()
+        .copied()
+        .min_by(|a, b| (a - room_c).abs().total_cmp(&(b - room_c).abs()))
+}
+
+/// The temperatures of each pass, in the order visited. Each pass begins
+/// at the reference temperature: the radius is found there, since the
+/// tumble that calibrates the 1 g reading was taken at room temperature (a
+/// radius found at another temperature would take the scale factor's change
+/// with temperature for a radius change, and that change would vanish from
+/// k1). The other temperatures follow ascending in even passes and
+/// descending in odd ones, so consecutive passes do not repeat one sweep.
+/// Within that constraint this is the fewest chamber transitions: one to
+/// the reference and one per other temperature.
+pub fn visiting_order(temperatures_c: &[f64], passes: usize, room_c: f64) -> Vec<Vec<f64>> {
     let mut ascending = temperatures_c.to_vec();
     ascending.sort_by(f64::total_cmp);
     ascending.dedup();
+    let Some(reference) = reference_c(&ascending, room_c) else {
+        return vec![Vec::new(); passes];
+    };
+    let others: Vec<f64> = ascending
+        .iter()
+        .copied()
+        .filter(|&t| t != reference)
+        .collect();
     (0..passes)
         .map(|p| {
+            let mut order = vec![reference];
             if p % 2 == 0 {
-                ascending.clone()
+                order.extend(others.iter().copied());
             } else {
-                ascending.iter().rev().copied().collect()
+                order.extend(others.iter().rev().copied());
             }
+            order
         })
         .collect()
 }
@@ -111,30 +135,29 @@ mod tests {
     use super::*;
 
     #[test]
-    fn passes_snake_through_the_temperatures_and_make_the_fewest_transitions() {
-        let order = visiting_order(&[70.0, -40.0, 25.0], 2);
+    fn each_pass_begins_at_the_reference_and_makes_one_transition_per_temperature() {
+        let order = visiting_order(&[70.0, -40.0, 25.0], 2, 23.0);
         assert_eq!(
             order,
-            vec![vec![-40.0, 25.0, 70.0], vec![70.0, 25.0, -40.0]]
+            vec![vec![25.0, -40.0, 70.0], vec![25.0, 70.0, -40.0]]
         );
-        // Every order of visiting both passes' three temperatures: none fewer.
-        let snake = transitions(&order, 23.0);
-        assert_eq!(snake, 5);
-        let t = [-40.0, 25.0, 70.0];
-        let perms = [
-            [0, 1, 2],
-            [0, 2, 1],
-            [1, 0, 2],
-            [1, 2, 0],
-            [2, 0, 1],
-            [2, 1, 0],
-        ];
-        for a in perms {
-            for b in perms {
-                let other = vec![a.map(|i| t[i]).to_vec(), b.map(|i| t[i]).to_vec()];
-                assert!(transitions(&other, 23.0) >= snake, "{other:?}");
+        assert_eq!(transitions(&order, 23.0), 6);
+        // Every order that begins each pass at the reference: none fewer.
+        let others = [-40.0, 70.0];
+        for a in [[0, 1], [1, 0]] {
+            for b in [[0, 1], [1, 0]] {
+                let other = vec![
+                    vec![25.0, others[a[0]], others[a[1]]],
+                    vec![25.0, others[b[0]], others[b[1]]],
+                ];
+                assert!(transitions(&other, 23.0) >= 6, "{other:?}");
             }
         }
+        assert_eq!(
+            reference_c(&[-40.0, 70.0], 23.0),
+            Some(-40.0),
+            "nearest the room"
+        );
     }
 
     #[test]

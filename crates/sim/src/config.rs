@@ -207,6 +207,9 @@ pub struct PopulationConfig {
     pub asymmetry_max_ppm: f64,
     /// Scale-factor temperature coefficient limit [ppm/°C].
     pub k1_temp_coeff_ppm_per_c: f64,
+    /// Limit of k2's temperature coefficient [µg/g²/°C], drawn from its own
+    /// random stream (0: none, and the other draws are as without it).
+    pub k2_temp_coeff_ug_per_g2_per_c: f64,
     /// Temperature coefficient of the resonators' common frequency [ppm/°C]:
     /// f1 + f2 tracks the instrument's temperature.
     pub resonator_sum_ppm_per_c: f64,
@@ -235,6 +238,7 @@ impl Default for PopulationConfig {
             koq_max_ug_per_g2: 0.0,
             asymmetry_max_ppm: 0.0,
             k1_temp_coeff_ppm_per_c: 0.0,
+            k2_temp_coeff_ug_per_g2_per_c: 0.0,
             resonator_sum_ppm_per_c: 0.0,
             flicker_ug: 0.0,
             disturbance_gain: [1.0, 1.0],
@@ -517,6 +521,12 @@ impl SimConfig {
                 p.asymmetry_max_ppm,
                 0.0,
                 1e6,
+            ),
+            (
+                "instruments.k2_temp_coeff_ug_per_g2_per_c",
+                p.k2_temp_coeff_ug_per_g2_per_c,
+                0.0,
+                100.0,
             ),
             (
                 "instruments.k1_temp_coeff_ppm_per_c",

@@ -69,6 +69,8 @@ pub struct VbaTruth {
     pub asymmetry_ppm: f64,
     /// Scale-factor temperature coefficient [ppm/°C].
     pub k1_temp_coeff_ppm_per_c: f64,
+    /// Temperature coefficient of k2 [µg/g²/°C].
+    pub k2_temp_coeff_ug_per_g2_per_c: f64,
     /// Temperature coefficient of the common frequency (f1 + f2)/2 [ppm/°C].
     pub resonator_sum_ppm_per_c: f64,
     /// Low-frequency (1/f-like) noise, RMS [µg].
@@ -144,7 +146,7 @@ impl Vba {
         let linear = a * (1.0 + 0.5e-6 * t.asymmetry_ppm * a.signum());
         let input = t.k0_g
             + linear
-            + t.k2_ug_per_g2 * 1e-6 * a * a
+            + (t.k2_ug_per_g2 + t.k2_temp_coeff_ug_per_g2_per_c * dt) * 1e-6 * a * a
             + t.k3_ug_per_g3 * 1e-6 * a * a * a
             + t.koq_ug_per_g2 * 1e-6 * a * a.abs()
             + t.cross_axis_ug_per_g * 1e-6 * inputs.cross_g
@@ -179,6 +181,7 @@ mod tests {
             koq_ug_per_g2: 0.0,
             asymmetry_ppm: 0.0,
             k1_temp_coeff_ppm_per_c: 0.0,
+            k2_temp_coeff_ug_per_g2_per_c: 0.0,
             resonator_sum_ppm_per_c: 0.0,
             flicker_ug: 0.0,
             disturbance_gain: 1.0,

@@ -42,6 +42,9 @@ const WIRE_STREAM: u64 = 0x7769_7265;
 /// Seed offset of the error sources' draws ("errors"): the `ideal`
 /// population stays the one it always was.
 const ERRORS_STREAM: u64 = 0x0000_6572_726f_7273;
+/// The temperature coefficients drawn since the chamber came: their own
+/// stream, so a bench without them draws everything else as before.
+const TEMPCO_STREAM: u64 = 0x7465_6d70_636f;
 /// The Earth's rate [rad/s] (the station's own constant).
 pub const EARTH_RATE_RAD_S: f64 = spinbench_analysis::centrifuge::EARTH_RATE_RAD_S;
 /// Time constants of the low-frequency noise's relaxation processes [s]:
@@ -225,6 +228,7 @@ impl World {
     pub fn new(config: SimConfig) -> World {
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let mut errors_rng = ChaCha8Rng::seed_from_u64(config.seed ^ ERRORS_STREAM);
+        let mut tempco_rng = ChaCha8Rng::seed_from_u64(config.seed ^ TEMPCO_STREAM);
         let n = config.modules * INSTRUMENTS_PER_MODULE;
         let p = &config.instruments;
         let t = &config.centrifuge;
@@ -250,6 +254,8 @@ impl World {
                 asymmetry_ppm: draw(&mut errors_rng, -p.asymmetry_max_ppm, p.asymmetry_max_ppm),
                 k1_temp_coeff_ppm_per_c: p.k1_temp_coeff_ppm_per_c
                     * draw(&mut errors_rng, -1.0, 1.0),
+                k2_temp_coeff_ug_per_g2_per_c: p.k2_temp_coeff_ug_per_g2_per_c
+                    * draw(&mut tempco_rng, -1.0, 1.0),
                 resonator_sum_ppm_per_c: p.resonator_sum_ppm_per_c,
                 flicker_ug: p.flicker_ug,
                 disturbance_gain: draw(

@@ -40,6 +40,12 @@ pub struct DemoUnit {
     pub cross_axis_ug_per_g: Option<f64>,
     /// The simulator's true cross-axis sensitivity [µg/g].
     pub true_cross_axis_ug_per_g: f64,
+    /// Temperature coefficients found (a plan with temperatures).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature_coefficients: Option<spinbench_analysis::temperature::TemperatureCoefficients>,
+    /// The simulator's true temperature coefficients (with temperatures).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub true_temperature_coefficients: Option<TrueTemperatureCoefficients>,
     /// Measured k2 in this mounting [µg/g²].
     pub k2_ug_per_g2: Option<f64>,
     /// Its 95 % interval.
@@ -68,6 +74,17 @@ pub struct DemoUnit {
     pub k2_max_ug_per_g2: Option<f64>,
     /// Pass, marginal, inconclusive, fail or incomplete.
     pub outcome: Outcome,
+}
+
+/// The bench's true temperature coefficients of one instrument.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct TrueTemperatureCoefficients {
+    /// Bias [µg/°C].
+    pub k0_ug_per_c: f64,
+    /// Scale factor [ppm/°C].
+    pub k1_ppm_per_c: f64,
+    /// K2 [µg/g²/°C].
+    pub k2_ug_per_g2_per_c: f64,
 }
 
 /// Compare a finished demo run with the simulator's truth; `perfect_k2`
@@ -104,6 +121,14 @@ pub fn compare_with_truth(
                 radius_reading_u_ppm: r.radius_reading_u_ppm.get(&mount).copied(),
                 cross_axis_ug_per_g: r.cross_axis_ug_per_g,
                 true_cross_axis_ug_per_g: t.vba.cross_axis_ug_per_g,
+                temperature_coefficients: r.temperature_coefficients,
+                true_temperature_coefficients: r.temperature_coefficients.map(|_| {
+                    TrueTemperatureCoefficients {
+                        k0_ug_per_c: t.vba.temp_coeff_ug_per_c,
+                        k1_ppm_per_c: t.vba.k1_temp_coeff_ppm_per_c,
+                        k2_ug_per_g2_per_c: t.vba.k2_temp_coeff_ug_per_g2_per_c,
+                    }
+                }),
                 k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
                 k2_ci95: fit.and_then(|f| f.ci95.k2_ug_per_g2),
                 k2_u95: mounting
@@ -129,8 +154,9 @@ pub fn compare_with_truth(
 }
 
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
-/// a 10-minute warm-up (virtual time is cheap), `tumble_positions` (2 or 4).
-pub fn demo_plan(slots: usize, tumble_positions: u8) -> TestPlan {
+/// a 10-minute warm-up (virtual time is cheap), `tumble_positions` (2 or 4),
+/// at the chamber `temperatures_c` (none: the room).
+pub fn demo_plan(slots: usize, tumble_positions: u8, temperatures_c: &[f64]) -> TestPlan {
     TestPlan {
         name: "demo: ±70 g, mountings P and N".into(),
         operator: "demo".into(),
@@ -140,6 +166,7 @@ pub fn demo_plan(slots: usize, tumble_positions: u8) -> TestPlan {
         passes: vec![Mount::P, Mount::N],
         warmup_s: 600.0,
         tumble_positions,
+        temperatures_c: temperatures_c.to_vec(),
         ..TestPlan::default()
     }
 }
@@ -153,6 +180,10 @@ pub struct BenchChoice {
     pub realism: Option<Realism>,
     /// Bench config (TOML) whose keys go over the preset's.
     pub config: Option<std::path::PathBuf>,
+    /// Put the instruments in a temperature chamber (the config's own
+    /// `[chamber]`, else the default one), with temperature coefficients of
+    /// k1 (15 ppm/°C) and K2 (0.05 µg/g²/°C) where the preset has none.
+    pub chamber: bool,
 }
 
 impl BenchChoice {
@@ -167,11 +198,22 @@ impl BenchChoice {
             }
             None => self.realism.unwrap_or_default().config(),
         };
-        Ok(SimConfig {
+        let mut config = SimConfig {
             seed: self.seed,
             speed: 0.0,
             ..base
-        })
+        };
+        if self.chamber {
+            config.chamber.get_or_insert_with(Default::default);
+            let p = &mut config.instruments;
+            if p.k1_temp_coeff_ppm_per_c == 0.0 {
+                p.k1_temp_coeff_ppm_per_c = 15.0;
+            }
+            if p.k2_temp_coeff_ug_per_g2_per_c == 0.0 {
+                p.k2_temp_coeff_ug_per_g2_per_c = 0.05;
+            }
+        }
+        Ok(config)
     }
 }
 
@@ -190,6 +232,7 @@ pub fn start_sim(choice: &BenchChoice) -> Result<(RunningBench, StationConfig)> 
 pub fn demo(
     choice: &BenchChoice,
     tumble_positions: u8,
+    temperatures_c: &[f64],
     json: bool,
     data_dir: &Path,
     db: Option<&StoreTarget>,
@@ -199,7 +242,7 @@ pub fn demo(
     let seed = choice.seed;
     let (sim, station) = start_sim(choice)?;
     let realism = sim.with_world(|w| w.config().realism);
-    let plan = demo_plan(station.slots(), tumble_positions);
+    let plan = demo_plan(station.slots(), tumble_positions, temperatures_c);
     let (plan_range_g, plan_order) = (
         plan.range_g,
         spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default(),

@@ -56,6 +56,8 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         serial: serial.into(),
         tumble: None,
         cross_axis_ug_per_g: Some(21.5),
+        at_temperatures: Vec::new(),
+        temperature_coefficients: None,
         drawing_radius_m: 0.8,
         radius_m: Default::default(),
         radius_reading_u_ppm: [(Mount::P, 3.5)].into_iter().collect(),

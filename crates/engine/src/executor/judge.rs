@@ -18,16 +18,84 @@ impl Executor<'_> {
         )
     }
 
+    /// The instrument's figures at each of the plan's temperatures (every
+    /// mounting's points there reduced together: the full-range fit's k0 and
+    /// k1, the joint K2) and the coefficients through them; a temperature
+    /// whose points cannot be reduced is left out with a note.
+    fn temperature_figures(
+        &self,
+        slot: usize,
+        serial: &str,
+        all: &[PointRecord],
+        reasons: &mut Vec<Reason>,
+    ) -> (
+        Vec<spinbench_analysis::temperature::AtTemperature>,
+        Option<spinbench_analysis::temperature::TemperatureCoefficients>,
+    ) {
+        use spinbench_analysis::temperature::{AtTemperature, temperature_coefficients};
+        let mut setpoints = self.plan.plan.temperatures_c.clone();
+        setpoints.sort_by(f64::total_cmp);
+        setpoints.dedup();
+        let mut at = Vec::new();
+        for setpoint_c in setpoints {
+            let here: Vec<PointRecord> = all
+                .iter()
+                .filter(|p| p.setpoint_c == Some(setpoint_c))
+                .cloned()
+                .collect();
+            let temperatures: Vec<f64> = here.iter().filter_map(|p| p.temperature_c).collect();
+            if temperatures.is_empty() {
+                continue;
+            }
+            let (temperature_c, temperature_spread_c) = mean_std(&temperatures);
+            let (points, _) = self.excluded(serial, &here);
+            let input = UnitPoints {
+                unit: serial.to_string(),
+                run: None,
+                points,
+            };
+            let figures = analyze_unit(&input, self.analysis_options(slot))
+                .ok()
+                .and_then(|a| {
+                    let full = a.full_range.as_ref()?;
+                    let k2 = a.joint.as_ref().and_then(|j| {
+                        let u = j
+                            .uncertainty
+                            .as_ref()
+                            .map(|u| u.k2_even_ug_per_g2.u)
+                            .or(j.u_ug_per_g2)?;
+                        Some([j.k2_even_ug_per_g2, u])
+                    });
+                    Some(AtTemperature {
+                        setpoint_c,
+                        temperature_c,
+                        temperature_spread_c,
+                        k0_g: [full.fit.k0_g, full.fit.std_error.k0_g?],
+                        k1_hz_per_g: [full.fit.k1, full.fit.std_error.k1?],
+                        k2_ug_per_g2: k2,
+                    })
+                });
+            match figures {
+                Some(f) => at.push(f),
+                None => reasons.push(Reason::new(
+                    ReasonCode::AnalysisNote,
+                    format!("its points at {setpoint_c} °C could not be reduced; that temperature is left out of the temperature coefficients"),
+                )),
+            }
+        }
+        let coefficients = (at.len() >= 2)
+            .then(|| temperature_coefficients(&at).ok())
+            .flatten();
+        (at, coefficients)
+    }
+
     /// The plan's temperature nearest the laboratory's, where the outcome
     /// is graded (`None`: the plan has no temperatures).
     fn reference_temperature_c(&self) -> Option<f64> {
-        let room = self.station.temperature.ambient_c;
-        self.plan
-            .plan
-            .temperatures_c
-            .iter()
-            .copied()
-            .min_by(|a, b| (a - room).abs().total_cmp(&(b - room).abs()))
+        crate::soak::reference_c(
+            &self.plan.plan.temperatures_c,
+            self.station.temperature.ambient_c,
+        )
     }
 
     /// The steps of the plan that measure `slot` (tumble, radius, levels
@@ -143,7 +211,11 @@ impl Executor<'_> {
                     ),
                 ));
             }
+            let (at_temperatures, temperature_coefficients) =
+                self.temperature_figures(slot, &serial, &u.points, &mut reasons);
             out.push(UnitRecord {
+                at_temperatures,
+                temperature_coefficients,
                 slot,
                 serial,
                 tumble: u.cal.map(|c| [c.bias_output, c.scale_factor]),

@@ -96,6 +96,12 @@ pub enum Command {
         /// axis out of each radius).
         #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=4))]
         tumble_positions: u8,
+        /// Run the range test at these chamber temperatures [°C], e.g.
+        /// `--temperatures=-20,25,60`: the bench's instruments sit in a
+        /// temperature chamber, and the JSON gains each instrument's
+        /// temperature coefficients beside the bench's truth.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        temperatures: Vec<f64>,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,
@@ -409,6 +415,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             realism,
             sim_config,
             tumble_positions,
+            temperatures,
             json,
             data,
             db,
@@ -417,8 +424,17 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 seed,
                 realism,
                 config: sim_config,
+                chamber: !temperatures.is_empty(),
             };
-            crate::demo::demo(&bench, tumble_positions, json, &data, db.as_ref(), out)
+            crate::demo::demo(
+                &bench,
+                tumble_positions,
+                &temperatures,
+                json,
+                &data,
+                db.as_ref(),
+                out,
+            )
         }
         Command::Run {
             plan,
@@ -438,6 +454,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 seed,
                 realism,
                 config: None,
+                chamber: false,
             },
             resume.as_deref(),
             &data,
