@@ -353,6 +353,16 @@ pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
     if let Some(line) = temperature_line(&r.points) {
         lines.push(line);
     }
+    if let Some(c) = &r.temperature_coefficients {
+        let k2 = match (c.k2_ug_per_g2_per_c, c.k2_ug_per_g2_per_c_u95) {
+            (Some(v), Some(u)) => format!(", K2 {v:+.4} ± {u:.4} µg/g²/°C"),
+            _ => String::new(),
+        };
+        lines.push(format!(
+            "Temperature coefficients over {} temperatures (U95): k0 {:+.2} ± {:.2} µg/°C, k1 {:+.2} ± {:.2} ppm/°C{k2}.",
+            c.temperatures, c.k0_ug_per_c, c.k0_ug_per_c_u95, c.k1_ppm_per_c, c.k1_ppm_per_c_u95
+        ));
+    }
     if !r.radius_reading_u_ppm.is_empty() || r.cross_axis_ug_per_g.is_some() {
         let radius: Vec<String> = r
             .radius_reading_u_ppm
