@@ -155,7 +155,7 @@ mod tests {
         }
         assert_eq!(
             reference_c(&[-40.0, 70.0], 23.0),
-            Some(-40.0),
+            Some(70.0),
             "nearest the room"
         );
     }
