@@ -34,16 +34,29 @@ pub struct BatchTest {
     pub asymmetry_ppm: Option<f64>,
     /// The whole reduction of the test, when it was made.
     pub analysis: Option<UnitAnalysis>,
+    /// Its temperature coefficients, when the plan had temperatures.
+    pub temperature_coefficients: Option<spinbench_analysis::temperature::TemperatureCoefficients>,
 }
 
 /// The figures whose distributions the batch report shows: (name, unit, value).
 type Figure = (&'static str, &'static str, fn(&BatchTest) -> Option<f64>);
-const FIGURES: [Figure; 5] = [
+const FIGURES: [Figure; 8] = [
     ("k2", "µg/g²", |t| t.k2_ug_per_g2),
     ("k2_max", "µg/g²", |t| t.k2_max_ug_per_g2),
     ("K1", "Hz/g", |t| t.k1_hz_per_g),
     ("SF nonlinearity", "ppm", |t| t.sf_nonlinearity_ppm),
     ("asymmetry", "ppm", |t| t.asymmetry_ppm),
+    // Only batches tested at several temperatures have these.
+    ("k0 temperature coefficient", "µg/°C", |t| {
+        t.temperature_coefficients.map(|c| c.k0_ug_per_c)
+    }),
+    ("k1 temperature coefficient", "ppm/°C", |t| {
+        t.temperature_coefficients.map(|c| c.k1_ppm_per_c)
+    }),
+    ("K2 temperature coefficient", "µg/g²/°C", |t| {
+        t.temperature_coefficients
+            .and_then(|c| c.k2_ug_per_g2_per_c)
+    }),
 ];
 
 /// An outlying test of one figure.
@@ -171,6 +184,7 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
     let mut tests = Vec::new();
     for run in &runs {
         for r in store.results(&run.id)? {
+            let temperature_coefficients = r.record.temperature_coefficients;
             let a = r.record.analysis;
             tests.push(BatchTest {
                 run_id: run.id.clone(),
@@ -192,6 +206,7 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
                     .map(|s| s.residual_max_ppm),
                 asymmetry_ppm: a.as_ref().and_then(|a| a.figures.asymmetry_ppm),
                 analysis: a,
+                temperature_coefficients,
             });
         }
     }
@@ -666,6 +681,7 @@ mod tests {
             sf_nonlinearity_ppm: None,
             asymmetry_ppm: None,
             analysis: None,
+            temperature_coefficients: None,
         }
     }
 
@@ -686,5 +702,38 @@ mod tests {
         assert_eq!(d.outliers[0].serial, "WILD");
         // No figure at all: no distribution.
         assert!(distribution("x", "", &tests, |t| t.asymmetry_ppm).is_none());
+    }
+
+    #[test]
+    fn temperature_coefficients_get_their_distributions_only_when_measured() {
+        let (name, _, value) = FIGURES[5];
+        let tests: Vec<BatchTest> = (0..10).map(|i| test(&format!("S{i}"), 10.0)).collect();
+        assert!(
+            distribution(name, "", &tests, value).is_none(),
+            "none measured"
+        );
+        let with: Vec<BatchTest> = (0..10)
+            .map(|i| BatchTest {
+                temperature_coefficients: Some(
+                    spinbench_analysis::temperature::TemperatureCoefficients {
+                        k0_ug_per_c: f64::from(i),
+                        k0_ug_per_c_u95: 1.0,
+                        k1_ppm_per_c: 0.0,
+                        k1_ppm_per_c_u95: 1.0,
+                        k2_ug_per_g2_per_c: None,
+                        k2_ug_per_g2_per_c_u95: None,
+                        temperatures: 3,
+                    },
+                ),
+                ..test(&format!("S{i}"), 10.0)
+            })
+            .collect();
+        let d = distribution(name, "µg/°C", &with, value).expect("k0 coefficients");
+        assert_eq!((d.n, d.mean), (10, 4.5));
+        let (k2_name, _, k2_value) = FIGURES[7];
+        assert!(
+            distribution(k2_name, "", &with, k2_value).is_none(),
+            "no K2 coefficient"
+        );
     }
 }
