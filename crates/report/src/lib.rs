@@ -271,7 +271,7 @@ pub const SUMMARY_HEADERS: [&str; 16] = [
 const SUMMARY_DECIMALS: [usize; 11] = [6, 3, 6, 6, 3, 3, 3, 3, 1, 1, 1];
 
 /// The point table's columns (HTML and PDF).
-const POINT_HEADERS: [&str; 9] = [
+const POINT_HEADERS: [&str; 10] = [
     "step",
     "mount",
     "level [g]",
@@ -281,10 +281,11 @@ const POINT_HEADERS: [&str; 9] = [
     "output [Hz]",
     "σ [Hz]",
     "n",
+    "T [°C]",
 ];
 
 /// One row of the point table, as shown.
-fn point_cells(p: &PointRow) -> [String; 9] {
+fn point_cells(p: &PointRow) -> [String; 10] {
     [
         p.step.to_string(),
         p.mount.clone(),
@@ -295,6 +296,8 @@ fn point_cells(p: &PointRow) -> [String; 9] {
         format!("{:.6}", p.output_hz),
         format!("{:.6}", p.std_hz),
         p.n.to_string(),
+        p.temperature_c
+            .map_or("—".to_string(), |t| format!("{t:.2}")),
     ]
 }
 
@@ -700,6 +703,9 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
                 sheet.write_number(r, 7, p.output_hz)?;
                 sheet.write_number(r, 8, p.std_hz)?;
                 sheet.write_number(r, 9, p.n as f64)?;
+                if let Some(t) = p.temperature_c {
+                    sheet.write_number(r, 10, t)?;
+                }
                 r += 1;
             }
         }
