@@ -181,17 +181,24 @@ impl<T: Transport> ModbusChamber<T> {
     }
 
     fn celsius(&mut self, op: ChamberOp) -> Result<f64, DeviceError> {
-        match self.exchange(op)? {
-            ChamberReply::Celsius(c) => Ok(c),
-            other => Err(self.error(
-                op,
-                DeviceErrorKind::Garbled {
-                    reply: format!("{other:?}"),
-                    expected: "a temperature".into(),
-                    attempts: 1,
-                },
-            )),
-        }
+        let reply = self.exchange(op)?;
+        celsius_of(&self.device, op, reply)
+    }
+}
+
+/// The temperature a reply to `op` must be.
+fn celsius_of(device: &str, op: ChamberOp, reply: ChamberReply) -> Result<f64, DeviceError> {
+    match reply {
+        ChamberReply::Celsius(c) => Ok(c),
+        other => Err(DeviceError {
+            device: device.to_string(),
+            command: op.name().to_string(),
+            kind: DeviceErrorKind::Garbled {
+                reply: format!("{other:?}"),
+                expected: "a temperature".into(),
+                attempts: 1,
+            },
+        }),
     }
 }
 
@@ -271,18 +278,8 @@ impl<T: Transport> LineChamber<T> {
     }
 
     fn celsius(&mut self, op: ChamberOp) -> Result<f64, DeviceError> {
-        match self.run_op(op)? {
-            ChamberReply::Celsius(c) => Ok(c),
-            other => Err(DeviceError {
-                device: self.channel.device().to_string(),
-                command: op.name().to_string(),
-                kind: DeviceErrorKind::Garbled {
-                    reply: format!("{other:?}"),
-                    expected: "a temperature".into(),
-                    attempts: 1,
-                },
-            }),
-        }
+        let reply = self.run_op(op)?;
+        celsius_of(self.channel.device(), op, reply)
     }
 }
 

@@ -1087,6 +1087,45 @@ fn a_plan_with_temperatures_soaks_at_each_and_keeps_every_point_with_its_setpoin
         (c.setpoint_c, c.purge)
     });
     assert_eq!((setpoint, purge), (23.0, true));
+    // A level left out after the run is graded again on the reference
+    // temperature's points only, and the record keeps its temperature notes.
+    let station = station_for(&bench);
+    let mut plan = small_plan();
+    plan.warmup_s = 600.0;
+    plan.temperatures_c = vec![40.0, 5.0];
+    let compiled = plan.compile(&station).expect("plan");
+    let record = &summary.records[0];
+    let after = spinbench_engine::executor::exclude_after_run(
+        record,
+        &compiled,
+        &station,
+        spinbench_analysis::exclusion::LevelExclusion {
+            unit: None,
+            mount: Mount::P,
+            g: 4.0,
+            reason: "test".into(),
+            by: "engineer".into(),
+            points_removed: 0,
+        },
+    )
+    .expect("re-graded");
+    assert_eq!(
+        after.exclusions[0].points_removed, 2,
+        "4 g up and down at 40 °C"
+    );
+    let fit = &after.analysis.as_ref().expect("analysis").fits[&Mount::P].fit;
+    assert_eq!(
+        fit.points, 11,
+        "the reference temperature's 13 points less two"
+    );
+    assert!(
+        after
+            .reasons
+            .iter()
+            .any(|x| x.text.contains("reference temperature")),
+        "{:?}",
+        after.reasons
+    );
     bench.shutdown();
 }
 

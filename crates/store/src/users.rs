@@ -5,6 +5,25 @@
 use crate::db::Value;
 use crate::{Store, StoreError, now_s};
 
+/// One audit-log entry, now, in `db` (alone or inside a caller's transaction).
+fn insert_audit(
+    db: &mut crate::db::Db,
+    who: &str,
+    action: &str,
+    detail: &str,
+) -> Result<(), crate::db::DbError> {
+    db.execute(
+        "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
+        &[
+            Value::Int(Some(now_s())),
+            who.into(),
+            action.into(),
+            detail.into(),
+        ],
+    )
+    .map(|_| ())
+}
+
 /// One user.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct UserRow {
@@ -118,18 +137,7 @@ impl Store {
 
     /// Record that `who` did `action`.
     pub fn audit(&self, who: &str, action: &str, detail: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
-            .execute(
-                "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
-                &[
-                    Value::Int(Some(now_s())),
-                    who.into(),
-                    action.into(),
-                    detail.into(),
-                ],
-            )
-            .map(|_| ())
+        insert_audit(&mut self.db.borrow_mut(), who, action, detail)
             .map_err(self.err("write the audit log"))
     }
 
@@ -166,16 +174,7 @@ impl Store {
                         format!("run {run_id} has no result for slot {}", record.slot + 1).into(),
                     );
                 }
-                db.execute(
-                    "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
-                    &[
-                        Value::Int(Some(now_s())),
-                        who.into(),
-                        action.into(),
-                        detail.into(),
-                    ],
-                )
-                .map(|_| ())
+                insert_audit(db, who, action, detail)
             })
             .map_err(self.err("replace a result"))
     }

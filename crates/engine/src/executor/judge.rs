@@ -89,15 +89,6 @@ impl Executor<'_> {
         (at, coefficients)
     }
 
-    /// The plan's temperature nearest the laboratory's, where the outcome
-    /// is graded (`None`: the plan has no temperatures).
-    fn reference_temperature_c(&self) -> Option<f64> {
-        crate::soak::reference_c(
-            &self.plan.plan.temperatures_c,
-            self.station.temperature.ambient_c,
-        )
-    }
-
     /// The steps of the plan that measure `slot` (tumble, radius, levels
     /// of the passes it takes part in) and were not all done.
     pub(super) fn steps_left(&self, slot: usize) -> usize {
@@ -132,17 +123,9 @@ impl Executor<'_> {
             };
             let mut reasons = Vec::new();
             let mut analysis = None;
-            // With temperatures, the grade is at the reference temperature
-            // (the one nearest the laboratory's); every point stays in the record.
-            let reference_c = self.reference_temperature_c();
-            let graded_points: Vec<PointRecord> = u
-                .points
-                .iter()
-                .filter(|p| reference_c.is_none() || p.setpoint_c == reference_c)
-                .cloned()
-                .collect();
-            // The plan's exclusions for this instrument, applied to its points.
-            let (points, exclusions) = self.excluded(&serial, &graded_points);
+            // The plan's exclusions for this instrument, applied to the points it is graded on.
+            let (points, exclusions) =
+                self.excluded(&serial, &graded_points(&self.plan, self.station, &u.points));
             let mut k2_max = None;
             let mut outcome = Outcome::Fail;
             let left = if run_complete || u.failed.is_some() {
@@ -185,32 +168,7 @@ impl Executor<'_> {
                 outcome = graded.outcome;
                 reasons.extend(graded.reasons);
             }
-            if let Some(t) = reference_c {
-                reasons.push(Reason::new(
-                    ReasonCode::AnalysisNote,
-                    format!(
-                        "graded at the reference temperature {t} °C (of {:?} °C); the points at every temperature are in the record",
-                        self.plan.plan.temperatures_c
-                    ),
-                ));
-            }
-            let unsettled: Vec<String> = u
-                .points
-                .iter()
-                .filter(|p| p.temperature_unsettled)
-                .map(|p| format!("{}:{} g", p.mount, p.g_nominal))
-                .collect();
-            if !unsettled.is_empty() {
-                reasons.push(Reason::new(
-                    ReasonCode::TemperatureUnsettled,
-                    format!(
-                        "{} point(s) taken while its temperature moved more than stability.temperature_change_max_c = {} °C ({}); retest advised",
-                        unsettled.len(),
-                        self.plan.plan.stability.temperature_change_max_c.unwrap_or(0.0),
-                        unsettled.join(", ")
-                    ),
-                ));
-            }
+            reasons.extend(temperature_reasons(&self.plan, self.station, &u.points));
             let (at_temperatures, temperature_coefficients) =
                 self.temperature_figures(slot, &serial, &u.points, &mut reasons);
             out.push(UnitRecord {
@@ -360,7 +318,7 @@ pub fn exclude_after_run(
     let mut units = [UnitPoints {
         unit: record.serial.clone(),
         run: None,
-        points: point_list(&record.points),
+        points: point_list(&graded_points(plan, station, &record.points)),
     }];
     spinbench_analysis::exclusion::apply(&mut units, &mut exclusions);
     if exclusions.last().is_some_and(|e| e.points_removed == 0) {
@@ -380,15 +338,73 @@ pub fn exclude_after_run(
         record.cross_axis_ug_per_g.is_some(),
     );
     let graded = grade(&record.serial, unit.points, options, &plan.plan.limits);
+    let mut reasons = graded.reasons;
+    reasons.extend(temperature_reasons(plan, station, &record.points));
     Ok(UnitRecord {
         analysis: graded.analysis,
         k2_max_ug_per_g2: graded.k2_max_ug_per_g2,
         outcome: graded.outcome,
-        reasons: graded.reasons,
+        reasons,
         decision_rule: Some(plan.plan.limits.decision_rule),
         exclusions,
         ..record.clone()
     })
+}
+
+/// The points an instrument is graded on: with temperatures, those at the
+/// reference temperature (nearest the laboratory's, `soak::reference_c`);
+/// every point stays in the record.
+fn graded_points(
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    points: &[PointRecord],
+) -> Vec<PointRecord> {
+    let reference =
+        crate::soak::reference_c(&plan.plan.temperatures_c, station.temperature.ambient_c);
+    points
+        .iter()
+        .filter(|p| reference.is_none() || p.setpoint_c == reference)
+        .cloned()
+        .collect()
+}
+
+/// The reasons a record carries beside its grade, from its points'
+/// temperatures: the reference temperature it was graded at, and the points
+/// taken while the temperature moved more than the plan allows.
+fn temperature_reasons(
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    points: &[PointRecord],
+) -> Vec<Reason> {
+    let mut reasons = Vec::new();
+    if let Some(t) =
+        crate::soak::reference_c(&plan.plan.temperatures_c, station.temperature.ambient_c)
+    {
+        reasons.push(Reason::new(
+            ReasonCode::AnalysisNote,
+            format!(
+                "graded at the reference temperature {t} °C (of {:?} °C); the points at every temperature are in the record",
+                plan.plan.temperatures_c
+            ),
+        ));
+    }
+    let unsettled: Vec<String> = points
+        .iter()
+        .filter(|p| p.temperature_unsettled)
+        .map(|p| format!("{}:{} g", p.mount, p.g_nominal))
+        .collect();
+    if !unsettled.is_empty() {
+        reasons.push(Reason::new(
+            ReasonCode::TemperatureUnsettled,
+            format!(
+                "{} point(s) taken while its temperature moved more than stability.temperature_change_max_c = {} °C ({}); retest advised",
+                unsettled.len(),
+                plan.plan.stability.temperature_change_max_c.unwrap_or(0.0),
+                unsettled.join(", ")
+            ),
+        ));
+    }
+    reasons
 }
 
 /// One graded instrument: its reduction, k2_max, outcome and reasons.
