@@ -152,3 +152,107 @@ fn line_dialect_every_operation_and_a_refusal() {
     );
     t.verify().expect("transcript followed");
 }
+
+/// A chamber config whose purge is on a relay module, both on scripted
+/// transcripts: the controller's port sees the setpoint, the relay's the
+/// purge (a Modbus coil, function 5, or a line command).
+#[test]
+fn a_purge_relay_takes_the_purge_and_the_controller_the_rest() {
+    use spinbench_devices::chamber::PurgeOnRelay;
+    let write = |reg: u8, hi: u8, lo: u8| crc(&[1, 6, 0, reg, hi, lo]);
+    // The controller: no purge register in its map.
+    let no_purge: RegisterMap =
+        toml::from_str("setpoint = 100\nprocess_value = 101\nrun = 102\n").expect("map");
+    let controller = Transcript::new(vec![
+        Step::Write(write(100, 0x00, 0x32)),
+        Step::Reply(write(100, 0x00, 0x32)),
+    ]);
+    // A relay board at unit 2, the valve on coil 3: on = 0xFF00, off = 0x0000.
+    let relay_map: RegisterMap =
+        toml::from_str("unit_id = 2\nsetpoint = 0\nprocess_value = 0\nrun = 0\npurge_coil = 3\n")
+            .expect("relay map");
+    let relay = Transcript::new(vec![
+        Step::Write(crc(&[2, 5, 0, 3, 0xFF, 0x00])),
+        Step::Reply(crc(&[2, 5, 0, 3, 0xFF, 0x00])),
+        Step::Write(crc(&[2, 5, 0, 3, 0x00, 0x00])),
+        Step::Reply(crc(&[2, 5, 0, 3, 0x00, 0x00])),
+    ]);
+    let mut chamber = PurgeOnRelay::new(
+        Box::new(ModbusChamber::new(
+            controller.clone(),
+            no_purge.clone(),
+            ModbusFraming::Rtu,
+            "climate",
+            POLICY,
+        )),
+        Box::new(ModbusChamber::new(
+            relay.clone(),
+            relay_map,
+            ModbusFraming::Rtu,
+            "purge relay",
+            POLICY,
+        )),
+    );
+    chamber
+        .set_setpoint_c(5.0)
+        .expect("setpoint to the controller");
+    chamber.set_purge(true).expect("purge on at the relay");
+    chamber.set_purge(false).expect("purge off at the relay");
+    controller
+        .verify()
+        .expect("every step of the controller's transcript");
+    relay
+        .verify()
+        .expect("every step of the relay's transcript");
+
+    // A line relay module that acknowledges.
+    let line = Transcript::new(vec![
+        Step::Write(b"RELAY 1 ON\r\n".to_vec()),
+        Step::Reply(b"OK\r\n".to_vec()),
+    ]);
+    let mut line_relay = LineChamber::new(
+        line.clone(),
+        LineChamberDialect::relay("RELAY 1 ON", "RELAY 1 OFF", Some("OK".into()), "\r\n"),
+        "purge relay",
+        POLICY,
+    );
+    line_relay.set_purge(true).expect("relay on");
+    line.verify().expect("every step of the line's transcript");
+    let e = line_relay
+        .set_setpoint_c(5.0)
+        .expect_err("a relay module has no setpoint");
+    assert!(e.to_string().contains("purge relay"), "{e}");
+
+    // The controller without a purge output refuses a purge, naming it.
+    let mut bare = ModbusChamber::new(
+        Transcript::new(vec![]),
+        no_purge,
+        ModbusFraming::Rtu,
+        "climate",
+        POLICY,
+    );
+    let e = bare.set_purge(true).expect_err("no purge output");
+    assert!(e.to_string().contains("purge"), "{e}");
+}
+
+#[test]
+fn a_purge_on_both_the_controller_and_a_relay_is_refused_naming_the_key() {
+    use spinbench_devices::chamber::ChamberConfig;
+    let section = |protocol: &str| -> ChamberConfig {
+        toml::from_str(&format!(
+            "name = \"climate\"\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\nprotocol = {protocol}\n[purge_relay]\nname = \"valve\"\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\nprotocol = {{ kind = \"modbus-tcp\", coil = 2 }}\n"
+        ))
+        .expect("section")
+    };
+    let both =
+        section("{ kind = \"modbus-tcp\", setpoint = 1, process_value = 2, run = 3, purge = 4 }");
+    let e = both.validate().expect_err("two purge outputs");
+    assert_eq!(e.key, "chamber.purge_relay", "{e}");
+    let relay_only = section("{ kind = \"modbus-tcp\", setpoint = 1, process_value = 2, run = 3 }");
+    relay_only.validate().expect("the valve on the relay only");
+    // A register map naming a register and a coil for it.
+    let map: RegisterMap =
+        toml::from_str("setpoint = 1\nprocess_value = 2\nrun = 3\npurge = 4\npurge_coil = 5\n")
+            .expect("map");
+    assert!(map.validate().expect_err("both").contains("purge_coil"));
+}

@@ -946,8 +946,18 @@ fn an_instrument_over_its_temperature_limit_stops_the_run_in_the_safe_state() {
 
 #[test]
 fn an_abort_sends_the_chamber_to_the_laboratorys_temperature_with_the_purge_on() {
+    // The purge valve on the controller, then on a relay module of its own.
+    for purge_on_relay in [false, true] {
+        abort_with_the_chamber_cold(purge_on_relay);
+    }
+}
+
+fn abort_with_the_chamber_cold(purge_on_relay: bool) {
     let sim = SimConfig {
-        chamber: Some(Default::default()),
+        chamber: Some(spinbench_sim::chamber::ChamberSimConfig {
+            purge_on_relay,
+            ..Default::default()
+        }),
         ..SimConfig::default()
     };
     // The operator had set the chamber cold and running before the run.
@@ -965,7 +975,10 @@ fn an_abort_sends_the_chamber_to_the_laboratorys_temperature_with_the_purge_on()
         (c.setpoint_c, c.purge)
     });
     assert_eq!(setpoint, 24.0, "to the laboratory's temperature");
-    assert!(purge, "with the dry-air purge on");
+    assert!(
+        purge,
+        "with the dry-air purge on (on a relay: {purge_on_relay})"
+    );
     assert_safe(&bench, true);
     bench.shutdown();
 }

@@ -45,6 +45,10 @@ pub struct ChamberSimConfig {
     pub fault: ChamberFault,
     /// When the fault starts [s of bench time].
     pub fault_at_s: f64,
+    /// The dry-air purge valve is on a relay module of its own (Modbus RTU
+    /// on its own pty, the valve on coil [`SIM_RELAY_COIL`]) and not on the
+    /// controller, whose purge register then switches nothing.
+    pub purge_on_relay: bool,
 }
 
 impl Default for ChamberSimConfig {
@@ -58,6 +62,7 @@ impl Default for ChamberSimConfig {
             alarm_band_c: 5.0,
             fault: ChamberFault::None,
             fault_at_s: 0.0,
+            purge_on_relay: false,
         }
     }
 }
@@ -127,6 +132,9 @@ pub const SIM_REGISTERS: SimRegisters = SimRegisters {
     unit_id: 1,
 };
 
+/// The purge relay module's coil that switches the valve (unit id 1).
+pub const SIM_RELAY_COIL: u16 = 0;
+
 /// The chamber's state.
 #[derive(Debug)]
 pub struct ChamberModel {
@@ -152,6 +160,7 @@ pub struct ChamberModel {
     /// The air was moving toward the setpoint (to know when it arrives).
     approaching: bool,
     registers: ModbusStorageSmall,
+    relay: ModbusStorageSmall,
     now_s: f64,
 }
 
@@ -171,6 +180,7 @@ impl ChamberModel {
             overshoot_left_c: 0.0,
             approaching: false,
             registers: ModbusStorageSmall::default(),
+            relay: ModbusStorageSmall::default(),
             now_s: 0.0,
         }
     }
@@ -278,10 +288,47 @@ impl ChamberModel {
         if let Ok(v) = self.registers.get_holding(r.run) {
             self.running = v != 0;
         }
-        if let Ok(v) = self.registers.get_holding(r.purge) {
+        if !self.config.purge_on_relay
+            && let Ok(v) = self.registers.get_holding(r.purge)
+        {
             self.purge = v != 0;
         }
         Some(response)
+    }
+
+    /// The purge relay module's answer to one Modbus RTU request frame (a
+    /// module of its own: it answers whatever the controller's fault).
+    pub fn answer_relay_rtu(&mut self, request: &[u8]) -> Option<Vec<u8>> {
+        if !self.config.purge_on_relay || request.len() > 256 {
+            return None;
+        }
+        let _ = self.relay.set_coil(SIM_RELAY_COIL, self.purge);
+        let mut buf: ModbusFrameBuf = [0; 256];
+        buf[..request.len()].copy_from_slice(request);
+        let mut response = Vec::new();
+        let mut frame = ModbusFrame::new(1, &buf, ModbusProto::Rtu, &mut response);
+        frame.parse().ok()?;
+        if frame.processing_required {
+            let result = if frame.readonly {
+                frame.process_read(&self.relay)
+            } else {
+                frame.process_write(&mut self.relay)
+            };
+            result.ok()?;
+        }
+        if !frame.response_required {
+            return None;
+        }
+        frame.finalize_response().ok()?;
+        if let Ok(on) = self.relay.get_coil(SIM_RELAY_COIL) {
+            self.purge = on;
+        }
+        Some(response)
+    }
+
+    /// The valve is on a relay module of its own.
+    pub fn purge_on_relay(&self) -> bool {
+        self.config.purge_on_relay
     }
 }
 

@@ -11,6 +11,7 @@
 //! module's output is buffered; in a paced mode a station that stops
 //! reading loses frames (counted as overruns), as with hardware.
 
+use crate::chamber::ChamberModel;
 use crate::config::{SimConfig, SimDialect};
 use crate::vba::Mounting;
 use crate::world::{SupplyId, TICK_S, World};
@@ -67,6 +68,8 @@ pub struct Endpoints {
     pub control: String,
     /// The temperature chamber's controller (Modbus RTU), if the bench has one.
     pub chamber: Option<Endpoint>,
+    /// The chamber's purge relay module (Modbus RTU), if its valve is on one.
+    pub purge_relay: Option<Endpoint>,
 }
 
 /// How to expose the bench.
@@ -194,13 +197,33 @@ impl RunningBench {
         )?;
 
         // The chamber's controller: Modbus RTU on its own pty.
-        let has_chamber = lock(&world).chamber().is_some();
-        let chamber = if has_chamber {
+        let (has_chamber, has_relay) = {
+            let w = lock(&world);
+            let chamber = w.chamber();
+            (
+                chamber.is_some(),
+                chamber.is_some_and(ChamberModel::purge_on_relay),
+            )
+        };
+        let mut modbus_pty = |answer: ModbusAnswer| -> io::Result<Endpoint> {
             let (master, slave) = TTYPort::pair().map_err(|e| io::Error::other(e.to_string()))?;
             let path = slave.name().unwrap_or_default();
             slaves.push(slave);
-            threads.push(serve_pty_modbus(master, world.clone(), stop.clone()));
-            Some(Endpoint::Pty(path))
+            threads.push(serve_pty_modbus(
+                master,
+                world.clone(),
+                stop.clone(),
+                answer,
+            ));
+            Ok(Endpoint::Pty(path))
+        };
+        let chamber = if has_chamber {
+            Some(modbus_pty(ChamberModel::answer_rtu)?)
+        } else {
+            None
+        };
+        let purge_relay = if has_relay {
+            Some(modbus_pty(ChamberModel::answer_relay_rtu)?)
         } else {
             None
         };
@@ -233,6 +256,7 @@ impl RunningBench {
                 logic,
                 control,
                 chamber,
+                purge_relay,
             },
             stop,
             threads,
@@ -292,17 +316,28 @@ impl RunningBench {
         }
         if let Some(endpoint) = &e.chamber {
             let r = &crate::chamber::SIM_REGISTERS;
+            // The purge register only when the valve is on the controller.
+            let purge = match e.purge_relay {
+                Some(_) => String::new(),
+                None => format!("purge = {}, ", r.purge),
+            };
             out.push_str(&format!(
-                "\n[chamber]\nname = \"sim-chamber\"\ntransport = {}\nprotocol = {{ kind = \"modbus-rtu\", unit_id = {}, setpoint = {}, process_value = {}, process_value_is_input = true, run = {}, alarms = {}, purge = {}, counts_per_c = {} }}\n",
+                "\n[chamber]\nname = \"sim-chamber\"\ntransport = {}\nprotocol = {{ kind = \"modbus-rtu\", unit_id = {}, setpoint = {}, process_value = {}, process_value_is_input = true, run = {}, alarms = {}, {purge}counts_per_c = {} }}\n",
                 endpoint.transport_toml(19_200),
                 r.unit_id,
                 r.setpoint,
                 r.process_value,
                 r.run,
                 r.alarms,
-                r.purge,
                 r.counts_per_c
             ));
+            if let Some(relay) = &e.purge_relay {
+                out.push_str(&format!(
+                    "\n[chamber.purge_relay]\nname = \"sim-purge-relay\"\ntransport = {}\nprotocol = {{ kind = \"modbus-rtu\", unit_id = 1, coil = {} }}\n",
+                    relay.transport_toml(19_200),
+                    crate::chamber::SIM_RELAY_COIL
+                ));
+            }
         }
         out.push_str(&format!(
             "\n# control socket (MOUNT ALL UP|DOWN|P|N, TIME?, TRUTH?): {}\n",
@@ -568,7 +603,11 @@ fn take_lines(pending: &mut Vec<u8>) -> Vec<String> {
     lines
 }
 
-/// Serves the chamber's controller on a pty: Modbus RTU requests, framed by
+/// Which Modbus device of the chamber answers on a pty: the controller or
+/// the purge relay module.
+type ModbusAnswer = fn(&mut ChamberModel, &[u8]) -> Option<Vec<u8>>;
+
+/// Serves the chamber's controller (or its purge relay) on a pty: Modbus RTU requests, framed by
 /// their length (rmodbus's guess from the function code) and by the line
 /// falling silent (a partial frame is dropped after 50 ms, as RTU's 3.5
 /// characters of silence end a frame).
@@ -576,6 +615,7 @@ fn serve_pty_modbus(
     master: TTYPort,
     world: Shared<World>,
     stop: Arc<AtomicBool>,
+    answer: ModbusAnswer,
 ) -> JoinHandle<()> {
     thread::spawn(move || {
         let mut port = master;
@@ -610,9 +650,7 @@ fn serve_pty_modbus(
                     break;
                 }
                 let frame: Vec<u8> = pending.drain(..len).collect();
-                let reply = lock(&world)
-                    .chamber_mut()
-                    .and_then(|c| c.answer_rtu(&frame));
+                let reply = lock(&world).chamber_mut().and_then(|c| answer(c, &frame));
                 if let Some(r) = reply {
                     let _ = port.write_all(&r);
                 }

@@ -277,3 +277,25 @@ fn a_silent_chamber_is_a_timeout_naming_it_and_a_runaway_sets_its_alarm() {
     );
     runaway.shutdown();
 }
+
+#[test]
+fn a_purge_valve_on_a_relay_module_is_switched_through_its_own_port() {
+    use spinbench_sim::chamber::ChamberSimConfig;
+    let bench = chamber_bench(ChamberSimConfig {
+        purge_on_relay: true,
+        ..Default::default()
+    });
+    let text = bench.station_config_toml();
+    assert!(text.contains("[chamber.purge_relay]"), "{text}");
+    let config: ChamberOnly = toml::from_str(&text).unwrap_or_else(|e| panic!("{e}\n{text}"));
+    let mut chamber = config.chamber.connect().expect("chamber with its relay");
+    let purge = |b: &RunningBench| b.with_world(|w| w.chamber().map(|c| c.purge));
+    chamber.set_purge(true).expect("purge on through the relay");
+    assert_eq!(purge(&bench), Some(true));
+    // The controller still answers for the rest.
+    chamber.set_setpoint_c(-10.0).expect("setpoint");
+    assert_eq!(chamber.setpoint_c().expect("setpoint back"), -10.0);
+    chamber.set_purge(false).expect("purge off");
+    assert_eq!(purge(&bench), Some(false));
+    bench.shutdown();
+}

@@ -78,6 +78,17 @@ pub struct ProgressPrinter {
     phase: String,
     last: Instant,
     quiet: bool,
+    /// The instruments' temperatures, coldest and warmest slot [°C].
+    temperatures_c: Option<(f64, f64)>,
+}
+
+/// "T 24.1 °C" or "T 24.1–25.3 °C" for the slots' temperatures, if any came.
+fn temperature_range(range: Option<(f64, f64)>) -> String {
+    match range {
+        None => String::new(),
+        Some((lo, hi)) if hi - lo < 0.05 => format!(" | T {lo:.1} °C"),
+        Some((lo, hi)) => format!(" | T {lo:.1}–{hi:.1} °C"),
+    }
 }
 
 impl ProgressPrinter {
@@ -90,6 +101,7 @@ impl ProgressPrinter {
             phase: String::new(),
             last: Instant::now(),
             quiet,
+            temperatures_c: None,
         }
     }
 }
@@ -106,7 +118,12 @@ impl EventSink for ProgressPrinter {
                 self.steps = (*index + 1, *of);
                 self.step = label.clone();
                 if !self.tty {
-                    eprintln!("  [{:>3}/{}] {label}", index + 1, of);
+                    eprintln!(
+                        "  [{:>3}/{}] {label}{}",
+                        index + 1,
+                        of,
+                        temperature_range(self.temperatures_c)
+                    );
                 }
             }
             Event::Progress { phase, done, of } => self.phase = format!("{phase} {done}/{of}"),
@@ -117,21 +134,31 @@ impl EventSink for ProgressPrinter {
                 time_s,
                 rate_deg_s,
                 on_speed,
+                temperatures_c,
                 ..
-            } if self.tty && self.last.elapsed() > Duration::from_millis(100) => {
+            } => {
+                let known = temperatures_c.iter().flatten().copied();
+                self.temperatures_c = known.fold(None, |range, t| match range {
+                    None => Some((t, t)),
+                    Some((lo, hi)) => Some((f64::min(lo, t), f64::max(hi, t))),
+                });
+                if !self.tty || self.last.elapsed() <= Duration::from_millis(100) {
+                    return Ok(());
+                }
                 self.last = Instant::now();
                 let (i, n) = self.steps;
                 let bar_len = 20;
                 let filled = (i * bar_len).checked_div(n).unwrap_or(0).min(bar_len);
                 eprint!(
-                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}",
+                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}{}",
                     "#".repeat(filled),
                     ".".repeat(bar_len - filled),
                     self.step,
                     self.phase,
                     time_s,
                     rate_deg_s,
-                    if *on_speed { "on speed" } else { "settling" }
+                    if *on_speed { "on speed" } else { "settling" },
+                    temperature_range(self.temperatures_c)
                 );
             }
             Event::RunFinished { state, reason } => {

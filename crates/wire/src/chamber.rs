@@ -119,6 +119,10 @@ pub struct RegisterMap {
     /// purge valve is not on the chamber controller).
     #[serde(default)]
     pub purge: Option<u16>,
+    /// Coil of the purge output (function 5), for a controller or a relay
+    /// module that switches its outputs as coils; takes the place of `purge`.
+    #[serde(default)]
+    pub purge_coil: Option<u16>,
     /// Register counts per °C (default 10: 0.1 °C per count).
     #[serde(default = "ten")]
     pub counts_per_c: f64,
@@ -135,6 +139,11 @@ impl RegisterMap {
                 "counts_per_c = {} is not a scale from 0 to 1000 counts per °C",
                 self.counts_per_c
             ));
+        }
+        if self.purge.is_some() && self.purge_coil.is_some() {
+            return Err(
+                "both `purge` (a register) and `purge_coil` are set: name the one output the valve is on".into(),
+            );
         }
         if self.run_value == self.stop_value {
             return Err(format!(
@@ -245,10 +254,11 @@ impl ModbusChamberCodec {
                 let reg = self.map.alarms.ok_or_else(|| missing("alarms"))?;
                 request.generate_get_holdings(reg, 1, &mut frame)
             }
-            ChamberOp::Purge(on) => {
-                let reg = self.map.purge.ok_or_else(|| missing("purge"))?;
-                request.generate_set_holding(reg, u16::from(on), &mut frame)
-            }
+            ChamberOp::Purge(on) => match (self.map.purge_coil, self.map.purge) {
+                (Some(coil), _) => request.generate_set_coil(coil, on, &mut frame),
+                (None, Some(reg)) => request.generate_set_holding(reg, u16::from(on), &mut frame),
+                (None, None) => return Err(missing("purge")),
+            },
         };
         result.map_err(|e| ChamberCodecError::Rejected(format!("{e:?}")))?;
         Ok((frame, PendingReply { request, op }))
@@ -379,6 +389,25 @@ pub enum LineExpect {
 }
 
 impl LineChamberDialect {
+    /// A relay module's dialect: only `Purge` has a line (`on`, `off`); every
+    /// other operation is refused as a command the module does not have.
+    pub fn relay(on: &str, off: &str, ack: Option<String>, line_ending: &str) -> Self {
+        LineChamberDialect {
+            line_ending: line_ending.to_string(),
+            identify: idn(),
+            set_setpoint: String::new(),
+            read_setpoint: String::new(),
+            read_temperature: String::new(),
+            run: String::new(),
+            stop: String::new(),
+            read_alarms: None,
+            purge_on: Some(on.to_string()),
+            purge_off: Some(off.to_string()),
+            ack,
+            error_prefix: err_prefix(),
+        }
+    }
+
     /// The line for `op` and what comes back; `Err` when the controller has no such command.
     pub fn line(&self, op: ChamberOp) -> Result<(String, LineExpect), ChamberCodecError> {
         let setting = if self.ack.is_some() {
@@ -389,7 +418,7 @@ impl LineChamberDialect {
         let missing = |what: &str| {
             ChamberCodecError::Rejected(format!("the chamber's dialect has no `{what}` command"))
         };
-        Ok(match op {
+        let (line, expect) = match op {
             ChamberOp::SetSetpoint(c) => {
                 if !c.is_finite() {
                     return Err(ChamberCodecError::Rejected(format!("setpoint {c} °C")));
@@ -417,7 +446,13 @@ impl LineChamberDialect {
                 self.purge_off.clone().ok_or_else(|| missing("purge_off"))?,
                 setting,
             ),
-        })
+        };
+        // An empty template is a command the device does not have (a relay
+        // module's dialect has only the purge's).
+        if line.trim().is_empty() {
+            return Err(missing(op.name()));
+        }
+        Ok((line, expect))
     }
 
     /// Read a reply line to `op`: `Err((expected, refused))`, as the line
