@@ -519,6 +519,29 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
         String::from_utf8_lossy(&out.stderr)
     );
     let text = String::from_utf8(out.stdout).expect("utf-8 text");
+    // Its metadata (issue 16, part 7): title, author, producer, dated today.
+    let info = Command::new("pdfinfo")
+        .arg(&pdf)
+        .output()
+        .expect("pdfinfo (poppler-utils) runs; ./scripts/test installs it");
+    let info = String::from_utf8_lossy(&info.stdout);
+    let field = |name: &str| {
+        info.lines()
+            .find_map(|l| l.strip_prefix(&format!("{name}:")))
+            .map(str::trim)
+            .unwrap_or_else(|| panic!("no {name} in {info}"))
+            .to_string()
+    };
+    assert_eq!(field("Title"), format!("spinbench report {run_id}"));
+    assert!(field("Author").starts_with("spinbench station"), "{info}");
+    assert!(field("Producer").starts_with("spinbench"), "{info}");
+    let year = 1970
+        + std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .expect("clock")
+            .as_secs()
+            / 31_556_952;
+    assert!(field("CreationDate").contains(&year.to_string()), "{info}");
     let pages: Vec<&str> = text
         .split('\x0c')
         .filter(|p| !p.trim().is_empty())

@@ -52,8 +52,21 @@ const PT_PER_MM: f32 = 72.0 / 25.4;
 const BLACK: (f32, f32, f32) = (0.0, 0.0, 0.0);
 const GREY: (f32, f32, f32) = (0.45, 0.45, 0.45);
 
-/// Number each page and write the document.
-fn finish(mut canvas: Canvas, title: &str, footer: &str) -> Result<Vec<u8>, ReportError> {
+/// What the document says of itself (its Info dictionary).
+struct Metadata<'a> {
+    /// Title.
+    title: &'a str,
+    /// Author: the station that measured.
+    author: &'a str,
+    /// Subject.
+    subject: &'a str,
+    /// The software version, for Creator and Producer.
+    version: &'a str,
+}
+
+/// Number each page and write the document, dated now.
+fn finish(mut canvas: Canvas, meta: Metadata, footer: &str) -> Result<Vec<u8>, ReportError> {
+    let title = meta.title;
     let total = canvas.pages.len();
     for i in 0..total {
         let text = format!("{footer} · page {} of {total}", i + 1);
@@ -63,6 +76,15 @@ fn finish(mut canvas: Canvas, title: &str, footer: &str) -> Result<Vec<u8>, Repo
     }
     let font = subset_font(canvas.font, &canvas.used)?;
     let mut doc = PdfDocument::new(title);
+    let info = &mut doc.metadata.info;
+    let now = printpdf::DateTime::now();
+    info.creation_date = now;
+    info.modification_date = now;
+    info.metadata_date = now;
+    info.author = meta.author.to_string();
+    info.subject = meta.subject.to_string();
+    info.creator = format!("spinbench {}", meta.version);
+    info.producer = format!("spinbench {} (printpdf)", meta.version);
     doc.resources
         .fonts
         .map
@@ -142,7 +164,12 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
     }
     finish(
         c,
-        &format!("spinbench report {}", run.id),
+        Metadata {
+            title: &format!("spinbench report {}", run.id),
+            author: &format!("spinbench station {}", run.station),
+            subject: "centrifuge test of vibrating-beam accelerometers: k2 and nonlinearity",
+            version: &report.context.software_version,
+        },
         &format!(
             "spinbench {} · run {}",
             report.context.software_version, run.id
@@ -277,5 +304,17 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
             c.table(MARGIN_MM + 8.0, headers, &rows, 7.0, 1);
         }
     }
-    finish(c, "spinbench batch report", "spinbench batch report")
+    let mut stations: Vec<&str> = b.runs.iter().map(|r| r.station.as_str()).collect();
+    stations.sort_unstable();
+    stations.dedup();
+    finish(
+        c,
+        Metadata {
+            title: "spinbench batch report",
+            author: &format!("spinbench station {}", stations.join(", ")),
+            subject: "batch of centrifuge tests of vibrating-beam accelerometers",
+            version: env!("CARGO_PKG_VERSION"),
+        },
+        "spinbench batch report",
+    )
 }
