@@ -21,6 +21,7 @@ pub mod executor;
 pub mod journal;
 pub mod plan;
 pub mod record;
+pub mod retest;
 pub mod soak;
 
 pub use abort::AbortFlag;

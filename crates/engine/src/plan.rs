@@ -75,6 +75,10 @@ pub struct TestPlan {
     /// (recorded in every record it touches, and in the reports).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub exclusions: Vec<PlanExclusion>,
+    /// The run this one retests (its failed, inconclusive and flagged
+    /// instruments, [`crate::retest`]); absent for a first test.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retest_of: Option<String>,
 }
 
 /// A level left out of the reduction by the plan.
@@ -396,6 +400,7 @@ impl Default for TestPlan {
             stability: StabilityConfig::default(),
             limits: Limits::default(),
             exclusions: Vec::new(),
+            retest_of: None,
         }
     }
 }
@@ -436,6 +441,14 @@ impl TestPlan {
                     shown(text)
                 )));
             }
+        }
+        if let Some(id) = &self.retest_of
+            && !crate::retest::is_run_id(id)
+        {
+            return Err(at("retest_of")(format!(
+                "'{}' is not a run identifier (1 to 64 letters, digits, '-' or '_')",
+                shown(id)
+            )));
         }
         for (slot, serial) in &self.serials {
             if slot.len() > 8 {

@@ -134,6 +134,8 @@ pub struct RunReport {
     pub context: RunContext,
     /// Every instrument, in slot order.
     pub units: Vec<UnitReport>,
+    /// The runs that retest this one (`spinbench retest`), oldest first.
+    pub retested_by: Vec<String>,
 }
 
 /// Read a run's report data from the store.
@@ -155,10 +157,12 @@ pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
             points: own,
         });
     }
+    let retested_by = store.retests_of(run_id)?;
     Ok(RunReport {
         run,
         context,
         units,
+        retested_by,
     })
 }
 
@@ -305,8 +309,20 @@ fn point_cells(p: &PointRow) -> [String; 10] {
 fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
     let run = &report.run;
     let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
-    vec![
-        ("station", run.station.clone()),
+    let mut rows = vec![("station", run.station.clone())];
+    if let Some(original) = &run.retest_of {
+        rows.push((
+            "retest of",
+            format!("run {original} (its failed, inconclusive and flagged instruments)"),
+        ));
+    }
+    if !report.retested_by.is_empty() {
+        rows.push((
+            "retested by",
+            format!("run {}", report.retested_by.join(", run ")),
+        ));
+    }
+    rows.extend([
         (
             "operator",
             plan["operator"].as_str().unwrap_or("").to_string(),
@@ -340,7 +356,8 @@ fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
             "software",
             format!("spinbench {}", report.context.software_version),
         ),
-    ]
+    ]);
+    rows
 }
 
 /// The reduction's own verdict on its model, a line per mounting, and the
@@ -708,6 +725,16 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
                 }
                 r += 1;
             }
+        }
+    }
+    {
+        // The run's header block, as the PDF and HTML covers give it.
+        let sheet = book.add_worksheet().set_name("run")?;
+        sheet.write_string(0, 0, "run")?;
+        sheet.write_string(0, 1, &report.run.id)?;
+        for (r, (label, value)) in meta_rows(report).iter().enumerate() {
+            sheet.write_string_with_format(r as u32 + 1, 0, *label, &bold)?;
+            sheet.write_string(r as u32 + 1, 1, value)?;
         }
     }
     for u in &report.units {

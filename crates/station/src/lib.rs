@@ -21,6 +21,7 @@ pub mod paths;
 pub mod points_file;
 pub mod render;
 pub mod replay;
+pub mod retest;
 pub mod run_setup;
 pub mod signals;
 pub mod station_run;

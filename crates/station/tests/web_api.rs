@@ -444,6 +444,48 @@ fn a_run_through_the_api_from_start_to_report() {
         log.contains("fixture knocked at 4 g") && log.contains("k2_max"),
         "{log}"
     );
+
+    // Retest (issue 16, part 2): the run's instruments to retest, in one action.
+    let shown = op.get_json(&format!("/api/runs/{run_id}"), 200);
+    let to_retest: Vec<String> = shown["to_retest"]
+        .as_array()
+        .expect("to_retest")
+        .iter()
+        .filter_map(|s| s.as_str().map(String::from))
+        .collect();
+    let retest = format!("/api/runs/{run_id}/retest");
+    assert_eq!(
+        op.send("POST", "/api/runs/no-such-run/retest", None).status,
+        404
+    );
+    let r = op.send("POST", &retest, None);
+    if to_retest.is_empty() {
+        assert_eq!(r.status, 409, "{:?}", r.json());
+        assert!(
+            r.json()["error"]
+                .as_str()
+                .is_some_and(|e| e.contains("nothing to retest"))
+        );
+    } else {
+        assert_eq!(r.status, 201, "{:?}", r.json());
+        let started = r.json();
+        assert_eq!(started["retest_of"], run_id.as_str());
+        assert_eq!(started["serials"], json!(to_retest));
+        let new_id = started["run_id"].as_str().expect("id").to_string();
+        op.wait_status(60, |s| s["prompt"].is_string() || s["active"].is_null());
+        assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
+        op.wait_status(60, |s| s["active"].is_null());
+        let linked = op.get_json(&format!("/api/runs/{run_id}"), 200);
+        assert_eq!(linked["retested_by"], json!([new_id]));
+        let runs = op.get_json("/api/runs", 200);
+        assert!(
+            runs.as_array()
+                .expect("runs")
+                .iter()
+                .any(|r| r["id"] == new_id.as_str() && r["retest_of"] == run_id.as_str()),
+            "{runs}"
+        );
+    }
 }
 
 #[test]

@@ -20,6 +20,8 @@ pub struct RunRow {
     pub units: i64,
     /// Points stored.
     pub points: i64,
+    /// The run this one retests, if it is a retest.
+    pub retest_of: Option<String>,
 }
 
 /// One instrument's result in one run.
@@ -133,7 +135,8 @@ impl Store {
             &format!(
                 "SELECT r.id, r.station, r.state, r.reason, r.started_at,
                         (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
-                        (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id)
+                        (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id),
+                        r.retest_of
                  FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC"
             ),
             params,
@@ -148,8 +151,19 @@ impl Store {
                 started_at: r.int(4),
                 units: r.int(5),
                 points: r.int(6),
+                retest_of: r.opt_text(7),
             })
             .collect())
+    }
+
+    /// The runs that retest `id`, oldest first.
+    pub fn retests_of(&self, id: &str) -> Result<Vec<String>, StoreError> {
+        let rows = self.query(
+            "list retests",
+            "SELECT id FROM runs WHERE retest_of = $1 ORDER BY started_at, id",
+            &[id.into()],
+        )?;
+        Ok(rows.iter().map(|r| r.text(0)).collect())
     }
 
     /// One run, if it exists.

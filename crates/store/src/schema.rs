@@ -166,6 +166,13 @@ pub const MIGRATIONS: &[Migration] = &[
     ALTER TABLE points ADD COLUMN temperature_c DOUBLE PRECISION;
     ALTER TABLE points ADD COLUMN temperature_change_c DOUBLE PRECISION;",
     },
+    Migration {
+        what: "a retest's link to the run it retests",
+        sqlite: "ALTER TABLE runs ADD COLUMN retest_of TEXT;
+    CREATE INDEX runs_retest_of ON runs (retest_of);",
+        postgres: "ALTER TABLE runs ADD COLUMN retest_of TEXT;
+    CREATE INDEX runs_retest_of ON runs (retest_of);",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

@@ -81,8 +81,8 @@ impl StoreSink {
                     } else {
                         db.execute(
                             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
-                               station_config)
-                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7)",
+                               station_config, retest_of)
+                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8)",
                             &[
                                 run_id.into(),
                                 station.into(),
@@ -91,6 +91,7 @@ impl StoreSink {
                                 now.into(),
                                 (1 + i64::from(*resumed)).into(),
                                 (!station_config.is_empty()).then(|| station_config.clone()).into(),
+                                plan.plan.retest_of.clone().into(),
                             ],
                         )?;
                     }

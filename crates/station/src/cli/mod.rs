@@ -142,6 +142,36 @@ pub enum Command {
         #[arg(long, value_parser = parse_store)]
         db: Option<StoreTarget>,
     },
+    /// Test again the failed, inconclusive, incomplete and flagged
+    /// instruments of a finished run: same serials, slots and plan, the new
+    /// run linked to RUN in the store and both reports.
+    Retest {
+        /// The run to retest (its identifier, as `spinbench runs list` shows).
+        run: String,
+        /// The station config (TOML); default: the one RUN used. With
+        /// --simulate its device sections are replaced by the bench's.
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run against the virtual bench in this process (real pseudo-terminals).
+        #[arg(long)]
+        simulate: bool,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// Print only faults and the results.
+        #[arg(long)]
+        quiet: bool,
+        /// The store RUN is in, where the retest is written too: an SQLite
+        /// file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
     /// List the runs in the store, or show one run's results.
     Runs {
         /// `list` or `show`.
@@ -447,8 +477,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             quiet,
             db,
         } => run::run_plan(
-            &plan,
-            station.as_deref(),
+            run::Source::file(&plan, "plan")?,
+            station
+                .as_deref()
+                .map(|p| run::Source::file(p, "station config"))
+                .transpose()?,
             simulate,
             &crate::demo::BenchChoice {
                 seed,
@@ -457,6 +490,30 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 chamber: false,
             },
             resume.as_deref(),
+            &data,
+            db,
+            quiet,
+            out,
+        ),
+        Command::Retest {
+            run,
+            station,
+            simulate,
+            seed,
+            realism,
+            data,
+            quiet,
+            db,
+        } => run::retest(
+            &run,
+            station.as_deref(),
+            simulate,
+            &crate::demo::BenchChoice {
+                seed,
+                realism,
+                config: None,
+                chamber: false,
+            },
             &data,
             db,
             quiet,

@@ -6,11 +6,30 @@ use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::Path;
 
-/// `spinbench run`.
+/// A text and where it came from (a file's path, or "the plan of run X").
+pub(super) struct Source {
+    /// The TOML text.
+    pub text: String,
+    /// Where it came from, for error messages.
+    pub label: String,
+}
+
+impl Source {
+    /// Read a file.
+    pub fn file(path: &Path, what: &str) -> Result<Source> {
+        Ok(Source {
+            text: std::fs::read_to_string(path)
+                .with_context(|| format!("{}: cannot read the {what}", path.display()))?,
+            label: path.display().to_string(),
+        })
+    }
+}
+
+/// `spinbench run`: the plan and (optional) station config already read.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run_plan(
-    plan_path: &Path,
-    station_path: Option<&Path>,
+    plan_source: Source,
+    station_source: Option<Source>,
     simulate: bool,
     bench_choice: &crate::demo::BenchChoice,
     resume: Option<&Path>,
@@ -23,9 +42,8 @@ pub(super) fn run_plan(
     use crate::station_run::{TerminalOperator, connect_bench, execute, sim_station_toml};
     use spinbench_engine::{AbortFlag, StationConfig, TestPlan};
     use spinbench_sim::station::SimOperator;
-    let plan_text = std::fs::read_to_string(plan_path)
-        .with_context(|| format!("{}: cannot read the plan", plan_path.display()))?;
-    let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_path.display().to_string())?;
+    let plan_text = plan_source.text;
+    let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_source.label.clone())?;
     // SIGINT, SIGTERM, SIGHUP: the engine stops the table, switches
     // everything off and records the signal.
     let abort = AbortFlag::new();
@@ -39,10 +57,9 @@ pub(super) fn run_plan(
         Box<dyn spinbench_engine::Operator + '_>,
     ) = if simulate {
         let (bench, mut station) = crate::demo::start_sim(bench_choice)?;
-        if let Some(p) = station_path {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("{}: cannot read the station config", p.display()))?;
-            let own = StationConfig::from_toml(&text).with_context(|| p.display().to_string())?;
+        if let Some(source) = &station_source {
+            let own =
+                StationConfig::from_toml(&source.text).with_context(|| source.label.clone())?;
             station.arm = own.arm;
             station.g_local_m_s2 = own.g_local_m_s2;
             station.station = own.station;
@@ -52,13 +69,11 @@ pub(super) fn run_plan(
         let bench_ref = sim.as_ref().context("virtual bench")?;
         (station, text, Box::new(SimOperator::new(bench_ref, quiet)))
     } else {
-        let p = station_path
+        let source = station_source
             .context("--station CONFIG is needed (or --simulate for the virtual bench)")?;
-        let text = std::fs::read_to_string(p)
-            .with_context(|| format!("{}: cannot read the station config", p.display()))?;
         (
-            StationConfig::from_toml(&text).with_context(|| p.display().to_string())?,
-            text,
+            StationConfig::from_toml(&source.text).with_context(|| source.label.clone())?,
+            source.text,
             Box::new(TerminalOperator::default()),
         )
     };
@@ -93,4 +108,57 @@ pub(super) fn run_plan(
         );
     }
     Ok(())
+}
+
+/// `spinbench retest RUN`: the run's failed, inconclusive, incomplete and
+/// flagged instruments tested again with the same serials, slots and plan
+/// (`retest_of` links the new run to RUN), on the station config given or,
+/// without one, the config RUN used.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn retest(
+    run_id: &str,
+    station_path: Option<&Path>,
+    simulate: bool,
+    bench_choice: &crate::demo::BenchChoice,
+    data: &Path,
+    db: Option<StoreTarget>,
+    quiet: bool,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let target = db
+        .clone()
+        .unwrap_or_else(|| crate::paths::default_store(data));
+    let (plan, serials, station_config) = {
+        let store = spinbench_store::Store::open_read_only(&target)
+            .with_context(|| format!("cannot open the store {target} to find run {run_id}"))?;
+        crate::retest::retest_plan_from_store(&store, run_id)?
+    };
+    writeln!(
+        out,
+        "retesting {} instrument(s) of run {run_id}: {}",
+        serials.len(),
+        serials.join(", ")
+    )?;
+    let plan_source = Source {
+        text: toml::to_string(&plan).context("the retest plan as TOML")?,
+        label: format!("the retest plan of run {run_id}"),
+    };
+    let station_source = match station_path {
+        Some(p) => Some(Source::file(p, "station config")?),
+        None => station_config.map(|text| Source {
+            text,
+            label: format!("the station config run {run_id} used"),
+        }),
+    };
+    run_plan(
+        plan_source,
+        station_source,
+        simulate,
+        bench_choice,
+        None,
+        data,
+        db,
+        quiet,
+        out,
+    )
 }

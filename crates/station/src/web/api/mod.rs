@@ -167,6 +167,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
             "/api/runs/{id}/exclusions",
             post(runs::exclude_level),
         ),
+        ("post", "/api/runs/{id}/retest", post(runs::retest)),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),
         ("post", "/api/run/resume", post(runs::resume)),

@@ -34,18 +34,7 @@ pub(super) async fn start_run(
         plan.serials = serials;
     }
     plan.operator = session.user.clone();
-    let plan_text = toml::to_string(&plan).map_err(|e| ApiError::internal(e.to_string()))?;
-    let run_id = app
-        .runner
-        .start(plan.clone(), &plan_text, &session.user)
-        .map_err(|e| match e {
-            StartError::Busy(id) => ApiError::conflict(format!(
-                "run {id} is active; wait for it to end or abort it"
-            )),
-            StartError::Invalid(why) => ApiError::bad(why),
-            StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
-            StartError::Files(why) => ApiError::internal(why),
-        })?;
+    let run_id = start_plan(&app, &plan, &session.user)?;
     let serial_list: Vec<String> = plan
         .serials
         .iter()
@@ -62,6 +51,57 @@ pub(super) async fn start_run(
         ),
     )?;
     Ok((StatusCode::CREATED, axum::Json(json!({ "run_id": run_id }))))
+}
+
+/// Start `plan` on the station for `user`; the run's id.
+fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
+    let plan_text = toml::to_string(plan).map_err(|e| ApiError::internal(e.to_string()))?;
+    app.runner
+        .start(plan.clone(), &plan_text, user)
+        .map_err(|e| match e {
+            StartError::Busy(id) => ApiError::conflict(format!(
+                "run {id} is active; wait for it to end or abort it"
+            )),
+            StartError::Invalid(why) => ApiError::bad(why),
+            StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
+            StartError::Files(why) => ApiError::internal(why),
+        })
+}
+
+/// `POST /api/runs/{id}/retest`: a run of the finished run's failed,
+/// inconclusive, incomplete and flagged instruments, same serials and plan,
+/// linked to it (`retest_of`).
+pub(super) async fn retest(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> ApiResult<(StatusCode, axum::Json<Value>)> {
+    use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
+    use spinbench_engine::retest::RetestError;
+    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let found = retest_plan_from_store(&store(&app), &id);
+    let (mut plan, serials, _) = found.map_err(|e| match e {
+        E::NotFound(_) => ApiError::new(StatusCode::NOT_FOUND, e.to_string()),
+        E::NotEnded(..)
+        | E::Retest(RetestError::NothingToRetest(_) | RetestError::NotGraded(_)) => {
+            ApiError::conflict(e.to_string())
+        }
+        E::Retest(RetestError::BadRunId(_)) => ApiError::bad(e.to_string()),
+        E::Plan(..) => ApiError::internal(e.to_string()),
+        E::Store(s) => ApiError::from(s),
+    })?;
+    plan.operator = session.user.clone();
+    let run_id = start_plan(&app, &plan, &session.user)?;
+    audit(
+        &app,
+        &session.user,
+        "retest run",
+        &format!("{run_id} retests {id}: {}", serials.join(" ")),
+    )?;
+    Ok((
+        StatusCode::CREATED,
+        axum::Json(json!({ "run_id": run_id, "retest_of": id, "serials": serials })),
+    ))
 }
 
 #[derive(Deserialize)]
@@ -149,6 +189,7 @@ pub(super) async fn runs(
                 "started_at": r.started_at,
                 "units": r.units,
                 "points": r.points,
+                "retest_of": r.retest_of,
             }))
             .collect::<Vec<_>>()
     )))
@@ -184,9 +225,17 @@ pub(super) async fn run(
         })
         .collect();
     let run = &report.run;
+    let to_retest: Vec<&str> = report
+        .units
+        .iter()
+        .filter(|u| spinbench_engine::retest::needs_retest(u.record()))
+        .map(|u| u.result.serial.as_str())
+        .collect();
     Ok(axum::Json(json!({
         "id": run.id, "station": run.station, "state": run.state, "reason": run.reason,
         "started_at": run.started_at, "units": run.units, "points": run.points,
+        "retest_of": run.retest_of, "retested_by": report.retested_by,
+        "to_retest": to_retest,
         "results": rows,
         "reports": ReportFormat::ALL.iter().map(|f| format!("/api/runs/{}/report/{}", run.id, f.ext())).collect::<Vec<_>>(),
     })))

@@ -328,7 +328,7 @@ async function loadHistory() {
       a.href = "#history"; a.textContent = r.id;
       a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
       tr.insertCell().appendChild(a);
-      [fmtTime(r.started_at), r.state + (r.reason ? ": " + r.reason : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
+      [fmtTime(r.started_at), r.state + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (retest of " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
     }
   } catch (e) { show(e.message); }
 }
@@ -339,6 +339,7 @@ async function showRun(id) {
     const box = $("run-detail");
     box.textContent = "";
     const h = document.createElement("h3"); h.textContent = "Run " + r.id + " — " + r.state; box.appendChild(h);
+    showLinks(box, r);
     showReports(box, r.id);
     const t = document.createElement("table");
     const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "k2_max", "outcome", "reasons"];
@@ -384,6 +385,41 @@ function excludeForm(r) {
     } catch (e) { show(e.message); }
   });
   return form;
+}
+
+// A retest's link to the run it retests, and the runs that retest this
+// one; the Retest button when the run has ended with instruments to retest.
+function showLinks(box, r) {
+  const runLink = (id) => {
+    const a = document.createElement("a");
+    a.href = "#history"; a.textContent = id; a.className = "run-link";
+    a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(id); });
+    return a;
+  };
+  if (r.retest_of) {
+    const p = document.createElement("p"); p.id = "retest-of";
+    p.append("Retest of run ", runLink(r.retest_of));
+    box.appendChild(p);
+  }
+  if (r.retested_by && r.retested_by.length) {
+    const p = document.createElement("p"); p.id = "retested-by";
+    p.append("Retested by run ");
+    r.retested_by.forEach((id, i) => { if (i) p.append(", "); p.append(runLink(id)); });
+    box.appendChild(p);
+  }
+  if (r.state !== "running" && r.to_retest && r.to_retest.length) {
+    const b = document.createElement("button");
+    b.id = "retest-button"; b.type = "button";
+    b.textContent = "Retest " + r.to_retest.length + " instrument(s): " + r.to_retest.join(", ");
+    b.addEventListener("click", async () => {
+      try {
+        const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/retest");
+        show("retest " + res.run_id + " started: " + res.serials.join(", "), true);
+        location.hash = "#run";
+      } catch (e) { show(e.message); }
+    });
+    box.appendChild(b);
+  }
 }
 
 function showReports(box, id) {

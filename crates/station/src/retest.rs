@@ -1,0 +1,59 @@
+//! The retest of a finished run, read from the store (issue 16, part 2):
+//! shared by `spinbench retest RUN` and `POST /api/runs/{id}/retest`. The
+//! selection itself is the engine's ([`spinbench_engine::retest`]).
+
+use spinbench_engine::TestPlan;
+use spinbench_engine::retest::{RetestError, is_run_id, retest_plan};
+use spinbench_store::{Store, StoreError};
+
+/// Why a run cannot be retested.
+#[derive(Debug, thiserror::Error)]
+pub enum RetestFromStoreError {
+    /// No such run.
+    #[error("no run {0} in the store (`spinbench runs list` lists them)")]
+    NotFound(String),
+    /// It has not ended.
+    #[error("run {0} is still {1}: retest it once it has ended")]
+    NotEnded(String, String),
+    /// Its stored plan cannot be read back.
+    #[error("run {0}'s stored plan could not be read: {1}")]
+    Plan(String, String),
+    /// Nothing to retest, not graded, or not a run id.
+    #[error(transparent)]
+    Retest(#[from] RetestError),
+    /// The store failed.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+}
+
+/// The retest plan of `run_id`, the serials it tests again, and the
+/// station config the run used.
+pub fn retest_plan_from_store(
+    store: &Store,
+    run_id: &str,
+) -> Result<(TestPlan, Vec<String>, Option<String>), RetestFromStoreError> {
+    if !is_run_id(run_id) {
+        return Err(RetestError::BadRunId(run_id.chars().take(80).collect()).into());
+    }
+    let run = store
+        .run(run_id)?
+        .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
+    if matches!(run.state.as_str(), "running" | "paused" | "created") {
+        return Err(RetestFromStoreError::NotEnded(
+            run_id.to_string(),
+            run.state,
+        ));
+    }
+    let context = store
+        .run_context(run_id)?
+        .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
+    let original: TestPlan = serde_json::from_str(&context.plan_json)
+        .map_err(|e| RetestFromStoreError::Plan(run_id.to_string(), e.to_string()))?;
+    let records: Vec<_> = store
+        .results(run_id)?
+        .into_iter()
+        .map(|r| r.record)
+        .collect();
+    let (plan, serials) = retest_plan(run_id, &original, &records)?;
+    Ok((plan, serials, context.station_config))
+}

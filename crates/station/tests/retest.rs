@@ -1,0 +1,139 @@
+//! `spinbench retest RUN` (issue 16, part 2): a finished run's failed
+//! instruments tested again, same serials, slots and plan, linked both ways
+//! in the store and in both runs' reports; what cannot be retested is
+//! refused with what to do.
+
+mod common;
+
+use spinbench_store::{Store, StoreTarget};
+use std::process::Command;
+
+fn spinbench(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(args)
+        .output()
+        .expect("run spinbench");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    // On seed 4's bench: R1 and R7 have |k2| ≈ 28 µg/g², R2 ≈ 20 — a 25 µg/g²
+    // limit fails two and passes one.
+    let text = format!(
+        "{}[limits]\nk2_max_ug_per_g2 = 25\n",
+        common::short_plan("R")
+    );
+    std::fs::write(&plan, text).expect("plan");
+    let data = dir.path().join("data");
+    let data_s = data.to_str().expect("utf-8");
+    let plan_s = plan.to_str().expect("utf-8");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--seed",
+        "4",
+        "--data",
+        data_s,
+        plan_s,
+    ]);
+    assert!(ok, "{err}");
+    let target = StoreTarget::File(data.join("spinbench.db"));
+    let first = {
+        let store = Store::connect(&target).expect("store");
+        let runs = store.runs().expect("runs");
+        assert_eq!(runs.len(), 1);
+        let outcomes: Vec<(String, String)> = store
+            .results(&runs[0].id)
+            .expect("results")
+            .into_iter()
+            .map(|r| (r.serial, r.outcome.as_str().to_string()))
+            .collect();
+        assert_eq!(
+            outcomes,
+            [
+                ("R1".to_string(), "fail".to_string()),
+                ("R2".into(), "pass".into()),
+                ("R7".into(), "fail".into())
+            ]
+        );
+        runs[0].id.clone()
+    };
+
+    let (ok, said, err) = spinbench(&[
+        "retest",
+        &first,
+        "--simulate",
+        "--quiet",
+        "--seed",
+        "4",
+        "--data",
+        data_s,
+    ]);
+    // The same instruments fail again on the same bench: the command says so
+    // by its exit status, and the retest is stored all the same.
+    assert!(
+        said.contains("retesting 2 instrument(s) of run") && said.contains("R1, R7"),
+        "{said}{err}"
+    );
+    let _ = ok;
+    let store = Store::connect(&target).expect("store");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 2);
+    let retest = runs.iter().find(|r| r.id != first).expect("the retest run");
+    assert_eq!(retest.retest_of.as_deref(), Some(first.as_str()));
+    assert_eq!(
+        store.retests_of(&first).expect("links"),
+        vec![retest.id.clone()]
+    );
+    let again: Vec<(i64, String)> = store
+        .results(&retest.id)
+        .expect("results")
+        .into_iter()
+        .map(|r| (r.slot, r.serial))
+        .collect();
+    // Same serials in the same slots (1 and 7, 0-based 0 and 6).
+    assert_eq!(again, [(0, "R1".to_string()), (6, "R7".to_string())]);
+    let context = store
+        .run_context(&retest.id)
+        .expect("context")
+        .expect("plan");
+    let plan: spinbench_engine::TestPlan =
+        serde_json::from_str(&context.plan_json).expect("plan json");
+    assert_eq!(plan.retest_of.as_deref(), Some(first.as_str()));
+    assert_eq!(plan.limits.k2_max_ug_per_g2, 25.0);
+
+    // Both reports name the other run.
+    let html = |id: &str| {
+        let out = dir.path().join("reports");
+        let (ok, _, err) = spinbench(&[
+            "report",
+            id,
+            "--db",
+            data.join("spinbench.db").to_str().expect("utf-8"),
+            "--format",
+            "html",
+            "--out",
+            out.to_str().expect("utf-8"),
+        ]);
+        assert!(ok, "{err}");
+        std::fs::read_to_string(out.join(format!("report-{id}.html"))).expect("html")
+    };
+    let original = html(&first);
+    assert!(original.contains("retested by") && original.contains(&retest.id));
+    let second = html(&retest.id);
+    assert!(second.contains("retest of") && second.contains(&first));
+
+    // What cannot be retested is refused with what to do.
+    let (ok, _, err) = spinbench(&["retest", "no-such-run", "--simulate", "--data", data_s]);
+    assert!(!ok && err.contains("no run no-such-run"), "{err}");
+    let (ok, _, err) = spinbench(&["retest", "../x", "--simulate", "--data", data_s]);
+    assert!(!ok && err.contains("not a run identifier"), "{err}");
+}
