@@ -7,18 +7,41 @@
 //! c = Σ wᵢ(Tᵢ − T̄)yᵢ / Σ wᵢ(Tᵢ − T̄)²,   u(c) = 1/√(Σ wᵢ(Tᵢ − T̄)²)
 //! ```
 //!
-//! With three or more temperatures the scatter about the line is compared
-//! with the yᵢ's own uncertainties: when it is larger (Birge ratio
-//! √(χ²/(n − 2)) above 1, a bend the line does not hold) u(c) grows by that
-//! ratio and U95 takes Student's t at n − 2 degrees of freedom; otherwise
-//! U95 = 1.96·u(c). The temperature's own spread over a temperature's points
-//! (the instruments still settling while they are measured) enters as
-//! errors in the variable: after a first fit, u(yᵢ)² gains (c·u(Tᵢ))² and
-//! the line is fitted again. A sensor's calibration offset, common to every
-//! temperature, leaves the slope and is not propagated.
+//! **Which uncertainty of yᵢ.** A temperature's k0, k1 and K2 carry errors
+//! that are the same at every temperature: the table's rate and radius
+//! errors repeat level by level, the budget's Type B inputs are shared.
+//! They leave the slope, so the uᵢ here are only what differs between
+//! temperatures, found from the points themselves ([`paired_uncertainty`]):
+//! each level's output at a temperature less the same level's at the
+//! reference temperature (corrected by k1 for the small difference of the
+//! applied accelerations) is fitted with a cubic in the signed input;
+//! its intercept, slope and (per mounting) square term have the standard
+//! uncertainties of Δk0, Δk1 and ΔK2, each temperature's share 1/√2 of it.
+//! (The full fits' standard errors, which hold the repeated table errors,
+//! overstated the slopes' by 50 times on the typical bench.)
+//!
+//! **What the pairs cannot see** — the bias's slow walk between the hours
+//! of the passes, the instruments' temperature lag — shows as scatter of
+//! the yᵢ about their line. One instrument's three temperatures give one
+//! degree of freedom, too few to judge it, so the batch judges it
+//! ([`pool`]): the Birge ratio B = √(Σχ²/Σν) over every instrument of the
+//! run, per coefficient; when B > 1 every u(c) grows by B, and U95 takes
+//! Student's t at Σν degrees of freedom, the judgement's own (a batch of
+//! twelve at three temperatures: t(12) = 2.18; one instrument alone: t(1) =
+//! 12.7 — it cannot judge its line). With Σν = 0 (two temperatures)
+//! U95 = 1.96·u: nothing judges the line.
+//!
+//! The temperature's own spread over a temperature's points (the
+//! instruments still settling while they are measured) enters as errors in
+//! the variable: after a first fit, u(yᵢ)² gains (c·u(T̄ᵢ))², u(T̄ᵢ) the
+//! standard error of that temperature's mean, and the line is fitted again.
+//! A sensor's calibration offset, common to every temperature, leaves the
+//! slope and is not propagated.
 
 use crate::AnalysisError;
+use crate::lsq::{polynomial_design, solve};
 use crate::model::student_t_975;
+use crate::points::{Mount, Point};
 use serde::{Deserialize, Serialize};
 
 /// One instrument's figures at one temperature, each with its standard uncertainty.
@@ -31,13 +54,147 @@ pub struct AtTemperature {
     /// The standard deviation of its points' temperatures there [°C].
     #[serde(default)]
     pub temperature_spread_c: f64,
-    /// Bias [g] and its standard uncertainty.
+    /// How many points were taken there (0 in records from before it was kept).
+    #[serde(default)]
+    pub points: usize,
+    /// Bias [g] and the standard uncertainty of what differs from the other
+    /// temperatures' (module docs).
     pub k0_g: [f64; 2],
-    /// Scale factor [Hz/g] and its standard uncertainty.
+    /// Scale factor [Hz/g] and its standard uncertainty, as for k0.
     pub k1_hz_per_g: [f64; 2],
-    /// K2, the even second-order term [µg/g²], and its standard uncertainty
-    /// (absent with one mounting).
+    /// K2, the even second-order term [µg/g²], and its standard uncertainty,
+    /// as for k0 (absent with one mounting).
     pub k2_ug_per_g2: Option<[f64; 2]>,
+}
+
+/// The standard uncertainties of one temperature's figures that differ
+/// from another's (one temperature's share).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PairedUncertainty {
+    /// Of k0 [g].
+    pub k0_g: f64,
+    /// Of k1 [Hz/g].
+    pub k1_hz_per_g: f64,
+    /// Of K2 [µg/g²] (absent unless both mountings were paired).
+    pub k2_ug_per_g2: Option<f64>,
+}
+
+impl PairedUncertainty {
+    /// The root mean square of several (the reference temperature's share,
+    /// from its pairs with each other temperature).
+    pub fn rms(of: &[PairedUncertainty]) -> Option<PairedUncertainty> {
+        if of.is_empty() {
+            return None;
+        }
+        let rms = |f: &dyn Fn(&PairedUncertainty) -> f64| {
+            (of.iter().map(|p| f(p).powi(2)).sum::<f64>() / of.len() as f64).sqrt()
+        };
+        Some(PairedUncertainty {
+            k0_g: rms(&|p| p.k0_g),
+            k1_hz_per_g: rms(&|p| p.k1_hz_per_g),
+            k2_ug_per_g2: of
+                .iter()
+                .all(|p| p.k2_ug_per_g2.is_some())
+                .then(|| rms(&|p| p.k2_ug_per_g2.unwrap_or(0.0))),
+        })
+    }
+}
+
+/// Pair each level taken at `other` with the same level (mounting, nominal
+/// g, direction, in order) at `reference`; `(signed input, output
+/// difference corrected by k1 for the applied accelerations' difference)`.
+fn pairs(reference: &[Point], other: &[Point], k1: f64, mount: Option<Mount>) -> Vec<(f64, f64)> {
+    let mut used = vec![false; other.len()];
+    let mut out = Vec::new();
+    for r in reference
+        .iter()
+        .filter(|p| mount.is_none_or(|m| p.mount == m))
+    {
+        let found = other.iter().enumerate().position(|(i, o)| {
+            !used[i]
+                && o.mount == r.mount
+                && o.g_nominal == r.g_nominal
+                && o.direction == r.direction
+        });
+        if let Some(i) = found {
+            used[i] = true;
+            let o = &other[i];
+            out.push((
+                r.g_signed(),
+                o.output - r.output - k1 * (o.g_signed() - r.g_signed()),
+            ));
+        }
+    }
+    out
+}
+
+/// Standard errors of a cubic's coefficients through `pairs`, if it has
+/// degrees of freedom left.
+fn cubic_errors(pairs: &[(f64, f64)]) -> Option<[f64; 3]> {
+    const DEGREE: usize = 3;
+    if pairs.len() < DEGREE + 3 {
+        return None;
+    }
+    let x: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+    let y: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+    let fit = solve(
+        &polynomial_design(&x, DEGREE),
+        &y,
+        "paired temperature differences",
+    )
+    .ok()?;
+    let cov = fit.covariance?;
+    let e = |i: usize| cov[(i, i)].max(0.0).sqrt();
+    Some([e(0), e(1), e(2)])
+}
+
+/// What differs between the figures at `other` and at `reference` (module
+/// docs), one temperature's share (1/√2 of the difference's); `None` when
+/// too few levels pair. `k1_hz_per_g` converts outputs to g.
+pub fn paired_uncertainty(
+    reference: &[Point],
+    other: &[Point],
+    k1_hz_per_g: f64,
+) -> Option<PairedUncertainty> {
+    if !(k1_hz_per_g.is_finite() && k1_hz_per_g != 0.0) {
+        return None;
+    }
+    let k1 = k1_hz_per_g.abs();
+    let all = cubic_errors(&pairs(reference, other, k1_hz_per_g, None))?;
+    let per_mount = |m| cubic_errors(&pairs(reference, other, k1_hz_per_g, Some(m)));
+    let k2 = match (per_mount(Mount::P), per_mount(Mount::N)) {
+        // K2 = (k2_P + k2_N)/2 in µg/g².
+        (Some(p), Some(n)) => Some(0.5 * p[2].hypot(n[2]) / k1 * 1e6),
+        _ => None,
+    };
+    let share = std::f64::consts::FRAC_1_SQRT_2;
+    Some(PairedUncertainty {
+        k0_g: all[0] / k1 * share,
+        k1_hz_per_g: all[1] * share,
+        k2_ug_per_g2: k2.map(|v| v * share),
+    })
+}
+
+/// One value per coefficient (k0, k1 and, with two mountings, K2).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct PerCoefficient {
+    /// For k0.
+    pub k0: f64,
+    /// For k1.
+    pub k1: f64,
+    /// For K2.
+    pub k2: Option<f64>,
+}
+
+/// The batch's judgement of the lines' scatter ([`pool`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BatchBirge {
+    /// √(Σχ²/Σν) over the batch, per coefficient.
+    pub birge_ratio: PerCoefficient,
+    /// Σν, per coefficient.
+    pub dof: [usize; 3],
+    /// How many instruments.
+    pub instruments: usize,
 }
 
 /// The temperature coefficients and their expanded uncertainties (95 %).
@@ -60,10 +217,21 @@ pub struct TemperatureCoefficients {
     pub k2_ug_per_g2_per_c_u95: Option<f64>,
     /// Temperatures used.
     pub temperatures: usize,
+    /// Each slope's standard uncertainty from the uᵢ, before any widening
+    /// (µg/°C, ppm/°C, µg/g²/°C).
+    #[serde(default)]
+    pub u: PerCoefficient,
+    /// Each line's χ² about its figures (temperatures − 2 degrees of freedom).
+    #[serde(default)]
+    pub chi2: PerCoefficient,
+    /// The scatter's judgement the U95 were widened by (module docs).
+    #[serde(default)]
+    pub batch: Option<BatchBirge>,
 }
 
-/// The weighted line's slope, its value at T̄ and the slope's U95.
-fn slope(t: &[f64], y: &[f64], u: &[f64]) -> Option<(f64, f64, f64)> {
+/// A weighted line's slope, its value at T̄, the slope's standard
+/// uncertainty and the χ² of the figures about the line.
+fn slope(t: &[f64], y: &[f64], u: &[f64]) -> Option<(f64, f64, f64, f64)> {
     if t.len() < 2 || u.iter().any(|&v| !(v.is_finite() && v > 0.0)) {
         return None;
     }
@@ -82,26 +250,18 @@ fn slope(t: &[f64], y: &[f64], u: &[f64]) -> Option<(f64, f64, f64)> {
         .map(|((w, t), y)| w * (t - t_bar) * y)
         .sum::<f64>()
         / stt;
-    let mut u_c = 1.0 / stt.sqrt();
-    let n = t.len();
-    let mut k = 1.96;
-    if n >= 3 {
-        let chi2: f64 = w
-            .iter()
-            .zip(t)
-            .zip(y)
-            .map(|((w, t), y)| w * (y - y_bar - c * (t - t_bar)).powi(2))
-            .sum();
-        let birge = (chi2 / (n - 2) as f64).sqrt();
-        if birge > 1.0 {
-            u_c *= birge;
-            k = student_t_975(n - 2).unwrap_or(12.71);
-        }
-    }
-    Some((c, y_bar, k * u_c))
+    let chi2: f64 = w
+        .iter()
+        .zip(t)
+        .zip(y)
+        .map(|((w, t), y)| w * (y - y_bar - c * (t - t_bar)).powi(2))
+        .sum();
+    Some((c, y_bar, 1.0 / stt.sqrt(), chi2))
 }
 
-/// Fit the coefficients through the figures at two or more temperatures.
+/// Fit the coefficients through the figures at two or more temperatures;
+/// the U95 judge the lines' scatter by this instrument alone (as a batch
+/// of one: [`pool`] judges it over the run's).
 pub fn temperature_coefficients(
     at: &[AtTemperature],
 ) -> Result<TemperatureCoefficients, AnalysisError> {
@@ -115,17 +275,22 @@ pub fn temperature_coefficients(
     let column = |f: &dyn Fn(&AtTemperature) -> [f64; 2]| -> (Vec<f64>, Vec<f64>) {
         at.iter().map(|a| (f(a)[0], f(a)[1])).unzip()
     };
-    let u_t: Vec<f64> = at.iter().map(|a| a.temperature_spread_c.max(0.0)).collect();
+    // The standard error of each temperature's mean (its whole spread for
+    // records that did not keep how many points).
+    let u_t: Vec<f64> = at
+        .iter()
+        .map(|a| a.temperature_spread_c.max(0.0) / (a.points.max(1) as f64).sqrt())
+        .collect();
     // Errors in the variable: fit, widen each u(y) by the slope times u(T), fit again.
-    let with_spread = |y: &[f64], u: &[f64]| -> Option<(f64, f64, f64)> {
-        let (c, _, _) = slope(&t, y, u)?;
+    let with_spread = |y: &[f64], u: &[f64]| -> Option<(f64, f64, f64, f64)> {
+        let (c, ..) = slope(&t, y, u)?;
         let widened: Vec<f64> = u.iter().zip(&u_t).map(|(u, ut)| u.hypot(c * ut)).collect();
         slope(&t, y, &widened)
     };
     let (k0, u0) = column(&|a| a.k0_g);
     let (k1, u1) = column(&|a| a.k1_hz_per_g);
-    let (c0, _, big_u0) = with_spread(&k0, &u0).ok_or_else(need)?;
-    let (c1, k1_bar, big_u1) = with_spread(&k1, &u1).ok_or_else(need)?;
+    let (c0, _, s0, chi0) = with_spread(&k0, &u0).ok_or_else(need)?;
+    let (c1, k1_bar, s1, chi1) = with_spread(&k1, &u1).ok_or_else(need)?;
     let k2 = if at.iter().all(|a| a.k2_ug_per_g2.is_some()) {
         let (k2, u2): (Vec<f64>, Vec<f64>) = at
             .iter()
@@ -136,15 +301,69 @@ pub fn temperature_coefficients(
     } else {
         None
     };
-    Ok(TemperatureCoefficients {
+    let ppm = 1e6 / k1_bar.abs();
+    let mut c = TemperatureCoefficients {
         k0_ug_per_c: c0 * 1e6,
-        k0_ug_per_c_u95: big_u0 * 1e6,
-        k1_ppm_per_c: c1 / k1_bar.abs() * 1e6,
-        k1_ppm_per_c_u95: big_u1 / k1_bar.abs() * 1e6,
+        k0_ug_per_c_u95: 0.0,
+        k1_ppm_per_c: c1 * ppm,
+        k1_ppm_per_c_u95: 0.0,
         k2_ug_per_g2_per_c: k2.map(|v| v.0),
-        k2_ug_per_g2_per_c_u95: k2.map(|v| v.2),
+        k2_ug_per_g2_per_c_u95: None,
         temperatures: at.len(),
-    })
+        u: PerCoefficient {
+            k0: s0 * 1e6,
+            k1: s1 * ppm,
+            k2: k2.map(|v| v.2),
+        },
+        chi2: PerCoefficient {
+            k0: chi0,
+            k1: chi1,
+            k2: k2.map(|v| v.3),
+        },
+        batch: None,
+    };
+    pool(std::slice::from_mut(&mut c));
+    Ok(c)
+}
+
+/// Judge the lines' scatter over a batch (module docs): per coefficient,
+/// B = √(Σχ²/Σν); every U95 = t(Σν)·max(B, 1)·u (1.96·u when Σν = 0:
+/// two temperatures cannot judge their line).
+/// Depends only on each entry's `u` and `chi2`, so pooling again is safe.
+pub fn pool(batch: &mut [TemperatureCoefficients]) {
+    let dof_of = |c: &TemperatureCoefficients| c.temperatures.saturating_sub(2);
+    // (B, the factor on u): t(Σν)·max(B, 1); 1.96 with nothing to judge by.
+    let judge = |chi2: f64, dof: usize| -> (f64, f64) {
+        if dof == 0 {
+            return (1.0, 1.96);
+        }
+        let birge = (chi2 / dof as f64).sqrt();
+        (birge, student_t_975(dof).unwrap_or(12.71) * birge.max(1.0))
+    };
+    let (chi0, chi1, dof01) = batch.iter().fold((0.0, 0.0, 0), |(a, b, n), c| {
+        (a + c.chi2.k0, b + c.chi2.k1, n + dof_of(c))
+    });
+    let with_k2 = |c: &&TemperatureCoefficients| c.u.k2.is_some() && c.chi2.k2.is_some();
+    let chi2_k2: f64 = batch.iter().filter(with_k2).filter_map(|c| c.chi2.k2).sum();
+    let dof2: usize = batch.iter().filter(with_k2).map(dof_of).sum();
+    let (b0, f0) = judge(chi0, dof01);
+    let (b1, f1) = judge(chi1, dof01);
+    let (b2, f2) = judge(chi2_k2, dof2);
+    let instruments = batch.len();
+    for c in batch.iter_mut() {
+        c.k0_ug_per_c_u95 = f0 * c.u.k0;
+        c.k1_ppm_per_c_u95 = f1 * c.u.k1;
+        c.k2_ug_per_g2_per_c_u95 = c.u.k2.map(|u| f2 * u);
+        c.batch = Some(BatchBirge {
+            birge_ratio: PerCoefficient {
+                k0: b0,
+                k1: b1,
+                k2: c.u.k2.map(|_| b2),
+            },
+            dof: [dof01, dof01, dof2],
+            instruments,
+        });
+    }
 }
 
 #[cfg(test)]
@@ -156,6 +375,7 @@ mod tests {
             setpoint_c: t - 4.0,
             temperature_c: t,
             temperature_spread_c: 0.0,
+            points: 60,
             k0_g: [k0_ug * 1e-6, 2e-6],
             k1_hz_per_g: [k1, 1e-3],
             k2_ug_per_g2: Some([k2, 0.2]),
@@ -181,13 +401,107 @@ mod tests {
         assert!((c.k0_ug_per_c - 20.0).abs() < 1e-6, "{}", c.k0_ug_per_c);
         assert!((c.k1_ppm_per_c - 30.0).abs() < 0.01, "{}", c.k1_ppm_per_c);
         assert!((c.k2_ug_per_g2_per_c.unwrap_or(0.0) - 0.05).abs() < 1e-9);
-        // U95 = 1.96 / √(Σ w (T − T̄)²) on a perfect line.
+        // u = 1 / √(Σ w (T − T̄)²) on a perfect line; U95 = t(1)·u alone.
         let stt: f64 = [-20.0f64, 25.0, 60.0]
             .iter()
             .map(|t| (t - 65.0 / 3.0).powi(2))
             .sum();
-        let want = 1.96 * 0.2 / stt.sqrt();
-        assert!((c.k2_ug_per_g2_per_c_u95.unwrap_or(0.0) - want).abs() < 1e-12);
+        let want = 0.2 / stt.sqrt();
+        assert!((c.u.k2.unwrap_or(0.0) - want).abs() < 1e-12);
+        let t1 = crate::model::student_t_975(1).expect("t(1)");
+        assert!((c.k2_ug_per_g2_per_c_u95.unwrap_or(0.0) - t1 * want).abs() < 1e-12);
+    }
+
+    /// Points at `temperature`: a table error that repeats level by level
+    /// (the same at every temperature) and independent noise `noise_hz`.
+    fn points_at(rng: &mut rand_chacha::ChaCha8Rng, k0_hz: f64, noise_hz: f64) -> Vec<Point> {
+        use crate::points::Direction;
+        use rand_distr::{Distribution, Normal};
+        let noise = Normal::new(0.0, noise_hz).expect("normal");
+        let mut out = Vec::new();
+        for mount in [Mount::P, Mount::N] {
+            for (direction, levels) in [
+                (Direction::Up, [0.0, 1.0, 5.0, 10.0, 20.0, 30.0, 40.0]),
+                (Direction::Down, [40.0, 30.0, 20.0, 10.0, 5.0, 1.0, 0.0]),
+            ] {
+                for g in levels {
+                    let a = mount.input_sign() * g;
+                    // A repeated misfit 50 times the noise (the table's errors at this level).
+                    let repeated = 50.0 * noise_hz * (0.37 * g).sin();
+                    out.push(Point {
+                        mount,
+                        g_nominal: g,
+                        g_applied: g,
+                        output: k0_hz + 100.0 * a + 1e-3 * a * a + repeated + noise.sample(rng),
+                        direction: Some(direction),
+                    });
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn paired_differences_see_only_what_differs_between_temperatures() {
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(15);
+        let noise_hz = 1e-3;
+        let mut ratios = Vec::new();
+        for _ in 0..200 {
+            let reference = points_at(&mut rng, 5.0, noise_hz);
+            let other = points_at(&mut rng, 5.3, noise_hz);
+            let u = paired_uncertainty(&reference, &other, 100.0).expect("paired");
+            // Each temperature's share of Δk0, as the noise alone gives it
+            // (a cubic through 28 differences of variance 2σ²): ≈ σ/√28/√2 … σ/√2.
+            assert!(u.k0_g * 100.0 < noise_hz, "{} g", u.k0_g);
+            assert!(u.k2_ug_per_g2.is_some(), "both mountings paired");
+            ratios.push(u.k0_g * 100.0 / noise_hz);
+        }
+        // Stable over draws, and blind to the repeated misfit 50× the noise.
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        assert!((0.1..0.5).contains(&mean), "{mean}");
+        // Without k1 the outputs cannot be put in g.
+        let p = points_at(&mut rng, 5.0, noise_hz);
+        assert!(paired_uncertainty(&p, &p, 0.0).is_none());
+        // Levels that do not pair (another plan) give nothing.
+        let mut moved = points_at(&mut rng, 5.0, noise_hz);
+        moved.iter_mut().for_each(|p| p.g_nominal += 0.5);
+        assert!(paired_uncertainty(&p, &moved, 100.0).is_none());
+    }
+
+    #[test]
+    fn the_batch_judges_the_lines_scatter() {
+        let line = |t: f64, bend: f64| at(t, 500.0 + 20.0 * (t - 25.0) + bend, 100.0, 10.0);
+        let straight: Vec<AtTemperature> =
+            [-20.0, 25.0, 60.0].iter().map(|&t| line(t, 0.0)).collect();
+        let c = temperature_coefficients(&straight).expect("fit");
+        // On a straight line B = 0: U95 = t(1)·u for one instrument alone.
+        assert!((c.k0_ug_per_c_u95 - 12.706 * c.u.k0).abs() < 1e-2 * c.u.k0);
+        // At two temperatures nothing judges the line: 1.96·u.
+        let two = temperature_coefficients(&straight[..2]).expect("fit");
+        assert!((two.k0_ug_per_c_u95 - 1.96 * two.u.k0).abs() < 1e-12);
+        // Scatter 3 times the uᵢ in every instrument: B ≈ 3 over 10 lines, t(10).
+        let bent: Vec<AtTemperature> = [-20.0, 25.0, 60.0]
+            .iter()
+            .zip([0.0, 12.0, 0.0])
+            .map(|(&t, b)| line(t, b))
+            .collect();
+        let one = temperature_coefficients(&bent).expect("fit");
+        let mut batch = vec![one; 10];
+        pool(&mut batch);
+        let b = batch[0].batch.expect("judged");
+        assert_eq!(b.dof[0], 10);
+        assert_eq!(b.instruments, 10);
+        let birge = (one.chi2.k0).sqrt();
+        assert!((b.birge_ratio.k0 - birge).abs() < 1e-9 && birge > 1.0);
+        let t10 = 2.228;
+        assert!((batch[0].k0_ug_per_c_u95 / (birge * one.u.k0) - t10).abs() < 1e-3);
+        // Alone, its one degree of freedom takes t(1) = 12.7.
+        assert!((one.k0_ug_per_c_u95 / (birge * one.u.k0) - 12.706).abs() < 1e-2);
+        // Pooling again changes nothing.
+        let again = batch.clone();
+        pool(&mut batch);
+        assert_eq!(again, batch);
     }
 
     #[test]

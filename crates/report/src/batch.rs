@@ -20,6 +20,10 @@ pub struct BatchTest {
     pub started_at: i64,
     /// Serial number.
     pub serial: String,
+    /// Slot (0-based): the fixture position.
+    pub slot: usize,
+    /// The radius found per mounting [m].
+    pub radius_m: BTreeMap<spinbench_analysis::Mount, f64>,
     /// Pass, marginal, fail or incomplete.
     pub outcome: Outcome,
     /// k2_max [µg/g²].
@@ -125,9 +129,17 @@ pub struct BatchReport {
     pub distributions: Vec<Distribution>,
     /// Serial numbers tested more than once.
     pub repeats: Vec<Repeat>,
+    /// Control charts and first-pass yields ([`BatchReport::rebaseline`]
+    /// chooses their baseline; the first [`crate::control::DEFAULT_BASELINE_RUNS`] runs by default).
+    pub control: crate::control::ControlReport,
 }
 
 impl BatchReport {
+    /// Limits of the control charts from the first `runs` runs instead.
+    pub fn rebaseline(&mut self, runs: usize) {
+        self.control = crate::control::control_report(self, runs);
+    }
+
     /// How many tests had each outcome: (pass, marginal, fail).
     pub fn outcomes(&self) -> (usize, usize, usize) {
         let count = |o: Outcome| self.tests.iter().filter(|t| t.outcome == o).count();
@@ -190,6 +202,8 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
                 run_id: run.id.clone(),
                 started_at: run.started_at,
                 serial: r.serial,
+                slot: r.record.slot,
+                radius_m: r.record.radius_m.clone(),
                 outcome: r.outcome,
                 k2_max_ug_per_g2: r.k2_max_ug_per_g2,
                 k2_ug_per_g2: a
@@ -248,12 +262,15 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
             }
         })
         .collect();
-    Ok(BatchReport {
+    let mut report = BatchReport {
         runs,
         tests,
         distributions,
         repeats,
-    })
+        control: crate::control::ControlReport::default(),
+    };
+    report.rebaseline(crate::control::DEFAULT_BASELINE_RUNS);
+    Ok(report)
 }
 
 fn median(sorted: &[f64]) -> f64 {
@@ -533,7 +550,7 @@ pub fn batch_csv(b: &BatchReport) -> String {
     out
 }
 
-fn html_table(h: &mut String, id: &str, headers: &[&str], rows: &[Vec<String>]) {
+pub(crate) fn html_table(h: &mut String, id: &str, headers: &[&str], rows: &[Vec<String>]) {
     h.push_str(&format!("<table id=\"{id}\"><tr>"));
     for head in headers {
         h.push_str(&format!("<th>{}</th>", esc(head)));
@@ -582,6 +599,7 @@ pub fn batch_html(b: &BatchReport) -> String {
         h.push_str(&svg);
         h.push_str("</figure>\n");
     }
+    crate::control::html_section(&mut h, &b.control);
     h.push_str("<h2>Outliers (|robust z| &gt; 3.5)</h2>\n");
     html_table(&mut h, "outliers", &OUTLIER_HEADERS, &outlier_rows(b));
     h.push_str("<h2>Repeatability of serial numbers tested more than once</h2>\n");
@@ -640,6 +658,28 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
             sheet.write_number(r, 8, d.outliers.len() as f64)?;
         }
     }
+    for (name, headers, rows) in [
+        (
+            "control flags",
+            &crate::control::FLAG_HEADERS[..],
+            crate::control::flag_rows(&b.control),
+        ),
+        (
+            "first-pass yield",
+            &crate::control::YIELD_HEADERS[..],
+            crate::control::yield_rows(&b.control),
+        ),
+    ] {
+        let sheet = book.add_worksheet().set_name(name)?;
+        for (c, head) in headers.iter().enumerate() {
+            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+        }
+        for (r, row) in (1u32..).zip(&rows) {
+            for (c, cell) in row.iter().enumerate() {
+                sheet.write_string(r, c as u16, cell)?;
+            }
+        }
+    }
     {
         let sheet = book.add_worksheet().set_name("repeatability")?;
         for (c, head) in REPEAT_HEADERS.iter().enumerate() {
@@ -674,6 +714,8 @@ mod tests {
             run_id: "r".into(),
             started_at: 0,
             serial: serial.into(),
+            slot: 0,
+            radius_m: BTreeMap::new(),
             outcome: Outcome::Pass,
             k2_max_ug_per_g2: Some(k2.abs()),
             k2_ug_per_g2: Some(k2),
@@ -723,6 +765,9 @@ mod tests {
                         k2_ug_per_g2_per_c: None,
                         k2_ug_per_g2_per_c_u95: None,
                         temperatures: 3,
+                        u: Default::default(),
+                        chi2: Default::default(),
+                        batch: None,
                     },
                 ),
                 ..test(&format!("S{i}"), 10.0)

@@ -32,11 +32,14 @@ impl Executor<'_> {
         Vec<spinbench_analysis::temperature::AtTemperature>,
         Option<spinbench_analysis::temperature::TemperatureCoefficients>,
     ) {
-        use spinbench_analysis::temperature::{AtTemperature, temperature_coefficients};
+        use spinbench_analysis::temperature::{
+            AtTemperature, PairedUncertainty, paired_uncertainty, temperature_coefficients,
+        };
         let mut setpoints = self.plan.plan.temperatures_c.clone();
         setpoints.sort_by(f64::total_cmp);
         setpoints.dedup();
-        let mut at = Vec::new();
+        // Each temperature's figures (their full fits' values) and points.
+        let mut found: Vec<(AtTemperature, Vec<Point>)> = Vec::new();
         for setpoint_c in setpoints {
             let here: Vec<PointRecord> = all
                 .iter()
@@ -52,36 +55,68 @@ impl Executor<'_> {
             let input = UnitPoints {
                 unit: serial.to_string(),
                 run: None,
-                points,
+                points: points.clone(),
             };
             let figures = analyze_unit(&input, self.analysis_options(slot))
                 .ok()
                 .and_then(|a| {
                     let full = a.full_range.as_ref()?;
-                    let k2 = a.joint.as_ref().and_then(|j| {
-                        let u = j
-                            .uncertainty
-                            .as_ref()
-                            .map(|u| u.k2_even_ug_per_g2.u)
-                            .or(j.u_ug_per_g2)?;
-                        Some([j.k2_even_ug_per_g2, u])
-                    });
+                    let k2 = a.joint.as_ref().map(|j| [j.k2_even_ug_per_g2, f64::NAN]);
                     Some(AtTemperature {
                         setpoint_c,
                         temperature_c,
                         temperature_spread_c,
-                        k0_g: [full.fit.k0_g, full.fit.std_error.k0_g?],
-                        k1_hz_per_g: [full.fit.k1, full.fit.std_error.k1?],
+                        points: temperatures.len(),
+                        k0_g: [full.fit.k0_g, f64::NAN],
+                        k1_hz_per_g: [full.fit.k1, f64::NAN],
                         k2_ug_per_g2: k2,
                     })
                 });
             match figures {
-                Some(f) => at.push(f),
+                Some(f) => found.push((f, points)),
                 None => reasons.push(Reason::new(
                     ReasonCode::AnalysisNote,
                     format!("its points at {setpoint_c} °C could not be reduced; that temperature is left out of the temperature coefficients"),
                 )),
             }
+        }
+        // Their uncertainties: what differs from the reference temperature's
+        // (analysis::temperature's docs), the reference's share the rms of its pairs'.
+        let reference = crate::soak::reference_c(
+            &self.plan.plan.temperatures_c,
+            self.station.temperature.ambient_c,
+        );
+        let Some(r) = found
+            .iter()
+            .position(|(a, _)| Some(a.setpoint_c) == reference)
+        else {
+            return (found.into_iter().map(|(a, _)| a).collect(), None);
+        };
+        let k1 = found[r].0.k1_hz_per_g[0];
+        let paired: Vec<Option<PairedUncertainty>> = found
+            .iter()
+            .enumerate()
+            .map(|(i, (_, points))| {
+                (i != r)
+                    .then(|| paired_uncertainty(&found[r].1, points, k1))
+                    .flatten()
+            })
+            .collect();
+        let others: Vec<PairedUncertainty> = paired.iter().flatten().copied().collect();
+        let reference_u = PairedUncertainty::rms(&others);
+        let mut at = Vec::new();
+        for (i, (mut a, _)) in found.into_iter().enumerate() {
+            let Some(u) = (if i == r { reference_u } else { paired[i] }) else {
+                reasons.push(Reason::new(
+                    ReasonCode::AnalysisNote,
+                    format!("its levels at {} °C do not pair with those at the reference temperature; that temperature is left out of the temperature coefficients", a.setpoint_c),
+                ));
+                continue;
+            };
+            a.k0_g[1] = u.k0_g;
+            a.k1_hz_per_g[1] = u.k1_hz_per_g;
+            a.k2_ug_per_g2 = a.k2_ug_per_g2.zip(u.k2_ug_per_g2).map(|(v, u)| [v[0], u]);
+            at.push(a);
         }
         let coefficients = (at.len() >= 2)
             .then(|| temperature_coefficients(&at).ok())
@@ -189,6 +224,19 @@ impl Executor<'_> {
                 decision_rule: Some(limits.decision_rule),
                 exclusions,
             });
+        }
+        // The lines' scatter judged over the whole batch (analysis::temperature).
+        let mut batch: Vec<_> = out
+            .iter()
+            .filter_map(|r| r.temperature_coefficients)
+            .collect();
+        spinbench_analysis::temperature::pool(&mut batch);
+        let mut pooled = batch.into_iter();
+        for record in out
+            .iter_mut()
+            .filter(|r| r.temperature_coefficients.is_some())
+        {
+            record.temperature_coefficients = pooled.next();
         }
         out
     }
