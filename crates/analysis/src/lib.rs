@@ -33,6 +33,7 @@
 
 pub mod centrifuge;
 pub mod compare;
+pub mod control;
 pub mod diagnostics;
 mod error;
 pub mod exclusion;

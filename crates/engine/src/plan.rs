@@ -745,6 +745,16 @@ impl TestPlan {
                     "the serial number is empty".into(),
                 );
             }
+            // One instrument, one slot: its history must not mix two.
+            if let Some(other) = serials.iter().position(|s| s.as_deref() == Some(bare)) {
+                return err(
+                    &format!("serials.{key}"),
+                    format!(
+                        "'{bare}' is already in slot {}; an instrument takes one slot",
+                        other + 1
+                    ),
+                );
+            }
             serials[slot - 1] = Some(bare.to_string());
             fixed[slot - 1] = mount;
         }
@@ -1030,6 +1040,10 @@ mod tests {
             (
                 "[serials]\n1 = \"X:A\"",
                 "serials.1: 'X:' is not a mounting prefix",
+            ),
+            (
+                "[serials]\n1 = \"A\"\n2 = \"N:A\"",
+                "serials.2: 'A' is already in slot 1",
             ),
             (
                 "[serials]\n1 = \"P:\"",

@@ -8,6 +8,7 @@
 //! runs show` prints); nothing is recomputed here.
 
 mod batch;
+pub mod control;
 mod pdf;
 mod plots;
 
@@ -816,10 +817,12 @@ pub fn write_reports(
 pub fn write_batch_reports(
     store: &Store,
     run_ids: &[String],
+    baseline_runs: usize,
     formats: &[ReportFormat],
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ReportError> {
-    let batch = gather_batch(store, run_ids)?;
+    let mut batch = gather_batch(store, run_ids)?;
+    batch.rebaseline(baseline_runs);
     write_files(dir, "batch-report", formats, |f| render_batch(&batch, f))
 }
 

@@ -121,6 +121,9 @@ pub struct TableConfig {
     pub windage_tau_s: f64,
     /// Speed-dependent systematic disturbances (structural resonances).
     pub disturbances: Vec<Disturbance>,
+    /// Each fixture position's radius shifted by this, position 1 first
+    /// (a fixture coming loose; positions beyond the list are not shifted) [mm].
+    pub position_shifts_mm: Vec<f64>,
 }
 
 /// A structural resonance near one speed: every instrument's output shifts
@@ -167,6 +170,7 @@ impl Default for TableConfig {
             windage_c_at_100g: 0.0,
             windage_tau_s: 300.0,
             disturbances: Vec::new(),
+            position_shifts_mm: Vec::new(),
         }
     }
 }
@@ -288,6 +292,9 @@ pub struct FaultConfig {
 
 /// Fastest virtual time (× real time).
 pub const MAX_SPEED: f64 = 1e6;
+/// Most fixture positions a bench config may shift.
+pub const MAX_POSITION_SHIFTS: usize = 1024;
+
 /// Most structural disturbances a bench may have.
 pub const MAX_DISTURBANCES: usize = 32;
 /// Latest time a fault may be scheduled at [s] (one year of simulated time).
@@ -583,6 +590,18 @@ impl SimConfig {
                 format!(
                     "at most {MAX_DISTURBANCES} (MAX_DISTURBANCES), got {}",
                     c.disturbances.len()
+                ),
+            );
+        }
+        if c.position_shifts_mm.len() > MAX_POSITION_SHIFTS
+            || c.position_shifts_mm
+                .iter()
+                .any(|v| !(v.is_finite() && v.abs() <= 10.0))
+        {
+            return err(
+                "centrifuge.position_shifts_mm",
+                format!(
+                    "at most {MAX_POSITION_SHIFTS} shifts (MAX_POSITION_SHIFTS), each within ±10 mm"
                 ),
             );
         }

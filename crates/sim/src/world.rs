@@ -266,7 +266,12 @@ impl World {
             };
             instruments.push(Vba::new(truth));
             let scatter: f64 = StandardNormal.sample(&mut rng);
-            let centre = t.arm_radius_m + scatter * t.radius_scatter_mm * 1e-3;
+            let shift_mm = t
+                .position_shifts_mm
+                .get(positions.len())
+                .copied()
+                .unwrap_or(0.0);
+            let centre = t.arm_radius_m + (scatter * t.radius_scatter_mm + shift_mm) * 1e-3;
             let offset = t.proof_mass_offset_mm * 1e-3;
             positions.push(Position {
                 drawing_radius_m: t.arm_radius_m,

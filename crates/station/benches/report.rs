@@ -101,8 +101,14 @@ fn main() {
         }
     }
     let t = Instant::now();
-    spinbench_report::write_batch_reports(&store, &[], &ReportFormat::ALL, &out)
-        .expect("batch report");
+    spinbench_report::write_batch_reports(
+        &store,
+        &[],
+        spinbench_report::control::DEFAULT_BASELINE_RUNS,
+        &ReportFormat::ALL,
+        &out,
+    )
+    .expect("batch report");
     let batch_s = t.elapsed().as_secs_f64();
     if measuring {
         println!("bench: report_all_formats_{slots}_instruments = {total:.3} s");

@@ -445,6 +445,30 @@ fn a_run_through_the_api_from_start_to_report() {
         "{log}"
     );
 
+    // Control charts across the runs (one so far): the product's charts and
+    // each fixture position's radius, with the yields; a bad baseline refused.
+    let charts = op.get_json("/api/control-charts?baseline_runs=5", 200);
+    assert_eq!(charts["baseline_runs"], 5);
+    let quantities: Vec<&str> = charts["charts"]
+        .as_array()
+        .expect("charts")
+        .iter()
+        .filter_map(|c| c["quantity"].as_str())
+        .collect();
+    assert!(quantities.contains(&"k2_max"), "{quantities:?}");
+    assert!(
+        quantities.iter().any(|q| q.starts_with("radius slot 1")),
+        "{quantities:?}"
+    );
+    assert!(
+        charts["charts"][0]["svg"]
+            .as_str()
+            .is_some_and(|s| s.contains("<svg"))
+    );
+    assert_eq!(charts["yield_by_run"][0]["first_tests"], 2);
+    let r = op.send("GET", "/api/control-charts?baseline_runs=0", None);
+    assert_eq!(r.status, 400);
+
     // Retest (issue 16, part 2): the run's instruments to retest, in one action.
     let shown = op.get_json(&format!("/api/runs/{run_id}"), 200);
     let to_retest: Vec<String> = shown["to_retest"]

@@ -47,6 +47,32 @@ fn an_operator_runs_a_test_in_the_browser() {
         Value::Bool(true),
         "an operator does not get the plan editor"
     );
+    // A barcode scanner (keyboard wedge) types a serial and Enter: the focus
+    // moves to the next slot; a duplicate is refused as it is scanned, the
+    // slot cleared and kept for the next scan.
+    b.type_into("#serial-1", "SCAN-1\u{E007}");
+    assert_eq!(
+        b.script("return document.activeElement.id"),
+        Value::String("serial-2".into())
+    );
+    b.type_into("#serial-2", "N:SCAN-1\u{E007}");
+    b.wait_for(
+        5,
+        "the duplicate refused as it is scanned",
+        "return document.getElementById('message').textContent.includes('already in slot 1')",
+    );
+    assert_eq!(
+        b.script("return [document.activeElement.id, document.getElementById('serial-2').value]"),
+        serde_json::json!(["serial-2", ""])
+    );
+    b.type_into("#serial-2", "Q:SCAN-2\u{E007}");
+    b.wait_for(
+        5,
+        "the malformed serial refused as it is scanned",
+        "return document.getElementById('message').textContent.includes('not a mounting prefix')",
+    );
+    b.screenshot(&shots.join("1a-scan-refused.png"));
+    b.type_into("#serial-1", "");
     b.type_into("#serial-2", "X:WEB-2");
     b.click("#start-button");
     b.wait_for(
@@ -68,10 +94,20 @@ fn an_operator_runs_a_test_in_the_browser() {
     let mut moved = false;
     let until = Instant::now() + Duration::from_secs(240);
     loop {
-        assert!(Instant::now() < until, "the run did not finish in time");
         let state = b.script("return document.getElementById('run-state').textContent");
+        assert!(
+            Instant::now() < until,
+            "the run did not finish in time: {state}"
+        );
         if state.as_str().is_some_and(|s| s.starts_with("completed")) {
             break;
+        }
+        if state
+            .as_str()
+            .is_some_and(|s| s.starts_with("faulted") || s.starts_with("aborted"))
+        {
+            b.screenshot(&shots.join("3c-ended.png"));
+            panic!("the run ended: {state}");
         }
         let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
         if prompt_shown == Value::Bool(true) {
@@ -211,6 +247,20 @@ fn an_operator_runs_a_test_in_the_browser() {
         html.as_str()
             .is_some_and(|h| h.contains("fixture screw found loose")),
         "the report names the exclusion and its reason"
+    );
+
+    // The control charts page: the product's charts drawn, the yields.
+    b.click("#nav-charts");
+    b.wait_for(
+        20,
+        "the control charts",
+        "return document.querySelectorAll('#chart-figures figure svg').length >= 3 \
+         && document.querySelectorAll('#yield-table tbody tr').length >= 2",
+    );
+    b.screenshot(&shots.join("7-control-charts.png"));
+    assert_eq!(
+        b.script("return document.querySelector('#chart-figures figure').dataset.quantity"),
+        Value::String("k2_max".into())
     );
 }
 

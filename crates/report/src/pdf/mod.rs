@@ -233,6 +233,64 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
     c.table(y, &POINT_HEADERS, &rows, 6.5, 2);
 }
 
+/// The control charts' pages: the flags, the charts shown, the yields.
+fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
+    use crate::control::{FLAG_HEADERS, YIELD_HEADERS, flag_rows, shown, yield_rows};
+    c.new_page();
+    let title = format!(
+        "Control charts (limits from the first {} runs; Western Electric rules)",
+        control.baseline_runs
+    );
+    c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, &title, Align::Left);
+    let flags = flag_rows(control);
+    let mut top = if flags.is_empty() {
+        c.text(
+            MARGIN_MM,
+            MARGIN_MM + 12.0,
+            9.0,
+            "no rule broken",
+            Align::Left,
+        );
+        MARGIN_MM + 16.0
+    } else {
+        c.table(MARGIN_MM + 8.0, &FLAG_HEADERS, &flags, 7.0, 1) + 2.0
+    };
+    let gap = 4.0;
+    let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
+    let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
+    for (k, chart) in shown(control).enumerate() {
+        let column = k % 3;
+        if column == 0 && k > 0 {
+            top += height + 2.0;
+        }
+        if top + height > PAGE_H_MM - MARGIN_MM - FOOTER_MM {
+            c.new_page();
+            top = MARGIN_MM;
+        }
+        c.plot(
+            MARGIN_MM + column as f32 * (width + gap),
+            top,
+            width,
+            |root| crate::control::draw_control_chart(chart, root),
+        );
+    }
+    c.new_page();
+    c.text(
+        MARGIN_MM,
+        MARGIN_MM + 5.0,
+        12.0,
+        "First-pass yield",
+        Align::Left,
+    );
+    c.table(
+        MARGIN_MM + 8.0,
+        &YIELD_HEADERS,
+        &yield_rows(control),
+        7.0,
+        1,
+    );
+}
+
 /// The batch report as PDF bytes: totals and statistics, the histograms,
 /// outliers, repeatability, then every test.
 pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
@@ -283,6 +341,7 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
             |root| batch::draw_histogram(d, root),
         );
     }
+    control_pages(&mut c, &b.control);
     for (title, headers, rows) in [
         (
             "Outliers (|robust z| > 3.5)",

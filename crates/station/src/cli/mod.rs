@@ -128,6 +128,10 @@ pub enum Command {
         /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
         #[arg(long)]
         realism: Option<spinbench_sim::Realism>,
+        /// With --simulate: a bench config (TOML) whose keys go over the
+        /// realism preset's (as `spinbench sim --config`).
+        #[arg(long, value_name = "BENCH_TOML", requires = "simulate")]
+        bench: Option<PathBuf>,
         /// Continue the run in this directory from its journal.
         #[arg(long, value_name = "RUN_DIR")]
         resume: Option<PathBuf>,
@@ -217,6 +221,11 @@ pub enum Command {
     BatchReport {
         /// Run identifiers (default: every run in the store).
         runs: Vec<String>,
+        /// The control charts' baseline period: their limits come from the
+        /// first this many runs (1 to 100,000).
+        #[arg(long, default_value_t = spinbench_report::control::DEFAULT_BASELINE_RUNS as u32,
+              value_parser = clap::value_parser!(u32).range(1..=100_000))]
+        baseline_runs: u32,
         /// Formats, directory and store.
         #[command(flatten)]
         output: ReportOutput,
@@ -472,6 +481,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             simulate,
             seed,
             realism,
+            bench,
             resume,
             data,
             quiet,
@@ -486,7 +496,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             &crate::demo::BenchChoice {
                 seed,
                 realism,
-                config: None,
+                config: bench,
                 chamber: false,
             },
             resume.as_deref(),
@@ -534,7 +544,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             db,
         } => records::export(&run, &format, file, force, &db, out),
         Command::Report { run, output } => reports::report(&run, &output, out),
-        Command::BatchReport { runs, output } => reports::batch_report(&runs, &output, out),
+        Command::BatchReport {
+            runs,
+            baseline_runs,
+            output,
+        } => reports::batch_report(&runs, baseline_runs as usize, &output, out),
         Command::Replay { run, data, db } => reports::replay(&run, &data, db, out),
         Command::Serve { args } => crate::web::serve(args, out),
         Command::User { action } => match action {

@@ -17,11 +17,21 @@ pub(super) fn report(run: &str, o: &ReportOutput, out: &mut dyn Write) -> Result
 }
 
 /// `spinbench batch-report [RUN…]`.
-pub(super) fn batch_report(runs: &[String], o: &ReportOutput, out: &mut dyn Write) -> Result<()> {
+pub(super) fn batch_report(
+    runs: &[String],
+    baseline_runs: usize,
+    o: &ReportOutput,
+    out: &mut dyn Write,
+) -> Result<()> {
     let store = open_store(&o.db)?;
-    let files =
-        spinbench_report::write_batch_reports(&store, runs, &report_formats(&o.format)?, &o.out)
-            .with_context(|| format!("{}: batch report", o.db))?;
+    let files = spinbench_report::write_batch_reports(
+        &store,
+        runs,
+        baseline_runs,
+        &report_formats(&o.format)?,
+        &o.out,
+    )
+    .with_context(|| format!("{}: batch report", o.db))?;
     print_paths(out, &files)?;
     Ok(())
 }

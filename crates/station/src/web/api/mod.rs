@@ -25,6 +25,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 mod assets;
+mod charts;
 mod live;
 mod plans;
 mod runs;
@@ -173,6 +174,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("post", "/api/run/resume", post(runs::resume)),
         ("post", "/api/run/abort", post(runs::abort)),
         ("get", "/api/units/{serial}", get(runs::unit)),
+        ("get", "/api/control-charts", get(charts::control_charts)),
         ("get", "/api/users", get(users::users)),
         ("post", "/api/users", post(users::add_user)),
         ("delete", "/api/users/{name}", delete(users::delete_user)),

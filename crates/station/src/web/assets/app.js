@@ -43,7 +43,7 @@ async function api(method, path, body) {
 function route() {
   const page = (location.hash || "#status").slice(1);
   const loggedIn = !!state.session;
-  for (const id of ["login", "status", "run", "new", "history", "users"]) {
+  for (const id of ["login", "status", "run", "new", "history", "charts", "users"]) {
     $(id).hidden = loggedIn ? id !== page : id !== "login";
   }
   $("nav").hidden = !loggedIn;
@@ -52,6 +52,7 @@ function route() {
   if (!loggedIn) return;
   if (page === "new") loadPlans();
   if (page === "history") loadHistory();
+  if (page === "charts") loadCharts();
   if (page === "users") loadUsers();
   if (page === "run") draw();
 }
@@ -61,6 +62,7 @@ async function start() {
   $("login-form").addEventListener("submit", login);
   $("logout-button").addEventListener("click", logout);
   $("new-form").addEventListener("submit", startRun);
+  $("charts-form").addEventListener("submit", (ev) => { ev.preventDefault(); loadCharts(); });
   $("plan-select").addEventListener("change", fillSerials);
   $("prompt-done").addEventListener("click", () => answer(true));
   $("prompt-abort").addEventListener("click", () => answer(false));
@@ -291,19 +293,66 @@ function fillSerials() {
     input.pattern = "^([PN]:)?\\s*[^\\s:].*$|^[^:]*$";
     input.title = "a serial number, optionally prefixed P: or N:";
     input.value = plan && plan.serials[String(i)] ? plan.serials[String(i)] : "";
+    input.autocomplete = "off";
+    input.addEventListener("keydown", (ev) => { if (ev.key === "Enter") { ev.preventDefault(); scanned(i); } });
+    input.addEventListener("input", () => input.classList.remove("refused"));
     label.appendChild(input);
     box.appendChild(label);
   }
 }
 
+// The bare serial of an entry ("P:A7" → "A7"), or an error for one that
+// cannot be a serial: a bad mounting prefix, nothing after it, control
+// characters, over 200 characters (the plan's MAX_NAME_CHARS).
+function bareSerial(v) {
+  if (/[\u0000-\u001f\u007f]/.test(v)) return { error: "has control characters" };
+  if (v.length > 200) return { error: "is over 200 characters" };
+  const colon = v.indexOf(":");
+  if (colon < 0) return { bare: v.trim() };
+  if (!/^[PN]$/.test(v.slice(0, colon).trim())) return { error: "'" + v.slice(0, colon) + ":' is not a mounting prefix; use P: or N:" };
+  const bare = v.slice(colon + 1).trim();
+  return bare ? { bare } : { error: "has no serial number after its mounting prefix" };
+}
+
+// A barcode scanner (keyboard wedge) types the serial and Enter: check it
+// as it is scanned — a malformed serial or one already in another slot is
+// refused and cleared, and the slot keeps the focus for the next scan;
+// a good one moves the focus to the next slot (after the last, to Start).
+function scanned(i) {
+  const input = $("serial-" + i);
+  const v = input.value.trim();
+  input.classList.remove("refused");
+  if (!v) { return; }
+  const { bare, error } = bareSerial(v);
+  let why = error ? "slot " + i + ": '" + v + "' " + error : "";
+  if (!why) {
+    for (let j = 1; j <= state.slots; j++) {
+      const other = j === i ? "" : $("serial-" + j).value.trim();
+      if (other && bareSerial(other).bare === bare) { why = "slot " + i + ": '" + bare + "' is already in slot " + j; break; }
+    }
+  }
+  if (why) {
+    show(why + " — scan again");
+    input.classList.add("refused");
+    input.value = "";
+    input.focus();
+    return;
+  }
+  const next = i < state.slots ? $("serial-" + (i + 1)) : $("start-button");
+  if (next) next.focus();
+}
+
 async function startRun(ev) {
   ev.preventDefault();
   const serials = {};
+  const seen = {};
   for (let i = 1; i <= state.slots; i++) {
     const v = $("serial-" + i).value.trim();
     if (v) {
-      const colon = v.indexOf(":");
-      if (colon >= 0 && !/^[PN]$/.test(v.slice(0, colon).trim())) { show("slot " + i + ": '" + v.slice(0, colon) + ":' is not a mounting prefix; use P: or N:"); return; }
+      const { bare, error } = bareSerial(v);
+      if (error) { show("slot " + i + ": '" + v + "' " + error); return; }
+      if (seen[bare]) { show("slot " + i + ": '" + bare + "' is already in slot " + seen[bare]); return; }
+      seen[bare] = i;
       serials[String(i)] = v;
     }
   }
@@ -420,6 +469,42 @@ function showLinks(box, r) {
     });
     box.appendChild(b);
   }
+}
+
+// The control charts across every run: the flags, each chart (its SVG,
+// drawn by the server as in the batch report), the first-pass yields.
+async function loadCharts() {
+  try {
+    const c = await api("GET", "/api/control-charts?baseline_runs=" + encodeURIComponent($("baseline-runs").value || "10"));
+    const flags = $("flags-table").tBodies[0];
+    flags.textContent = "";
+    const figures = $("chart-figures");
+    figures.textContent = "";
+    for (const chart of c.charts) {
+      for (const v of chart.violations) {
+        const tr = flags.insertRow();
+        tr.className = "flagged";
+        [chart.quantity, v.point, v.run_id, Number(chart.points[v.point - 1].value).toFixed(6) + " " + chart.unit, v.says].forEach((x) => { tr.insertCell().textContent = x; });
+      }
+      // Every product chart; a radius chart only when a rule is broken.
+      if (chart.svg && (chart.slot === null || chart.flagged)) {
+        const fig = document.createElement("figure");
+        fig.className = "control-chart";
+        fig.dataset.quantity = chart.quantity;
+        fig.dataset.flagged = chart.flagged;
+        // The server's own SVG (plotters; no user text but the figure names).
+        fig.innerHTML = chart.svg;
+        figures.appendChild(fig);
+      }
+    }
+    if (!flags.rows.length) { flags.insertRow().insertCell().textContent = "no rule broken over " + c.runs + " runs"; }
+    const yields = $("yield-table").tBodies[0];
+    yields.textContent = "";
+    for (const y of c.yield_by_run.concat(c.yield_by_day)) {
+      const tr = yields.insertRow();
+      [y.label, y.first_tests, y.first_passes, y.yield === null ? "—" : (100 * y.yield).toFixed(1) + " %"].forEach((x) => { tr.insertCell().textContent = x; });
+    }
+  } catch (e) { show(e.message); }
 }
 
 function showReports(box, id) {
