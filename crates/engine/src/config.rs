@@ -297,6 +297,19 @@ impl StationConfig {
         })
     }
 
+    /// The roles of the station's devices, as a run's device list names
+    /// them (`centrifuge`, `fmu 1` …, `instrument supply`, `module supply`):
+    /// the keys of the equipment register.
+    pub fn device_roles(&self) -> Vec<String> {
+        let mut roles = vec!["centrifuge".to_string()];
+        roles.extend((1..=self.fmu.len()).map(|m| format!("fmu {m}")));
+        roles.push("instrument supply".into());
+        if self.power.module_supply.is_some() {
+            roles.push("module supply".into());
+        }
+        roles
+    }
+
     /// Check every value that can be checked without the hardware.
     pub fn validate(&self) -> Result<(), StationConfigError> {
         let err = |key: &str, problem: String| {

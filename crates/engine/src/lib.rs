@@ -14,6 +14,7 @@
 
 pub mod abort;
 pub mod bench;
+pub mod board;
 pub mod bounds;
 pub mod config;
 pub mod event;

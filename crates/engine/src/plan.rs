@@ -788,6 +788,12 @@ impl TestPlan {
                     .collect(),
             ]
         };
+        // A pass nobody takes part in (every instrument's prefix fixes the
+        // other mounting) is not spun: the table would run its levels for nothing.
+        let passes: Vec<Vec<Option<Mount>>> = passes
+            .into_iter()
+            .filter(|p| p.iter().any(Option::is_some))
+            .collect();
 
         // Safety: every level within the rate limit and every position within its rating.
         let max_rate = station.centrifuge.max_rate_deg_s().map_err(|e| PlanError {
@@ -1027,6 +1033,13 @@ mod tests {
         assert_eq!(c.passes.len(), 2);
         assert_eq!(c.passes[0][1], None, "an N-only serial sits out the P pass");
         assert_eq!(c.passes[1][1], Some(Mount::N));
+        // With only N-fixed instruments the P pass is not spun at all.
+        let n_only = TestPlan::from_toml("passes = [\"P\", \"N\"]\n[serials]\n2 = \"N:B\"")
+            .expect("plan")
+            .compile(&st)
+            .expect("compile");
+        assert_eq!(n_only.passes.len(), 1);
+        assert_eq!(n_only.passes[0][1], Some(Mount::N));
     }
 
     #[test]

@@ -1209,3 +1209,71 @@ fn chamber_faults_during_a_run_end_in_the_safe_state_with_the_reason() {
     assert_safe(&bench, true);
     bench.shutdown();
 }
+
+#[test]
+fn the_board_follows_every_slot_through_the_run() {
+    use spinbench_engine::board::{SlotBoard, SlotPhase};
+    use spinbench_engine::plan::Step;
+    let mut plan = small_plan();
+    plan.passes = vec![Mount::P, Mount::N];
+    let (summary, events, bench) = run(SimConfig::default(), plan, None);
+    bench.shutdown();
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let Some(Event::RunStarted { plan, .. }) = events.first() else {
+        panic!("the run starts with RunStarted");
+    };
+    // The last level of the first pass.
+    let end_of_p = plan
+        .steps
+        .iter()
+        .rposition(|s| matches!(s, Step::Level { pass: 0, .. }))
+        .expect("levels of pass 0");
+    let mut board = SlotBoard::new();
+    let mut seen_averaging = false;
+    let mut after_p = None;
+    for event in &events {
+        board.apply(event);
+        if board
+            .slots()
+            .iter()
+            .any(|s| s.phase == SlotPhase::Averaging)
+        {
+            seen_averaging = true;
+        }
+        if matches!(event, Event::StepDone { index } if *index == end_of_p) {
+            after_p = Some(board.slots().to_vec());
+        }
+    }
+    assert!(seen_averaging, "slots were seen averaging at a level");
+    // After the P pass each slot has its P k2 with a U95, no K2 yet.
+    let after_p = after_p.expect("the P pass ended");
+    assert_eq!(after_p.len(), 9);
+    for s in &after_p {
+        assert_eq!(
+            s.k2_ug_per_g2.len(),
+            1,
+            "slot {}: {:?}",
+            s.slot,
+            s.k2_ug_per_g2
+        );
+        assert_eq!(s.k2_ug_per_g2[0].0, Mount::P);
+        assert!(s.k2_ug_per_g2[0].2.is_some_and(|u| u > 0.0));
+        assert!(s.big_k2_ug_per_g2.is_none());
+        assert_eq!(s.points * 2, s.points_planned);
+    }
+    // At the end: graded, every point taken, k2 of both mountings and K2,
+    // the board's outcome the record's.
+    for s in board.slots() {
+        let record = summary
+            .records
+            .iter()
+            .find(|r| r.slot + 1 == s.slot)
+            .expect("record");
+        assert_eq!(s.phase, SlotPhase::Done);
+        assert_eq!(s.outcome, Some(record.outcome));
+        assert_eq!(s.points, s.points_planned);
+        assert_eq!(s.k2_ug_per_g2.len(), 2);
+        assert!(s.big_k2_ug_per_g2.is_some());
+        assert!(s.temperature_c.is_some() && s.output_hz.is_some());
+    }
+}

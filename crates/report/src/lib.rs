@@ -473,17 +473,24 @@ pub fn temperature_line(points: &[spinbench_engine::PointRecord]) -> Option<Stri
     ))
 }
 
-/// The station's devices and their identities, when recorded: (role, identity).
-fn devices(report: &RunReport) -> Option<Vec<(String, String)>> {
+/// The station's devices, their identities and calibration as the run
+/// recorded them: (role, identity, calibration — "certificate C, due D
+/// (status)", "not in the register", or empty for runs before the register).
+pub(crate) fn devices(report: &RunReport) -> Option<Vec<(String, String, String)>> {
     let devices: Vec<Value> = serde_json::from_str(report.context.devices_json.as_deref()?).ok()?;
+    let text = |d: &Value, key: &str| d[key].as_str().unwrap_or("").to_string();
     Some(
         devices
             .iter()
             .map(|d| {
-                (
-                    d["role"].as_str().unwrap_or("").to_string(),
-                    d["identity"].as_str().unwrap_or("").to_string(),
-                )
+                let calibration = match (d["certificate"].as_str(), d["calibration"].as_str()) {
+                    (Some(cert), Some(status)) => {
+                        format!("certificate {cert}, due {} ({status})", text(d, "due_on"))
+                    }
+                    (None, Some(status)) => status.to_string(),
+                    _ => String::new(),
+                };
+                (text(d, "role"), text(d, "identity"), calibration)
             })
             .collect(),
     )
@@ -592,13 +599,14 @@ pub fn html(report: &RunReport) -> String {
     h.push_str("</table>\n");
     if let Some(devices) = devices(report) {
         h.push_str(
-            "<h2>Instruments of the station</h2><table><tr><th>device</th><th>identity</th></tr>",
+            "<h2>Instruments of the station</h2><table id=\"equipment\"><tr><th>device</th><th>identity</th><th>calibration</th></tr>",
         );
-        for (role, identity) in devices {
+        for (role, identity, calibration) in devices {
             h.push_str(&format!(
-                "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
+                "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
                 esc(&role),
-                esc(&identity)
+                esc(&identity),
+                esc(&calibration)
             ));
         }
         h.push_str("</table>\n");
@@ -733,9 +741,21 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
         let sheet = book.add_worksheet().set_name("run")?;
         sheet.write_string(0, 0, "run")?;
         sheet.write_string(0, 1, &report.run.id)?;
-        for (r, (label, value)) in meta_rows(report).iter().enumerate() {
+        let meta = meta_rows(report);
+        for (r, (label, value)) in meta.iter().enumerate() {
             sheet.write_string_with_format(r as u32 + 1, 0, *label, &bold)?;
             sheet.write_string(r as u32 + 1, 1, value)?;
+        }
+        // The station's devices with their calibration.
+        let mut r = meta.len() as u32 + 2;
+        for (c, head) in ["device", "identity", "calibration"].iter().enumerate() {
+            sheet.write_string_with_format(r, c as u16, *head, &bold)?;
+        }
+        for (role, identity, calibration) in devices(report).unwrap_or_default() {
+            r += 1;
+            sheet.write_string(r, 0, &role)?;
+            sheet.write_string(r, 1, &identity)?;
+            sheet.write_string(r, 2, &calibration)?;
         }
     }
     for u in &report.units {

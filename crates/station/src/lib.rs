@@ -16,6 +16,7 @@
 
 pub mod cli;
 pub mod demo;
+pub mod equipment;
 pub mod export;
 pub mod paths;
 pub mod points_file;

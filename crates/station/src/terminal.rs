@@ -80,6 +80,66 @@ pub struct ProgressPrinter {
     quiet: bool,
     /// The instruments' temperatures, coldest and warmest slot [°C].
     temperatures_c: Option<(f64, f64)>,
+    /// Every slot's state, as the web UI's board shows it.
+    board: spinbench_engine::board::SlotBoard,
+}
+
+/// "9 averaging, 1 failed": how many slots are in each state.
+fn phase_counts(board: &spinbench_engine::board::SlotBoard) -> String {
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    for s in board.slots() {
+        let name = serde_json::to_value(s.phase)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_default();
+        match counts.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, c)) => *c += 1,
+            None => counts.push((name, 1)),
+        }
+    }
+    counts
+        .iter()
+        .map(|(n, c)| format!("{c} {n}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The board as lines: slot, serial, mounting, state, points, k2 and K2.
+pub fn board_lines(board: &spinbench_engine::board::SlotBoard) -> Vec<String> {
+    let pm = |v: f64, u: Option<f64>| match u {
+        Some(u) => format!("{v:.3} ± {u:.3}"),
+        None => format!("{v:.3}"),
+    };
+    board
+        .slots()
+        .iter()
+        .map(|s| {
+            let phase = serde_json::to_value(s.phase)
+                .ok()
+                .and_then(|v| v.as_str().map(str::to_string))
+                .unwrap_or_default();
+            let k2: Vec<String> = s
+                .k2_ug_per_g2
+                .iter()
+                .map(|(m, v, u)| format!("{m:?} {}", pm(*v, *u)))
+                .collect();
+            format!(
+                "  slot {:>2} {:<14} {:<10} {:>3}/{:<3} pts  k2 {}  K2 {}{}",
+                s.slot,
+                s.serial,
+                phase,
+                s.points,
+                s.points_planned,
+                if k2.is_empty() {
+                    "—".into()
+                } else {
+                    k2.join(", ")
+                },
+                s.big_k2_ug_per_g2.map_or("—".into(), |(v, u)| pm(v, u)),
+                s.outcome.map(|o| format!("  {o}")).unwrap_or_default()
+            )
+        })
+        .collect()
 }
 
 /// "T 24.1 °C" or "T 24.1–25.3 °C" for the slots' temperatures, if any came.
@@ -102,12 +162,33 @@ impl ProgressPrinter {
             last: Instant::now(),
             quiet,
             temperatures_c: None,
+            board: spinbench_engine::board::SlotBoard::new(),
         }
     }
 }
 
 impl EventSink for ProgressPrinter {
     fn emit(&mut self, event: &Event) -> Result<(), String> {
+        let fitted_before: usize = self
+            .board
+            .slots()
+            .iter()
+            .map(|s| s.k2_ug_per_g2.len())
+            .sum();
+        self.board.apply(event);
+        let fitted_after: usize = self
+            .board
+            .slots()
+            .iter()
+            .map(|s| s.k2_ug_per_g2.len())
+            .sum();
+        // A pass ended and its k2 were fitted: show every slot.
+        if !self.quiet && matches!(event, Event::StepDone { .. }) && fitted_after > fitted_before {
+            eprintln!("\r\x1b[2K  pass done — the board:");
+            for line in board_lines(&self.board) {
+                eprintln!("{line}");
+            }
+        }
         match event {
             Event::Fault { reason } => {
                 eprintln!("\r\x1b[2K  FAULT: {reason} — bringing the station to the safe state")
@@ -150,7 +231,7 @@ impl EventSink for ProgressPrinter {
                 let bar_len = 20;
                 let filled = (i * bar_len).checked_div(n).unwrap_or(0).min(bar_len);
                 eprint!(
-                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}{}",
+                    "\r\x1b[2K  [{}{}] {i}/{n} {} | {} | t = {:.0} s | {:.2} deg/s {}{} | {}",
                     "#".repeat(filled),
                     ".".repeat(bar_len - filled),
                     self.step,
@@ -158,7 +239,8 @@ impl EventSink for ProgressPrinter {
                     time_s,
                     rate_deg_s,
                     if *on_speed { "on speed" } else { "settling" },
-                    temperature_range(self.temperatures_c)
+                    temperature_range(self.temperatures_c),
+                    phase_counts(&self.board)
                 );
             }
             Event::RunFinished { state, reason } => {

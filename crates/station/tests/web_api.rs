@@ -22,6 +22,7 @@ fn concrete(path: &str) -> String {
         .replace("{id}", "no-such-run")
         .replace("{format}", "pdf")
         .replace("{serial}", "API-1")
+        .replace("{role}", "centrifuge")
 }
 
 #[test]
@@ -568,4 +569,133 @@ fn read_events(
         }
     }
     (ids, kinds)
+}
+
+#[test]
+fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("api.toml"), plan()).expect("plan");
+    let server = serve(dir.path(), "0");
+    let mut op = Client::login(&server, "op", "op-password");
+    let mut eng = Client::login(&server, "eng", "eng-password");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+
+    // The station's devices, none registered yet.
+    let list = op.get_json("/api/equipment", 200);
+    let roles: Vec<&str> = list
+        .as_array()
+        .expect("devices")
+        .iter()
+        .filter_map(|d| d["role"].as_str())
+        .collect();
+    assert!(roles.starts_with(&["centrifuge", "fmu 1"]), "{roles:?}");
+    assert!(
+        list.as_array()
+            .expect("devices")
+            .iter()
+            .all(|d| d["status"] == "not in the register")
+    );
+
+    let entry = |cal: &str, due: &str| {
+        json!({"identity": "Acutrol 3000 SN 117", "certificate": "NIM-2026-0042",
+               "calibrated_on": cal, "due_on": due})
+        .to_string()
+    };
+    // Kept by engineers, with what is wrong named.
+    let path = "/api/equipment/centrifuge";
+    assert_eq!(
+        op.send("PUT", path, Some(&entry("2025-01-01", "2026-01-01")))
+            .status,
+        403
+    );
+    for (body, says) in [
+        (entry("2025-01-01", "2026-02-30"), "due_on"),
+        (entry("2025-13-01", "2026-01-01"), "calibrated_on"),
+        (entry("2026-01-01", "2025-01-01"), "not after"),
+    ] {
+        let r = eng.send("PUT", path, Some(&body));
+        assert_eq!(r.status, 400, "{body}");
+        assert!(
+            r.json()["error"].as_str().is_some_and(|e| e.contains(says)),
+            "{:?}",
+            r.json()
+        );
+    }
+    assert_eq!(
+        eng.send(
+            "PUT",
+            "/api/equipment/toaster",
+            Some(&entry("2025-01-01", "2026-01-01"))
+        )
+        .status,
+        404
+    );
+    // Overdue since 2026-01-01.
+    let r = eng.send("PUT", path, Some(&entry("2025-01-01", "2026-01-01")));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let list = op.get_json("/api/equipment", 200);
+    assert_eq!(list[0]["status"], "overdue");
+    assert_eq!(list[0]["updated_by"], "eng");
+
+    // A run does not start; an operator's override is refused; an admin's is recorded.
+    let start = |over: Option<&str>| {
+        let mut body = json!({"plan": "api", "serials": {"1": "EQ-1"}});
+        if let Some(reason) = over {
+            body["override_overdue"] = json!(reason);
+        }
+        body.to_string()
+    };
+    let r = op.send("POST", "/api/runs", Some(&start(None)));
+    assert_eq!(r.status, 409);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("centrifuge (due 2026-01-01) overdue")),
+        "{:?}",
+        r.json()
+    );
+    assert_eq!(
+        op.send("POST", "/api/runs", Some(&start(Some("line stop"))))
+            .status,
+        403
+    );
+    let r = admin.send(
+        "POST",
+        "/api/runs",
+        Some(&start(Some("recalibration booked for Monday"))),
+    );
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let run_id = r.json()["run_id"].as_str().expect("id").to_string();
+    let log = admin.get_json("/api/audit", 200).to_string();
+    assert!(
+        log.contains("override overdue calibration") && log.contains("recalibration booked"),
+        "{log}"
+    );
+    assert!(
+        log.contains("set equipment") && log.contains("NIM-2026-0042"),
+        "{log}"
+    );
+    // The run's report lists the equipment with its calibration as it stood.
+    admin.wait_status(60, |s| s["prompt"].is_string());
+    assert_eq!(admin.send("POST", "/api/run/abort", None).status, 200);
+    admin.wait_status(60, |s| s["active"].is_null());
+    let html = admin.send("GET", &format!("/api/runs/{run_id}/report/html"), None);
+    let html = String::from_utf8_lossy(&html.body);
+    assert!(
+        html.contains("certificate NIM-2026-0042, due 2026-01-01 (overdue)")
+            && html.contains("not in the register"),
+        "the report's equipment table"
+    );
+    // Calibrated again: runs start without an override.
+    let r = eng.send("PUT", path, Some(&entry("2026-11-01", "2027-11-01")));
+    assert_eq!(r.status, 200);
+    let r = op.send("POST", "/api/runs", Some(&start(None)));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    op.wait_status(60, |s| s["prompt"].is_string());
+    assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
+    op.wait_status(60, |s| s["active"].is_null());
 }

@@ -24,7 +24,9 @@ fn an_operator_runs_a_test_in_the_browser() {
     web::add_user(dir.path(), "op", "operator", "op-password");
     web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    std::fs::write(dir.path().join("plans").join("browser.toml"), plan()).expect("plan");
+    // A k2 limit no instrument meets: the run has an instrument to retest.
+    let strict = format!("{}[limits]\nk2_max_ug_per_g2 = 0.001\n", plan());
+    std::fs::write(dir.path().join("plans").join("browser.toml"), strict).expect("plan");
     // 10× real time: a few seconds per level, so the curves visibly move,
     // and light enough for a debug build on a loaded 2-core machine.
     let server = web::serve(dir.path(), "10");
@@ -92,6 +94,7 @@ fn an_operator_runs_a_test_in_the_browser() {
     // Answer every prompt; watch the curves move in between.
     let mut prompts = 0;
     let mut moved = false;
+    let mut board_at_level: Option<Value> = None;
     let until = Instant::now() + Duration::from_secs(240);
     loop {
         let state = b.script("return document.getElementById('run-state').textContent");
@@ -108,6 +111,22 @@ fn an_operator_runs_a_test_in_the_browser() {
         {
             b.screenshot(&shots.join("3c-ended.png"));
             panic!("the run ended: {state}");
+        }
+        // The board: the one instrument, once at a level, with its mounting.
+        if board_at_level.is_none() {
+            let cells = b.script(
+                "const r = document.querySelector('#board tbody tr[data-slot=\"2\"]'); \
+                 return r ? Array.from(r.cells).map(c => c.textContent) : null",
+            );
+            if cells[1] == "WEB-2"
+                && cells[2] == "N"
+                && ["settling", "averaging", "radius"]
+                    .iter()
+                    .any(|p| cells[5].as_str().is_some_and(|s| s.starts_with(p)))
+            {
+                b.screenshot(&shots.join("3a-board.png"));
+                board_at_level = Some(cells);
+            }
         }
         let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
         if prompt_shown == Value::Bool(true) {
@@ -131,6 +150,12 @@ fn an_operator_runs_a_test_in_the_browser() {
             let after = count(&b);
             if after > before && before > 0 {
                 moved = true;
+                // The board: the one instrument, at a level, with its points.
+                assert_eq!(
+                    b.script("return [document.getElementById('pause-button').hidden, document.getElementById('resume-button').hidden, document.getElementById('abort-button').hidden]"),
+                    serde_json::json!([false, true, false]),
+                    "while it runs: pause and abort, no resume"
+                );
                 b.screenshot(&shots.join("3-live-curves.png"));
                 // The status panel while the table spins.
                 b.click("#nav-status");
@@ -157,6 +182,18 @@ fn an_operator_runs_a_test_in_the_browser() {
         "tumble up, tumble down, remount: {prompts} prompts answered"
     );
     assert!(moved, "the live curves moved while the run went on");
+    assert!(
+        board_at_level.is_some(),
+        "the board showed slot 2 at a level in mounting N"
+    );
+    // Finished: the board says done, all points, k2 with U95 and the outcome.
+    b.wait_for(
+        10,
+        "the board's final row",
+        "const r = document.querySelector('#board tbody tr[data-slot=\"2\"]'); \
+         return !!r && r.cells[5].textContent.startsWith('done') && r.cells[6].textContent === '11/11' \
+         && r.cells[7].textContent.includes('±') && r.cells[9].textContent !== '—'",
+    );
     // The curves are drawn: pixels on the canvas are not all blank.
     let inked = b.script(
         "const c = document.getElementById('curves'); const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
@@ -262,6 +299,101 @@ fn an_operator_runs_a_test_in_the_browser() {
         b.script("return document.querySelector('#chart-figures figure').dataset.quantity"),
         Value::String("k2_max".into())
     );
+
+    // Retest in one action: the run's inconclusive instrument again, linked.
+    b.click("#nav-history");
+    b.wait_for(
+        10,
+        "the runs table",
+        "return document.querySelectorAll('#runs-table tbody tr').length > 0",
+    );
+    b.click("#runs-table tbody tr a");
+    b.wait_for(
+        10,
+        "the retest button",
+        "return !!document.getElementById('retest-button')",
+    );
+    b.screenshot(&shots.join("8-retest-offered.png"));
+    b.click("#retest-button");
+    b.wait_for(
+        20,
+        "the retest on the run screen",
+        "return !document.getElementById('run').hidden && document.getElementById('message').textContent.includes('retest')",
+    );
+    b.wait_for(
+        20,
+        "the retest's board",
+        "const r = document.querySelector('#board tbody tr[data-slot=\"2\"]'); return !!r && r.cells[1].textContent === 'WEB-2'",
+    );
+    b.screenshot(&shots.join("8b-retest-running.png"));
+    b.wait_for(
+        10,
+        "the abort button",
+        "return !document.getElementById('abort-button').hidden",
+    );
+    b.click("#abort-button");
+    b.accept_dialog();
+    b.wait_for(
+        30,
+        "the retest aborted, its banner",
+        "return document.getElementById('run-state').textContent.startsWith('aborted') \
+         && !document.getElementById('alarm').hidden",
+    );
+    b.wait_for(
+        10,
+        "the controls gone",
+        "return document.getElementById('abort-button').hidden",
+    );
+}
+
+#[test]
+fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    web::add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), plan()).expect("plan");
+    // The interlocks open 60 s of bench time into the run.
+    let bench = dir.path().join("bench.toml");
+    std::fs::write(&bench, "[faults]\ninterlock_open_at_s = 60.0\n").expect("bench");
+    let server = web::serve_with(
+        dir.path(),
+        "10",
+        &["--sim-config", bench.to_str().expect("utf-8")],
+    );
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    std::fs::create_dir_all(&shots).expect("screenshot dir");
+    let b = Browser::start();
+    log_in(&b, &server.base, "op", "op-password");
+    b.click("#nav-new");
+    b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
+    b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
+    b.type_into("#serial-2", "N:WEB-F");
+    b.click("#start-button");
+    let until = Instant::now() + Duration::from_secs(120);
+    loop {
+        let state = b.script("return document.getElementById('run-state').textContent");
+        assert!(Instant::now() < until, "no fault in time: {state}");
+        if state.as_str().is_some_and(|s| s.starts_with("faulted")) {
+            break;
+        }
+        if b.script("return !document.getElementById('prompt').hidden") == Value::Bool(true) {
+            b.click("#prompt-done");
+        }
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    b.wait_for(
+        10,
+        "the fault banner",
+        "const a = document.getElementById('alarm'); return !a.hidden && a.className === 'fault' && a.textContent.includes('interlock')",
+    );
+    b.wait_for(10, "no controls on an ended run", "return document.getElementById('abort-button').hidden && document.getElementById('pause-button').hidden");
+    assert!(
+        b.script("return document.getElementById('event-log').textContent")
+            .as_str()
+            .is_some_and(|t| t.contains("FAULT")),
+        "the event log has the fault"
+    );
+    b.screenshot(&shots.join("9-fault-banner.png"));
 }
 
 #[test]
@@ -303,6 +435,45 @@ fn an_engineer_saves_a_plan_in_the_browser() {
         b.script("return document.getElementById('station-save').disabled"),
         Value::Bool(true)
     );
+
+    // The equipment register: the engineer records the centrifuge's
+    // certificate, due last January; the register shows it overdue, and a
+    // run is refused until it is calibrated again.
+    b.click("#nav-equipment");
+    b.wait_for(10, "the register", "return document.querySelectorAll('#equipment-table tbody tr').length >= 3 && !document.getElementById('equipment-form').hidden");
+    b.script(
+        "document.getElementById('eq-role').value = 'centrifuge';\
+         document.getElementById('eq-identity').value = 'Acutrol 3000 SN 117';\
+         document.getElementById('eq-certificate').value = 'NIM-2026-0042';\
+         document.getElementById('eq-calibrated').value = '2025-01-01';\
+         document.getElementById('eq-due').value = '2026-01-01';",
+    );
+    b.click("#eq-save");
+    b.wait_for(
+        10,
+        "the centrifuge overdue",
+        "const r = document.querySelector('#equipment-table tbody tr[data-role=\"centrifuge\"]'); return !!r && r.cells[5].textContent === 'overdue'",
+    );
+    b.screenshot(&shots.join("10-register-overdue.png"));
+    b.click("#nav-new");
+    b.wait_for(
+        10,
+        "the serials",
+        "return !!document.getElementById('serial-1')",
+    );
+    assert_eq!(
+        b.script("return document.getElementById('override-box').hidden"),
+        Value::Bool(true),
+        "only an admin is offered the override"
+    );
+    b.type_into("#serial-1", "REG-1");
+    b.click("#start-button");
+    b.wait_for(
+        10,
+        "the refusal naming the device",
+        "return document.getElementById('message').textContent.includes('centrifuge (due 2026-01-01) overdue')",
+    );
+    b.screenshot(&shots.join("10b-run-refused.png"));
 }
 
 /// Open the page and log in through its form; waits for the status page.

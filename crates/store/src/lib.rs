@@ -22,6 +22,7 @@
 
 mod csv;
 pub mod db;
+pub mod equipment;
 mod queries;
 mod schema;
 mod sink;

@@ -173,6 +173,27 @@ pub const MIGRATIONS: &[Migration] = &[
         postgres: "ALTER TABLE runs ADD COLUMN retest_of TEXT;
     CREATE INDEX runs_retest_of ON runs (retest_of);",
     },
+    Migration {
+        what: "the equipment register: each device's calibration certificate and due date",
+        sqlite: "CREATE TABLE equipment (
+        role TEXT PRIMARY KEY,
+        identity TEXT NOT NULL,
+        certificate TEXT NOT NULL,
+        calibrated_on TEXT NOT NULL,
+        due_on TEXT NOT NULL,
+        updated_by TEXT NOT NULL,
+        updated_at INTEGER NOT NULL
+    );",
+        postgres: "CREATE TABLE equipment (
+        role TEXT PRIMARY KEY,
+        identity TEXT NOT NULL,
+        certificate TEXT NOT NULL,
+        calibrated_on TEXT NOT NULL,
+        due_on TEXT NOT NULL,
+        updated_by TEXT NOT NULL,
+        updated_at BIGINT NOT NULL
+    );",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

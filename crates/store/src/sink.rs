@@ -99,11 +99,43 @@ impl StoreSink {
                 })?;
             }
             Event::Identified { devices } => {
+                // Each device with its calibration as the register has it now
+                // (the reports keep the status the run was made under).
+                let today = crate::equipment::today();
+                let mut listed = Vec::new();
+                for d in devices {
+                    let row = db.query_one(
+                        "SELECT certificate, calibrated_on, due_on FROM equipment WHERE role = $1",
+                        &[d.role.as_str().into()],
+                    )?;
+                    let mut entry = serde_json::json!({ "role": d.role, "identity": d.identity });
+                    match row {
+                        Some(r) => {
+                            let due = r.text(2);
+                            let status =
+                                crate::equipment::parse_date(&due).map_or("overdue", |days| {
+                                    if days < today {
+                                        "overdue"
+                                    } else if days - today <= crate::equipment::DUE_SOON_DAYS {
+                                        "due soon"
+                                    } else {
+                                        "valid"
+                                    }
+                                });
+                            entry["certificate"] = r.text(0).into();
+                            entry["calibrated_on"] = r.text(1).into();
+                            entry["due_on"] = due.into();
+                            entry["calibration"] = status.into();
+                        }
+                        None => entry["calibration"] = "not in the register".into(),
+                    }
+                    listed.push(entry);
+                }
                 db.execute(
                     "UPDATE runs SET devices_json = $2 WHERE id = $1",
                     &[
                         run_id.as_str().into(),
-                        serde_json::to_string(devices).unwrap_or_default().into(),
+                        serde_json::Value::Array(listed).to_string().into(),
                     ],
                 )?;
             }

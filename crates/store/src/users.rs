@@ -6,7 +6,7 @@ use crate::db::Value;
 use crate::{Store, StoreError, now_s};
 
 /// One audit-log entry, now, in `db` (alone or inside a caller's transaction).
-fn insert_audit(
+pub(crate) fn insert_audit(
     db: &mut crate::db::Db,
     who: &str,
     action: &str,

@@ -134,9 +134,10 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
             Align::Left,
         );
         y += 5.0;
-        for (role, identity) in devices {
+        for (role, identity, calibration) in devices {
             c.text(MARGIN_MM, y, 8.0, &role, Align::Left);
             c.text(MARGIN_MM + 28.0, y, 8.0, &identity, Align::Left);
+            c.text(MARGIN_MM + 150.0, y, 8.0, &calibration, Align::Left);
             y += 4.0;
         }
     }

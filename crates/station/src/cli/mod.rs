@@ -22,6 +22,7 @@ use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+mod equipment;
 mod records;
 mod reports;
 mod run;
@@ -135,6 +136,10 @@ pub enum Command {
         /// Continue the run in this directory from its journal.
         #[arg(long, value_name = "RUN_DIR")]
         resume: Option<PathBuf>,
+        /// Start although a device is overdue for calibration, with the
+        /// reason (recorded in the audit log).
+        #[arg(long, value_name = "REASON")]
+        override_overdue: Option<String>,
         /// Where runs are kept.
         #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,
@@ -278,6 +283,44 @@ pub enum Command {
         /// What to do.
         #[command(subcommand)]
         action: UserAction,
+    },
+    /// The equipment register: each device's calibration certificate and
+    /// due date (a run does not start while one is overdue).
+    Equipment {
+        /// What to do.
+        #[command(subcommand)]
+        action: EquipmentAction,
+    },
+}
+
+/// Actions of `spinbench equipment`.
+#[derive(Debug, Subcommand)]
+pub enum EquipmentAction {
+    /// Every device in the register with its status today.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Add or replace a device's entry (recorded in the audit log).
+    Set {
+        /// Its role in a run: centrifuge, fmu 1, fmu 2 …, instrument supply, module supply.
+        role: String,
+        /// What it is (model and serial number).
+        #[arg(long)]
+        identity: String,
+        /// The calibration certificate's number.
+        #[arg(long)]
+        certificate: String,
+        /// Calibrated on (YYYY-MM-DD).
+        #[arg(long)]
+        calibrated: String,
+        /// Due on (YYYY-MM-DD).
+        #[arg(long)]
+        due: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
 }
 
@@ -483,6 +526,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             realism,
             bench,
             resume,
+            override_overdue,
             data,
             quiet,
             db,
@@ -503,6 +547,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             &data,
             db,
             quiet,
+            override_overdue.as_deref(),
             out,
         ),
         Command::Retest {
@@ -551,6 +596,17 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         } => reports::batch_report(&runs, baseline_runs as usize, &output, out),
         Command::Replay { run, data, db } => reports::replay(&run, &data, db, out),
         Command::Serve { args } => crate::web::serve(args, out),
+        Command::Equipment { action } => match action {
+            EquipmentAction::List { db } => equipment::list(&db, out),
+            EquipmentAction::Set {
+                role,
+                identity,
+                certificate,
+                calibrated,
+                due,
+                db,
+            } => equipment::set(&role, &identity, &certificate, &calibrated, &due, &db, out),
+        },
         Command::User { action } => match action {
             UserAction::Add { name, role, db } => user::add(&name, &role, &db, out),
             UserAction::List { db } => user::list(&db, out),

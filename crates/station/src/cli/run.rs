@@ -36,6 +36,7 @@ pub(super) fn run_plan(
     data: &Path,
     db: Option<StoreTarget>,
     quiet: bool,
+    override_overdue: Option<&str>,
     out: &mut dyn Write,
 ) -> Result<()> {
     use crate::run_setup::{RunDir, Setup, prepare};
@@ -77,6 +78,36 @@ pub(super) fn run_plan(
             Box::new(TerminalOperator::default()),
         )
     };
+    // The equipment register: no new run while a device is overdue, unless
+    // overridden with a reason (kept in the audit log).
+    if resumed.is_none() {
+        let target = db
+            .clone()
+            .unwrap_or_else(|| crate::paths::default_store(data));
+        let store = spinbench_store::Store::connect(&target)
+            .with_context(|| format!("cannot open the store {target}"))?;
+        let list = crate::equipment::station_equipment(&store, &station)?;
+        if let Some(late) = crate::equipment::overdue(&list) {
+            match override_overdue.map(str::trim).filter(|r| !r.is_empty()) {
+                None => anyhow::bail!(
+                    "{late} overdue for calibration: calibrate it and update the register \
+                     (`spinbench equipment set`), or start anyway with --override-overdue REASON"
+                ),
+                Some(reason) => {
+                    let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
+                    store.audit(
+                        &who,
+                        "override overdue calibration",
+                        &format!("a run started with {late} overdue: {reason}"),
+                    )?;
+                    writeln!(
+                        out,
+                        "warning: {late} overdue for calibration; started anyway: {reason}"
+                    )?;
+                }
+            }
+        }
+    }
     let dir = match resumed {
         Some(dir) => dir,
         None => RunDir::create(data)?,
@@ -159,6 +190,7 @@ pub(super) fn retest(
         data,
         db,
         quiet,
+        None,
         out,
     )
 }

@@ -69,6 +69,8 @@ pub struct StatusSnapshot {
     pub slots: usize,
     /// Serial number per slot.
     pub serials: Vec<Option<String>>,
+    /// Every slot's live state (the board, issue 16 part 1).
+    pub board: Vec<spinbench_engine::board::SlotState>,
 }
 
 struct HubState {
@@ -77,6 +79,7 @@ struct HubState {
     others: VecDeque<Arc<HubEvent>>,
     status: StatusSnapshot,
     started: Option<std::time::Instant>,
+    board: spinbench_engine::board::SlotBoard,
 }
 
 /// The hub; share it in an `Arc`.
@@ -101,6 +104,7 @@ impl Hub {
                 others: VecDeque::new(),
                 status: StatusSnapshot::default(),
                 started: None,
+                board: spinbench_engine::board::SlotBoard::new(),
             }),
             tx,
             closing: tokio::sync::watch::channel(false).0,
@@ -149,6 +153,7 @@ impl Hub {
     pub fn status(&self) -> StatusSnapshot {
         let state = self.lock();
         let mut status = state.status.clone();
+        status.board = state.board.slots().to_vec();
         if let Some(t) = state.started {
             status.elapsed_s = t.elapsed().as_secs_f64();
             if let Some((index, of, _)) = &status.step
@@ -190,6 +195,7 @@ impl Hub {
         state.next_seq += 1;
         let hub_event = Arc::new(HubEvent { seq, kind, json });
         self.update_status(&mut state, event);
+        state.board.apply(event);
         if matches!(event, Event::Values { .. }) {
             state.values.push_back(hub_event.clone());
             while state.values.len() > VALUES_KEPT {

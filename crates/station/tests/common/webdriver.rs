@@ -141,7 +141,12 @@ impl Browser {
         self.call("POST", &format!("/element/{id}/click"), json!({}));
     }
 
-    /// Type `text` into the element `css`.
+    /// Accept the page's open `confirm()` (or `alert()`) dialog.
+    pub fn accept_dialog(&self) {
+        self.call("POST", "/alert/accept", json!({}));
+    }
+
+    /// Type `text` into the element `css`, after clearing it.
     pub fn type_into(&self, css: &str, text: &str) {
         let id = self.element(css);
         self.call("POST", &format!("/element/{id}/clear"), json!({}));

@@ -26,6 +26,7 @@ use std::time::{Duration, Instant};
 
 mod assets;
 mod charts;
+mod equipment;
 mod live;
 mod plans;
 mod runs;
@@ -175,6 +176,12 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("post", "/api/run/abort", post(runs::abort)),
         ("get", "/api/units/{serial}", get(runs::unit)),
         ("get", "/api/control-charts", get(charts::control_charts)),
+        ("get", "/api/equipment", get(equipment::equipment)),
+        (
+            "put",
+            "/api/equipment/{role}",
+            put(equipment::set_equipment),
+        ),
         ("get", "/api/users", get(users::users)),
         ("post", "/api/users", post(users::add_user)),
         ("delete", "/api/users/{name}", delete(users::delete_user)),

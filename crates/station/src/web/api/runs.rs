@@ -9,6 +9,9 @@ pub(super) struct StartRun {
     plan: String,
     #[serde(default)]
     serials: BTreeMap<String, String>,
+    /// An admin's reason to start although a device is overdue for calibration.
+    #[serde(default)]
+    override_overdue: Option<String>,
 }
 
 pub(super) async fn start_run(
@@ -34,7 +37,19 @@ pub(super) async fn start_run(
         plan.serials = serials;
     }
     plan.operator = session.user.clone();
+    let overridden = check_equipment(&app, &session, start.override_overdue.as_deref())?;
     let run_id = start_plan(&app, &plan, &session.user)?;
+    if let Some(devices) = overridden {
+        audit(
+            &app,
+            &session.user,
+            "override overdue calibration",
+            &format!(
+                "{run_id} started with {devices} overdue: {}",
+                start.override_overdue.as_deref().unwrap_or_default()
+            ),
+        )?;
+    }
     let serial_list: Vec<String> = plan
         .serials
         .iter()
@@ -51,6 +66,37 @@ pub(super) async fn start_run(
         ),
     )?;
     Ok((StatusCode::CREATED, axum::Json(json!({ "run_id": run_id }))))
+}
+
+/// Refuse a run while a device is overdue for calibration, unless an admin
+/// gives a reason to override (then the overdue devices, for the audit log).
+fn check_equipment(
+    app: &App,
+    session: &Session,
+    override_reason: Option<&str>,
+) -> ApiResult<Option<String>> {
+    let station = app.runner.station().0;
+    let list = crate::equipment::station_equipment(&store(app), &station)?;
+    let Some(late) = crate::equipment::overdue(&list) else {
+        return Ok(None);
+    };
+    match override_reason.map(str::trim) {
+        Some(reason) if !reason.is_empty() && session.role >= Role::Admin => {
+            if reason.chars().count() > 500 || reason.chars().any(char::is_control) {
+                return Err(ApiError::bad(
+                    "override_overdue: at most 500 characters, no control characters",
+                ));
+            }
+            Ok(Some(late))
+        }
+        Some(_) if session.role < Role::Admin => Err(ApiError::new(
+            StatusCode::FORBIDDEN,
+            format!("{late} overdue for calibration: only an admin may start a run anyway"),
+        )),
+        _ => Err(ApiError::conflict(format!(
+            "{late} overdue for calibration: calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
+        ))),
+    }
 }
 
 /// Start `plan` on the station for `user`; the run's id.
@@ -91,6 +137,7 @@ pub(super) async fn retest(
         E::Store(s) => ApiError::from(s),
     })?;
     plan.operator = session.user.clone();
+    check_equipment(&app, &session, None)?;
     let run_id = start_plan(&app, &plan, &session.user)?;
     audit(
         &app,

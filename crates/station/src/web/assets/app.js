@@ -14,6 +14,8 @@ const state = {
   events: null,
   runId: null,
   answeredAt: 0,      // when the operator last answered a prompt (ms)
+  marks: [],          // [[t, label], ...]: when each level began
+  lastTime: 0,        // station time of the latest one-second values [s]
 };
 const KEEP_S = 300;
 const $ = (id) => document.getElementById(id);
@@ -43,7 +45,7 @@ async function api(method, path, body) {
 function route() {
   const page = (location.hash || "#status").slice(1);
   const loggedIn = !!state.session;
-  for (const id of ["login", "status", "run", "new", "history", "charts", "users"]) {
+  for (const id of ["login", "status", "run", "new", "history", "charts", "equipment", "users"]) {
     $(id).hidden = loggedIn ? id !== page : id !== "login";
   }
   $("nav").hidden = !loggedIn;
@@ -53,6 +55,8 @@ function route() {
   if (page === "new") loadPlans();
   if (page === "history") loadHistory();
   if (page === "charts") loadCharts();
+  if (page === "equipment") loadEquipment();
+  if (page === "new") $("override-box").hidden = !(state.session && state.session.role === "admin");
   if (page === "users") loadUsers();
   if (page === "run") draw();
 }
@@ -63,6 +67,7 @@ async function start() {
   $("logout-button").addEventListener("click", logout);
   $("new-form").addEventListener("submit", startRun);
   $("charts-form").addEventListener("submit", (ev) => { ev.preventDefault(); loadCharts(); });
+  $("equipment-form").addEventListener("submit", saveEquipment);
   $("plan-select").addEventListener("change", fillSerials);
   $("prompt-done").addEventListener("click", () => answer(true));
   $("prompt-abort").addEventListener("click", () => answer(false));
@@ -114,7 +119,9 @@ function connect() {
   const on = (name, f) => es.addEventListener(name, (m) => { try { f(JSON.parse(m.data)); } catch (e) { console.error(e); } });
   on("run_started", (e) => {
     state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
-    state.history = state.serials.map(() => []); state.rate = []; state.values = 0;
+    state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
+    $("event-log").textContent = ""; $("alarm").hidden = true;
+    log("run " + e.run_id + (e.resumed ? " resumed" : " started"));
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
   });
   on("values", (e) => {
@@ -122,24 +129,70 @@ function connect() {
     e.outputs_hz.forEach((v, i) => { if (v !== null) push(state.history[i], [e.time_s, v]); });
     state.temperatures = e.temperatures_c || [];
     push(state.rate, [e.time_s, e.rate_deg_s]);
+    state.lastTime = e.time_s;
     state.values += 1;
     $("curves").dataset.values = String(state.values);
     state.dirty = true;
   });
   on("state_changed", (e) => setRunState(e.state));
-  on("step_started", (e) => { $("progress").textContent = "step " + (e.index + 1) + " of " + e.of + ": " + e.label; });
+  on("step_started", (e) => {
+    $("progress").textContent = "step " + (e.index + 1) + " of " + e.of + ": " + e.label;
+    $("run-progress").max = e.of; $("run-progress").value = e.index;
+    // A level's start, marked on the curves (its label, e.g. "5 g Up (pass 1)").
+    const level = /^(-?[0-9.]+ g)/.exec(e.label);
+    if (level) { state.marks.push([state.lastTime, level[1]]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
+    log(e.label);
+  });
   on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + " — " + e.phase + " " + e.done + "/" + e.of + " s"; });
-  on("prompt", (e) => { $("prompt-text").textContent = e.text; $("prompt").hidden = false; });
+  on("prompt", (e) => { $("prompt-text").textContent = e.text; $("prompt").hidden = false; log("operator asked: " + e.text); });
   on("prompt_answered", () => { $("prompt").hidden = true; });
-  on("notice", (e) => show(e.message));
-  on("fault", (e) => show("Fault: " + e.reason));
+  on("notice", (e) => { show(e.message); alarm("Notice: " + e.message, false); log("notice: " + e.message); });
+  on("fault", (e) => { show("Fault: " + e.reason); alarm("FAULT: " + e.reason, true); log("FAULT: " + e.reason); });
+  on("unit_failed", (e) => { alarm("slot " + (e.slot + 1) + " left out: " + e.reason, false); log("slot " + (e.slot + 1) + " left out: " + e.reason); });
   on("run_finished", (e) => {
     setRunState(e.state + (e.reason ? ": " + e.reason : ""));
+    log("run " + e.state + (e.reason ? ": " + e.reason : ""));
+    if (e.state === "completed") $("run-progress").value = $("run-progress").max;
     $("prompt").hidden = true;
     if (state.runId) showReports($("run-reports"), state.runId);
     refreshStatus();
   });
   on("health", () => refreshStatus());
+}
+
+// The run's event log, newest first (at most 200 lines).
+function log(text) {
+  const li = document.createElement("li");
+  li.textContent = new Date().toISOString().slice(11, 19) + "  " + text;
+  const list = $("event-log");
+  list.insertBefore(li, list.firstChild);
+  while (list.children.length > 200) list.removeChild(list.lastChild);
+}
+
+// The alarm banner: a fault (red, stays) or a notice (amber).
+function alarm(text, fault) {
+  const a = $("alarm");
+  a.textContent = text; a.className = fault ? "fault" : "notice"; a.hidden = false;
+}
+
+// The board: every slot's serial, mounting, latest output, state, points,
+// k2 and K2 with U95 once fitted, outcome (issue 16, part 1).
+function renderBoard(board) {
+  const body = $("board").tBodies[0];
+  body.textContent = "";
+  const pm = (v) => v === null || v === undefined ? "—" : v[0].toFixed(3) + (v[1] === null ? "" : " ± " + v[1].toFixed(3));
+  for (const s of board || []) {
+    const tr = body.insertRow();
+    tr.dataset.slot = s.slot;
+    const k2 = (s.k2_ug_per_g2 || []).map((k) => k[0] + " " + pm([k[1], k[2]])).join(", ") || "—";
+    [s.slot, s.serial, s.mount || "—", s.output_hz === null ? "—" : s.output_hz.toFixed(4), s.temperature_c === null ? "—" : s.temperature_c.toFixed(2),
+      s.phase.replace("_", " ") + (s.reason ? ": " + s.reason : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome || "—"]
+      .forEach((v, k) => {
+        const td = tr.insertCell(); td.textContent = v;
+        if (k === 5) td.className = "phase " + s.phase;
+        if (k === 9 && s.outcome) td.className = s.outcome;
+      });
+  }
 }
 
 function push(list, item) {
@@ -173,7 +226,15 @@ async function refreshStatus() {
   $("st-notices").textContent = "";
   for (const n of s.notices || []) { const li = document.createElement("li"); li.textContent = n; $("st-notices").appendChild(li); }
   if (s.run_id) { $("run-id").textContent = s.run_id; state.runId = s.run_id; }
-  for (const b of ["pause-button", "resume-button", "abort-button"]) $(b).disabled = !s.active;
+  // The controls that apply now, and only those.
+  const st = s.state || "";
+  $("pause-button").hidden = !(s.active && (st === "running" || st === "prompting"));
+  $("resume-button").hidden = !(s.active && st === "paused");
+  $("abort-button").hidden = !s.active;
+  renderBoard(s.board);
+  if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
+  $("run-eta").textContent = s.active && s.eta_s ? (s.eta_s < 120 ? "about " + Math.round(s.eta_s) + " s to go" : "about " + Math.round(s.eta_s / 60) + " min to go") : (s.active ? "" : st);
+  if (s.reason && (st === "faulted" || st === "aborted")) alarm((st === "faulted" ? "FAULT: " : "Aborted: ") + s.reason, st === "faulted");
   if (s.state) $("run-state").textContent = s.state;
   // A status fetched before an answer arrived still shows the old prompt: wait for the next.
   if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = s.prompt; $("prompt").hidden = false; }
@@ -188,7 +249,7 @@ function draw() {
   const c = $("curves"), g = c.getContext("2d");
   g.clearRect(0, 0, c.width, c.height);
   g.font = "11px sans-serif";
-  const strip = 80;
+  const strip = 110;
   cell(g, 0, 0, c.width, strip, state.rate, "rate", "deg/s", "#b00");
   // Only the slots that hold an instrument in this run.
   const slots = state.history.map((_, i) => i).filter((i) => state.serials[i] || state.history[i].length);
@@ -205,7 +266,8 @@ function draw() {
 }
 
 function cell(g, x, y, w, h, pts, label, unit, color) {
-  g.strokeStyle = "#ddd"; g.strokeRect(x + 1, y + 1, w - 2, h - 2);
+  const left = 62, bottom = 14, top = 16;
+  g.strokeStyle = "#ccc"; g.strokeRect(x + 1, y + 1, w - 2, h - 2);
   g.fillStyle = "#333"; g.fillText(label, x + 4, y + 12);
   if (pts.length) {
     const now = pts[pts.length - 1][1].toFixed(4) + " " + unit;
@@ -214,12 +276,36 @@ function cell(g, x, y, w, h, pts, label, unit, color) {
   if (pts.length < 2) return;
   let lo = Infinity, hi = -Infinity;
   for (const p of pts) { if (p[1] < lo) lo = p[1]; if (p[1] > hi) hi = p[1]; }
-  if (hi === lo) { hi += 1e-9; lo -= 1e-9; }
+  if (hi === lo) { hi += Math.max(1e-9, Math.abs(hi) * 1e-6); lo -= Math.max(1e-9, Math.abs(lo) * 1e-6); }
+  const px0 = x + left, pw = w - left - 6, py0 = y + top, ph = h - top - bottom - 4;
   const t1 = pts[pts.length - 1][0], t0 = t1 - KEEP_S;
+  const X = (t) => px0 + pw * (t - t0) / KEEP_S, Y = (v) => py0 + ph - ph * (v - lo) / (hi - lo);
+  // Grid and the value axis: four divisions, labelled at the left in the unit.
+  const span = hi - lo, decimals = Math.min(6, Math.max(0, Math.ceil(-Math.log10(span / 4)) + 1));
+  g.strokeStyle = "#eee"; g.fillStyle = "#555";
+  for (let k = 0; k <= 4; k++) {
+    const v = lo + span * k / 4, py = Y(v);
+    g.beginPath(); g.moveTo(px0, py); g.lineTo(px0 + pw, py); g.stroke();
+    const t = v.toFixed(decimals); g.fillText(t, px0 - 4 - g.measureText(t).width, py + 4);
+  }
+  // Time axis: a line every minute, labelled in seconds ago.
+  for (let ago = 0; ago <= KEEP_S; ago += 60) {
+    const px = X(t1 - ago);
+    g.beginPath(); g.moveTo(px, py0); g.lineTo(px, py0 + ph); g.stroke();
+    if (h > 60) { const t = ago ? "−" + ago + " s" : "now"; g.fillText(t, px - g.measureText(t).width / 2, py0 + ph + bottom); }
+  }
+  // Level marks: a dashed line where each level began, its label on the rate strip.
+  g.save(); g.setLineDash([3, 3]); g.strokeStyle = "#9ab";
+  for (const [t, text] of state.marks) {
+    if (t < t0 || t > t1) continue;
+    const px = X(t);
+    g.beginPath(); g.moveTo(px, py0); g.lineTo(px, py0 + ph); g.stroke();
+    if (unit === "deg/s") { g.fillStyle = "#246"; g.fillText(text, px + 2, py0 + 10); }
+  }
+  g.restore();
   g.strokeStyle = color; g.beginPath();
   pts.forEach((p, k) => {
-    const px = x + 2 + (w - 4) * (p[0] - t0) / KEEP_S;
-    const py = y + h - 3 - (h - 18) * (p[1] - lo) / (hi - lo);
+    const px = X(p[0]), py = Y(p[1]);
     if (k === 0) g.moveTo(px, py); else g.lineTo(px, py);
   });
   g.stroke();
@@ -358,7 +444,10 @@ async function startRun(ev) {
   }
   if (!Object.keys(serials).length) { show("enter at least one serial number"); return; }
   try {
-    const r = await api("POST", "/api/runs", { plan: $("plan-select").value, serials });
+    const request = { plan: $("plan-select").value, serials };
+    const reason = $("override-reason").value.trim();
+    if (reason && state.session.role === "admin") request.override_overdue = reason;
+    const r = await api("POST", "/api/runs", request);
     show("run " + r.run_id + " started", true);
     location.hash = "#run";
   } catch (e) { show(e.message); }
@@ -504,6 +593,39 @@ async function loadCharts() {
       const tr = yields.insertRow();
       [y.label, y.first_tests, y.first_passes, y.yield === null ? "—" : (100 * y.yield).toFixed(1) + " %"].forEach((x) => { tr.insertCell().textContent = x; });
     }
+  } catch (e) { show(e.message); }
+}
+
+// The equipment register: every device with its calibration status;
+// engineers and admins keep it (each change in the audit log).
+async function loadEquipment() {
+  try {
+    const list = await api("GET", "/api/equipment");
+    const body = $("equipment-table").tBodies[0];
+    body.textContent = "";
+    const roles = $("eq-role");
+    roles.textContent = "";
+    for (const d of list) {
+      const tr = body.insertRow();
+      tr.dataset.role = d.role;
+      [d.role, d.identity || "—", d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", d.status, d.updated_by || "—"]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 5) td.className = "cal " + d.status.replace(/ /g, "-"); });
+      roles.add(new Option(d.role, d.role));
+    }
+    $("equipment-form").hidden = !(state.session && state.session.role !== "operator");
+  } catch (e) { show(e.message); }
+}
+
+async function saveEquipment(ev) {
+  ev.preventDefault();
+  try {
+    const role = $("eq-role").value;
+    await api("PUT", "/api/equipment/" + encodeURIComponent(role), {
+      identity: $("eq-identity").value, certificate: $("eq-certificate").value,
+      calibrated_on: $("eq-calibrated").value, due_on: $("eq-due").value,
+    });
+    show(role + ": saved", true);
+    await loadEquipment();
   } catch (e) { show(e.message); }
 }
 

@@ -1,0 +1,84 @@
+//! `spinbench equipment`: the register of the station's devices and their
+//! calibration (kept by engineers; the web UI's register is the same table).
+
+use super::open_store;
+use anyhow::{Context, Result};
+use spinbench_store::StoreTarget;
+use spinbench_store::equipment::{EquipmentRow, parse_date, today};
+use std::io::Write;
+
+/// `spinbench equipment list`.
+pub(super) fn list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    let today = today();
+    writeln!(
+        out,
+        "{:<18} {:<28} {:<16} {:<11} {:<11} status",
+        "role", "identity", "certificate", "calibrated", "due"
+    )?;
+    for r in store.equipment()? {
+        writeln!(
+            out,
+            "{:<18} {:<28} {:<16} {:<11} {:<11} {}",
+            r.role,
+            r.identity,
+            r.certificate,
+            r.calibrated_on,
+            r.due_on,
+            r.status_on(today).as_str()
+        )?;
+    }
+    Ok(())
+}
+
+/// `spinbench equipment set ROLE …`.
+pub(super) fn set(
+    role: &str,
+    identity: &str,
+    certificate: &str,
+    calibrated: &str,
+    due: &str,
+    db: &StoreTarget,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let text_ok = |t: &str| {
+        !t.trim().is_empty() && t.chars().count() <= 200 && !t.chars().any(char::is_control)
+    };
+    for (what, t) in [
+        ("ROLE", role),
+        ("--identity", identity),
+        ("--certificate", certificate),
+    ] {
+        anyhow::ensure!(
+            text_ok(t),
+            "{what}: 1 to 200 characters, no control characters"
+        );
+    }
+    let c = parse_date(calibrated).with_context(|| {
+        format!("--calibrated '{calibrated}': a date YYYY-MM-DD (1970 to 2200)")
+    })?;
+    let d = parse_date(due)
+        .with_context(|| format!("--due '{due}': a date YYYY-MM-DD (1970 to 2200)"))?;
+    anyhow::ensure!(d > c, "--due {due} is not after --calibrated {calibrated}");
+    let store = spinbench_store::Store::connect(db)?;
+    let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
+    let row = EquipmentRow {
+        role: role.trim().to_string(),
+        identity: identity.trim().to_string(),
+        certificate: certificate.trim().to_string(),
+        calibrated_on: calibrated.to_string(),
+        due_on: due.to_string(),
+        updated_by: who.clone(),
+        updated_at: 0,
+    };
+    store.set_equipment(&row, &format!("{who} (command line)"))?;
+    writeln!(
+        out,
+        "{}: certificate {}, due {} ({})",
+        row.role,
+        row.certificate,
+        row.due_on,
+        row.status_on(today()).as_str()
+    )?;
+    Ok(())
+}

@@ -1,0 +1,92 @@
+//! The equipment register (issue 16, part 4): every device of the station
+//! with its calibration certificate, dates and status, read by everyone and
+//! kept by engineers (each change in the audit log).
+
+use super::*;
+use spinbench_store::equipment::{EquipmentRow, parse_date};
+
+pub(super) async fn equipment(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<axum::Json<Value>> {
+    authorize(&app, &headers, Role::Operator, false)?;
+    let station = app.runner.station().0;
+    let list = crate::equipment::station_equipment(&store(&app), &station)?;
+    Ok(axum::Json(json!(
+        list.iter()
+            .map(|(role, row, status)| json!({
+                "role": role,
+                "identity": row.as_ref().map(|r| r.identity.clone()),
+                "certificate": row.as_ref().map(|r| r.certificate.clone()),
+                "calibrated_on": row.as_ref().map(|r| r.calibrated_on.clone()),
+                "due_on": row.as_ref().map(|r| r.due_on.clone()),
+                "updated_by": row.as_ref().map(|r| r.updated_by.clone()),
+                "status": status.as_str(),
+            }))
+            .collect::<Vec<_>>()
+    )))
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SetEquipment {
+    identity: String,
+    certificate: String,
+    calibrated_on: String,
+    due_on: String,
+}
+
+/// Longest text of a register entry [characters].
+const MAX_TEXT_CHARS: usize = 200;
+
+pub(super) async fn set_equipment(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(role): Path<String>,
+    body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let set: SetEquipment = parse_json(&body)?;
+    let roles = app.runner.station().0.device_roles();
+    if !roles.contains(&role) {
+        return Err(ApiError::not_found(format!(
+            "no device '{}' in this station; its devices: {}",
+            role.chars().take(80).collect::<String>(),
+            roles.join(", ")
+        )));
+    }
+    for (field, text) in [
+        ("identity", &set.identity),
+        ("certificate", &set.certificate),
+    ] {
+        if text.trim().is_empty()
+            || text.chars().count() > MAX_TEXT_CHARS
+            || text.chars().any(char::is_control)
+        {
+            return Err(ApiError::bad(format!(
+                "{field}: 1 to {MAX_TEXT_CHARS} characters, no control characters"
+            )));
+        }
+    }
+    let calibrated = parse_date(&set.calibrated_on)
+        .ok_or_else(|| ApiError::bad("calibrated_on: a date YYYY-MM-DD (1970 to 2200)"))?;
+    let due = parse_date(&set.due_on)
+        .ok_or_else(|| ApiError::bad("due_on: a date YYYY-MM-DD (1970 to 2200)"))?;
+    if due <= calibrated {
+        return Err(ApiError::bad(format!(
+            "due_on {} is not after calibrated_on {}",
+            set.due_on, set.calibrated_on
+        )));
+    }
+    let row = EquipmentRow {
+        role: role.clone(),
+        identity: set.identity.trim().to_string(),
+        certificate: set.certificate.trim().to_string(),
+        calibrated_on: set.calibrated_on,
+        due_on: set.due_on,
+        updated_by: session.user.clone(),
+        updated_at: 0,
+    };
+    store(&app).set_equipment(&row, &session.user)?;
+    Ok(axum::Json(json!({ "role": role, "due_on": row.due_on })))
+}
