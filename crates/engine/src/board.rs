@@ -159,7 +159,12 @@ impl SlotBoard {
                 if let Some(s) = self.state_mut(slot) {
                     s.outcome = Some(outcome);
                     if !matches!(s.phase, SlotPhase::Noisy | SlotPhase::Failed) {
-                        s.phase = SlotPhase::Done;
+                        // Not measured whole: not done.
+                        s.phase = if outcome == Outcome::Incomplete {
+                            SlotPhase::Waiting
+                        } else {
+                            SlotPhase::Done
+                        };
                     }
                     if let Some((per_mount, big)) = k2 {
                         s.k2_ug_per_g2 = per_mount;

@@ -9,6 +9,7 @@
 
 mod batch;
 pub mod control;
+pub mod lang;
 mod pdf;
 mod plots;
 
@@ -16,9 +17,12 @@ pub use batch::{
     BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, gather_batch,
     render_batch,
 };
-pub use pdf::{batch_pdf, pdf};
+pub use pdf::{batch_pdf, pdf, web_font};
 
+pub use lang::{Lang, tr};
 use serde_json::Value;
+
+rust_i18n::i18n!("../../locales", fallback = "en");
 use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store, StoreError};
 use std::path::{Path, PathBuf};
 
@@ -306,8 +310,9 @@ fn point_cells(p: &PointRow) -> [String; 10] {
     ]
 }
 
-/// The run's header block: (label, value).
-fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
+/// The run's header block: (label — the catalogue's `meta.` key — and its
+/// value, dates as `lang` writes them).
+fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
     let run = &report.run;
     let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
     let mut rows = vec![("station", run.station.clone())];
@@ -328,7 +333,7 @@ fn meta_rows(report: &RunReport) -> Vec<(&'static str, String)> {
             "operator",
             plan["operator"].as_str().unwrap_or("").to_string(),
         ),
-        ("started", unix_date(run.started_at)),
+        ("started", lang::date_time(lang, run.started_at)),
         (
             "state",
             format!(
@@ -576,9 +581,17 @@ fn unix_date(t: i64) -> String {
 
 /// The report as one self-contained HTML document.
 pub fn html(report: &RunReport) -> String {
+    html_in(report, Lang::En)
+}
+
+/// The run's report as one HTML document in `lang`.
+pub fn html_in(report: &RunReport, lang: Lang) -> String {
     let run = &report.run;
     let mut h = String::new();
-    h.push_str("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">");
+    h.push_str(&format!(
+        "<!DOCTYPE html>\n<html lang=\"{}\"><head><meta charset=\"utf-8\">",
+        lang.code()
+    ));
     h.push_str(&format!("<title>spinbench report {}</title>", esc(&run.id)));
     h.push_str(
         "<style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
@@ -587,20 +600,29 @@ pub fn html(report: &RunReport) -> String {
          section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
     );
     h.push_str(&format!(
-        "<h1>Centrifuge test report — run {}</h1>\n<table class=\"meta\">",
-        esc(&run.id)
+        "<h1>{}</h1>\n<table class=\"meta\">",
+        esc(&rust_i18n::t!(
+            "report.title",
+            run = run.id,
+            locale = lang.code()
+        ))
     ));
-    for (label, value) in meta_rows(report) {
+    for (label, value) in meta_rows_in(report, lang) {
         h.push_str(&format!(
-            "<tr><th>{label}</th><td class=\"t\" id=\"{label}\">{}</td></tr>",
+            "<tr><th>{}</th><td class=\"t\" id=\"{label}\">{}</td></tr>",
+            esc(&tr(lang, &format!("meta.{label}"))),
             esc(&value)
         ));
     }
     h.push_str("</table>\n");
     if let Some(devices) = devices(report) {
-        h.push_str(
-            "<h2>Instruments of the station</h2><table id=\"equipment\"><tr><th>device</th><th>identity</th><th>calibration</th></tr>",
-        );
+        h.push_str(&format!(
+            "<h2>{}</h2><table id=\"equipment\"><tr><th>{}</th><th>{}</th><th>{}</th></tr>",
+            esc(&tr(lang, "report.devices")),
+            esc(&tr(lang, "report.device")),
+            esc(&tr(lang, "report.identity")),
+            esc(&tr(lang, "report.calibration"))
+        ));
         for (role, identity, calibration) in devices {
             h.push_str(&format!(
                 "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
@@ -611,9 +633,12 @@ pub fn html(report: &RunReport) -> String {
         }
         h.push_str("</table>\n");
     }
-    h.push_str("<h2>Summary</h2>\n<table id=\"summary\"><tr>");
+    h.push_str(&format!(
+        "<h2>{}</h2>\n<table id=\"summary\"><tr>",
+        esc(&tr(lang, "report.summary"))
+    ));
     for head in SUMMARY_HEADERS {
-        h.push_str(&format!("<th>{}</th>", esc(head)));
+        h.push_str(&format!("<th>{}</th>", esc(&lang::header(lang, head))));
     }
     h.push_str("</tr>\n");
     for row in summary(report) {
@@ -630,19 +655,24 @@ pub fn html(report: &RunReport) -> String {
             h.push_str(&format!("<td>{}</td>", fmt(*v, d)));
         }
         h.push_str(&format!(
-            "<td class=\"{0}\">{0}</td><td class=\"t\">{1}</td></tr>\n",
+            "<td class=\"{}\">{}</td><td class=\"t\">{}</td></tr>\n",
             esc(&row.outcome),
+            esc(&lang::outcome(lang, &row.outcome)),
             esc(&row.reasons)
         ));
     }
     h.push_str("</table>\n");
     for u in &report.units {
         h.push_str(&format!(
-            "<section class=\"unit\"><h2>{} (slot {}) — <span class=\"{}\">{}</span></h2>\n",
-            esc(&u.result.serial),
-            u.result.slot + 1,
+            "<section class=\"unit\"><h2>{} — <span class=\"{}\">{}</span></h2>\n",
+            esc(&rust_i18n::t!(
+                "report.slot_heading",
+                serial = u.result.serial,
+                slot = u.result.slot + 1,
+                locale = lang.code()
+            )),
             esc(u.result.outcome.as_str()),
-            esc(u.result.outcome.as_str())
+            esc(&lang::outcome(lang, u.result.outcome.as_str()))
         ));
         for line in diagnostic_lines(u) {
             h.push_str(&format!("<p class=\"diagnostics\">{}</p>\n", esc(&line)));
@@ -654,7 +684,7 @@ pub fn html(report: &RunReport) -> String {
         }
         h.push_str("<table class=\"points\"><tr>");
         for head in POINT_HEADERS {
-            h.push_str(&format!("<th>{}</th>", esc(head)));
+            h.push_str(&format!("<th>{}</th>", esc(&lang::header(lang, head))));
         }
         h.push_str("</tr>\n");
         for p in &u.points {
@@ -686,14 +716,14 @@ pub fn html(report: &RunReport) -> String {
 
 /// The report as an XLSX workbook: `results` (the summary), `points`, and
 /// one sheet per instrument with its plot data.
-fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
+fn xlsx_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     use rust_xlsxwriter::{Format, Workbook};
     let mut book = Workbook::new();
     let bold = Format::new().set_bold();
     {
         let sheet = book.add_worksheet().set_name("results")?;
         for (c, head) in SUMMARY_HEADERS.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, lang::header(lang, head), &bold)?;
         }
         for (i, row) in summary(report).iter().enumerate() {
             let r = (i + 1) as u32;
@@ -705,7 +735,7 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
                     sheet.write_number(r, 3 + k as u16, *v)?;
                 }
             }
-            sheet.write_string(r, 14, &row.outcome)?;
+            sheet.write_string(r, 14, lang::outcome(lang, &row.outcome))?;
             sheet.write_string(r, 15, &row.reasons)?;
         }
     }
@@ -714,7 +744,7 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     {
         let sheet = book.add_worksheet().set_name("points")?;
         for (c, head) in point_headers.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, lang::header(lang, head), &bold)?;
         }
         let mut r = 1u32;
         for u in &report.units {
@@ -741,15 +771,23 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
         let sheet = book.add_worksheet().set_name("run")?;
         sheet.write_string(0, 0, "run")?;
         sheet.write_string(0, 1, &report.run.id)?;
-        let meta = meta_rows(report);
+        let meta = meta_rows_in(report, lang);
         for (r, (label, value)) in meta.iter().enumerate() {
-            sheet.write_string_with_format(r as u32 + 1, 0, *label, &bold)?;
+            sheet.write_string_with_format(
+                r as u32 + 1,
+                0,
+                tr(lang, &format!("meta.{label}")),
+                &bold,
+            )?;
             sheet.write_string(r as u32 + 1, 1, value)?;
         }
         // The station's devices with their calibration.
         let mut r = meta.len() as u32 + 2;
-        for (c, head) in ["device", "identity", "calibration"].iter().enumerate() {
-            sheet.write_string_with_format(r, c as u16, *head, &bold)?;
+        for (c, head) in ["report.device", "report.identity", "report.calibration"]
+            .iter()
+            .enumerate()
+        {
+            sheet.write_string_with_format(r, c as u16, tr(lang, head), &bold)?;
         }
         for (role, identity, calibration) in devices(report).unwrap_or_default() {
             r += 1;
@@ -791,11 +829,21 @@ fn xlsx(report: &RunReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
 
 /// The run's report in one format, as bytes (for a download).
 pub fn render(report: &RunReport, format: ReportFormat) -> Result<Vec<u8>, ReportError> {
+    render_in(report, format, Lang::En)
+}
+
+/// The run's report in one format and language, as bytes (the CSV's
+/// headers are machine names in every language).
+pub fn render_in(
+    report: &RunReport,
+    format: ReportFormat,
+    lang: Lang,
+) -> Result<Vec<u8>, ReportError> {
     match format {
-        ReportFormat::Pdf => pdf(report),
-        ReportFormat::Html => Ok(html(report).into_bytes()),
+        ReportFormat::Pdf => pdf::pdf_in(report, lang),
+        ReportFormat::Html => Ok(html_in(report, lang).into_bytes()),
         ReportFormat::Csv => Ok(summary_csv(report).into_bytes()),
-        ReportFormat::Xlsx => xlsx(report).map_err(|e| ReportError::Xlsx(e.to_string())),
+        ReportFormat::Xlsx => xlsx_in(report, lang).map_err(|e| ReportError::Xlsx(e.to_string())),
     }
 }
 
@@ -826,9 +874,20 @@ pub fn write_reports(
     formats: &[ReportFormat],
     dir: &Path,
 ) -> Result<Vec<PathBuf>, ReportError> {
+    write_reports_in(store, run_id, formats, dir, Lang::En)
+}
+
+/// As [`write_reports`], in `lang`.
+pub fn write_reports_in(
+    store: &Store,
+    run_id: &str,
+    formats: &[ReportFormat],
+    dir: &Path,
+    lang: Lang,
+) -> Result<Vec<PathBuf>, ReportError> {
     let report = gather(store, run_id)?;
     write_files(dir, &format!("report-{run_id}"), formats, |f| {
-        render(&report, f)
+        render_in(&report, f, lang)
     })
 }
 

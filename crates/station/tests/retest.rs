@@ -130,6 +130,36 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     assert!(original.contains("retested by") && original.contains(&retest.id));
     let second = html(&retest.id);
     assert!(second.contains("retest of") && second.contains(&first));
+    // The same report in Chinese (HTML, and the PDF read back by poppler).
+    let zh = dir.path().join("zh");
+    let (ok, _, err) = spinbench(&[
+        "report",
+        &retest.id,
+        "--db",
+        data.join("spinbench.db").to_str().expect("utf-8"),
+        "--format",
+        "html,pdf",
+        "--lang",
+        "zh-CN",
+        "--out",
+        zh.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{err}");
+    let zh_html =
+        std::fs::read_to_string(zh.join(format!("report-{}.html", retest.id))).expect("html");
+    assert!(zh_html.contains("复测自") && zh_html.contains("汇总") && zh_html.contains("不合格"));
+    let pdf_text = Command::new("pdftotext")
+        .arg(zh.join(format!("report-{}.pdf", retest.id)))
+        .arg("-")
+        .output()
+        .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
+    let pdf_text = String::from_utf8_lossy(&pdf_text.stdout);
+    assert!(
+        pdf_text.contains("离心机测试报告") && pdf_text.contains("汇总"),
+        "{pdf_text}"
+    );
+    let (ok, _, err) = spinbench(&["report", &first, "--lang", "de", "--db", "x.db"]);
+    assert!(!ok && err.contains("en or zh-CN"), "{err}");
 
     // What cannot be retested is refused with what to do.
     let (ok, _, err) = spinbench(&["retest", "no-such-run", "--simulate", "--data", data_s]);

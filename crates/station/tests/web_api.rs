@@ -23,6 +23,7 @@ fn concrete(path: &str) -> String {
         .replace("{format}", "pdf")
         .replace("{serial}", "API-1")
         .replace("{role}", "centrifuge")
+        .replace("{language}", "zh-CN")
 }
 
 #[test]
@@ -50,7 +51,7 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
     );
 
     for (method, path) in api_routes() {
-        let public = ["/api/openapi.json", "/api/login"].contains(&path);
+        let public = ["/api/openapi.json", "/api/login", "/api/i18n/{language}"].contains(&path);
         if public {
             continue;
         }
@@ -84,6 +85,10 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
     assert_eq!(page.status, 200);
     assert!(String::from_utf8_lossy(&page.body).contains("<canvas id=\"curves\""));
     assert_eq!(anon.send("GET", "/app.js", None).status, 200);
+    // The web UI's words, open to everyone (the login page needs them).
+    let words = anon.get_json("/api/i18n/zh-CN", 200);
+    assert_eq!(words["words"]["web.nav.history"], "历史");
+    assert_eq!(anon.send("GET", "/api/i18n/de", None).status, 404);
 }
 
 #[test]

@@ -112,20 +112,21 @@ fn an_operator_runs_a_test_in_the_browser() {
             b.screenshot(&shots.join("3c-ended.png"));
             panic!("the run ended: {state}");
         }
-        // The board: the one instrument, once at a level, with its mounting.
+        // The board (as the page gets it): the one instrument, once at a
+        // level, with its mounting.
         if board_at_level.is_none() {
-            let cells = b.script(
-                "const r = document.querySelector('#board tbody tr[data-slot=\"2\"]'); \
-                 return r ? Array.from(r.cells).map(c => c.textContent) : null",
+            let slot = b.script_async(
+                "const done = arguments[0]; fetch('/api/status').then(r => r.json())\
+                 .then(s => done((s.board || []).find(b => b.slot === 2) || null)).catch(e => done(null));",
             );
-            if cells[1] == "WEB-2"
-                && cells[2] == "N"
+            if slot["serial"] == "WEB-2"
+                && slot["mount"] == "N"
                 && ["settling", "averaging", "radius"]
                     .iter()
-                    .any(|p| cells[5].as_str().is_some_and(|s| s.starts_with(p)))
+                    .any(|p| slot["phase"] == *p)
             {
                 b.screenshot(&shots.join("3a-board.png"));
-                board_at_level = Some(cells);
+                board_at_level = Some(slot);
             }
         }
         let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
@@ -394,6 +395,42 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
         "the event log has the fault"
     );
     b.screenshot(&shots.join("9-fault-banner.png"));
+
+    // In Chinese: the operator chooses 中文; the page, the board's words and
+    // the report they download follow, and the choice is kept for next time.
+    b.script("const s = document.getElementById('lang-select'); s.value = 'zh-CN'; s.dispatchEvent(new Event('change'));");
+    b.wait_for(
+        10,
+        "the page in Chinese",
+        "return document.getElementById('nav-history').textContent === '历史' \
+         && document.getElementById('nav-run').textContent === '运行' && document.documentElement.lang === 'zh-CN'",
+    );
+    b.wait_for(
+        10,
+        "the board in Chinese",
+        "const r = document.querySelector('#board tbody tr[data-slot=\"2\"]'); \
+         return !!r && document.querySelector('#board th[data-i18n=\"web.board.state\"]').textContent === '状态' \
+         && ['完成', '失效', '等待'].some(w => r.cells[5].textContent.startsWith(w))",
+    );
+    b.screenshot(&shots.join("9b-run-zh.png"));
+    let html = b.script_async(
+        "const done = arguments[0]; fetch('/api/session').then(r => r.json()).then(s => \
+         fetch('/api/runs').then(r => r.json()).then(runs => fetch('/api/runs/' + runs[0].id + '/report/html'))\
+         .then(r => r.text()).then(t => done([s.language, t]))).catch(e => done(String(e)));",
+    );
+    assert_eq!(html[0], "zh-CN", "the choice is the user's now");
+    let text = html[1].as_str().unwrap_or_default();
+    assert!(
+        text.contains("离心机测试报告") && text.contains("汇总") && text.contains("lang=\"zh-CN\""),
+        "the downloaded report in Chinese"
+    );
+    // A new page load starts in the user's language.
+    b.go(&server.base);
+    b.wait_for(
+        10,
+        "Chinese after a reload",
+        "return document.getElementById('nav-history').textContent === '历史'",
+    );
 }
 
 #[test]

@@ -194,6 +194,11 @@ pub const MIGRATIONS: &[Migration] = &[
         updated_at BIGINT NOT NULL
     );",
     },
+    Migration {
+        what: "each user's language for the web UI and the reports they download",
+        sqlite: "ALTER TABLE users ADD COLUMN language TEXT;",
+        postgres: "ALTER TABLE users ADD COLUMN language TEXT;",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

@@ -179,6 +179,30 @@ impl Store {
             .map_err(self.err("replace a result"))
     }
 
+    /// A user's language (a BCP 47 tag such as `zh-CN`), if they chose one.
+    pub fn user_language(&self, name: &str) -> Result<Option<String>, StoreError> {
+        Ok(self
+            .query(
+                "read a user's language",
+                "SELECT language FROM users WHERE name = $1",
+                &[name.into()],
+            )?
+            .first()
+            .and_then(|r| r.opt_text(0)))
+    }
+
+    /// Set a user's language (the caller checks it is one the station speaks).
+    pub fn set_user_language(&self, name: &str, language: &str) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "UPDATE users SET language = $2 WHERE name = $1",
+                &[name.into(), language.into()],
+            )
+            .map(|_| ())
+            .map_err(self.err("set a user's language"))
+    }
+
     /// The newest `limit` audit entries, newest first.
     pub fn audit_log(&self, limit: i64) -> Result<Vec<AuditRow>, StoreError> {
         Ok(self

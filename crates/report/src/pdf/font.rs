@@ -50,3 +50,35 @@ pub(super) fn subset_font(
     }
     Ok(font)
 }
+
+/// The embedded font cut down to the characters of `text` as a standalone
+/// OpenType font (the Minimal profile: every table a browser requires), for
+/// the web UI: a station browser without a CJK font still shows Chinese.
+pub fn web_font(text: &str) -> Result<Vec<u8>, ReportError> {
+    use allsorts::binary::read::ReadScope;
+    use allsorts::font_data::FontData;
+    use allsorts::subset::{CmapTarget, SubsetProfile, subset};
+    let fail = |what: &str, e: String| ReportError::Pdf(format!("the web font: {what}: {e}"));
+    let full = full_font()?;
+    let mut glyphs: Vec<u16> = text
+        .chars()
+        .filter_map(|c| full.lookup_glyph_index(c as u32))
+        .filter(|&g| g != 0)
+        .collect();
+    glyphs.sort_unstable();
+    glyphs.dedup();
+    let ids: Vec<u16> = std::iter::once(0).chain(glyphs).collect();
+    let data = ReadScope::new(FONT_TTC)
+        .read::<FontData<'_>>()
+        .map_err(|e| fail("reading", e.to_string()))?;
+    let provider = data
+        .table_provider(0)
+        .map_err(|e| fail("face 0", e.to_string()))?;
+    subset(
+        &provider,
+        &ids,
+        &SubsetProfile::Minimal,
+        CmapTarget::Unicode,
+    )
+    .map_err(|e| fail("subset", e.to_string()))
+}

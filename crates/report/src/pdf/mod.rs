@@ -9,10 +9,11 @@
 //! layout engine, a large build) and the table layout (a few fixed columns).
 
 use crate::batch::{self, BatchReport};
+use crate::lang::{self, Lang, tr};
 use crate::plots::{self, UNIT_PLOTS};
 use crate::{
     POINT_HEADERS, ReportError, RunReport, SUMMARY_DECIMALS, SUMMARY_HEADERS, UnitReport,
-    meta_rows, numbers, point_cells, summary,
+    meta_rows_in, numbers, point_cells, summary,
 };
 use plotters::coord::Shift;
 use plotters::prelude::{DrawingArea, IntoDrawingArea, WHITE};
@@ -37,6 +38,7 @@ mod font;
 
 use backend::PdfPlotBackend;
 use canvas::{Align, Canvas, from_top, point};
+pub use font::web_font;
 use font::{full_font, subset_font};
 
 /// WenQuanYi Micro Hei: Latin, Greek, symbols (µ ± ² σ) and CJK in one face.
@@ -65,11 +67,22 @@ struct Metadata<'a> {
 }
 
 /// Number each page and write the document, dated now.
-fn finish(mut canvas: Canvas, meta: Metadata, footer: &str) -> Result<Vec<u8>, ReportError> {
+fn finish(
+    mut canvas: Canvas,
+    meta: Metadata,
+    footer: &str,
+    lang: Lang,
+) -> Result<Vec<u8>, ReportError> {
     let title = meta.title;
     let total = canvas.pages.len();
     for i in 0..total {
-        let text = format!("{footer} · page {} of {total}", i + 1);
+        let page = rust_i18n::t!(
+            "report.page",
+            n = i + 1,
+            total = total,
+            locale = lang.code()
+        );
+        let text = format!("{footer} · {page}");
         let y = from_top(PAGE_H_MM - MARGIN_MM + 2.0);
         let ops = canvas.text_ops(MARGIN_MM * PT_PER_MM, y, 0.0, 7.0, 1.0, GREY, &text);
         canvas.pages[i].extend(ops);
@@ -107,6 +120,11 @@ fn finish(mut canvas: Canvas, meta: Metadata, footer: &str) -> Result<Vec<u8>, R
 /// devices and the summary table, then a page per instrument with its three
 /// plots and its points.
 pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
+    pdf_in(report, Lang::En)
+}
+
+/// The run's report as PDF bytes in `lang`.
+pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
     let mut c = Canvas::new(full_font()?);
     let run = &report.run;
     c.new_page();
@@ -115,24 +133,24 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
         MARGIN_MM,
         y,
         16.0,
-        &format!("Centrifuge test report — run {}", run.id),
+        &rust_i18n::t!("report.title", run = run.id, locale = lang.code()),
         Align::Left,
     );
     y += 8.0;
-    for (label, value) in meta_rows(report) {
-        c.text(MARGIN_MM, y, 9.0, label, Align::Left);
+    for (label, value) in meta_rows_in(report, lang) {
+        c.text(
+            MARGIN_MM,
+            y,
+            9.0,
+            &tr(lang, &format!("meta.{label}")),
+            Align::Left,
+        );
         c.text(MARGIN_MM + 28.0, y, 9.0, &value, Align::Left);
         y += 4.6;
     }
     if let Some(devices) = crate::devices(report) {
         y += 2.0;
-        c.text(
-            MARGIN_MM,
-            y,
-            11.0,
-            "Instruments of the station",
-            Align::Left,
-        );
+        c.text(MARGIN_MM, y, 11.0, &tr(lang, "report.devices"), Align::Left);
         y += 5.0;
         for (role, identity, calibration) in devices {
             c.text(MARGIN_MM, y, 8.0, &role, Align::Left);
@@ -142,7 +160,7 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
         }
     }
     y += 3.0;
-    c.text(MARGIN_MM, y, 11.0, "Summary", Align::Left);
+    c.text(MARGIN_MM, y, 11.0, &tr(lang, "report.summary"), Align::Left);
     y += 2.0;
     let rows: Vec<Vec<String>> = summary(report)
         .iter()
@@ -154,14 +172,19 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
                     .zip(SUMMARY_DECIMALS)
                     .map(|(v, d)| crate::fmt(*v, d)),
             );
-            cells.push(row.outcome.clone());
+            cells.push(lang::outcome(lang, &row.outcome));
             cells.push(row.reasons.clone());
             cells
         })
         .collect();
-    c.table(y, &SUMMARY_HEADERS, &rows, 7.0, 1);
+    let headers: Vec<String> = SUMMARY_HEADERS
+        .iter()
+        .map(|h| lang::header(lang, h))
+        .collect();
+    let headers: Vec<&str> = headers.iter().map(String::as_str).collect();
+    c.table(y, &headers, &rows, 7.0, 1);
     for u in &report.units {
-        unit_page(&mut c, u);
+        unit_page(&mut c, u, lang);
     }
     finish(
         c,
@@ -175,14 +198,21 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
             "spinbench {} · run {}",
             report.context.software_version, run.id
         ),
+        lang,
     )
 }
 
 /// One instrument: title, fit figures, the three plots, the points.
-fn unit_page(c: &mut Canvas, u: &UnitReport) {
+fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
     c.new_page();
     let mut y = MARGIN_MM + 5.0;
-    let title = format!("{} (slot {})", u.result.serial, u.result.slot + 1);
+    let title = rust_i18n::t!(
+        "report.slot_heading",
+        serial = u.result.serial,
+        slot = u.result.slot + 1,
+        locale = lang.code()
+    )
+    .into_owned();
     c.text(MARGIN_MM, y, 14.0, &title, Align::Left);
     let x = MARGIN_MM + c.width_mm(&title, 14.0) + 4.0;
     let color = match u.result.outcome {
@@ -192,7 +222,8 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
         Outcome::Inconclusive => (0.1, 0.25, 0.7),
         Outcome::Pass => (0.0, 0.4, 0.0),
     };
-    c.text_colored(x, y, 14.0, u.result.outcome.as_str(), Align::Left, color);
+    let word = lang::outcome(lang, u.result.outcome.as_str());
+    c.text_colored(x, y, 14.0, &word, Align::Left, color);
     y += 6.0;
     let fits = u.record().analysis.as_ref().map(|a| &a.fits);
     for (mount, fit) in fits.into_iter().flatten() {
@@ -231,7 +262,12 @@ fn unit_page(c: &mut Canvas, u: &UnitReport) {
     }
     y += height + 3.0;
     let rows: Vec<Vec<String>> = u.points.iter().map(|p| point_cells(p).to_vec()).collect();
-    c.table(y, &POINT_HEADERS, &rows, 6.5, 2);
+    let headers: Vec<String> = POINT_HEADERS
+        .iter()
+        .map(|h| lang::header(lang, h))
+        .collect();
+    let headers: Vec<&str> = headers.iter().map(String::as_str).collect();
+    c.table(y, &headers, &rows, 6.5, 2);
 }
 
 /// The control charts' pages: the flags, the charts shown, the yields.
@@ -376,5 +412,6 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
             version: env!("CARGO_PKG_VERSION"),
         },
         "spinbench batch report",
+        Lang::En,
     )
 }

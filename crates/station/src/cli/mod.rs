@@ -356,9 +356,17 @@ pub struct ReportOutput {
     /// Directory for the files (default: the current directory).
     #[arg(long, default_value = ".")]
     out: PathBuf,
+    /// The reports' language: en or zh-CN (the CSV's headers stay machine names).
+    #[arg(long, default_value = "en", value_parser = parse_lang)]
+    lang: spinbench_report::Lang,
     /// The store.
     #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
     db: StoreTarget,
+}
+
+/// `--lang`: a language the station speaks.
+fn parse_lang(text: &str) -> Result<spinbench_report::Lang, String> {
+    spinbench_report::Lang::parse(text).ok_or_else(|| format!("'{text}': en or zh-CN"))
 }
 
 /// Actions of `spinbench runs`.

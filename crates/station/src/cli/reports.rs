@@ -10,8 +10,14 @@ use std::path::{Path, PathBuf};
 /// `spinbench report RUN`.
 pub(super) fn report(run: &str, o: &ReportOutput, out: &mut dyn Write) -> Result<()> {
     let store = open_store(&o.db)?;
-    let files = spinbench_report::write_reports(&store, run, &report_formats(&o.format)?, &o.out)
-        .with_context(|| format!("{}: report of run '{run}'", o.db))?;
+    let files = spinbench_report::write_reports_in(
+        &store,
+        run,
+        &report_formats(&o.format)?,
+        &o.out,
+        o.lang,
+    )
+    .with_context(|| format!("{}: report of run '{run}'", o.db))?;
     print_paths(out, &files)?;
     Ok(())
 }

@@ -43,3 +43,26 @@ pub(super) async fn openapi() -> Response {
     )
         .into_response()
 }
+
+/// `GET /cjk.ttf`: the embedded CJK font cut down to the characters of the
+/// Chinese catalogue, so a browser without a CJK font still shows the UI in
+/// Chinese (made once, a few tens of kB).
+pub(super) async fn font() -> Response {
+    static FONT: std::sync::OnceLock<Option<Vec<u8>>> = std::sync::OnceLock::new();
+    let font = FONT.get_or_init(|| {
+        let words = spinbench_report::lang::catalogue(spinbench_report::Lang::ZhCn, "");
+        let text: String = words.values().map(String::as_str).collect();
+        spinbench_report::web_font(&text).ok()
+    });
+    match font {
+        Some(bytes) => (
+            [
+                (header::CONTENT_TYPE, "font/ttf"),
+                (header::CACHE_CONTROL, "max-age=86400"),
+            ],
+            bytes.clone(),
+        )
+            .into_response(),
+        None => ApiError::internal("the embedded font could not be cut down").into_response(),
+    }
+}

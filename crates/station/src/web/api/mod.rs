@@ -146,6 +146,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/", get(assets::page)),
         ("get", "/app.js", get(assets::script)),
         ("get", "/app.css", get(assets::style)),
+        ("get", "/cjk.ttf", get(assets::font)),
         ("get", "/api/openapi.json", get(assets::openapi)),
         (
             "post",
@@ -154,6 +155,8 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ),
         ("post", "/api/logout", post(session::logout)),
         ("get", "/api/session", get(session::session)),
+        ("put", "/api/session/language", put(session::set_language)),
+        ("get", "/api/i18n/{language}", get(session::catalogue)),
         ("get", "/api/status", get(live::status)),
         ("get", "/api/events", get(live::events)),
         ("get", "/api/plans", get(plans::plans)),

@@ -288,24 +288,41 @@ pub(super) async fn run(
     })))
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct ReportQuery {
+    /// `en` or `zh-CN` (default: the user's language, else the browser's).
+    lang: Option<String>,
+}
+
 pub(super) async fn report(
     State(app): State<App>,
     headers: HeaderMap,
     Path((id, format)): Path<(String, String)>,
+    Query(q): Query<ReportQuery>,
 ) -> ApiResult<Response> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false)?;
     let format = ReportFormat::parse(&format).ok_or_else(|| {
         ApiError::bad(format!(
             "report format '{format}': use pdf, html, xlsx or csv"
         ))
     })?;
+    let lang = match q.lang.as_deref() {
+        Some(tag) => spinbench_report::Lang::parse(tag).ok_or_else(|| {
+            ApiError::bad(format!(
+                "lang '{}': en or zh-CN",
+                tag.chars().take(40).collect::<String>()
+            ))
+        })?,
+        None => super::session::language_of(&app, &headers, Some(&session)),
+    };
     let db = app.db.clone();
     let run_id = id.clone();
     // A 96-instrument PDF takes a moment: off the async workers, on its own connection.
     let bytes = tokio::task::spawn_blocking(move || {
         let store = spinbench_store::Store::connect(&db)?;
         let report = spinbench_report::gather(&store, &run_id)?;
-        spinbench_report::render(&report, format)
+        spinbench_report::render_in(&report, format, lang)
     })
     .await
     .map_err(|e| ApiError::internal(e.to_string()))?

@@ -2,6 +2,7 @@
 //! logout and the session check.
 
 use super::*;
+use spinbench_report::Lang;
 
 #[derive(Deserialize)]
 pub(super) struct Login {
@@ -109,6 +110,66 @@ pub(super) async fn logout(
 pub(super) async fn session(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Session>> {
-    authorize(&app, &headers, Role::Operator, false).map(axum::Json)
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Operator, false)?;
+    let language = language_of(&app, &headers, Some(&session));
+    let mut value =
+        serde_json::to_value(&session).map_err(|e| ApiError::internal(e.to_string()))?;
+    value["language"] = json!(language.code());
+    Ok(axum::Json(value))
+}
+
+/// The language of a request: the user's own choice, else the browser's
+/// `Accept-Language`, else English.
+pub(super) fn language_of(app: &App, headers: &HeaderMap, session: Option<&Session>) -> Lang {
+    session
+        .and_then(|s| store(app).user_language(&s.user).ok().flatten())
+        .and_then(|tag| Lang::parse(&tag))
+        .unwrap_or_else(|| {
+            Lang::from_accept_language(
+                headers
+                    .get(header::ACCEPT_LANGUAGE)
+                    .and_then(|v| v.to_str().ok())
+                    .unwrap_or(""),
+            )
+        })
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct SetLanguage {
+    language: String,
+}
+
+/// `PUT /api/session/language`: the user's language, kept in the store.
+pub(super) async fn set_language(
+    State(app): State<App>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<axum::Json<Value>> {
+    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let set: SetLanguage = parse_json(&body)?;
+    let lang = Lang::parse(&set.language).ok_or_else(|| {
+        ApiError::bad(format!(
+            "language '{}': the station speaks en and zh-CN",
+            set.language.chars().take(40).collect::<String>()
+        ))
+    })?;
+    store(&app).set_user_language(&session.user, lang.code())?;
+    Ok(axum::Json(json!({ "language": lang.code() })))
+}
+
+/// `GET /api/i18n/{language}`: the web UI's words in that language (the
+/// `web.` part of the one catalogue); open to everyone, the login page needs it.
+pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<axum::Json<Value>> {
+    let lang = Lang::parse(&language).ok_or_else(|| {
+        ApiError::not_found(format!(
+            "no catalogue for '{}': en and zh-CN",
+            language.chars().take(40).collect::<String>()
+        ))
+    })?;
+    Ok(axum::Json(json!({
+        "language": lang.code(),
+        "words": spinbench_report::lang::catalogue(lang, "web."),
+    })))
 }

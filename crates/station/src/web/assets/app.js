@@ -15,6 +15,8 @@ const state = {
   runId: null,
   answeredAt: 0,      // when the operator last answered a prompt (ms)
   marks: [],          // [[t, label], ...]: when each level began
+  words: {},          // the catalogue's web words in the chosen language
+  language: "en",
   lastTime: 0,        // station time of the latest one-second values [s]
 };
 const KEEP_S = 300;
@@ -42,6 +44,32 @@ async function api(method, path, body) {
   return data;
 }
 
+// The page's words in one language (GET /api/i18n/{language}): every
+// element with data-i18n shows its entry; word() gives the rest.
+async function setLanguage(language) {
+  try {
+    const r = await api("GET", "/api/i18n/" + encodeURIComponent(language));
+    state.words = r.words; state.language = r.language;
+    document.documentElement.lang = r.language;
+    $("lang-select").value = r.language;
+    for (const el of document.querySelectorAll("[data-i18n]")) {
+      const w = state.words[el.dataset.i18n];
+      if (w) el.textContent = w;
+    }
+    if (state.status) renderBoard(state.status.board);
+  } catch (e) { show(e.message); }
+}
+
+function word(key, fallback) { return state.words[key] || fallback; }
+
+async function chooseLanguage() {
+  const language = $("lang-select").value;
+  if (state.session) {
+    try { await api("PUT", "/api/session/language", { language }); } catch (e) { show(e.message); return; }
+  }
+  await setLanguage(language);
+}
+
 function route() {
   const page = (location.hash || "#status").slice(1);
   const loggedIn = !!state.session;
@@ -67,6 +95,7 @@ async function start() {
   $("logout-button").addEventListener("click", logout);
   $("new-form").addEventListener("submit", startRun);
   $("charts-form").addEventListener("submit", (ev) => { ev.preventDefault(); loadCharts(); });
+  $("lang-select").addEventListener("change", chooseLanguage);
   $("equipment-form").addEventListener("submit", saveEquipment);
   $("plan-select").addEventListener("change", fillSerials);
   $("prompt-done").addEventListener("click", () => answer(true));
@@ -84,11 +113,17 @@ async function start() {
   afterLogin();
 }
 
-function afterLogin() {
+async function afterLogin() {
   $("who").textContent = state.session ? state.session.user + " (" + state.session.role + ")" : "";
   $("nav-users").hidden = !(state.session && state.session.role === "admin");
   route();
   if (state.session) { connect(); refreshStatus(); }
+  // The user's language (chosen before, else the browser's), or the browser's before login.
+  let language = /^zh(?!.*(TW|HK|Hant))/i.test(navigator.language || "") ? "zh-CN" : "en";
+  if (state.session) {
+    try { const s = await api("GET", "/api/session"); language = s.language || language; } catch (_) { /* keep the browser's */ }
+  }
+  await setLanguage(language);
 }
 
 async function login(ev) {
@@ -186,7 +221,7 @@ function renderBoard(board) {
     tr.dataset.slot = s.slot;
     const k2 = (s.k2_ug_per_g2 || []).map((k) => k[0] + " " + pm([k[1], k[2]])).join(", ") || "—";
     [s.slot, s.serial, s.mount || "—", s.output_hz === null ? "—" : s.output_hz.toFixed(4), s.temperature_c === null ? "—" : s.temperature_c.toFixed(2),
-      s.phase.replace("_", " ") + (s.reason ? ": " + s.reason : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome || "—"]
+      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + s.reason : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—"]
       .forEach((v, k) => {
         const td = tr.insertCell(); td.textContent = v;
         if (k === 5) td.className = "phase " + s.phase;
