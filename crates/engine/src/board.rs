@@ -16,7 +16,7 @@ use crate::plan::{CompiledPlan, Step};
 use crate::record::{Outcome, PointRecord, ReasonCode};
 use serde::Serialize;
 use spinbench_analysis::unit::analyze_unit;
-use spinbench_analysis::{AnalysisOptions, Mount, Point, UnitPoints};
+use spinbench_analysis::{AnalysisOptions, Mount, UnitPoints};
 
 /// What a slot is doing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -279,16 +279,7 @@ impl SlotBoard {
             let input = UnitPoints {
                 unit: s.serial.clone(),
                 run: None,
-                points: records
-                    .iter()
-                    .map(|p| Point {
-                        mount: p.mount,
-                        g_nominal: p.g_nominal,
-                        g_applied: p.g_applied,
-                        output: p.output_hz,
-                        direction: Some(p.direction),
-                    })
-                    .collect(),
+                points: records.iter().map(PointRecord::point).collect(),
             };
             let options = AnalysisOptions {
                 order,

@@ -219,6 +219,19 @@ impl std::fmt::Display for Outcome {
     }
 }
 
+impl PointRecord {
+    /// The point as the reduction takes it.
+    pub fn point(&self) -> spinbench_analysis::Point {
+        spinbench_analysis::Point {
+            mount: self.mount,
+            g_nominal: self.g_nominal,
+            g_applied: self.g_applied,
+            output: self.output_hz,
+            direction: Some(self.direction),
+        }
+    }
+}
+
 /// Everything the station found for one instrument.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct UnitRecord {

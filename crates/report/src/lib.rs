@@ -560,20 +560,10 @@ fn fmt(v: Option<f64>, decimals: usize) -> String {
 }
 
 fn unix_date(t: i64) -> String {
-    // Civil date from Unix days (Howard Hinnant's algorithm): no time crate for one line.
-    let days = t.div_euclid(86_400);
     let secs = t.rem_euclid(86_400);
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
     format!(
-        "{y:04}-{m:02}-{d:02} {:02}:{:02} UTC",
+        "{} {:02}:{:02} UTC",
+        spinbench_store::equipment::civil_date(t),
         secs / 3600,
         secs % 3600 / 60
     )

@@ -8,17 +8,7 @@ mod common;
 use spinbench_store::{Store, StoreTarget};
 use std::process::Command;
 
-fn spinbench(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args(args)
-        .output()
-        .expect("run spinbench");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use common::spinbench;
 
 /// Runs of the batch; the drift starts after `STEADY` of them.
 const RUNS: usize = 22;

@@ -11,17 +11,7 @@ use spinbench_store::{Store, StoreTarget};
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-fn spinbench(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args(args)
-        .output()
-        .expect("run spinbench");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use common::spinbench;
 
 #[test]
 fn sqlite_a_run_is_stored_listed_exported_and_reanalysed_to_the_same_fits() {

@@ -618,14 +618,5 @@ pub fn grade(
 
 /// The analysis' points of a unit's records.
 fn point_list(records: &[PointRecord]) -> Vec<Point> {
-    records
-        .iter()
-        .map(|p| Point {
-            mount: p.mount,
-            g_nominal: p.g_nominal,
-            g_applied: p.g_applied,
-            output: p.output_hz,
-            direction: Some(p.direction),
-        })
-        .collect()
+    records.iter().map(PointRecord::point).collect()
 }

@@ -17,28 +17,11 @@ pub(super) fn subset_font(
     full: &ParsedFont,
     used: &BTreeSet<char>,
 ) -> Result<ParsedFont, ReportError> {
-    use allsorts::binary::read::ReadScope;
-    use allsorts::font_data::FontData;
-    use allsorts::subset::{CmapTarget, SubsetProfile, subset};
+    use allsorts::subset::SubsetProfile;
     let fail =
         |what: &str, e: String| ReportError::Pdf(format!("subsetting the font: {what}: {e}"));
-    let mut glyphs: Vec<u16> = used
-        .iter()
-        .filter_map(|&c| full.lookup_glyph_index(c as u32))
-        .filter(|&g| g != 0)
-        .collect();
-    glyphs.sort_unstable();
-    glyphs.dedup();
-    // Glyph 0 (.notdef) first, as the subsetter requires.
-    let ids: Vec<u16> = std::iter::once(0).chain(glyphs).collect();
-    let data = ReadScope::new(FONT_TTC)
-        .read::<FontData<'_>>()
-        .map_err(|e| fail("reading", e.to_string()))?;
-    let provider = data
-        .table_provider(0)
-        .map_err(|e| fail("face 0", e.to_string()))?;
-    let bytes = subset(&provider, &ids, &SubsetProfile::Pdf, CmapTarget::Unicode)
-        .map_err(|e| fail("subset", e.to_string()))?;
+    let bytes = subset_bytes(full, used.iter().copied(), SubsetProfile::Pdf)
+        .map_err(|e| fail("subset", e))?;
     let font = ParsedFont::from_bytes(&bytes, 0, &mut Vec::new())
         .ok_or_else(|| fail("reading the subset", "not a font".into()))?;
     // Every character the full font draws must still map to a glyph.
@@ -55,30 +38,31 @@ pub(super) fn subset_font(
 /// OpenType font (the Minimal profile: every table a browser requires), for
 /// the web UI: a station browser without a CJK font still shows Chinese.
 pub fn web_font(text: &str) -> Result<Vec<u8>, ReportError> {
+    use allsorts::subset::SubsetProfile;
+    subset_bytes(full_font()?, text.chars(), SubsetProfile::Minimal)
+        .map_err(|e| ReportError::Pdf(format!("the web font: {e}")))
+}
+
+/// The embedded font's glyphs of `chars` as a font of `profile`'s tables.
+fn subset_bytes(
+    full: &ParsedFont,
+    chars: impl Iterator<Item = char>,
+    profile: allsorts::subset::SubsetProfile,
+) -> Result<Vec<u8>, String> {
     use allsorts::binary::read::ReadScope;
     use allsorts::font_data::FontData;
-    use allsorts::subset::{CmapTarget, SubsetProfile, subset};
-    let fail = |what: &str, e: String| ReportError::Pdf(format!("the web font: {what}: {e}"));
-    let full = full_font()?;
-    let mut glyphs: Vec<u16> = text
-        .chars()
+    use allsorts::subset::{CmapTarget, subset};
+    let mut glyphs: Vec<u16> = chars
         .filter_map(|c| full.lookup_glyph_index(c as u32))
         .filter(|&g| g != 0)
         .collect();
     glyphs.sort_unstable();
     glyphs.dedup();
+    // Glyph 0 (.notdef) first, as the subsetter requires.
     let ids: Vec<u16> = std::iter::once(0).chain(glyphs).collect();
     let data = ReadScope::new(FONT_TTC)
         .read::<FontData<'_>>()
-        .map_err(|e| fail("reading", e.to_string()))?;
-    let provider = data
-        .table_provider(0)
-        .map_err(|e| fail("face 0", e.to_string()))?;
-    subset(
-        &provider,
-        &ids,
-        &SubsetProfile::Minimal,
-        CmapTarget::Unicode,
-    )
-    .map_err(|e| fail("subset", e.to_string()))
+        .map_err(|e| format!("reading: {e}"))?;
+    let provider = data.table_provider(0).map_err(|e| format!("face 0: {e}"))?;
+    subset(&provider, &ids, &profile, CmapTarget::Unicode).map_err(|e| e.to_string())
 }

@@ -270,32 +270,17 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
     c.table(y, &headers, &rows, 6.5, 2);
 }
 
-/// The control charts' pages: the flags, the charts shown, the yields.
-fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
-    use crate::control::{FLAG_HEADERS, YIELD_HEADERS, flag_rows, shown, yield_rows};
-    c.new_page();
-    let title = format!(
-        "Control charts (limits from the first {} runs; Western Electric rules)",
-        control.baseline_runs
-    );
-    c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, &title, Align::Left);
-    let flags = flag_rows(control);
-    let mut top = if flags.is_empty() {
-        c.text(
-            MARGIN_MM,
-            MARGIN_MM + 12.0,
-            9.0,
-            "no rule broken",
-            Align::Left,
-        );
-        MARGIN_MM + 16.0
-    } else {
-        c.table(MARGIN_MM + 8.0, &FLAG_HEADERS, &flags, 7.0, 1) + 2.0
-    };
+/// Charts three to a row from `top`, a new page when a row would not fit.
+fn plot_grid<T>(
+    c: &mut Canvas,
+    mut top: f32,
+    items: impl Iterator<Item = T>,
+    draw: impl Fn(&T, &DrawingArea<PdfPlotBackend<'_>, Shift>) -> Option<()>,
+) {
     let gap = 4.0;
     let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
     let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
-    for (k, chart) in shown(control).enumerate() {
+    for (k, item) in items.enumerate() {
         let column = k % 3;
         if column == 0 && k > 0 {
             top += height + 2.0;
@@ -308,9 +293,36 @@ fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
             MARGIN_MM + column as f32 * (width + gap),
             top,
             width,
-            |root| crate::control::draw_control_chart(chart, root),
+            |root| draw(&item, root),
         );
     }
+}
+
+/// The control charts' pages: the flags, the charts shown, the yields.
+fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
+    use crate::control::{FLAG_HEADERS, YIELD_HEADERS, flag_rows, shown, yield_rows};
+    c.new_page();
+    let title = format!(
+        "Control charts (limits from the first {} runs; Western Electric rules)",
+        control.baseline_runs
+    );
+    c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, &title, Align::Left);
+    let flags = flag_rows(control);
+    let top = if flags.is_empty() {
+        c.text(
+            MARGIN_MM,
+            MARGIN_MM + 12.0,
+            9.0,
+            "no rule broken",
+            Align::Left,
+        );
+        MARGIN_MM + 16.0
+    } else {
+        c.table(MARGIN_MM + 8.0, &FLAG_HEADERS, &flags, 7.0, 1) + 2.0
+    };
+    plot_grid(c, top, shown(control), |chart, root| {
+        crate::control::draw_control_chart(chart, root)
+    });
     c.new_page();
     c.text(
         MARGIN_MM,
@@ -358,26 +370,9 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
     y += 4.0;
     let rows = batch::statistics_rows(b);
     let bottom = c.table(y, &batch::STATISTICS_HEADERS, &rows, 7.5, 1);
-    let gap = 4.0;
-    let width = (PAGE_W_MM - 2.0 * MARGIN_MM - 2.0 * gap) / 3.0;
-    let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
-    let mut top = bottom + 2.0;
-    for (k, d) in b.distributions.iter().enumerate() {
-        let column = k % 3;
-        if column == 0 && k > 0 {
-            top += height + 2.0;
-        }
-        if top + height > PAGE_H_MM - MARGIN_MM - FOOTER_MM {
-            c.new_page();
-            top = MARGIN_MM;
-        }
-        c.plot(
-            MARGIN_MM + column as f32 * (width + gap),
-            top,
-            width,
-            |root| batch::draw_histogram(d, root),
-        );
-    }
+    plot_grid(&mut c, bottom + 2.0, b.distributions.iter(), |d, root| {
+        batch::draw_histogram(d, root)
+    });
     control_pages(&mut c, &b.control);
     for (title, headers, rows) in [
         (

@@ -1,5 +1,19 @@
 //! Shared by the station's integration tests.
 
+/// Run the `spinbench` binary with `args`: (succeeded, stdout, stderr).
+#[allow(dead_code)] // not every test file runs the binary
+pub fn spinbench(args: &[&str]) -> (bool, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(args)
+        .output()
+        .expect("run spinbench");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// A short two-mounting plan for the virtual bench (±10 g, 7 levels, no
 /// warm-up, 3-s dwell and hold) with instruments `{prefix}1`, `{prefix}2`
 /// (module 1) and `{prefix}7` (module 2).
