@@ -550,10 +550,15 @@ pub fn batch_csv(b: &BatchReport) -> String {
     out
 }
 
-pub(crate) fn html_table(h: &mut String, id: &str, headers: &[&str], rows: &[Vec<String>]) {
+pub(crate) fn html_table<S: AsRef<str>>(
+    h: &mut String,
+    id: &str,
+    headers: &[S],
+    rows: &[Vec<String>],
+) {
     h.push_str(&format!("<table id=\"{id}\"><tr>"));
     for head in headers {
-        h.push_str(&format!("<th>{}</th>", esc(head)));
+        h.push_str(&format!("<th>{}</th>", esc(head.as_ref())));
     }
     h.push_str("</tr>\n");
     for row in rows {
@@ -568,30 +573,51 @@ pub(crate) fn html_table(h: &mut String, id: &str, headers: &[&str], rows: &[Vec
 
 /// The batch report as one self-contained HTML document.
 pub fn batch_html(b: &BatchReport) -> String {
+    batch_html_in(b, crate::Lang::En)
+}
+
+/// The batch report as one HTML document in `lang`.
+pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
+    use crate::lang::{header, tr};
+    let heads = |list: &[&str]| -> Vec<String> { list.iter().map(|h| header(lang, h)).collect() };
     let (pass, marginal, fail) = b.outcomes();
     let mut h = String::from(
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>spinbench batch report</title>\
+        "<!DOCTYPE html>\n<html lang=\"LANG\"><head><meta charset=\"utf-8\"><title>spinbench batch report</title>\
          <style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
          table{border-collapse:collapse;font-size:0.85em;margin-bottom:1em}td,th{border:1px solid #999;padding:2px 6px}\
          th{background:#eee}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
+    )
+    .replacen("LANG", lang.code(), 1);
+    let serials = b
+        .tests
+        .iter()
+        .map(|t| &t.serial)
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let totals = rust_i18n::t!(
+        "batch.totals",
+        runs = b.runs.len(),
+        tests = b.tests.len(),
+        serials = serials,
+        pass = pass,
+        marginal = marginal,
+        fail = fail,
+        locale = lang.code()
     );
     h.push_str(&format!(
-        "<h1>Batch report</h1>\n<p id=\"totals\">{} runs, {} instrument tests, {} serial numbers: \
-         {pass} pass, {marginal} marginal, {fail} fail{}.</p>\n",
-        b.runs.len(),
-        b.tests.len(),
-        b.tests
-            .iter()
-            .map(|t| &t.serial)
-            .collect::<std::collections::BTreeSet<_>>()
-            .len(),
-        b.incomplete_note(),
+        "<h1>{}</h1>\n<p id=\"totals\">{}{}.</p>\n",
+        esc(&tr(lang, "batch.title")),
+        esc(&totals),
+        esc(&b.incomplete_note()),
     ));
-    h.push_str("<h2>Distributions</h2>\n");
+    h.push_str(&format!(
+        "<h2>{}</h2>\n",
+        esc(&tr(lang, "batch.distributions"))
+    ));
     html_table(
         &mut h,
         "statistics",
-        &STATISTICS_HEADERS,
+        &heads(&STATISTICS_HEADERS),
         &statistics_rows(b),
     );
     for svg in b.distributions.iter().filter_map(histogram_svg) {
@@ -599,23 +625,45 @@ pub fn batch_html(b: &BatchReport) -> String {
         h.push_str(&svg);
         h.push_str("</figure>\n");
     }
-    crate::control::html_section(&mut h, &b.control);
-    h.push_str("<h2>Outliers (|robust z| &gt; 3.5)</h2>\n");
-    html_table(&mut h, "outliers", &OUTLIER_HEADERS, &outlier_rows(b));
-    h.push_str("<h2>Repeatability of serial numbers tested more than once</h2>\n");
-    html_table(&mut h, "repeats", &REPEAT_HEADERS, &repeat_rows(b));
-    h.push_str("<h2>Every test</h2>\n");
-    html_table(&mut h, "tests", &TEST_HEADERS, &test_rows(b));
+    crate::control::html_section(&mut h, &b.control, lang);
+    for (title, id, list, rows) in [
+        (
+            "batch.outliers",
+            "outliers",
+            &OUTLIER_HEADERS[..],
+            outlier_rows(b),
+        ),
+        (
+            "batch.repeats",
+            "repeats",
+            &REPEAT_HEADERS[..],
+            repeat_rows(b),
+        ),
+        ("batch.tests", "tests", &TEST_HEADERS[..], test_rows(b)),
+    ] {
+        h.push_str(&format!("<h2>{}</h2>\n", esc(&tr(lang, title))));
+        html_table(&mut h, id, &heads(list), &rows);
+    }
     h.push_str("</body></html>\n");
     h
 }
 
 /// The batch report in one format, as bytes.
 pub fn render_batch(b: &BatchReport, format: crate::ReportFormat) -> Result<Vec<u8>, ReportError> {
+    render_batch_in(b, format, crate::Lang::En)
+}
+
+/// The batch report in one format and language, as bytes (the PDF and the
+/// XLSX are in English this round; the CSV's headers are machine names).
+pub fn render_batch_in(
+    b: &BatchReport,
+    format: crate::ReportFormat,
+    lang: crate::Lang,
+) -> Result<Vec<u8>, ReportError> {
     use crate::ReportFormat;
     match format {
         ReportFormat::Pdf => crate::batch_pdf(b),
-        ReportFormat::Html => Ok(batch_html(b).into_bytes()),
+        ReportFormat::Html => Ok(batch_html_in(b, lang).into_bytes()),
         ReportFormat::Csv => Ok(batch_csv(b).into_bytes()),
         ReportFormat::Xlsx => batch_xlsx(b).map_err(|e| ReportError::Xlsx(e.to_string())),
     }

@@ -417,10 +417,14 @@ pub(crate) fn draw_control_chart<DB: DrawingBackend>(
 }
 
 /// The batch report's HTML section: the flags, the charts, the yields.
-pub(crate) fn html_section(h: &mut String, c: &ControlReport) {
+pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang) {
     h.push_str(&format!(
-        "<h2>Control charts (limits from the first {} runs; Western Electric rules)</h2>\n",
-        c.baseline_runs
+        "<h2>{}</h2>\n",
+        crate::esc(&rust_i18n::t!(
+            "batch.control",
+            runs = c.baseline_runs,
+            locale = lang.code()
+        ))
     ));
     let in_control: Vec<String> = c
         .charts
@@ -429,14 +433,18 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport) {
         .map(|ch| crate::esc(&ch.quantity))
         .collect();
     h.push_str(&format!(
-        "<p id=\"in-control\">In control: {}.</p>\n",
+        "<p id=\"in-control\">{}: {}.</p>\n",
+        crate::esc(&crate::tr(lang, "batch.in_control")),
         if in_control.is_empty() {
             "none".into()
         } else {
             in_control.join(", ")
         }
     ));
-    crate::batch::html_table(h, "control-flags", &FLAG_HEADERS, &flag_rows(c));
+    let heads = |list: &[&str]| -> Vec<String> {
+        list.iter().map(|x| crate::lang::header(lang, x)).collect()
+    };
+    crate::batch::html_table(h, "control-flags", &heads(&FLAG_HEADERS), &flag_rows(c));
     for chart in shown(c) {
         if let Some(svg) = control_chart_svg(chart) {
             h.push_str("<figure class=\"control-chart\">");
@@ -444,8 +452,11 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport) {
             h.push_str("</figure>\n");
         }
     }
-    h.push_str("<h2>First-pass yield</h2>\n");
-    crate::batch::html_table(h, "yield", &YIELD_HEADERS, &yield_rows(c));
+    h.push_str(&format!(
+        "<h2>{}</h2>\n",
+        crate::esc(&crate::tr(lang, "batch.yield"))
+    ));
+    crate::batch::html_table(h, "yield", &heads(&YIELD_HEADERS), &yield_rows(c));
 }
 
 /// A control chart as SVG.

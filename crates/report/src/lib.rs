@@ -14,8 +14,8 @@ mod pdf;
 mod plots;
 
 pub use batch::{
-    BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, gather_batch,
-    render_batch,
+    BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, batch_html_in,
+    gather_batch, render_batch, render_batch_in,
 };
 pub use pdf::{batch_pdf, pdf, web_font};
 
@@ -889,10 +889,13 @@ pub fn write_batch_reports(
     baseline_runs: usize,
     formats: &[ReportFormat],
     dir: &Path,
+    lang: Lang,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let mut batch = gather_batch(store, run_ids)?;
     batch.rebaseline(baseline_runs);
-    write_files(dir, "batch-report", formats, |f| render_batch(&batch, f))
+    write_files(dir, "batch-report", formats, |f| {
+        batch::render_batch_in(&batch, f, lang)
+    })
 }
 
 /// `dir/<stem>.<ext>` for each format, from `render`.

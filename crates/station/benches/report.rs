@@ -107,6 +107,7 @@ fn main() {
         spinbench_report::control::DEFAULT_BASELINE_RUNS,
         &ReportFormat::ALL,
         &out,
+        spinbench_report::Lang::En,
     )
     .expect("batch report");
     let batch_s = t.elapsed().as_secs_f64();

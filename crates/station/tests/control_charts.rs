@@ -129,4 +129,27 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         text.contains("Control charts") && text.contains("First-pass yield"),
         "{text}"
     );
+    // The batch report's HTML in Chinese.
+    let zh = dir.path().join("zh");
+    let (ok, _, err) = spinbench(&[
+        "batch-report",
+        "--db",
+        data.join("spinbench.db").to_str().expect("utf-8"),
+        "--format",
+        "html",
+        "--lang",
+        "zh-CN",
+        "--out",
+        zh.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{err}");
+    let html = std::fs::read_to_string(zh.join("batch-report.html")).expect("html");
+    assert!(
+        html.contains("批次报告")
+            && html.contains("控制图（控制限取前 10 次运行")
+            && html.contains("一次合格率")
+            && html.contains("受控: ")
+            && html.contains("lang=\"zh-CN\""),
+        "the batch report in Chinese"
+    );
 }

@@ -36,6 +36,7 @@ pub(super) fn batch_report(
         baseline_runs,
         &report_formats(&o.format)?,
         &o.out,
+        o.lang,
     )
     .with_context(|| format!("{}: batch report", o.db))?;
     print_paths(out, &files)?;
