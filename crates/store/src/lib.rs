@@ -20,6 +20,7 @@
 //! | `users` | the web UI's users and the audit log |
 //! | [`testing`] | fresh PostgreSQL databases for tests |
 
+mod backup;
 mod csv;
 pub mod db;
 pub mod equipment;
@@ -53,6 +54,17 @@ pub struct StoreError {
     /// The database's reason.
     #[source]
     pub source: DbError,
+}
+
+impl StoreError {
+    /// An error of the store's own (not the database's): `problem` says what to do.
+    pub fn message(target: &StoreTarget, what: &str, problem: String) -> StoreError {
+        StoreError {
+            target: target.to_string(),
+            what: what.to_string(),
+            source: problem.into(),
+        }
+    }
 }
 
 fn now_s() -> i64 {

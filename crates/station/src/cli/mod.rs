@@ -22,6 +22,7 @@ use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+mod backup;
 mod equipment;
 mod records;
 mod reports;
@@ -283,6 +284,29 @@ pub enum Command {
         /// What to do.
         #[command(subcommand)]
         action: UserAction,
+    },
+    /// Back the store up into DIR while the station may run: an SQLite
+    /// store through SQLite's online backup API, checked; with --data, the
+    /// runs' files too (raw captures, reports). For PostgreSQL it says what
+    /// to run.
+    Backup {
+        /// Where the backup goes (created if missing).
+        dir: PathBuf,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+        /// Also copy this data directory's runs (DATA/runs).
+        #[arg(long)]
+        data: Option<PathBuf>,
+    },
+    /// Restore a backup made by `spinbench backup` into a store file that
+    /// does not exist yet (move the old one aside first).
+    Restore {
+        /// The backup file.
+        backup: PathBuf,
+        /// The store file to create.
+        #[arg(long, default_value = "spinbench-data/spinbench.db")]
+        db: PathBuf,
     },
     /// The equipment register: each device's calibration certificate and
     /// due date (a run does not start while one is overdue).
@@ -604,6 +628,8 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         } => reports::batch_report(&runs, baseline_runs as usize, &output, out),
         Command::Replay { run, data, db } => reports::replay(&run, &data, db, out),
         Command::Serve { args } => crate::web::serve(args, out),
+        Command::Backup { dir, db, data } => backup::backup(&dir, &db, data.as_deref(), out),
+        Command::Restore { backup, db } => backup::restore(&backup, &db, out),
         Command::Equipment { action } => match action {
             EquipmentAction::List { db } => equipment::list(&db, out),
             EquipmentAction::Set {
