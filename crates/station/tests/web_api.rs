@@ -704,3 +704,48 @@ fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides() {
     assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
     op.wait_status(60, |s| s["active"].is_null());
 }
+
+#[test]
+fn a_session_survives_a_restart_and_a_removed_users_does_not() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    add_user(dir.path(), "op", "operator", "op-password");
+    let server = serve(dir.path(), "0");
+    let mut op = Client::login(&server, "op", "op-password");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    let before = op.get_json("/api/session", 200);
+    // The server stops (a restart mid-shift) and comes back on the same store.
+    drop(server);
+    let server = serve(dir.path(), "0");
+    op.moved_to(&server);
+    admin.moved_to(&server);
+    let after = op.get_json("/api/session", 200);
+    assert_eq!(after["user"], "op");
+    assert_eq!(after["csrf"], before["csrf"], "the same session");
+    // A state change with its CSRF token still works.
+    let r = op.send(
+        "PUT",
+        "/api/session/language",
+        Some(r#"{"language": "zh-CN"}"#),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    // The store keeps hashes, never the token.
+    let token = op.cookie.clone().unwrap_or_default();
+    let token = token.split('=').nth(1).unwrap_or_default().to_string();
+    let db = std::fs::read(dir.path().join("spinbench.db")).unwrap_or_default();
+    assert!(
+        !String::from_utf8_lossy(&db).contains(&token) && !token.is_empty(),
+        "the token is not in the store"
+    );
+    // The user is removed: their session ends, also after another restart.
+    assert_eq!(admin.send("DELETE", "/api/users/op", None).status, 204);
+    assert_eq!(op.send("GET", "/api/session", None).status, 401);
+    drop(server);
+    let server = serve(dir.path(), "0");
+    op.moved_to(&server);
+    admin.moved_to(&server);
+    assert_eq!(op.send("GET", "/api/session", None).status, 401);
+    // Logout ends a session for good.
+    assert_eq!(admin.send("POST", "/api/logout", None).status, 204);
+    assert_eq!(admin.send("GET", "/api/session", None).status, 401);
+}

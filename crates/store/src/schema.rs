@@ -199,6 +199,21 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: "ALTER TABLE users ADD COLUMN language TEXT;",
         postgres: "ALTER TABLE users ADD COLUMN language TEXT;",
     },
+    Migration {
+        what: "web sessions kept across restarts (hashed tokens)",
+        sqlite: "CREATE TABLE sessions (
+        token_hash TEXT PRIMARY KEY,
+        user_name TEXT NOT NULL,
+        csrf TEXT NOT NULL,
+        last_seen INTEGER NOT NULL
+    );",
+        postgres: "CREATE TABLE sessions (
+        token_hash TEXT PRIMARY KEY,
+        user_name TEXT NOT NULL,
+        csrf TEXT NOT NULL,
+        last_seen BIGINT NOT NULL
+    );",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

@@ -203,6 +203,66 @@ impl Store {
             .map_err(self.err("set a user's language"))
     }
 
+    /// Keep a web session: the SHA-256 of its token (never the token), its
+    /// user and CSRF token, used now.
+    pub fn save_session(&self, token_hash: &str, user: &str, csrf: &str) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "INSERT INTO sessions (token_hash, user_name, csrf, last_seen) VALUES ($1, $2, $3, $4)
+                 ON CONFLICT (token_hash) DO UPDATE SET last_seen = excluded.last_seen",
+                &[
+                    token_hash.into(),
+                    user.into(),
+                    csrf.into(),
+                    Value::Int(Some(now_s())),
+                ],
+            )
+            .map(|_| ())
+            .map_err(self.err("keep a session"))
+    }
+
+    /// A kept session by its token's hash: (user, role, CSRF token, last
+    /// used [Unix s]) — none when its user is gone.
+    pub fn session(
+        &self,
+        token_hash: &str,
+    ) -> Result<Option<(String, String, String, i64)>, StoreError> {
+        Ok(self
+            .query(
+                "read a session",
+                "SELECT s.user_name, u.role, s.csrf, s.last_seen FROM sessions s
+                 JOIN users u ON u.name = s.user_name WHERE s.token_hash = $1",
+                &[token_hash.into()],
+            )?
+            .first()
+            .map(|r| (r.text(0), r.text(1), r.text(2), r.int(3))))
+    }
+
+    /// End a kept session.
+    pub fn delete_session(&self, token_hash: &str) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "DELETE FROM sessions WHERE token_hash = $1",
+                &[token_hash.into()],
+            )
+            .map(|_| ())
+            .map_err(self.err("end a session"))
+    }
+
+    /// End every kept session of `user`, and every one unused since `before` [Unix s].
+    pub fn delete_sessions(&self, user: Option<&str>, before: i64) -> Result<(), StoreError> {
+        self.db
+            .borrow_mut()
+            .execute(
+                "DELETE FROM sessions WHERE user_name = $1 OR last_seen < $2",
+                &[user.unwrap_or("").into(), Value::Int(Some(before))],
+            )
+            .map(|_| ())
+            .map_err(self.err("end sessions"))
+    }
+
     /// The newest `limit` audit entries, newest first.
     pub fn audit_log(&self, limit: i64) -> Result<Vec<AuditRow>, StoreError> {
         Ok(self

@@ -10,6 +10,7 @@
 use argon2::Argon2;
 use argon2::password_hash::{PasswordHash, PasswordHasher, PasswordVerifier, SaltString};
 use serde::Serialize;
+use spinbench_store::Store;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
@@ -131,15 +132,29 @@ fn random_token() -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// The open sessions.
+/// The open sessions: cached here, kept in the store (the SHA-256 of each
+/// token, never the token) so a restart keeps operators logged in. A kept
+/// session's role is its user's now: a user removed has no session.
 #[derive(Default)]
 pub struct Sessions {
     by_token: Mutex<HashMap<String, Session>>,
 }
 
+/// How often a session's use is written to the store.
+const TOUCH_EVERY: Duration = Duration::from_secs(60);
+
+/// The hex SHA-256 of a session token: what the store keeps.
+fn token_hash(token: &str) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(token.as_bytes())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
 impl Sessions {
-    /// Open a session; returns its cookie token and the session.
-    pub fn open(&self, user: &str, role: Role) -> (String, Session) {
+    /// Open a session and keep it in `store`; its cookie token and the session.
+    pub fn open(&self, store: &Store, user: &str, role: Role) -> (String, Session) {
         let token = random_token();
         let session = Session {
             user: user.to_string(),
@@ -147,39 +162,73 @@ impl Sessions {
             csrf: random_token(),
             last_seen: Instant::now(),
         };
+        // A store that cannot keep it leaves a session for this process's life.
+        let _ = store.save_session(&token_hash(&token), user, &session.csrf);
         let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
         map.retain(|_, s| s.last_seen.elapsed() < IDLE_LIMIT);
         map.insert(token.clone(), session.clone());
         (token, session)
     }
 
-    /// The session of a cookie token, if open (and mark it used).
-    pub fn get(&self, token: &str) -> Option<Session> {
+    /// The session of a cookie token, if open (and mark it used): from the
+    /// cache, or else from the store (a session from before a restart).
+    pub fn get(&self, store: &Store, token: &str) -> Option<Session> {
         let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
-        let session = map.get_mut(token)?;
-        if session.last_seen.elapsed() >= IDLE_LIMIT {
-            map.remove(token);
+        if let Some(session) = map.get_mut(token) {
+            if session.last_seen.elapsed() >= IDLE_LIMIT {
+                map.remove(token);
+                let _ = store.delete_session(&token_hash(token));
+                return None;
+            }
+            if session.last_seen.elapsed() >= TOUCH_EVERY {
+                let _ = store.save_session(&token_hash(token), &session.user, &session.csrf);
+            }
+            session.last_seen = Instant::now();
+            return Some(session.clone());
+        }
+        let hash = token_hash(token);
+        let (user, role, csrf, last_seen) = store.session(&hash).ok().flatten()?;
+        let idle = now_unix().saturating_sub(last_seen).max(0) as u64;
+        let role = Role::parse(&role)?;
+        if idle >= IDLE_LIMIT.as_secs() {
+            let _ = store.delete_session(&hash);
             return None;
         }
-        session.last_seen = Instant::now();
-        Some(session.clone())
+        let _ = store.save_session(&hash, &user, &csrf);
+        let session = Session {
+            user,
+            role,
+            csrf,
+            last_seen: Instant::now(),
+        };
+        map.insert(token.to_string(), session.clone());
+        Some(session)
     }
 
-    /// Close a session.
-    pub fn close(&self, token: &str) {
+    /// Close a session (logout).
+    pub fn close(&self, store: &Store, token: &str) {
         self.by_token
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .remove(token);
+        let _ = store.delete_session(&token_hash(token));
     }
 
-    /// Close every session of a user (deleted, or the role changed).
-    pub fn close_user(&self, user: &str) {
+    /// Close every session of a user (deleted, or the role changed), and
+    /// every kept session idle past the limit.
+    pub fn close_user(&self, store: &Store, user: &str) {
         self.by_token
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .retain(|_, s| s.user != user);
+        let _ = store.delete_sessions(Some(user), now_unix() - IDLE_LIMIT.as_secs() as i64);
     }
+}
+
+fn now_unix() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs() as i64)
 }
 
 /// The session token in a `Cookie` header, if any.

@@ -155,6 +155,11 @@ impl Client {
         }
     }
 
+    /// The same session, sent to `server` from now on (a restarted server).
+    pub fn moved_to(&mut self, server: &Server) {
+        self.base = server.base.clone();
+    }
+
     /// Log in; panics unless it succeeds.
     pub fn login(server: &Server, user: &str, password: &str) -> Client {
         let mut c = Client::new(server);

@@ -73,7 +73,7 @@ pub(super) async fn login(
         ));
     };
     app.logins.succeeded(&name);
-    let (token, session) = app.sessions.open(&name, role);
+    let (token, session) = app.sessions.open(&store(&app), &name, role);
     audit(&app, &name, "login", role.as_str())?;
     let mut response = axum::Json(json!(session)).into_response();
     response.headers_mut().insert(
@@ -95,7 +95,7 @@ pub(super) async fn logout(
         .and_then(|v| v.to_str().ok())
         .and_then(auth::session_token)
     {
-        app.sessions.close(&token);
+        app.sessions.close(&store(&app), &token);
     }
     audit(&app, &session.user, "logout", "")?;
     let mut response = StatusCode::NO_CONTENT.into_response();

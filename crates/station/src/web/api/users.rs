@@ -65,7 +65,7 @@ pub(super) async fn delete_user(
     if !store(&app).delete_user(&name)? {
         return Err(ApiError::not_found(format!("no user '{name}'")));
     }
-    app.sessions.close_user(&name);
+    app.sessions.close_user(&store(&app), &name);
     audit(&app, &session.user, "remove user", &name)?;
     Ok(StatusCode::NO_CONTENT)
 }
