@@ -42,6 +42,23 @@ pub enum SlotPhase {
     Failed,
 }
 
+impl SlotPhase {
+    /// Its name, as it is serialised (`averaging`, `failed`, …).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            SlotPhase::Waiting => "waiting",
+            SlotPhase::Warming => "warming",
+            SlotPhase::Tumble => "tumble",
+            SlotPhase::Radius => "radius",
+            SlotPhase::Settling => "settling",
+            SlotPhase::Averaging => "averaging",
+            SlotPhase::Done => "done",
+            SlotPhase::Noisy => "noisy",
+            SlotPhase::Failed => "failed",
+        }
+    }
+}
+
 /// One slot of the board.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SlotState {
@@ -319,4 +336,29 @@ fn figures(a: &spinbench_analysis::UnitAnalysis) -> Figures {
         .as_ref()
         .map(|j| (j.k2_even_ug_per_g2, j.k2_even_u95));
     (per_mount, big)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_phases_name_is_its_serialised_name() {
+        for phase in [
+            SlotPhase::Waiting,
+            SlotPhase::Warming,
+            SlotPhase::Tumble,
+            SlotPhase::Radius,
+            SlotPhase::Settling,
+            SlotPhase::Averaging,
+            SlotPhase::Done,
+            SlotPhase::Noisy,
+            SlotPhase::Failed,
+        ] {
+            assert_eq!(
+                serde_json::to_value(phase).ok(),
+                Some(serde_json::Value::from(phase.as_str()))
+            );
+        }
+    }
 }

@@ -50,15 +50,23 @@ pub struct ControlChart {
 }
 
 impl ControlChart {
+    /// A chart of `points` whose first `baseline` give its limits; with
+    /// `sigma`, that σ̂ instead of the chart's own (the centre stays its own).
     fn new(
         quantity: String,
         unit: &'static str,
         position: Option<(usize, Option<Mount>)>,
         points: Vec<ChartPoint>,
         baseline: usize,
+        sigma: Option<f64>,
     ) -> ControlChart {
         let values: Vec<f64> = points.iter().map(|p| p.value).collect();
-        let limits = ControlLimits::from_baseline(&values[..baseline.min(values.len())]);
+        let limits = ControlLimits::from_baseline(&values[..baseline.min(values.len())]).map(|l| {
+            ControlLimits {
+                sigma: sigma.filter(|s| *s > 0.0).unwrap_or(l.sigma),
+                ..l
+            }
+        });
         let violations = limits
             .map(|l| western_electric(&values, &l))
             .unwrap_or_default();
@@ -163,7 +171,14 @@ pub fn control_report(b: &BatchReport, baseline_runs: usize) -> ControlReport {
             continue;
         }
         let baseline = points.iter().filter(|p| in_baseline(&p.run_id)).count();
-        charts.push(ControlChart::new(name.into(), unit, None, points, baseline));
+        charts.push(ControlChart::new(
+            name.into(),
+            unit,
+            None,
+            points,
+            baseline,
+            None,
+        ));
     }
     // Each fixture position's radius, one point per run that used it: with
     // both mountings their mean, the fixture's centre (the proof mass's
@@ -220,15 +235,15 @@ pub fn control_report(b: &BatchReport, baseline_runs: usize) -> ControlReport {
             None => format!("radius slot {slot}"),
             Some(m) => format!("radius slot {slot} {m:?}"),
         };
-        let mut chart = ControlChart::new(name, "mm", Some((slot, mount)), points, baseline);
-        if let (Some(limits), Some(&Some(sigma))) = (chart.limits.as_mut(), sigmas.get(&mount))
-            && sigma > 0.0
-        {
-            limits.sigma = sigma;
-            let values: Vec<f64> = chart.points.iter().map(|p| p.value).collect();
-            chart.violations = western_electric(&values, limits);
-        }
-        charts.push(chart);
+        let sigma = sigmas.get(&mount).copied().flatten();
+        charts.push(ControlChart::new(
+            name,
+            "mm",
+            Some((slot, mount)),
+            points,
+            baseline,
+            sigma,
+        ));
     }
     let (yield_by_run, yield_by_day) = first_pass_yields(&measured);
     ControlReport {

@@ -102,21 +102,16 @@ pub fn outcome(lang: Lang, name: &str) -> String {
 /// A date and time as `lang` writes it: "2026-11-23 15:11 UTC" or
 /// "2026年11月23日 15:11 UTC".
 pub fn date_time(lang: Lang, unix_s: i64) -> String {
-    let iso = crate::unix_date(unix_s);
     match lang {
-        Lang::En => iso,
+        Lang::En => crate::unix_date(unix_s),
         Lang::ZhCn => {
-            // "YYYY-MM-DD HH:MM UTC"
-            let (date, rest) = iso.split_once(' ').unwrap_or((&iso, ""));
-            let mut d = date.split('-');
-            match (d.next(), d.next(), d.next()) {
-                (Some(y), Some(m), Some(day)) => format!(
-                    "{y}年{}月{}日 {rest}",
-                    m.trim_start_matches('0'),
-                    day.trim_start_matches('0')
-                ),
-                _ => iso.clone(),
-            }
+            let (y, m, d) = spinbench_store::equipment::civil_from_days(unix_s.div_euclid(86_400));
+            let secs = unix_s.rem_euclid(86_400);
+            format!(
+                "{y}年{m}月{d}日 {:02}:{:02} UTC",
+                secs / 3600,
+                secs % 3600 / 60
+            )
         }
     }
 }

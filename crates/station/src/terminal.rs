@@ -86,12 +86,9 @@ pub struct ProgressPrinter {
 
 /// "9 averaging, 1 failed": how many slots are in each state.
 fn phase_counts(board: &spinbench_engine::board::SlotBoard) -> String {
-    let mut counts: Vec<(String, usize)> = Vec::new();
+    let mut counts: Vec<(&str, usize)> = Vec::new();
     for s in board.slots() {
-        let name = serde_json::to_value(s.phase)
-            .ok()
-            .and_then(|v| v.as_str().map(str::to_string))
-            .unwrap_or_default();
+        let name = s.phase.as_str();
         match counts.iter_mut().find(|(n, _)| *n == name) {
             Some((_, c)) => *c += 1,
             None => counts.push((name, 1)),
@@ -114,10 +111,7 @@ pub fn board_lines(board: &spinbench_engine::board::SlotBoard) -> Vec<String> {
         .slots()
         .iter()
         .map(|s| {
-            let phase = serde_json::to_value(s.phase)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .unwrap_or_default();
+            let phase = s.phase.as_str();
             let k2: Vec<String> = s
                 .k2_ug_per_g2
                 .iter()

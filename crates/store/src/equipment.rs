@@ -61,7 +61,8 @@ pub fn civil_date(unix_s: i64) -> String {
     format!("{y:04}-{m:02}-{d:02}")
 }
 
-fn civil_from_days(days: i64) -> (i64, i64, i64) {
+/// (year, month, day) of a day count since 1970-01-01.
+pub fn civil_from_days(days: i64) -> (i64, i64, i64) {
     let z = days + 719_468;
     let era = z.div_euclid(146_097);
     let doe = z - era * 146_097;
@@ -96,15 +97,21 @@ pub fn parse_date(text: &str) -> Option<i64> {
     (civil_from_days(days) == (y, m, d)).then_some(days)
 }
 
+/// The status on `today` (days since 1970-01-01) of a device due on
+/// `due_on` (YYYY-MM-DD; a date that is not one counts as overdue).
+pub fn status_of_due(due_on: &str, today: i64) -> CalibrationStatus {
+    match parse_date(due_on) {
+        Some(due) if due < today => CalibrationStatus::Overdue,
+        Some(due) if due - today <= DUE_SOON_DAYS => CalibrationStatus::DueSoon,
+        Some(_) => CalibrationStatus::Valid,
+        None => CalibrationStatus::Overdue,
+    }
+}
+
 impl EquipmentRow {
     /// Its status on `today` (days since 1970-01-01).
     pub fn status_on(&self, today: i64) -> CalibrationStatus {
-        match parse_date(&self.due_on) {
-            Some(due) if due < today => CalibrationStatus::Overdue,
-            Some(due) if due - today <= DUE_SOON_DAYS => CalibrationStatus::DueSoon,
-            Some(_) => CalibrationStatus::Valid,
-            None => CalibrationStatus::Overdue,
-        }
+        status_of_due(&self.due_on, today)
     }
 }
 

@@ -112,22 +112,18 @@ impl StoreSink {
                     match row {
                         Some(r) => {
                             let due = r.text(2);
-                            let status =
-                                crate::equipment::parse_date(&due).map_or("overdue", |days| {
-                                    if days < today {
-                                        "overdue"
-                                    } else if days - today <= crate::equipment::DUE_SOON_DAYS {
-                                        "due soon"
-                                    } else {
-                                        "valid"
-                                    }
-                                });
+                            let status = crate::equipment::status_of_due(&due, today).as_str();
                             entry["certificate"] = r.text(0).into();
                             entry["calibrated_on"] = r.text(1).into();
                             entry["due_on"] = due.into();
                             entry["calibration"] = status.into();
                         }
-                        None => entry["calibration"] = "not in the register".into(),
+                        None => {
+                            entry["calibration"] =
+                                crate::equipment::CalibrationStatus::Unregistered
+                                    .as_str()
+                                    .into();
+                        }
                     }
                     listed.push(entry);
                 }

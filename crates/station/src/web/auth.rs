@@ -125,6 +125,9 @@ pub struct Session {
     pub csrf: String,
     #[serde(skip)]
     last_seen: Instant,
+    /// When its use was last written to the store.
+    #[serde(skip)]
+    kept: Instant,
 }
 
 fn random_token() -> String {
@@ -161,6 +164,7 @@ impl Sessions {
             role,
             csrf: random_token(),
             last_seen: Instant::now(),
+            kept: Instant::now(),
         };
         // A store that cannot keep it leaves a session for this process's life.
         let _ = store.save_session(&token_hash(&token), user, &session.csrf);
@@ -171,21 +175,34 @@ impl Sessions {
     }
 
     /// The session of a cookie token, if open (and mark it used): from the
-    /// cache, or else from the store (a session from before a restart).
-    pub fn get(&self, store: &Store, token: &str) -> Option<Session> {
+    /// cache, or else from the store (a session from before a restart). The
+    /// store is locked only to read a session the cache does not have, to
+    /// end one, or to keep its use (at most once a minute): a request of a
+    /// known session does not wait for the store.
+    pub fn get(&self, store: &Mutex<Store>, token: &str) -> Option<Session> {
+        let store = || store.lock().unwrap_or_else(|e| e.into_inner());
         let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(session) = map.get_mut(token) {
             if session.last_seen.elapsed() >= IDLE_LIMIT {
                 map.remove(token);
-                let _ = store.delete_session(&token_hash(token));
+                drop(map);
+                let _ = store().delete_session(&token_hash(token));
                 return None;
             }
-            if session.last_seen.elapsed() >= TOUCH_EVERY {
-                let _ = store.save_session(&token_hash(token), &session.user, &session.csrf);
-            }
             session.last_seen = Instant::now();
-            return Some(session.clone());
+            let keep = session.kept.elapsed() >= TOUCH_EVERY;
+            if keep {
+                session.kept = Instant::now();
+            }
+            let found = session.clone();
+            drop(map);
+            if keep {
+                let _ = store().save_session(&token_hash(token), &found.user, &found.csrf);
+            }
+            return Some(found);
         }
+        drop(map);
+        let store = store();
         let hash = token_hash(token);
         let (user, role, csrf, last_seen) = store.session(&hash).ok().flatten()?;
         let idle = now_unix().saturating_sub(last_seen).max(0) as u64;
@@ -200,8 +217,12 @@ impl Sessions {
             role,
             csrf,
             last_seen: Instant::now(),
+            kept: Instant::now(),
         };
-        map.insert(token.to_string(), session.clone());
+        self.by_token
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(token.to_string(), session.clone());
         Some(session)
     }
 

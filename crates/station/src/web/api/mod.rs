@@ -89,7 +89,7 @@ pub(super) fn authorize(
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
         .and_then(auth::session_token)
-        .and_then(|t| app.sessions.get(&store(app), &t))
+        .and_then(|t| app.sessions.get(&app.store, &t))
         .ok_or_else(|| {
             ApiError::new(
                 StatusCode::UNAUTHORIZED,
