@@ -296,7 +296,7 @@ impl fmt::Display for Uncertainty {
 }
 
 /// Three significant figures, for budget lines.
-fn sig(v: f64) -> String {
+pub fn sig(v: f64) -> String {
     if v == 0.0 || !v.is_finite() {
         return format!("{v}");
     }

@@ -86,6 +86,12 @@ pub struct SlotState {
     pub outcome: Option<Outcome>,
     /// Why it was left out.
     pub reason: Option<String>,
+    /// The reason's code and values (see [`crate::Reason`]), for the page's language.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason_code: Option<ReasonCode>,
+    /// The values of the reason's text, by name.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub reason_args: std::collections::BTreeMap<String, String>,
 }
 
 /// The board: one [`SlotState`] per slot with an instrument.
@@ -160,7 +166,12 @@ impl SlotBoard {
                     }
                 }
             }
-            Event::UnitFailed { slot, reason, code } => {
+            Event::UnitFailed {
+                slot,
+                reason,
+                code,
+                args,
+            } => {
                 if let Some(s) = self.state_mut(*slot) {
                     s.phase = if *code == ReasonCode::Noisy {
                         SlotPhase::Noisy
@@ -168,6 +179,8 @@ impl SlotBoard {
                         SlotPhase::Failed
                     };
                     s.reason = Some(reason.clone());
+                    s.reason_code = Some(*code);
+                    s.reason_args = args.clone();
                 }
             }
             Event::UnitResult { record } => {
@@ -225,6 +238,8 @@ impl SlotBoard {
                     big_k2_ug_per_g2: None,
                     outcome: None,
                     reason: None,
+                    reason_code: None,
+                    reason_args: Default::default(),
                 })
             })
             .collect();

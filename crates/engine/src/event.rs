@@ -7,6 +7,37 @@ use crate::plan::{CompiledPlan, Fixture};
 use crate::record::{PointRecord, UnitRecord};
 use serde::{Deserialize, Serialize};
 use spinbench_analysis::Mount;
+use std::collections::BTreeMap;
+
+/// What a text of an event says, as a catalogue key and the values the text
+/// was made from, by name, so a page in another language words it itself
+/// (issue 16, part 5): the web UI fills `web.say.<key>`, word-valued values
+/// through `web.arg.<name>.<value>`. The event's own text stays English.
+#[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct Wording {
+    /// The key (`step.level`, `notice.table_noisy`, `fault.interlock_open`).
+    pub key: String,
+    /// The values, by name (numbers as shown, words as codes).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub args: BTreeMap<String, String>,
+}
+
+impl Wording {
+    /// A wording without values.
+    pub fn new(key: &str) -> Wording {
+        Wording {
+            key: key.to_string(),
+            args: BTreeMap::new(),
+        }
+    }
+
+    /// The same wording with one more named value.
+    #[must_use]
+    pub fn with(mut self, name: &str, value: impl ToString) -> Wording {
+        self.args.insert(name.to_string(), value.to_string());
+        self
+    }
+}
 
 /// A run's state (the table is data: [`crate::executor::state::TRANSITIONS`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -66,6 +97,9 @@ pub enum Event {
         of: usize,
         /// What it is.
         label: String,
+        /// The label as a key and values (journals before it: none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wording: Option<Wording>,
     },
     /// A step finished.
     StepDone {
@@ -154,6 +188,9 @@ pub enum Event {
         /// Its stable code (`other` in journals written before codes existed).
         #[serde(default)]
         code: crate::record::ReasonCode,
+        /// The values in its text, by name (see [`crate::Reason::args`]).
+        #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+        args: std::collections::BTreeMap<String, String>,
     },
     /// The operator is asked to do something.
     Prompt {
@@ -182,11 +219,17 @@ pub enum Event {
     Notice {
         /// What happened and what the station did about it.
         message: String,
+        /// The message as a key and values.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wording: Option<Wording>,
     },
     /// A fault: the run goes to the safe state.
     Fault {
         /// Why.
         reason: String,
+        /// Why, as a key and values.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wording: Option<Wording>,
     },
     /// One instrument's result.
     UnitResult {

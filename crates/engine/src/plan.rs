@@ -231,6 +231,14 @@ pub enum Verdict {
 }
 
 impl DecisionRule {
+    /// Its serde name: `guarded` or `simple`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DecisionRule::Guarded => "guarded",
+            DecisionRule::Simple => "simple",
+        }
+    }
+
     /// Judge |value| against `limit`, with its expanded uncertainty `u95`
     /// when known; above `marginal_fraction`·limit a pass is marginal.
     /// Guarded without an uncertainty cannot decide: inconclusive.

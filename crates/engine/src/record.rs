@@ -125,31 +125,43 @@ pub enum ReasonCode {
     Other,
 }
 
-/// One reason of an outcome: its code and its text. Reads a bare text (as
-/// records written before codes existed hold) with the code `other`.
+/// One reason of an outcome: its code, its text (English) and the values
+/// its text was made from, by name, so a report in another language words it
+/// from the catalogue's `reason.<code>` (issue 16, part 5). Reads a bare text
+/// (as records written before codes existed hold) with the code `other`,
+/// and a coded reason written before arguments existed with none.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(from = "ReasonStored")]
 pub struct Reason {
     /// The stable code.
     pub code: ReasonCode,
-    /// The text, for people.
+    /// The text, for people (English).
     pub text: String,
+    /// The values in the text, by name (numbers as shown, words as codes).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub args: BTreeMap<String, String>,
 }
 
 #[derive(Deserialize)]
 #[serde(untagged)]
 enum ReasonStored {
-    Coded { code: ReasonCode, text: String },
+    Coded {
+        code: ReasonCode,
+        text: String,
+        #[serde(default)]
+        args: BTreeMap<String, String>,
+    },
     Text(String),
 }
 
 impl From<ReasonStored> for Reason {
     fn from(stored: ReasonStored) -> Reason {
         match stored {
-            ReasonStored::Coded { code, text } => Reason { code, text },
+            ReasonStored::Coded { code, text, args } => Reason { code, text, args },
             ReasonStored::Text(text) => Reason {
                 code: ReasonCode::Other,
                 text,
+                args: BTreeMap::new(),
             },
         }
     }
@@ -161,7 +173,23 @@ impl Reason {
         Reason {
             code,
             text: text.into(),
+            args: BTreeMap::new(),
         }
+    }
+
+    /// The same reason with one more named value of its text.
+    #[must_use]
+    pub fn with(mut self, name: &str, value: impl ToString) -> Reason {
+        self.args.insert(name.to_string(), value.to_string());
+        self
+    }
+
+    /// Its code's serde name (`k2_over_limit`), the catalogue's key after `reason.`.
+    pub fn code_name(&self) -> String {
+        serde_json::to_value(self.code)
+            .ok()
+            .and_then(|v| v.as_str().map(str::to_string))
+            .unwrap_or_else(|| "other".to_string())
     }
 }
 

@@ -212,8 +212,12 @@ fn safety_centrifuge_silence_faults_into_the_safe_state() {
         "{}",
         reason(&summary)
     );
-    assert!(events.iter().any(|e| matches!(e, Event::Fault { reason }
-        if reason.starts_with(spinbench_engine::executor::STOP_NOT_CONFIRMED))));
+    assert!(
+        events
+            .iter()
+            .any(|e| matches!(e, Event::Fault { reason, .. }
+        if reason.starts_with(spinbench_engine::executor::STOP_NOT_CONFIRMED)))
+    );
     for r in &summary.records {
         assert_eq!(r.outcome, Outcome::Incomplete, "{}", r.serial);
     }
@@ -588,7 +592,7 @@ fn a_failed_write_holds_the_run_and_nothing_is_lost_once_it_succeeds() {
     let notices: Vec<&str> = seen
         .iter()
         .filter_map(|e| match e {
-            Event::Notice { message } => Some(message.as_str()),
+            Event::Notice { message, .. } => Some(message.as_str()),
             _ => None,
         })
         .collect();
@@ -898,7 +902,7 @@ fn a_point_taken_while_the_temperature_moves_is_measured_again_then_flagged() {
     assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
     let again = events
         .iter()
-        .filter(|e| matches!(e, Event::Notice { message } if message.contains("temperature_change_max_c")))
+        .filter(|e| matches!(e, Event::Notice { message, .. } if message.contains("temperature_change_max_c")))
         .count();
     assert!(again >= 7, "each level measured again once: {again}");
     for r in &summary.records {

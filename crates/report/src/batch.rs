@@ -160,6 +160,11 @@ impl BatchReport {
 
     /// ", N incomplete" when there are any, for the totals line.
     pub fn incomplete_note(&self) -> String {
+        self.incomplete_note_in(crate::Lang::En)
+    }
+
+    /// [`BatchReport::incomplete_note`] in `lang`.
+    pub fn incomplete_note_in(&self, lang: crate::Lang) -> String {
         let inconclusive = self
             .tests
             .iter()
@@ -167,11 +172,13 @@ impl BatchReport {
             .count();
         let mut note = match inconclusive {
             0 => String::new(),
-            n => format!(", {n} inconclusive (the interval straddles a limit: retest)"),
+            n => rust_i18n::t!("batch.inconclusive", n = n, locale = lang.code()).into_owned(),
         };
         if let n @ 1.. = self.incomplete() {
-            note.push_str(&format!(
-                ", {n} incomplete (not graded, not in the statistics)"
+            note.push_str(&rust_i18n::t!(
+                "batch.incomplete",
+                n = n,
+                locale = lang.code()
             ));
         }
         note
@@ -608,7 +615,7 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
         "<h1>{}</h1>\n<p id=\"totals\">{}{}.</p>\n",
         esc(&tr(lang, "batch.title")),
         esc(&totals),
-        esc(&b.incomplete_note()),
+        esc(&b.incomplete_note_in(lang)),
     ));
     h.push_str(&format!(
         "<h2>{}</h2>\n",
@@ -653,8 +660,8 @@ pub fn render_batch(b: &BatchReport, format: crate::ReportFormat) -> Result<Vec<
     render_batch_in(b, format, crate::Lang::En)
 }
 
-/// The batch report in one format and language, as bytes (the PDF and the
-/// XLSX are in English this round; the CSV's headers are machine names).
+/// The batch report in one format and language, as bytes (the CSV's
+/// headers are machine names, in every language).
 pub fn render_batch_in(
     b: &BatchReport,
     format: crate::ReportFormat,
@@ -662,28 +669,30 @@ pub fn render_batch_in(
 ) -> Result<Vec<u8>, ReportError> {
     use crate::ReportFormat;
     match format {
-        ReportFormat::Pdf => crate::batch_pdf(b),
+        ReportFormat::Pdf => crate::pdf::batch_pdf_in(b, lang),
         ReportFormat::Html => Ok(batch_html_in(b, lang).into_bytes()),
         ReportFormat::Csv => Ok(batch_csv(b).into_bytes()),
-        ReportFormat::Xlsx => batch_xlsx(b).map_err(|e| ReportError::Xlsx(e.to_string())),
+        ReportFormat::Xlsx => batch_xlsx(b, lang).map_err(|e| ReportError::Xlsx(e.to_string())),
     }
 }
 
-/// The batch report as an XLSX workbook: `tests`, `statistics`, `repeatability`.
-fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
+/// The batch report as an XLSX workbook: `tests`, `statistics`, `repeatability`
+/// (the sheets keep their machine names; headers and outcomes in `lang`).
+fn batch_xlsx(b: &BatchReport, lang: crate::Lang) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
+    use crate::lang::header;
     use rust_xlsxwriter::{Format, Workbook};
     let mut book = Workbook::new();
     let bold = Format::new().set_bold();
     {
         let sheet = book.add_worksheet().set_name("tests")?;
         for (c, head) in TEST_HEADERS.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, header(lang, head), &bold)?;
         }
         for (r, t) in (1u32..).zip(&b.tests) {
             sheet.write_string(r, 0, &t.run_id)?;
             sheet.write_string(r, 1, unix_date(t.started_at))?;
             sheet.write_string(r, 2, &t.serial)?;
-            sheet.write_string(r, 3, t.outcome.as_str())?;
+            sheet.write_string(r, 3, crate::lang::outcome(lang, t.outcome.as_str()))?;
             for (k, v) in test_numbers(t).iter().enumerate() {
                 if let Some(v) = v {
                     sheet.write_number(r, 4 + k as u16, *v)?;
@@ -694,7 +703,7 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     {
         let sheet = book.add_worksheet().set_name("statistics")?;
         for (c, head) in STATISTICS_HEADERS.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, header(lang, head), &bold)?;
         }
         for (r, d) in (1u32..).zip(&b.distributions) {
             sheet.write_string(r, 0, d.name)?;
@@ -710,7 +719,7 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
         (
             "control flags",
             &crate::control::FLAG_HEADERS[..],
-            crate::control::flag_rows(&b.control),
+            crate::control::flag_rows(&b.control, lang),
         ),
         (
             "first-pass yield",
@@ -720,7 +729,7 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     ] {
         let sheet = book.add_worksheet().set_name(name)?;
         for (c, head) in headers.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, header(lang, head), &bold)?;
         }
         for (r, row) in (1u32..).zip(&rows) {
             for (c, cell) in row.iter().enumerate() {
@@ -731,7 +740,7 @@ fn batch_xlsx(b: &BatchReport) -> Result<Vec<u8>, rust_xlsxwriter::XlsxError> {
     {
         let sheet = book.add_worksheet().set_name("repeatability")?;
         for (c, head) in REPEAT_HEADERS.iter().enumerate() {
-            sheet.write_string_with_format(0, c as u16, *head, &bold)?;
+            sheet.write_string_with_format(0, c as u16, header(lang, head), &bold)?;
         }
         for (r, rep) in (1u32..).zip(&b.repeats) {
             sheet.write_string(r, 0, &rep.serial)?;

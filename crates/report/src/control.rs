@@ -289,7 +289,7 @@ fn first_pass_yields(tests: &[&BatchTest]) -> (Vec<Yield>, Vec<Yield>) {
 pub(crate) const FLAG_HEADERS: [&str; 6] = ["chart", "point", "run", "serial", "value", "rule"];
 
 /// One row per rule broken.
-pub(crate) fn flag_rows(c: &ControlReport) -> Vec<Vec<String>> {
+pub(crate) fn flag_rows(c: &ControlReport, lang: crate::Lang) -> Vec<Vec<String>> {
     c.charts
         .iter()
         .flat_map(|chart| {
@@ -301,11 +301,24 @@ pub(crate) fn flag_rows(c: &ControlReport) -> Vec<Vec<String>> {
                     p.run_id.clone(),
                     p.serial.clone(),
                     format!("{:.6} {}", p.value, chart.unit),
-                    v.rule.describe().to_string(),
+                    rule_text(lang, v.rule),
                 ]
             })
         })
         .collect()
+}
+
+/// A Western Electric rule's text in `lang` (English: its own description).
+pub fn rule_text(lang: crate::Lang, rule: spinbench_analysis::control::WesternElectric) -> String {
+    let name = serde_json::to_value(rule)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default();
+    let key = format!("we.{name}");
+    match crate::tr(lang, &key) {
+        word if lang != crate::Lang::En && word != key => word,
+        _ => rule.describe().to_string(),
+    }
 }
 
 /// The yield table's columns.
@@ -343,6 +356,7 @@ pub fn shown(c: &ControlReport) -> impl Iterator<Item = &ControlChart> {
 pub(crate) fn draw_control_chart<DB: DrawingBackend>(
     chart: &ControlChart,
     root: &DrawingArea<DB, Shift>,
+    lang: crate::Lang,
 ) -> Option<()> {
     let values: Vec<f64> = chart.points.iter().map(|p| p.value).collect();
     let (mut lo, mut hi) = values
@@ -373,11 +387,14 @@ pub(crate) fn draw_control_chart<DB: DrawingBackend>(
         .build_cartesian_2d(0.5..n + 0.5, (lo - pad)..(hi + pad))
         .ok()?;
     c.configure_mesh()
-        .x_desc(if chart.position.is_some() {
-            "run, in time order"
-        } else {
-            "test, in time order"
-        })
+        .x_desc(crate::tr(
+            lang,
+            if chart.position.is_some() {
+                "chart.runs_in_order"
+            } else {
+                "chart.tests_in_order"
+            },
+        ))
         .x_labels(values.len().clamp(2, 12))
         .x_label_formatter(&|x| {
             if (x - x.round()).abs() < 1e-6 {
@@ -451,7 +468,7 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
         "<p id=\"in-control\">{}: {}.</p>\n",
         crate::esc(&crate::tr(lang, "batch.in_control")),
         if in_control.is_empty() {
-            "none".into()
+            crate::tr(lang, "batch.none")
         } else {
             in_control.join(", ")
         }
@@ -459,9 +476,14 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
     let heads = |list: &[&str]| -> Vec<String> {
         list.iter().map(|x| crate::lang::header(lang, x)).collect()
     };
-    crate::batch::html_table(h, "control-flags", &heads(&FLAG_HEADERS), &flag_rows(c));
+    crate::batch::html_table(
+        h,
+        "control-flags",
+        &heads(&FLAG_HEADERS),
+        &flag_rows(c, lang),
+    );
     for chart in shown(c) {
-        if let Some(svg) = control_chart_svg(chart) {
+        if let Some(svg) = control_chart_svg(chart, lang) {
             h.push_str("<figure class=\"control-chart\">");
             h.push_str(&svg);
             h.push_str("</figure>\n");
@@ -475,12 +497,12 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
 }
 
 /// A control chart as SVG.
-pub fn control_chart_svg(chart: &ControlChart) -> Option<String> {
+pub fn control_chart_svg(chart: &ControlChart, lang: crate::Lang) -> Option<String> {
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, crate::plots::SIZE).into_drawing_area();
         root.fill(&WHITE).ok()?;
-        draw_control_chart(chart, &root)?;
+        draw_control_chart(chart, &root, lang)?;
         root.present().ok()?;
     }
     Some(out)
@@ -501,6 +523,7 @@ mod tests {
             units: 2,
             points: 0,
             retest_of: None,
+            reason_wording: None,
         }
     }
 
@@ -577,8 +600,12 @@ mod tests {
             c.yield_by_day.iter().map(|y| y.first_tests).sum::<usize>(),
             48
         );
-        let svg = control_chart_svg(chart).expect("svg");
+        let svg = control_chart_svg(chart, crate::Lang::En).expect("svg");
         assert!(svg.contains("<svg") && svg.contains("radius slot 2 P"));
-        assert!(flag_rows(&c).iter().all(|r| r[0] == "radius slot 2 P"));
+        assert!(
+            flag_rows(&c, crate::Lang::En)
+                .iter()
+                .all(|r| r[0] == "radius slot 2 P")
+        );
     }
 }

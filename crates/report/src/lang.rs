@@ -116,6 +116,103 @@ pub fn date_time(lang: Lang, unix_s: i64) -> String {
     }
 }
 
+/// The catalogue's `key` in `lang` filled with `args` (`%{name}` each; a
+/// word-valued argument through `arg.<name>.<value>` when the catalogue has
+/// it, so `rule = guarded` reads "（保护带判定规则）"); `None` when the
+/// catalogue has no such key or a placeholder has no value.
+pub fn fill(
+    lang: Lang,
+    key: &str,
+    args: &std::collections::BTreeMap<String, String>,
+) -> Option<String> {
+    let template = tr(lang, key);
+    if template == key {
+        return None;
+    }
+    let mut out = String::with_capacity(template.len() + 32);
+    let mut rest = template.as_str();
+    while let Some(start) = rest.find("%{") {
+        out.push_str(&rest[..start]);
+        let after = &rest[start + 2..];
+        let end = after.find('}')?;
+        let name = &after[..end];
+        let value = args.get(name)?;
+        let word_key = format!("arg.{name}.{value}");
+        let word = tr(lang, &word_key);
+        out.push_str(if word == word_key { value } else { &word });
+        rest = &after[end + 1..];
+    }
+    out.push_str(rest);
+    Some(out)
+}
+
+/// A text of the engine's, given as its wording, in `lang` (the catalogue's
+/// `say.<key>`); `None` when the catalogue cannot word it.
+pub fn say(lang: Lang, wording: &spinbench_engine::event::Wording) -> Option<String> {
+    fill(lang, &format!("say.{}", wording.key), &wording.args)
+}
+
+/// A decision rule's description (English: the engine's own).
+pub fn decision_rule(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> String {
+    let key = format!("rule.{}", rule.name());
+    match tr(lang, &key) {
+        word if lang != Lang::En && word != key => word,
+        _ => rule.describe().to_string(),
+    }
+}
+
+/// A run state's word (`completed` → "已完成").
+pub fn state(lang: Lang, state: &str) -> String {
+    let key = format!("state.{state}");
+    let word = tr(lang, &key);
+    if word == key { state.to_string() } else { word }
+}
+
+/// A reason of an outcome in `lang`. English: its text, as the engine wrote
+/// it. Another language: the catalogue's `reason.<code>` (with a `variant`
+/// value, `reason.<code>.<variant>`) filled with its values; a reason the
+/// catalogue cannot word (a record written before reasons kept their values,
+/// or a note of the reduction's own) its code's title, then the English text.
+pub fn reason(lang: Lang, r: &spinbench_engine::Reason) -> String {
+    if lang == Lang::En {
+        return r.text.clone();
+    }
+    let code = r.code_name();
+    let key = match r.args.get("variant") {
+        Some(variant) => format!("reason.{code}.{variant}"),
+        None => format!("reason.{code}"),
+    };
+    fill(lang, &key, &r.args).unwrap_or_else(|| {
+        let title = tr(lang, &format!("reason_title.{code}"));
+        format!("{title}：{}", r.text)
+    })
+}
+
+/// A level left out of an instrument's reduction, in `lang` (who, which
+/// level, how many readings, and the reason as its author wrote it).
+pub fn exclusion(lang: Lang, e: &spinbench_analysis::exclusion::LevelExclusion) -> String {
+    if lang == Lang::En {
+        return e.to_string();
+    }
+    let args = [
+        ("by", e.by.clone()),
+        ("mount", e.mount.to_string()),
+        ("g", e.g.to_string()),
+        ("unit", e.unit.clone().unwrap_or_default()),
+        ("readings", e.points_removed.to_string()),
+        ("reason", e.reason.clone()),
+    ]
+    .into_iter()
+    .map(|(k, v)| (k.to_string(), v))
+    .collect();
+    let key = if e.unit.is_some() {
+        "reason.excluded_of_unit"
+    } else {
+        "reason.excluded"
+    };
+    fill(lang, key, &args).unwrap_or_else(|| e.to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -145,6 +242,12 @@ mod tests {
         let (en, zh) = (catalogue(Lang::En, "web."), catalogue(Lang::ZhCn, "web."));
         assert!(en.len() > 40, "{}", en.len());
         assert_eq!(en.keys().collect::<Vec<_>>(), zh.keys().collect::<Vec<_>>());
+        // The engine's texts the page words, and the run states: both languages.
+        for prefix in ["say.", "state."] {
+            let (en, zh) = (catalogue(Lang::En, prefix), catalogue(Lang::ZhCn, prefix));
+            assert!(en.len() > 5, "{prefix}");
+            assert_eq!(en.keys().collect::<Vec<_>>(), zh.keys().collect::<Vec<_>>());
+        }
         assert_eq!(zh["web.nav.history"], "历史");
         assert_eq!(tr(Lang::En, "report.summary"), "Summary");
         assert_eq!(header(Lang::ZhCn, "radius [m]"), "半径 [m]");
@@ -155,5 +258,154 @@ mod tests {
             "2026年11月23日 15:11 UTC"
         );
         assert_eq!(date_time(Lang::En, 1_795_446_697), "2026-11-23 15:11 UTC");
+    }
+
+    #[test]
+    fn every_fault_and_step_the_engine_words_is_in_the_catalogue() {
+        use spinbench_engine::EngineError;
+        use spinbench_engine::executor::wording;
+        use spinbench_engine::plan::{Fixture, Step};
+        let faults = [
+            EngineError::ModuleSilent {
+                module: 2,
+                seconds: 3.0,
+            },
+            EngineError::InterlockOpen,
+            EngineError::SupplyTripped { volts: 1.0 },
+            EngineError::NoChamber,
+            EngineError::ChamberAlarm {
+                word: 4,
+                air_c: 30.0,
+                setpoint_c: 25.0,
+            },
+            EngineError::OverTemperature {
+                slot: 3,
+                celsius: 90.0,
+                limit_c: 85.0,
+            },
+            EngineError::NotStable("x".into()),
+            EngineError::Aborted("operator".into()),
+            EngineError::Power("x".into()),
+            EngineError::Sink("x".into()),
+            EngineError::NoUnits,
+            EngineError::Rate("x".into()),
+        ];
+        for e in &faults {
+            let w = e.wording();
+            for lang in Lang::ALL {
+                assert!(say(lang, &w).is_some(), "{lang:?} {w:?}");
+            }
+        }
+        assert_eq!(
+            say(Lang::ZhCn, &EngineError::InterlockOpen.wording()).as_deref(),
+            Some("离心机联锁已断开；转台已停止（请关好舱门并复位联锁）")
+        );
+        // English from the catalogue reads as the engine's own text.
+        let e = EngineError::SupplyTripped { volts: 1.0 };
+        assert_eq!(say(Lang::En, &e.wording()), Some(e.to_string()));
+        let steps = [
+            Step::PowerOn,
+            Step::CheckAlive,
+            Step::WarmUp { seconds: 60.0 },
+            Step::Mount {
+                fixtures: vec![Some(Fixture::Up)],
+            },
+            Step::Tumble { up: false },
+            Step::Soak { setpoint_c: -20.0 },
+            Step::CrossTumble { as_on_arm: true },
+            Step::Radius { pass: 0 },
+            Step::Level {
+                pass: 1,
+                g_nominal: 5.0,
+                direction: spinbench_analysis::Direction::Down,
+            },
+            Step::Stop,
+        ];
+        for step in &steps {
+            for lang in Lang::ALL {
+                assert!(say(lang, &wording(step)).is_some(), "{lang:?} {step:?}");
+            }
+        }
+        assert_eq!(
+            say(Lang::ZhCn, &wording(&steps[8])).as_deref(),
+            Some("5 g 向下（第 2 遍）")
+        );
+        use spinbench_analysis::control::WesternElectric as We;
+        for rule in [
+            We::Beyond3Sigma,
+            We::TwoOfThreeBeyond2Sigma,
+            We::FourOfFiveBeyond1Sigma,
+            We::EightOnOneSide,
+        ] {
+            assert!(crate::control::rule_text(Lang::ZhCn, rule).starts_with("规则"));
+            assert_eq!(crate::control::rule_text(Lang::En, rule), rule.describe());
+        }
+    }
+
+    #[test]
+    fn reasons_are_worded_from_the_catalogue_with_their_values() {
+        use spinbench_engine::{Reason, ReasonCode};
+        let over = Reason::new(
+            ReasonCode::K2OverLimit,
+            "|k2| 31.200 ± 2.000 µg/g² above the limit 25 µg/g² (guarded rule)",
+        )
+        .with("value", "31.200 ± 2.000")
+        .with("unit", "µg/g²")
+        .with("limit", 25)
+        .with("rule", "guarded");
+        assert_eq!(reason(Lang::En, &over), over.text);
+        assert_eq!(
+            reason(Lang::ZhCn, &over),
+            "|k2| 31.200 ± 2.000 µg/g² 超过限值 25 µg/g²（保护带判定规则）"
+        );
+        // A word-valued argument whose word is empty in the catalogue.
+        let simple = over.clone().with("rule", "simple");
+        assert_eq!(
+            reason(Lang::ZhCn, &simple),
+            "|k2| 31.200 ± 2.000 µg/g² 超过限值 25 µg/g²"
+        );
+        let level = Reason::new(ReasonCode::NoOutput, "no output at 30 g")
+            .with("variant", "level")
+            .with("g", 30);
+        assert_eq!(reason(Lang::ZhCn, &level), "在 30 g 时无输出");
+        // A record written before reasons kept their values: the code's
+        // title, then the text as written.
+        let old = Reason::new(ReasonCode::Noisy, "noisy: 900 µg");
+        assert_eq!(reason(Lang::ZhCn, &old), "噪声过大：noisy: 900 µg");
+        // Every code has its title.
+        for code in [
+            "dead",
+            "no_output",
+            "noisy",
+            "drifting",
+            "tumble_failed",
+            "radius_failed",
+            "no_points",
+            "cannot_reduce",
+            "k2_over_limit",
+            "k2_near_limit",
+            "k2_inconclusive",
+            "nonlinearity_over_limit",
+            "nonlinearity_near_limit",
+            "asymmetry_over_limit",
+            "asymmetry_near_limit",
+            "hysteresis_over_limit",
+            "hysteresis_near_limit",
+            "no_k2",
+            "analysis_note",
+            "incomplete",
+            "temperature_unsettled",
+            "over_temperature",
+            "other",
+        ] {
+            let key = format!("reason_title.{code}");
+            assert_ne!(tr(Lang::ZhCn, &key), key);
+            let r = Reason {
+                code: serde_json::from_value(serde_json::json!(code)).expect("a reason code"),
+                text: String::new(),
+                args: Default::default(),
+            };
+            assert_eq!(r.code_name(), code);
+        }
     }
 }

@@ -9,6 +9,7 @@
 
 mod batch;
 pub mod control;
+pub mod diagnostics;
 pub mod lang;
 mod pdf;
 mod plots;
@@ -19,6 +20,7 @@ pub use batch::{
 };
 pub use pdf::{batch_pdf, pdf, web_font};
 
+pub use diagnostics::{diagnostic_lines, diagnostic_lines_in, temperature_line};
 pub use lang::{Lang, tr};
 use serde_json::Value;
 
@@ -120,13 +122,19 @@ impl UnitReport {
     /// Its reasons in one line, then any level left out (who, why), so a
     /// result that was reduced without some readings says so wherever it is shown.
     pub fn reasons_text(&self) -> String {
+        self.reasons_text_in(Lang::En)
+    }
+
+    /// [`UnitReport::reasons_text`] in `lang` (`lang::reason`, `lang::exclusion`).
+    pub fn reasons_text_in(&self, lang: Lang) -> String {
         let r = &self.result.record;
+        let separator = if lang == Lang::En { "; " } else { "；" };
         r.reasons
             .iter()
-            .map(ToString::to_string)
-            .chain(r.exclusions.iter().map(ToString::to_string))
+            .map(|reason| lang::reason(lang, reason))
+            .chain(r.exclusions.iter().map(|e| lang::exclusion(lang, e)))
             .collect::<Vec<_>>()
-            .join("; ")
+            .join(separator)
     }
 }
 
@@ -213,6 +221,11 @@ pub struct SummaryRow {
 
 /// The summary rows: one per instrument and mounting measured.
 pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
+    summary_in(report, Lang::En)
+}
+
+/// The summary rows with their reasons in `lang`.
+pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
     let mut rows = Vec::new();
     for u in &report.units {
         let r = u.record();
@@ -249,7 +262,7 @@ pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
                 asymmetry_ppm: analysis.and_then(|a| a.figures.asymmetry_ppm),
                 hysteresis_ug: analysis.and_then(|a| a.figures.hysteresis_ug),
                 outcome: u.result.outcome.to_string(),
-                reasons: u.reasons_text(),
+                reasons: u.reasons_text_in(lang),
             });
         }
     }
@@ -294,12 +307,21 @@ const POINT_HEADERS: [&str; 10] = [
 ];
 
 /// One row of the point table, as shown.
-fn point_cells(p: &PointRow) -> [String; 10] {
+fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
+    let direction = {
+        let key = format!("arg.direction.{}", p.direction);
+        let word = tr(lang, &key);
+        if word == key {
+            p.direction.clone()
+        } else {
+            word
+        }
+    };
     [
         p.step.to_string(),
         p.mount.clone(),
         p.g_nominal.to_string(),
-        p.direction.clone(),
+        direction,
         format!("{:.6}", p.g_applied),
         format!("{:.4}", p.rate_deg_s),
         format!("{:.6}", p.output_hz),
@@ -319,14 +341,16 @@ fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
     if let Some(original) = &run.retest_of {
         rows.push((
             "retest of",
-            format!("run {original} (its failed, inconclusive and flagged instruments)"),
+            rust_i18n::t!("report.retest_of", run = original, locale = lang.code()).into_owned(),
         ));
     }
     if !report.retested_by.is_empty() {
-        rows.push((
-            "retested by",
-            format!("run {}", report.retested_by.join(", run ")),
-        ));
+        let runs: Vec<String> = report
+            .retested_by
+            .iter()
+            .map(|id| rust_i18n::t!("report.run", run = id, locale = lang.code()).into_owned())
+            .collect();
+        rows.push(("retested by", runs.join(&tr(lang, "report.list_separator"))));
     }
     rows.extend([
         (
@@ -336,14 +360,20 @@ fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
         ("started", lang::date_time(lang, run.started_at)),
         (
             "state",
-            format!(
-                "{}{}",
-                run.state,
-                run.reason
-                    .as_deref()
-                    .map(|r| format!(": {r}"))
-                    .unwrap_or_default()
-            ),
+            match (lang, &run.reason) {
+                // English: the state and the reason as recorded.
+                (Lang::En, Some(r)) => format!("{}: {r}", run.state),
+                (Lang::En, None) => run.state.clone(),
+                (_, Some(r)) => format!(
+                    "{}：{}",
+                    lang::state(lang, &run.state),
+                    run.reason_wording
+                        .as_ref()
+                        .and_then(|w| lang::say(lang, w))
+                        .unwrap_or_else(|| r.clone())
+                ),
+                (_, None) => lang::state(lang, &run.state),
+            },
         ),
         ("plan", plan["name"].as_str().unwrap_or("").to_string()),
         (
@@ -352,10 +382,8 @@ fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
             match serde_json::from_value::<spinbench_engine::plan::DecisionRule>(
                 plan["limits"]["decision_rule"].clone(),
             ) {
-                Ok(rule) => rule.describe().to_string(),
-                Err(_) => spinbench_engine::plan::DecisionRule::Simple
-                    .describe()
-                    .to_string(),
+                Ok(rule) => lang::decision_rule(lang, rule),
+                Err(_) => lang::decision_rule(lang, spinbench_engine::plan::DecisionRule::Simple),
             },
         ),
         (
@@ -366,133 +394,31 @@ fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
     rows
 }
 
-/// The reduction's own verdict on its model, a line per mounting, and the
-/// two mountings reduced together (method.md (15)).
-pub fn diagnostic_lines(u: &UnitReport) -> Vec<String> {
-    let mut lines: Vec<String> = u
-        .record()
-        .exclusions
-        .iter()
-        .map(ToString::to_string)
-        .collect();
-    let r = u.record();
-    if let Some(line) = temperature_line(&r.points) {
-        lines.push(line);
-    }
-    if let Some(c) = &r.temperature_coefficients {
-        let k2 = match (c.k2_ug_per_g2_per_c, c.k2_ug_per_g2_per_c_u95) {
-            (Some(v), Some(u)) => format!(", K2 {v:+.4} ± {u:.4} µg/g²/°C"),
-            _ => String::new(),
-        };
-        lines.push(format!(
-            "Temperature coefficients over {} temperatures (U95): k0 {:+.2} ± {:.2} µg/°C, k1 {:+.2} ± {:.2} ppm/°C{k2}.",
-            c.temperatures, c.k0_ug_per_c, c.k0_ug_per_c_u95, c.k1_ppm_per_c, c.k1_ppm_per_c_u95
-        ));
-    }
-    if !r.radius_reading_u_ppm.is_empty() || r.cross_axis_ug_per_g.is_some() {
-        let radius: Vec<String> = r
-            .radius_reading_u_ppm
-            .iter()
-            .map(|(m, u)| {
-                let name = match m {
-                    spinbench_analysis::Mount::P => "R+",
-                    spinbench_analysis::Mount::N => "R−",
-                };
-                format!("{name} ±{u:.1} ppm")
-            })
-            .collect();
-        lines.push(match r.cross_axis_ug_per_g {
-            Some(c) => format!(
-                "Radius from the readings: {}; cross-axis sensitivity {c:+.1} µg/g (four-position tumble), taken out of the radius.",
-                radius.join(", ")
-            ),
-            None => format!(
-                "Radius from the readings: {}; cross-axis sensitivity not measured (two-position tumble), bounded in the budget.",
-                radius.join(", ")
-            ),
-        });
-    }
-    let Some(a) = u.record().analysis.as_ref() else {
-        return lines;
-    };
-    for (mount, fit) in &a.fits {
-        if let Some(d) = &fit.diagnostics {
-            lines.push(format!("Mounting {mount}: {d}."));
-        }
-        if let Some(k2) = fit
-            .uncertainty
-            .as_ref()
-            .and_then(|u| u.k2_ug_per_g2.as_ref())
-        {
-            lines.push(format!(
-                "Mounting {mount} k2 uncertainty (GUM, µg/g²): {k2}."
-            ));
-        }
-    }
-    if let Some(j) = &a.joint {
-        lines.push(format!("{j}."));
-        if let Some(u) = &j.uncertainty {
-            lines.push(format!(
-                "K2 uncertainty (GUM, µg/g²): {}.",
-                u.k2_even_ug_per_g2
-            ));
-        }
-    }
-    lines
-}
-
-/// The instrument's temperatures over its points, when its module reported
-/// them: the range of the points' means, the largest change within one
-/// point, how far f1 + f2 (the thermal proxy) moved, and the points taken
-/// while the temperature moved more than the plan allowed.
-pub fn temperature_line(points: &[spinbench_engine::PointRecord]) -> Option<String> {
-    let means: Vec<f64> = points.iter().filter_map(|p| p.temperature_c).collect();
-    if means.is_empty() {
-        return None;
-    }
-    let (lo, hi) = means
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| {
-            (lo.min(t), hi.max(t))
-        });
-    let within = points
-        .iter()
-        .filter_map(|p| p.temperature_change_c)
-        .fold(0.0, f64::max);
-    let sums: Vec<f64> = points.iter().filter_map(|p| p.resonator_sum_hz).collect();
-    let proxy = match (
-        sums.iter().copied().reduce(f64::min),
-        sums.iter().copied().reduce(f64::max),
-    ) {
-        (Some(a), Some(b)) if a > 0.0 => format!("; f1 + f2 moved {:.1} ppm", (b - a) / a * 1e6),
-        _ => String::new(),
-    };
-    let unsettled = points.iter().filter(|p| p.temperature_unsettled).count();
-    let flagged = if unsettled > 0 {
-        format!("; {unsettled} point(s) taken while it moved more than the plan allows")
-    } else {
-        String::new()
-    };
-    Some(format!(
-        "Temperature {lo:.2}–{hi:.2} °C over the points (largest change within a point {within:.3} °C){proxy}{flagged}."
-    ))
-}
-
 /// The station's devices, their identities and calibration as the run
 /// recorded them: (role, identity, calibration — "certificate C, due D
 /// (status)", "not in the register", or empty for runs before the register).
-pub(crate) fn devices(report: &RunReport) -> Option<Vec<(String, String, String)>> {
+pub(crate) fn devices(report: &RunReport, lang: Lang) -> Option<Vec<(String, String, String)>> {
     let devices: Vec<Value> = serde_json::from_str(report.context.devices_json.as_deref()?).ok()?;
     let text = |d: &Value, key: &str| d[key].as_str().unwrap_or("").to_string();
     Some(
         devices
             .iter()
             .map(|d| {
+                let status = |s: &str| {
+                    let key = format!("calibration_status.{}", s.replace(' ', "_"));
+                    let word = tr(lang, &key);
+                    if word == key { s.to_string() } else { word }
+                };
                 let calibration = match (d["certificate"].as_str(), d["calibration"].as_str()) {
-                    (Some(cert), Some(status)) => {
-                        format!("certificate {cert}, due {} ({status})", text(d, "due_on"))
-                    }
-                    (None, Some(status)) => status.to_string(),
+                    (Some(cert), Some(s)) => rust_i18n::t!(
+                        "report.certificate_due",
+                        certificate = cert,
+                        due = text(d, "due_on"),
+                        status = status(s),
+                        locale = lang.code()
+                    )
+                    .into_owned(),
+                    (None, Some(s)) => status(s),
                     _ => String::new(),
                 };
                 (text(d, "role"), text(d, "identity"), calibration)
@@ -605,7 +531,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         ));
     }
     h.push_str("</table>\n");
-    if let Some(devices) = devices(report) {
+    if let Some(devices) = devices(report, lang) {
         h.push_str(&format!(
             "<h2>{}</h2><table id=\"equipment\"><tr><th>{}</th><th>{}</th><th>{}</th></tr>",
             esc(&tr(lang, "report.devices")),
@@ -631,7 +557,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         h.push_str(&format!("<th>{}</th>", esc(&lang::header(lang, head))));
     }
     h.push_str("</tr>\n");
-    for row in summary(report) {
+    for row in summary_in(report, lang) {
         let n = numbers(&row);
         h.push_str(&format!(
             "<tr data-serial=\"{}\" data-mount=\"{}\"><td class=\"t\">{}</td><td>{}</td><td>{}</td>",
@@ -664,7 +590,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
             esc(u.result.outcome.as_str()),
             esc(&lang::outcome(lang, u.result.outcome.as_str()))
         ));
-        for line in diagnostic_lines(u) {
+        for line in diagnostic_lines_in(u, lang) {
             h.push_str(&format!("<p class=\"diagnostics\">{}</p>\n", esc(&line)));
         }
         for svg in plots::UNIT_PLOTS.iter().filter_map(|p| p.svg(u)) {
@@ -679,7 +605,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         h.push_str("</tr>\n");
         for p in &u.points {
             h.push_str("<tr>");
-            for cell in point_cells(p) {
+            for cell in point_cells(p, lang) {
                 h.push_str(&format!("<td>{}</td>", esc(&cell)));
             }
             h.push_str("</tr>\n");
@@ -715,7 +641,7 @@ fn xlsx_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, rust_xlsxwriter::X
         for (c, head) in SUMMARY_HEADERS.iter().enumerate() {
             sheet.write_string_with_format(0, c as u16, lang::header(lang, head), &bold)?;
         }
-        for (i, row) in summary(report).iter().enumerate() {
+        for (i, row) in summary_in(report, lang).iter().enumerate() {
             let r = (i + 1) as u32;
             sheet.write_string(r, 0, &row.serial)?;
             sheet.write_number(r, 1, row.slot as f64)?;
@@ -779,7 +705,7 @@ fn xlsx_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, rust_xlsxwriter::X
         {
             sheet.write_string_with_format(r, c as u16, tr(lang, head), &bold)?;
         }
-        for (role, identity, calibration) in devices(report).unwrap_or_default() {
+        for (role, identity, calibration) in devices(report, lang).unwrap_or_default() {
             r += 1;
             sheet.write_string(r, 0, &role)?;
             sheet.write_string(r, 1, &identity)?;

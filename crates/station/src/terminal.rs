@@ -184,12 +184,14 @@ impl EventSink for ProgressPrinter {
             }
         }
         match event {
-            Event::Fault { reason } => {
+            Event::Fault { reason, .. } => {
                 eprintln!("\r\x1b[2K  FAULT: {reason} — bringing the station to the safe state")
             }
             _ if self.quiet => {}
-            Event::Notice { message } => eprintln!("\r\x1b[2K  note: {message}"),
-            Event::StepStarted { index, of, label } => {
+            Event::Notice { message, .. } => eprintln!("\r\x1b[2K  note: {message}"),
+            Event::StepStarted {
+                index, of, label, ..
+            } => {
                 self.steps = (*index + 1, *of);
                 self.step = label.clone();
                 if !self.tty {

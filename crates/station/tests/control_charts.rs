@@ -129,14 +129,15 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         text.contains("Control charts") && text.contains("First-pass yield"),
         "{text}"
     );
-    // The batch report's HTML in Chinese.
+    // The batch report in Chinese: HTML, PDF (read back by poppler) and XLSX
+    // (read back by calamine), the rule that flagged slot 2 worded too.
     let zh = dir.path().join("zh");
     let (ok, _, err) = spinbench(&[
         "batch-report",
         "--db",
         data.join("spinbench.db").to_str().expect("utf-8"),
         "--format",
-        "html",
+        "html,pdf,xlsx",
         "--lang",
         "zh-CN",
         "--out",
@@ -149,7 +150,30 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
             && html.contains("控制图（控制限取前 10 次运行")
             && html.contains("一次合格率")
             && html.contains("受控: ")
-            && html.contains("lang=\"zh-CN\""),
+            && html.contains("lang=\"zh-CN\"")
+            && html.contains("规则 3：连续五点中有四点在同侧超出 1σ"),
         "the batch report in Chinese"
+    );
+    let text = Command::new("pdftotext")
+        .arg(zh.join("batch-report.pdf"))
+        .arg("-")
+        .output()
+        .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
+    let text = String::from_utf8_lossy(&text.stdout);
+    for words in ["批次报告", "控制图", "一次合格率", "全部测试", "规则 3"] {
+        assert!(text.contains(words), "{words} in {text}");
+    }
+    assert!(!text.contains("Batch report") && !text.contains("Every test"));
+    use calamine::{Data, Reader, open_workbook_auto};
+    let mut book = open_workbook_auto(zh.join("batch-report.xlsx")).expect("xlsx");
+    let tests = book.worksheet_range("tests").expect("the tests sheet");
+    assert_eq!(tests.get((0, 2)), Some(&Data::String("序列号".into())));
+    let outcomes: Vec<String> = tests.rows().skip(1).map(|r| r[3].to_string()).collect();
+    assert!(
+        !outcomes.is_empty()
+            && outcomes
+                .iter()
+                .all(|o| ["合格", "临界", "不合格", "无法判定", "未完成"].contains(&o.as_str())),
+        "{outcomes:?}"
     );
 }

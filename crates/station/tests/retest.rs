@@ -138,6 +138,13 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     let zh_html =
         std::fs::read_to_string(zh.join(format!("report-{}.html", retest.id))).expect("html");
     assert!(zh_html.contains("复测自") && zh_html.contains("汇总") && zh_html.contains("不合格"));
+    // The reasons and the lines under the figures are worded in Chinese
+    // from the records' codes and values, not copied in English.
+    assert!(zh_html.contains("超过限值 25 µg/g²"), "{zh_html}");
+    assert!(!zh_html.contains("above the limit"), "{zh_html}");
+    assert!(zh_html.contains("两种安装方式联合") && zh_html.contains("失拟检验"));
+    assert!(!zh_html.contains("both mountings (method.md") && !zh_html.contains("lack of fit"));
+    assert!(html(&retest.id).contains("above the limit 25 µg/g²"));
     let pdf_text = Command::new("pdftotext")
         .arg(zh.join(format!("report-{}.pdf", retest.id)))
         .arg("-")
@@ -145,7 +152,9 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
     let pdf_text = String::from_utf8_lossy(&pdf_text.stdout);
     assert!(
-        pdf_text.contains("离心机测试报告") && pdf_text.contains("汇总"),
+        pdf_text.contains("离心机测试报告")
+            && pdf_text.contains("汇总")
+            && pdf_text.contains("超过限值"),
         "{pdf_text}"
     );
     let (ok, _, err) = spinbench(&["report", &first, "--lang", "de", "--db", "x.db"]);

@@ -300,6 +300,21 @@ fn an_operator_runs_a_test_in_the_browser() {
         b.script("return document.querySelector('#chart-figures figure').dataset.quantity"),
         Value::String("k2_max".into())
     );
+    // The same page in Chinese: its words, and the rules' texts (or the
+    // "no rule broken" line) worded by the server in the user's language.
+    b.script("const s = document.getElementById('lang-select'); s.value = 'zh-CN'; s.dispatchEvent(new Event('change'));");
+    b.wait_for(
+        20,
+        "the control charts in Chinese",
+        "const flags = document.getElementById('flags-table').tBodies[0].textContent;          return document.querySelector('#charts h2').textContent === '控制图'          && document.querySelectorAll('#chart-figures figure svg').length >= 3          && (flags.includes('未违反任何规则') || flags.includes('规则 ')) && !flags.includes('rule')",
+    );
+    b.screenshot(&shots.join("7b-control-charts-zh.png"));
+    b.script("const s = document.getElementById('lang-select'); s.value = 'en'; s.dispatchEvent(new Event('change'));");
+    b.wait_for(
+        10,
+        "English again",
+        "return document.querySelector('#charts h2').textContent === 'Control charts'",
+    );
 
     // Retest in one action: the run's inconclusive instrument again, linked.
     b.click("#nav-history");
@@ -412,6 +427,13 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
          return !!r && document.querySelector('#board th[data-i18n=\"web.board.state\"]').textContent === '状态' \
          && ['完成', '失效', '等待'].some(w => r.cells[5].textContent.startsWith(w))",
     );
+    // The fault banner, the run's state and its step line in Chinese too,
+    // worded from the engine's key and values.
+    b.wait_for(
+        10,
+        "the fault banner in Chinese",
+        "const a = document.getElementById('alarm');          return a.textContent.startsWith('故障：离心机联锁已断开')          && document.getElementById('run-state').textContent === '故障'          && /^第 \\d+\\/\\d+ 步：/.test(document.getElementById('progress').textContent)",
+    );
     b.screenshot(&shots.join("9b-run-zh.png"));
     let html = b.script_async(
         "const done = arguments[0]; fetch('/api/session').then(r => r.json()).then(s => \
@@ -421,7 +443,10 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
     assert_eq!(html[0], "zh-CN", "the choice is the user's now");
     let text = html[1].as_str().unwrap_or_default();
     assert!(
-        text.contains("离心机测试报告") && text.contains("汇总") && text.contains("lang=\"zh-CN\""),
+        text.contains("离心机测试报告")
+            && text.contains("汇总")
+            && text.contains("lang=\"zh-CN\"")
+            && text.contains("故障：离心机联锁已断开"),
         "the downloaded report in Chinese"
     );
     // A new page load starts in the user's language.

@@ -22,6 +22,8 @@ pub struct RunRow {
     pub points: i64,
     /// The run this one retests, if it is a retest.
     pub retest_of: Option<String>,
+    /// `reason` as a key and values, when the fault that ended it had one.
+    pub reason_wording: Option<spinbench_engine::event::Wording>,
 }
 
 /// One instrument's result in one run.
@@ -136,7 +138,7 @@ impl Store {
                 "SELECT r.id, r.station, r.state, r.reason, r.started_at,
                         (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
                         (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id),
-                        r.retest_of
+                        r.retest_of, r.reason_wording
                  FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC"
             ),
             params,
@@ -152,6 +154,9 @@ impl Store {
                 units: r.int(5),
                 points: r.int(6),
                 retest_of: r.opt_text(7),
+                reason_wording: r
+                    .opt_text(8)
+                    .and_then(|json| serde_json::from_str(&json).ok()),
             })
             .collect())
     }

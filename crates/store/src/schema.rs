@@ -214,6 +214,11 @@ pub const MIGRATIONS: &[Migration] = &[
         last_seen BIGINT NOT NULL
     );",
     },
+    Migration {
+        what: "why a run ended, as a key and values (JSON), for reports in another language",
+        sqlite: "ALTER TABLE runs ADD COLUMN reason_wording TEXT;",
+        postgres: "ALTER TABLE runs ADD COLUMN reason_wording TEXT;",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

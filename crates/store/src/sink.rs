@@ -14,6 +14,8 @@ pub struct StoreSink {
     run_id: String,
     /// The last prompt, recorded with the operator's answer.
     prompt: String,
+    /// The last fault's text and wording, kept with the run's reason.
+    fault: Option<(String, spinbench_engine::event::Wording)>,
 }
 
 impl StoreSink {
@@ -233,14 +235,32 @@ impl StoreSink {
                     ],
                 )?;
             }
+            // The first fault is the run's reason; later ones (making
+            // safe) are appended to its text.
+            Event::Fault {
+                reason,
+                wording: Some(wording),
+            } if self.fault.is_none() => {
+                self.fault = Some((reason.clone(), wording.clone()));
+            }
             Event::RunFinished { state, reason } => {
+                // The run's reason begins with its fault's: the fault's
+                // wording stands for it in another language.
+                let wording = match (reason, &self.fault) {
+                    (Some(r), Some((text, w))) if r.starts_with(text.as_str()) => {
+                        serde_json::to_string(w).ok()
+                    }
+                    _ => None,
+                };
                 db.execute(
-                    "UPDATE runs SET state = $2, reason = $3, finished_at = $4 WHERE id = $1",
+                    "UPDATE runs SET state = $2, reason = $3, finished_at = $4, reason_wording = $5
+                     WHERE id = $1",
                     &[
                         run_id.as_str().into(),
                         format!("{state:?}").to_lowercase().into(),
                         reason.clone().into(),
                         now_s().into(),
+                        wording.into(),
                     ],
                 )?;
             }
@@ -287,6 +307,7 @@ impl Store {
             serials: Vec::new(),
             run_id: String::new(),
             prompt: String::new(),
+            fault: None,
         })
     }
 }

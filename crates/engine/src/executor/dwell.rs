@@ -57,13 +57,19 @@ impl Executor<'_> {
                 if waited > st.max_settle_s {
                     if !drifting.is_empty() && drifting.len() < slots.len() {
                         for &s in &drifting {
+                            let rate = format!("{:.3}", self.demand_deg_s);
                             self.fail_unit(
                                 s,
-                                ReasonCode::Drifting,
-                                format!(
-                                    "its output kept drifting for {} s at {:.3} deg/s (more than stability.drift_limit_ug_per_s = {} µg/s)",
-                                    st.max_settle_s, self.demand_deg_s, st.drift_limit_ug_per_s
-                                ),
+                                Reason::new(
+                                    ReasonCode::Drifting,
+                                    format!(
+                                        "its output kept drifting for {} s at {rate} deg/s (more than stability.drift_limit_ug_per_s = {} µg/s)",
+                                        st.max_settle_s, st.drift_limit_ug_per_s
+                                    ),
+                                )
+                                .with("seconds", st.max_settle_s)
+                                .with("rate", rate)
+                                .with("limit", st.drift_limit_ug_per_s),
                             )?;
                         }
                         slots.retain(|s| !drifting.contains(s));

@@ -41,6 +41,7 @@ impl Executor<'_> {
                     "{problem}; the run is held (paused) and the write is tried again every second \
                      — fix the database or abort"
                 ),
+                wording: Some(Wording::new("notice.write_held").with("detail", &problem)),
             },
         );
         // Held through the state table; a run already ended (its last
@@ -81,6 +82,7 @@ impl Executor<'_> {
             failed,
             &Event::Notice {
                 message: "the write succeeded; nothing was lost and the run goes on".into(),
+                wording: Some(Wording::new("notice.write_resumed")),
             },
         );
         if holding.is_some() {

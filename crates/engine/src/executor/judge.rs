@@ -74,10 +74,14 @@ impl Executor<'_> {
                 });
             match figures {
                 Some(f) => found.push((f, points)),
-                None => reasons.push(Reason::new(
-                    ReasonCode::AnalysisNote,
-                    format!("its points at {setpoint_c} °C could not be reduced; that temperature is left out of the temperature coefficients"),
-                )),
+                None => reasons.push(
+                    Reason::new(
+                        ReasonCode::AnalysisNote,
+                        format!("its points at {setpoint_c} °C could not be reduced; that temperature is left out of the temperature coefficients"),
+                    )
+                    .with("variant", "temperature_not_reduced")
+                    .with("setpoint", setpoint_c),
+                ),
             }
         }
         // Their uncertainties: what differs from the reference temperature's
@@ -107,10 +111,14 @@ impl Executor<'_> {
         let mut at = Vec::new();
         for (i, (mut a, _)) in found.into_iter().enumerate() {
             let Some(u) = (if i == r { reference_u } else { paired[i] }) else {
-                reasons.push(Reason::new(
-                    ReasonCode::AnalysisNote,
-                    format!("its levels at {} °C do not pair with those at the reference temperature; that temperature is left out of the temperature coefficients", a.setpoint_c),
-                ));
+                reasons.push(
+                    Reason::new(
+                        ReasonCode::AnalysisNote,
+                        format!("its levels at {} °C do not pair with those at the reference temperature; that temperature is left out of the temperature coefficients", a.setpoint_c),
+                    )
+                    .with("variant", "temperature_not_paired")
+                    .with("setpoint", a.setpoint_c),
+                );
                 continue;
             };
             a.k0_g[1] = u.k0_g;
@@ -170,10 +178,17 @@ impl Executor<'_> {
             };
             if left > 0 {
                 outcome = Outcome::Incomplete;
-                reasons.push(Reason::new(ReasonCode::Incomplete, format!(
-                    "incomplete: the run ended with {left} of this instrument's measuring steps not done ({})",
-                    run_reason.unwrap_or("no reason recorded")
-                )));
+                reasons.push(
+                    Reason::new(
+                        ReasonCode::Incomplete,
+                        format!(
+                            "incomplete: the run ended with {left} of this instrument's measuring steps not done ({})",
+                            run_reason.unwrap_or("no reason recorded")
+                        ),
+                    )
+                    .with("left", left)
+                    .with("why", run_reason.unwrap_or("no reason recorded")),
+                );
                 if !u.points.is_empty()
                     && let Ok(a) = analyze_unit(
                         &UnitPoints {
@@ -428,13 +443,18 @@ fn temperature_reasons(
     if let Some(t) =
         crate::soak::reference_c(&plan.plan.temperatures_c, station.temperature.ambient_c)
     {
-        reasons.push(Reason::new(
-            ReasonCode::AnalysisNote,
-            format!(
-                "graded at the reference temperature {t} °C (of {:?} °C); the points at every temperature are in the record",
-                plan.plan.temperatures_c
-            ),
-        ));
+        reasons.push(
+            Reason::new(
+                ReasonCode::AnalysisNote,
+                format!(
+                    "graded at the reference temperature {t} °C (of {:?} °C); the points at every temperature are in the record",
+                    plan.plan.temperatures_c
+                ),
+            )
+            .with("variant", "graded_at_reference")
+            .with("reference", t)
+            .with("temperatures", format!("{:?}", plan.plan.temperatures_c)),
+        );
     }
     let unsettled: Vec<String> = points
         .iter()
@@ -442,15 +462,20 @@ fn temperature_reasons(
         .map(|p| format!("{}:{} g", p.mount, p.g_nominal))
         .collect();
     if !unsettled.is_empty() {
-        reasons.push(Reason::new(
-            ReasonCode::TemperatureUnsettled,
-            format!(
-                "{} point(s) taken while its temperature moved more than stability.temperature_change_max_c = {} °C ({}); retest advised",
-                unsettled.len(),
-                plan.plan.stability.temperature_change_max_c.unwrap_or(0.0),
-                unsettled.join(", ")
-            ),
-        ));
+        let limit = plan.plan.stability.temperature_change_max_c.unwrap_or(0.0);
+        reasons.push(
+            Reason::new(
+                ReasonCode::TemperatureUnsettled,
+                format!(
+                    "{} point(s) taken while its temperature moved more than stability.temperature_change_max_c = {limit} °C ({}); retest advised",
+                    unsettled.len(),
+                    unsettled.join(", ")
+                ),
+            )
+            .with("count", unsettled.len())
+            .with("limit", limit)
+            .with("points", unsettled.join(", ")),
+        );
     }
     reasons
 }
@@ -563,29 +588,49 @@ pub fn grade(
                 };
                 match rule.decide(v, u, l, limits.marginal_fraction) {
                     Verdict::Fail => {
-                        reasons.push(Reason::new(
-                            over,
-                            format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
-                        ));
+                        reasons.push(
+                            Reason::new(
+                                over,
+                                format!(
+                                    "{name} {shown} {unit} above the limit {l} {unit}{guarded}"
+                                ),
+                            )
+                            .with("value", &shown)
+                            .with("unit", unit)
+                            .with("limit", l)
+                            .with("rule", rule.name()),
+                        );
                         outcome = Outcome::Fail;
                     }
                     Verdict::Inconclusive => {
-                        reasons.push(Reason::new(
-                            ReasonCode::K2Inconclusive,
-                            format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
-                        ));
+                        reasons.push(
+                            Reason::new(
+                                ReasonCode::K2Inconclusive,
+                                format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
+                            )
+                            .with("value", &shown)
+                            .with("unit", unit)
+                            .with("limit", l),
+                        );
                         if outcome != Outcome::Fail {
                             outcome = Outcome::Inconclusive;
                         }
                     }
                     Verdict::Marginal => {
-                        reasons.push(Reason::new(
-                            near,
-                            format!(
-                                "{name} {shown} {unit} within {:.0} % of the limit {l} {unit}{guarded}",
-                                (1.0 - limits.marginal_fraction) * 100.0
-                            ),
-                        ));
+                        let band = format!("{:.0}", (1.0 - limits.marginal_fraction) * 100.0);
+                        reasons.push(
+                            Reason::new(
+                                near,
+                                format!(
+                                    "{name} {shown} {unit} within {band} % of the limit {l} {unit}{guarded}"
+                                ),
+                            )
+                            .with("value", &shown)
+                            .with("unit", unit)
+                            .with("limit", l)
+                            .with("band", band)
+                            .with("rule", rule.name()),
+                        );
                         if outcome == Outcome::Pass {
                             outcome = Outcome::Marginal;
                         }
@@ -603,10 +648,9 @@ pub fn grade(
             );
             analysis = Some(a);
         }
-        Err(e) => reasons.push(Reason::new(
-            ReasonCode::CannotReduce,
-            format!("cannot reduce: {e}"),
-        )),
+        Err(e) => reasons.push(
+            Reason::new(ReasonCode::CannotReduce, format!("cannot reduce: {e}")).with("detail", e),
+        ),
     }
     Graded {
         analysis,

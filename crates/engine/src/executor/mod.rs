@@ -35,11 +35,11 @@ pub use crate::bench::Bench;
 pub use judge::{Graded, analysis_options, exclude_after_run, grade};
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
-pub use steps::label;
+pub use steps::{label, wording};
 
 use crate::abort::AbortFlag;
 use crate::config::StationConfig;
-use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState};
+use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState, Wording};
 use crate::plan::{CompiledPlan, Fixture, Step};
 use crate::record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
 use spinbench_analysis::radius::RadiusCalibration;
@@ -166,6 +166,49 @@ pub enum EngineError {
     /// A level that cannot be turned into a rate (plan or station values).
     #[error("{0}")]
     Rate(String),
+}
+
+impl EngineError {
+    /// Why, as a catalogue key (`fault.<kind>`) and the values of its text
+    /// (a text that comes whole from elsewhere, such as a driver's, as `detail`).
+    pub fn wording(&self) -> Wording {
+        match self {
+            EngineError::Device(e) => Wording::new("fault.device").with("detail", e),
+            EngineError::ModuleSilent { module, seconds } => Wording::new("fault.module_silent")
+                .with("module", module)
+                .with("seconds", format!("{seconds:.1}")),
+            EngineError::InterlockOpen => Wording::new("fault.interlock_open"),
+            EngineError::SupplyTripped { volts } => {
+                Wording::new("fault.supply_tripped").with("volts", format!("{volts:.2}"))
+            }
+            EngineError::NoChamber => Wording::new("fault.no_chamber"),
+            EngineError::ChamberAlarm {
+                word,
+                air_c,
+                setpoint_c,
+            } => Wording::new("fault.chamber_alarm")
+                .with("word", format!("{word:#06x}"))
+                .with("air", format!("{air_c:.1}"))
+                .with("setpoint", setpoint_c),
+            EngineError::OverTemperature {
+                slot,
+                celsius,
+                limit_c,
+            } => Wording::new("fault.over_temperature")
+                .with("slot", slot)
+                .with("temperature", format!("{celsius:.2}"))
+                .with("limit", limit_c),
+            EngineError::NotStable(detail) => {
+                Wording::new("fault.not_stable").with("detail", detail)
+            }
+            EngineError::Aborted(by) => Wording::new("fault.aborted").with("by", by),
+            EngineError::Power(detail) => Wording::new("fault.power").with("detail", detail),
+            EngineError::Sink(detail) => Wording::new("fault.sink").with("detail", detail),
+            EngineError::NoUnits => Wording::new("fault.no_units"),
+            EngineError::State(e) => Wording::new("fault.state").with("detail", e),
+            EngineError::Rate(detail) => Wording::new("fault.rate").with("detail", detail),
+        }
+    }
 }
 
 /// Options of a run.
@@ -341,15 +384,15 @@ impl<'a> Executor<'a> {
         self.plan.serials[slot].is_some() && self.units[slot].failed.is_none()
     }
 
-    fn fail_unit(
-        &mut self,
-        slot: usize,
-        code: ReasonCode,
-        reason: String,
-    ) -> Result<(), EngineError> {
+    fn fail_unit(&mut self, slot: usize, reason: Reason) -> Result<(), EngineError> {
         if self.units[slot].failed.is_none() {
-            self.units[slot].failed = Some(Reason::new(code, reason.clone()));
-            self.emit(Event::UnitFailed { slot, reason, code })?;
+            self.units[slot].failed = Some(reason.clone());
+            self.emit(Event::UnitFailed {
+                slot,
+                reason: reason.text,
+                code: reason.code,
+                args: reason.args,
+            })?;
         }
         if (0..self.units.len()).all(|s| !self.live(s)) {
             return Err(EngineError::NoUnits);
@@ -421,14 +464,18 @@ impl<'a> Executor<'a> {
             ),
             Err(e) => (RunState::Faulted, Some(e.to_string())),
         };
-        if let Some(r) = &reason {
-            let _ = self.emit(Event::Fault { reason: r.clone() });
+        if let (Some(r), Err(e)) = (&reason, &result) {
+            let _ = self.emit(Event::Fault {
+                reason: r.clone(),
+                wording: Some(e.wording()),
+            });
         }
         let _ = self.set_state(Trigger::End);
         let safe_problems = self.safe_state();
         if !self.stop_confirmed {
             let _ = self.emit(Event::Fault {
                 reason: safe_problems[0].clone(),
+                wording: Some(Wording::new("fault.not_safe").with("detail", &safe_problems[0])),
             });
             let centrifuge =
                 std::mem::replace(&mut self.bench.centrifuge, Box::new(HandedToStopKeeper));
@@ -509,6 +556,7 @@ impl<'a> Executor<'a> {
                 index,
                 of: steps.len(),
                 label: label(step),
+                wording: Some(wording(step)),
             })?;
             match step {
                 Step::PowerOn => self.power_on()?,

@@ -77,9 +77,18 @@ impl Executor<'_> {
                     // and journals its point again: only the last one counts.
                     last_points.insert(*step, points);
                 }
-                Event::UnitFailed { slot, reason, code } => {
+                Event::UnitFailed {
+                    slot,
+                    reason,
+                    code,
+                    args,
+                } => {
                     if let Some(u) = self.units.get_mut(*slot) {
-                        u.failed = Some(Reason::new(*code, reason.clone()));
+                        u.failed = Some(Reason {
+                            code: *code,
+                            text: reason.clone(),
+                            args: args.clone(),
+                        });
                     }
                 }
                 _ => {}

@@ -29,6 +29,13 @@ impl Executor<'_> {
                 "soaking at {setpoint_c} °C: the air within ±{} °C and the instruments still for {} s (at most {} s)",
                 soak.tolerance_c, soak.window_s, soak.max_soak_s
             ),
+            wording: Some(
+                Wording::new("notice.soaking")
+                    .with("setpoint", setpoint_c)
+                    .with("tolerance", soak.tolerance_c)
+                    .with("window", soak.window_s)
+                    .with("max", soak.max_soak_s),
+            ),
         })?;
         let slots: Vec<usize> = (0..self.units.len()).filter(|&s| self.live(s)).collect();
         // (air in band, each live slot's temperature) of the last seconds.

@@ -65,8 +65,10 @@ impl Executor<'_> {
             if self.live(slot) && count == 0 {
                 self.fail_unit(
                     slot,
-                    ReasonCode::Dead,
-                    "no output from its resonators: dead, unpowered or not connected".into(),
+                    Reason::new(
+                        ReasonCode::Dead,
+                        "no output from its resonators: dead, unpowered or not connected",
+                    ),
                 )?;
             }
         }
@@ -145,13 +147,14 @@ impl Executor<'_> {
         for slot in slots {
             let y: Vec<f64> = values.iter().filter_map(|w| w.outputs[slot]).collect();
             if y.is_empty() {
+                let direction = if up { "up" } else { "down" };
                 self.fail_unit(
                     slot,
-                    ReasonCode::NoOutput,
-                    format!(
-                        "no output during the IA-{} tumble reading",
-                        if up { "up" } else { "down" }
-                    ),
+                    Reason::new(
+                        ReasonCode::NoOutput,
+                        format!("no output during the IA-{direction} tumble reading"),
+                    )
+                    .with("variant", format!("tumble_{direction}")),
                 )?;
                 continue;
             }
@@ -174,9 +177,7 @@ impl Executor<'_> {
             if let (Some(a), Some(b)) = (u.up, u.down) {
                 match TumbleCalibration::from_up_down(a.output, b.output) {
                     Ok(cal) => self.units[slot].cal = Some(cal),
-                    Err(e) => {
-                        self.fail_unit(slot, ReasonCode::TumbleFailed, format!("tumble: {e}"))?
-                    }
+                    Err(e) => self.fail_unit(slot, tumble_failed(&e))?,
                 }
             }
         }
@@ -194,8 +195,11 @@ impl Executor<'_> {
             let Some(reading) = MeanReading::of(&y) else {
                 self.fail_unit(
                     slot,
-                    ReasonCode::NoOutput,
-                    "no output during a cross-axis tumble reading".into(),
+                    Reason::new(
+                        ReasonCode::NoOutput,
+                        "no output during a cross-axis tumble reading",
+                    )
+                    .with("variant", "cross_tumble"),
                 )?;
                 continue;
             };
@@ -207,7 +211,7 @@ impl Executor<'_> {
                 standard_error_hz: reading.standard_error,
             })?;
             if let Err(e) = self.units[slot].find_cross_axis() {
-                self.fail_unit(slot, ReasonCode::TumbleFailed, format!("tumble: {e}"))?;
+                self.fail_unit(slot, tumble_failed(&e))?;
             }
         }
         Ok(())
@@ -236,8 +240,8 @@ impl Executor<'_> {
             if y.is_empty() {
                 self.fail_unit(
                     slot,
-                    ReasonCode::NoOutput,
-                    "no output during the radius step".into(),
+                    Reason::new(ReasonCode::NoOutput, "no output during the radius step")
+                        .with("variant", "radius"),
                 )?;
                 continue;
             }
@@ -275,8 +279,12 @@ impl Executor<'_> {
                 }
                 Err(e) => self.fail_unit(
                     slot,
-                    ReasonCode::RadiusFailed,
-                    format!("radius in mounting {mount}: {e}"),
+                    Reason::new(
+                        ReasonCode::RadiusFailed,
+                        format!("radius in mounting {mount}: {e}"),
+                    )
+                    .with("mount", mount)
+                    .with("detail", e),
                 )?,
             }
         }
@@ -316,6 +324,12 @@ impl Executor<'_> {
                         "every instrument scattered more than {noise_limit} µg together at {g_nominal} g: \
                          the table, not the instruments; measuring the point again ({table_restarts})"
                     ),
+                    wording: Some(
+                        Wording::new("notice.table_noisy")
+                            .with("limit", noise_limit)
+                            .with("g", g_nominal)
+                            .with("restarts", table_restarts),
+                    ),
                 })?;
                 continue;
             }
@@ -329,16 +343,23 @@ impl Executor<'_> {
                     .collect();
                 if !moved.is_empty() && table_restarts < self.plan.plan.stability.max_restarts {
                     table_restarts += 1;
+                    let moved = moved
+                        .iter()
+                        .map(|s| (s + 1).to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ");
                     self.emit(Event::Notice {
                         message: format!(
-                            "the temperature of slot(s) {} changed by more than {limit} °C \
+                            "the temperature of slot(s) {moved} changed by more than {limit} °C \
                              (stability.temperature_change_max_c) while averaging at {g_nominal} g; \
-                             measuring the point again ({table_restarts})",
-                            moved
-                                .iter()
-                                .map(|s| (s + 1).to_string())
-                                .collect::<Vec<_>>()
-                                .join(", ")
+                             measuring the point again ({table_restarts})"
+                        ),
+                        wording: Some(
+                            Wording::new("notice.temperature_moved")
+                                .with("slots", &moved)
+                                .with("limit", limit)
+                                .with("g", g_nominal)
+                                .with("restarts", table_restarts),
                         ),
                     })?;
                     continue;
@@ -358,8 +379,9 @@ impl Executor<'_> {
             if y.len() < 2 {
                 self.fail_unit(
                     slot,
-                    ReasonCode::NoOutput,
-                    format!("no output at {g_nominal} g"),
+                    Reason::new(ReasonCode::NoOutput, format!("no output at {g_nominal} g"))
+                        .with("variant", "level")
+                        .with("g", g_nominal),
                 )?;
                 continue;
             }
@@ -371,8 +393,13 @@ impl Executor<'_> {
             if std_ug > noise_limit {
                 self.fail_unit(
                     slot,
-                    ReasonCode::Noisy,
-                    format!("noisy: its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g (limit {noise_limit} µg, stability.noise_limit_ug)"),
+                    Reason::new(
+                        ReasonCode::Noisy,
+                        format!("noisy: its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g (limit {noise_limit} µg, stability.noise_limit_ug)"),
+                    )
+                    .with("scatter", format!("{std_ug:.0}"))
+                    .with("g", g_nominal)
+                    .with("limit", noise_limit),
                 )?;
                 continue;
             }
@@ -470,6 +497,41 @@ fn mount_text(fixtures: &[Option<Fixture>]) -> String {
                 .collect();
             format!("Mount the instruments: {}", list.join("; "))
         }
+    }
+}
+
+/// The reason of a tumble that could not calibrate an instrument.
+fn tumble_failed(e: &impl std::fmt::Display) -> Reason {
+    Reason::new(ReasonCode::TumbleFailed, format!("tumble: {e}")).with("detail", e)
+}
+
+/// A step's label as a catalogue key (`step.<kind>`) and its values.
+pub fn wording(step: &Step) -> Wording {
+    match step {
+        Step::PowerOn => Wording::new("step.power_on"),
+        Step::CheckAlive => Wording::new("step.check_alive"),
+        Step::WarmUp { seconds } => {
+            Wording::new("step.warm_up").with("seconds", format!("{seconds:.0}"))
+        }
+        Step::Mount { .. } => Wording::new("step.mount"),
+        Step::Tumble { up } => {
+            Wording::new("step.tumble").with("direction", if *up { "up" } else { "down" })
+        }
+        Step::Soak { setpoint_c } => Wording::new("step.soak").with("setpoint", setpoint_c),
+        Step::CrossTumble { as_on_arm } => Wording::new("step.cross_tumble").with(
+            "position",
+            if *as_on_arm { "as_on_arm" } else { "inverted" },
+        ),
+        Step::Radius { pass } => Wording::new("step.radius").with("pass", pass + 1),
+        Step::Level {
+            pass,
+            g_nominal,
+            direction,
+        } => Wording::new("step.level")
+            .with("g", g_nominal)
+            .with("direction", direction.as_str())
+            .with("pass", pass + 1),
+        Step::Stop => Wording::new("step.stop"),
     }
 }
 

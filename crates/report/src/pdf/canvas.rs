@@ -218,10 +218,10 @@ impl Canvas {
     /// narrow enough; columns as wide as their widest cell, the last one
     /// taking at most what is left (cut with an ellipsis). Returns the y
     /// below its last row.
-    pub(super) fn table(
+    pub(super) fn table<S: AsRef<str>>(
         &mut self,
         mut y_mm: f32,
-        headers: &[&str],
+        headers: &[S],
         rows: &[Vec<String>],
         size_pt: f32,
         across: usize,
@@ -231,9 +231,9 @@ impl Canvas {
         // Headers "name [unit]" on two lines.
         let heads: Vec<(String, String)> = headers
             .iter()
-            .map(|h| match h.split_once(" [") {
+            .map(|h| match h.as_ref().split_once(" [") {
                 Some((name, unit)) => (name.to_string(), format!("[{unit}")),
-                None => (h.to_string(), String::new()),
+                None => (h.as_ref().to_string(), String::new()),
             })
             .collect();
         let mut widths: Vec<f32> = heads

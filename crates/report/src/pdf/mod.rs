@@ -13,7 +13,7 @@ use crate::lang::{self, Lang, tr};
 use crate::plots::{self, UNIT_PLOTS};
 use crate::{
     POINT_HEADERS, ReportError, RunReport, SUMMARY_DECIMALS, SUMMARY_HEADERS, UnitReport,
-    meta_rows_in, numbers, point_cells, summary,
+    meta_rows_in, numbers, point_cells, summary_in,
 };
 use plotters::coord::Shift;
 use plotters::prelude::{DrawingArea, IntoDrawingArea, WHITE};
@@ -148,7 +148,7 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
         c.text(MARGIN_MM + 28.0, y, 9.0, &value, Align::Left);
         y += 4.6;
     }
-    if let Some(devices) = crate::devices(report) {
+    if let Some(devices) = crate::devices(report, lang) {
         y += 2.0;
         c.text(MARGIN_MM, y, 11.0, &tr(lang, "report.devices"), Align::Left);
         y += 5.0;
@@ -162,7 +162,7 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
     y += 3.0;
     c.text(MARGIN_MM, y, 11.0, &tr(lang, "report.summary"), Align::Left);
     y += 2.0;
-    let rows: Vec<Vec<String>> = summary(report)
+    let rows: Vec<Vec<String>> = summary_in(report, lang)
         .iter()
         .map(|row| {
             let mut cells = vec![row.serial.clone(), row.slot.to_string(), row.mount.clone()];
@@ -241,13 +241,13 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
         c.text(MARGIN_MM, y, 8.5, &line, Align::Left);
         y += 4.2;
     }
-    for line in crate::diagnostic_lines(u) {
+    for line in crate::diagnostic_lines_in(u, lang) {
         let text = c.fit(&line, 8.0, PAGE_W_MM - 2.0 * MARGIN_MM);
         c.text(MARGIN_MM, y, 8.0, &text, Align::Left);
         y += 4.0;
     }
     if !u.record().reasons.is_empty() {
-        let text = c.fit(&u.reasons_text(), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM);
+        let text = c.fit(&u.reasons_text_in(lang), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM);
         c.text_colored(MARGIN_MM, y, 8.5, &text, Align::Left, (0.7, 0.0, 0.0));
         y += 4.2;
     }
@@ -261,7 +261,11 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
         });
     }
     y += height + 3.0;
-    let rows: Vec<Vec<String>> = u.points.iter().map(|p| point_cells(p).to_vec()).collect();
+    let rows: Vec<Vec<String>> = u
+        .points
+        .iter()
+        .map(|p| point_cells(p, lang).to_vec())
+        .collect();
     let headers: Vec<String> = POINT_HEADERS
         .iter()
         .map(|h| lang::header(lang, h))
@@ -298,42 +302,57 @@ fn plot_grid<T>(
     }
 }
 
+/// Table headers in `lang` (`lang::header`), as the canvas takes them.
+fn headers_in(lang: Lang, english: &[&str]) -> Vec<String> {
+    english
+        .iter()
+        .map(|h| crate::lang::header(lang, h))
+        .collect()
+}
+
 /// The control charts' pages: the flags, the charts shown, the yields.
-fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
+fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport, lang: Lang) {
     use crate::control::{FLAG_HEADERS, YIELD_HEADERS, flag_rows, shown, yield_rows};
     c.new_page();
-    let title = format!(
-        "Control charts (limits from the first {} runs; Western Electric rules)",
-        control.baseline_runs
+    let title = rust_i18n::t!(
+        "batch.control",
+        runs = control.baseline_runs,
+        locale = lang.code()
     );
     c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, &title, Align::Left);
-    let flags = flag_rows(control);
+    let flags = flag_rows(control, lang);
     let top = if flags.is_empty() {
         c.text(
             MARGIN_MM,
             MARGIN_MM + 12.0,
             9.0,
-            "no rule broken",
+            &tr(lang, "batch.no_rule_broken"),
             Align::Left,
         );
         MARGIN_MM + 16.0
     } else {
-        c.table(MARGIN_MM + 8.0, &FLAG_HEADERS, &flags, 7.0, 1) + 2.0
+        c.table(
+            MARGIN_MM + 8.0,
+            &headers_in(lang, &FLAG_HEADERS),
+            &flags,
+            7.0,
+            1,
+        ) + 2.0
     };
     plot_grid(c, top, shown(control), |chart, root| {
-        crate::control::draw_control_chart(chart, root)
+        crate::control::draw_control_chart(chart, root, lang)
     });
     c.new_page();
     c.text(
         MARGIN_MM,
         MARGIN_MM + 5.0,
         12.0,
-        "First-pass yield",
+        &tr(lang, "batch.yield"),
         Align::Left,
     );
     c.table(
         MARGIN_MM + 8.0,
-        &YIELD_HEADERS,
+        &headers_in(lang, &YIELD_HEADERS),
         &yield_rows(control),
         7.0,
         1,
@@ -343,56 +362,84 @@ fn control_pages(c: &mut Canvas, control: &crate::control::ControlReport) {
 /// The batch report as PDF bytes: totals and statistics, the histograms,
 /// outliers, repeatability, then every test.
 pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
+    batch_pdf_in(b, Lang::En)
+}
+
+/// [`batch_pdf`] in `lang`.
+pub fn batch_pdf_in(b: &BatchReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
     let mut c = Canvas::new(full_font()?);
     c.new_page();
     let mut y = MARGIN_MM + 6.0;
-    c.text(MARGIN_MM, y, 16.0, "Batch report", Align::Left);
+    c.text(MARGIN_MM, y, 16.0, &tr(lang, "batch.title"), Align::Left);
     y += 7.0;
     let (pass, marginal, fail) = b.outcomes();
     let serials: BTreeSet<&str> = b.tests.iter().map(|t| t.serial.as_str()).collect();
-    let totals = format!(
-        "{} runs, {} instrument tests, {} serial numbers: {pass} pass, {marginal} marginal, {fail} fail{}",
-        b.runs.len(),
-        b.tests.len(),
-        serials.len(),
-        b.incomplete_note()
+    let totals = rust_i18n::t!(
+        "batch.totals",
+        runs = b.runs.len(),
+        tests = b.tests.len(),
+        serials = serials.len(),
+        pass = pass,
+        marginal = marginal,
+        fail = fail,
+        locale = lang.code()
     );
+    let totals = format!("{totals}{}", b.incomplete_note_in(lang));
     c.text(MARGIN_MM, y, 9.0, &totals, Align::Left);
     if let (Some(first), Some(last)) = (b.runs.first(), b.runs.last()) {
         y += 4.6;
-        let span = format!(
-            "runs from {} to {}",
-            crate::unix_date(first.started_at),
-            crate::unix_date(last.started_at)
+        let span = rust_i18n::t!(
+            "batch.span",
+            first = crate::lang::date_time(lang, first.started_at),
+            last = crate::lang::date_time(lang, last.started_at),
+            locale = lang.code()
         );
         c.text(MARGIN_MM, y, 9.0, &span, Align::Left);
     }
     y += 4.0;
     let rows = batch::statistics_rows(b);
-    let bottom = c.table(y, &batch::STATISTICS_HEADERS, &rows, 7.5, 1);
+    let bottom = c.table(
+        y,
+        &headers_in(lang, &batch::STATISTICS_HEADERS),
+        &rows,
+        7.5,
+        1,
+    );
     plot_grid(&mut c, bottom + 2.0, b.distributions.iter(), |d, root| {
         batch::draw_histogram(d, root)
     });
-    control_pages(&mut c, &b.control);
+    control_pages(&mut c, &b.control, lang);
     for (title, headers, rows) in [
         (
-            "Outliers (|robust z| > 3.5)",
+            "batch.outliers",
             &batch::OUTLIER_HEADERS[..],
             batch::outlier_rows(b),
         ),
         (
-            "Repeatability of serial numbers tested more than once",
+            "batch.repeats",
             &batch::REPEAT_HEADERS[..],
             batch::repeat_rows(b),
         ),
-        ("Every test", &batch::TEST_HEADERS[..], batch::test_rows(b)),
+        ("batch.tests", &batch::TEST_HEADERS[..], batch::test_rows(b)),
     ] {
         c.new_page();
-        c.text(MARGIN_MM, MARGIN_MM + 5.0, 12.0, title, Align::Left);
+        c.text(
+            MARGIN_MM,
+            MARGIN_MM + 5.0,
+            12.0,
+            &tr(lang, title),
+            Align::Left,
+        );
         if rows.is_empty() {
-            c.text(MARGIN_MM, MARGIN_MM + 12.0, 9.0, "none", Align::Left);
+            c.text(
+                MARGIN_MM,
+                MARGIN_MM + 12.0,
+                9.0,
+                &tr(lang, "batch.none"),
+                Align::Left,
+            );
         } else {
-            c.table(MARGIN_MM + 8.0, headers, &rows, 7.0, 1);
+            c.table(MARGIN_MM + 8.0, &headers_in(lang, headers), &rows, 7.0, 1);
         }
     }
     let mut stations: Vec<&str> = b.runs.iter().map(|r| r.station.as_str()).collect();
@@ -406,7 +453,7 @@ pub fn batch_pdf(b: &BatchReport) -> Result<Vec<u8>, ReportError> {
             subject: "batch of centrifuge tests of vibrating-beam accelerometers",
             version: env!("CARGO_PKG_VERSION"),
         },
-        "spinbench batch report",
-        Lang::En,
+        &tr(lang, "batch.title"),
+        lang,
     )
 }

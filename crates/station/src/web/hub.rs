@@ -6,7 +6,7 @@
 
 use serde::Serialize;
 use serde_json::Value;
-use spinbench_engine::event::{Event, EventSink, ModuleHealth};
+use spinbench_engine::event::{Event, EventSink, ModuleHealth, Wording};
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, MutexGuard};
 use tokio::sync::broadcast;
@@ -37,6 +37,8 @@ pub struct StatusSnapshot {
     pub state: Option<String>,
     /// Current step: index (0-based), of, label.
     pub step: Option<(usize, usize, String)>,
+    /// The current step's label as a key and values, for the page's language.
+    pub step_wording: Option<Wording>,
     /// Settling or averaging at a level: phase, done, of.
     pub progress: Option<(String, u32, u32)>,
     /// Measured rate [deg/s].
@@ -55,10 +57,16 @@ pub struct StatusSnapshot {
     pub modules: Vec<ModuleHealth>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
+    /// The fixture it asks of each slot (for the page's language).
+    pub prompt_fixtures: Vec<Option<spinbench_engine::plan::Fixture>>,
     /// The last notices (newest last).
     pub notices: Vec<String>,
+    /// Each of `notices` as a key and values (`None` for the server's own).
+    pub notice_wordings: Vec<Option<Wording>>,
     /// Why the run stopped, when it faulted or was aborted.
     pub reason: Option<String>,
+    /// `reason` as a key and values, when the fault that stopped it had one.
+    pub reason_wording: Option<Wording>,
     /// Points taken.
     pub points: usize,
     /// Seconds since the run started (wall clock).
@@ -172,6 +180,7 @@ impl Hub {
     pub fn publish_notice(&self, message: &str) {
         self.publish(&Event::Notice {
             message: message.to_string(),
+            wording: None,
         });
     }
 
@@ -235,8 +244,14 @@ impl Hub {
                     .ok()
                     .and_then(|v| v.as_str().map(str::to_string));
             }
-            Event::StepStarted { index, of, label } => {
+            Event::StepStarted {
+                index,
+                of,
+                label,
+                wording,
+            } => {
                 s.step = Some((*index, *of, label.clone()));
+                s.step_wording = wording.clone();
                 s.progress = None;
             }
             Event::Progress { phase, done, of } => s.progress = Some((phase.clone(), *done, *of)),
@@ -261,20 +276,40 @@ impl Hub {
                 s.interlocks_closed = Some(*interlocks_closed);
                 s.modules = modules.clone();
             }
-            Event::Prompt { text, .. } => s.prompt = Some(text.clone()),
-            Event::PromptAnswered { .. } => s.prompt = None,
+            Event::Prompt { text, fixtures } => {
+                s.prompt = Some(text.clone());
+                s.prompt_fixtures = fixtures.clone();
+            }
+            Event::PromptAnswered { .. } => {
+                s.prompt = None;
+                s.prompt_fixtures.clear();
+            }
             Event::PointDone { .. } => s.points += 1,
-            Event::Notice { message } => {
+            Event::Notice { message, wording } => {
                 s.notices.push(message.clone());
+                s.notice_wordings.push(wording.clone());
                 if s.notices.len() > 5 {
                     s.notices.remove(0);
+                    s.notice_wordings.remove(0);
                 }
             }
-            Event::Fault { reason } => s.reason = Some(reason.clone()),
+            Event::Fault { reason, wording } => {
+                s.reason = Some(reason.clone());
+                s.reason_wording = wording.clone();
+            }
             Event::RunFinished { state: st, reason } => {
                 s.state = serde_json::to_value(st)
                     .ok()
                     .and_then(|v| v.as_str().map(str::to_string));
+                // The run's reason begins with its fault's (then what making
+                // safe found): the fault's wording stands for it.
+                let same = match (reason, &s.reason) {
+                    (Some(r), Some(fault)) => r.starts_with(fault.as_str()),
+                    _ => false,
+                };
+                if !same {
+                    s.reason_wording = None;
+                }
                 s.reason = reason.clone();
                 s.prompt = None;
                 s.eta_s = None;

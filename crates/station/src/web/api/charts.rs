@@ -20,7 +20,9 @@ pub(super) async fn control_charts(
     Query(q): Query<Baseline>,
 ) -> ApiResult<axum::Json<Value>> {
     use spinbench_report::control::{DEFAULT_BASELINE_RUNS, control_chart_svg};
-    authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false)?;
+    // The rules' texts in the user's language (`rule` is the stable name).
+    let lang = super::session::language_of(&app, &headers, Some(&session));
     let baseline = q.baseline_runs.unwrap_or(DEFAULT_BASELINE_RUNS);
     if !(1..=MAX_BASELINE_RUNS).contains(&baseline) {
         return Err(ApiError::bad(format!(
@@ -51,9 +53,9 @@ pub(super) async fn control_charts(
                 })).collect::<Vec<_>>(),
                 "violations": chart.violations.iter().map(|v| json!({
                     "point": v.index + 1, "run_id": chart.points[v.index].run_id,
-                    "rule": v.rule, "says": v.rule.describe(),
+                    "rule": v.rule, "says": spinbench_report::control::rule_text(lang, v.rule),
                 })).collect::<Vec<_>>(),
-                "svg": control_chart_svg(chart),
+                "svg": control_chart_svg(chart, lang),
             })
         })
         .collect();

@@ -247,7 +247,9 @@ pub(super) async fn run(
     headers: HeaderMap,
     Path(id): Path<String>,
 ) -> ApiResult<axum::Json<Value>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false)?;
+    // The results' reasons in the user's language (the records keep codes).
+    let lang = super::session::language_of(&app, &headers, Some(&session));
     let report = {
         let store = store(&app);
         spinbench_report::gather(&store, &id)
@@ -256,7 +258,7 @@ pub(super) async fn run(
         spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
         other => ApiError::internal(other.to_string()),
     })?;
-    let rows: Vec<Value> = spinbench_report::summary(&report)
+    let rows: Vec<Value> = spinbench_report::summary_in(&report, lang)
         .iter()
         .map(|r| {
             json!({

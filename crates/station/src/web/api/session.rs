@@ -160,7 +160,11 @@ pub(super) async fn set_language(
 }
 
 /// `GET /api/i18n/{language}`: the web UI's words in that language (the
-/// `web.` part of the one catalogue); open to everyone, the login page needs it.
+/// `web.` part of the one catalogue, and the parts it shares with the
+/// reports under `web.`: the engine's texts (`say.`, `reason.` as
+/// `web.say.reason.`), their word-valued values (`arg.`), the table headers
+/// (`head.`) and the run states (`state.`), so the page words them as the
+/// reports do); open to everyone, the login page needs it.
 pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<axum::Json<Value>> {
     let lang = Lang::parse(&language).ok_or_else(|| {
         ApiError::not_found(format!(
@@ -168,8 +172,23 @@ pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<axum::J
             language.chars().take(40).collect::<String>()
         ))
     })?;
+    use spinbench_report::lang::catalogue;
+    let mut words = catalogue(lang, "web.");
+    for (prefix, shown_as) in [
+        ("say.", "web.say."),
+        ("reason.", "web.say.reason."),
+        ("arg.", "web.arg."),
+        ("head.", "web.head."),
+        ("state.", "web.state."),
+    ] {
+        words.extend(
+            catalogue(lang, prefix)
+                .into_iter()
+                .map(|(key, text)| (format!("{shown_as}{}", &key[prefix.len()..]), text)),
+        );
+    }
     Ok(axum::Json(json!({
         "language": lang.code(),
-        "words": spinbench_report::lang::catalogue(lang, "web."),
+        "words": words,
     })))
 }

@@ -57,10 +57,62 @@ async function setLanguage(language) {
       if (w) el.textContent = w;
     }
     if (state.status) renderBoard(state.status.board);
+    // The last message was in the other language; the curves' labels redrawn.
+    show("");
+    state.dirty = true;
+    // What the server words in the user's language, fetched again.
+    if (state.session) {
+      refreshStatus();
+      if (!$("charts").hidden) loadCharts();
+    }
   } catch (e) { show(e.message); }
 }
 
 function word(key, fallback) { return state.words[key] || fallback; }
+
+// The page's words for `key` with each %{name} filled from `args` (a value
+// that is a word of its own through web.arg.<name>.<value>); `fallback`
+// (English) when the catalogue lacks the key or a value.
+function fill(key, fallback, args) {
+  const template = state.words[key];
+  if (template === undefined) return fallback;
+  let missing = false;
+  const out = template.replace(/%\{(\w+)\}/g, (_, name) => {
+    const v = (args || {})[name];
+    if (v === undefined || v === null) { missing = true; return ""; }
+    const w = state.words["web.arg." + name + "." + v];
+    return w !== undefined ? w : String(v);
+  });
+  return missing ? fallback : out;
+}
+
+// A text the engine sent with its wording ({key, args}): the page's words
+// for it, else the engine's own (English) text.
+function say(wording, text) { return wording ? fill("web.say." + wording.key, text, wording.args) : text; }
+
+// A run state's word (running, faulted, …).
+function stateWord(st) { return st ? word("web.state." + st, st) : ""; }
+
+// "about 3 min to go", in the page's language.
+function etaText(s) {
+  if (!s) return "";
+  return s < 120 ? fill("web.eta.seconds", "about " + Math.round(s) + " s to go", { n: Math.round(s) })
+    : fill("web.eta.minutes", "about " + Math.round(s / 60) + " min to go", { n: Math.round(s / 60) });
+}
+
+// "step 3 of 40: 5 g up (pass 1)", in the page's language.
+function stepText(index, of, label, wording) {
+  const text = say(wording, label);
+  return fill("web.run.step", "step " + (index + 1) + " of " + of + ": " + text, { n: index + 1, of, label: text });
+}
+
+// " — averaging 12/30 s".
+function progressText(phase, done, of) {
+  return " — " + word("web.phase." + phase, phase) + " " + done + "/" + of + " s";
+}
+
+// A fault, a notice or an abort, with its word before it.
+function bannerText(kind, text) { return word("web.banner." + kind, kind.toUpperCase() + ": ") + text; }
 
 async function chooseLanguage() {
   const language = $("lang-select").value;
@@ -102,7 +154,7 @@ async function start() {
   $("prompt-abort").addEventListener("click", () => answer(false));
   $("pause-button").addEventListener("click", () => control("pause"));
   $("resume-button").addEventListener("click", () => control("resume"));
-  $("abort-button").addEventListener("click", () => { if (confirm("Abort the run? The station stops safely.")) control("abort"); });
+  $("abort-button").addEventListener("click", () => { if (confirm(word("web.confirm.abort", "Abort the run? The station stops safely."))) control("abort"); });
   $("user-form").addEventListener("submit", addUser);
   $("unit-form").addEventListener("submit", findUnit);
   $("plan-save").addEventListener("click", savePlan);
@@ -156,7 +208,7 @@ function connect() {
     state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
     state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
     $("event-log").textContent = ""; $("alarm").hidden = true;
-    log("run " + e.run_id + (e.resumed ? " resumed" : " started"));
+    log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }));
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
   });
   on("values", (e) => {
@@ -171,22 +223,30 @@ function connect() {
   });
   on("state_changed", (e) => setRunState(e.state));
   on("step_started", (e) => {
-    $("progress").textContent = "step " + (e.index + 1) + " of " + e.of + ": " + e.label;
+    $("progress").textContent = stepText(e.index, e.of, e.label, e.wording);
     $("run-progress").max = e.of; $("run-progress").value = e.index;
     // A level's start, marked on the curves (its label, e.g. "5 g Up (pass 1)").
     const level = /^(-?[0-9.]+ g)/.exec(e.label);
     if (level) { state.marks.push([state.lastTime, level[1]]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
-    log(e.label);
+    log(say(e.wording, e.label));
   });
-  on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + " — " + e.phase + " " + e.done + "/" + e.of + " s"; });
-  on("prompt", (e) => { $("prompt-text").textContent = e.text; $("prompt").hidden = false; log("operator asked: " + e.text); });
+  on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + progressText(e.phase, e.done, e.of); });
+  on("prompt", (e) => {
+    const text = promptText(e.fixtures, e.text);
+    $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text);
+  });
   on("prompt_answered", () => { $("prompt").hidden = true; });
-  on("notice", (e) => { show(e.message); alarm("Notice: " + e.message, false); log("notice: " + e.message); });
-  on("fault", (e) => { show("Fault: " + e.reason); alarm("FAULT: " + e.reason, true); log("FAULT: " + e.reason); });
-  on("unit_failed", (e) => { alarm("slot " + (e.slot + 1) + " left out: " + e.reason, false); log("slot " + (e.slot + 1) + " left out: " + e.reason); });
+  on("notice", (e) => { const m = say(e.wording, e.message); show(m); alarm(bannerText("notice", m), false); log(bannerText("notice", m)); });
+  on("fault", (e) => { const m = say(e.wording, e.reason); state.fault = m; show(bannerText("fault", m)); alarm(bannerText("fault", m), true); log(bannerText("fault", m)); });
+  on("unit_failed", (e) => {
+    const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
+      { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
+    alarm(m, false); log(m);
+  });
   on("run_finished", (e) => {
-    setRunState(e.state + (e.reason ? ": " + e.reason : ""));
-    log("run " + e.state + (e.reason ? ": " + e.reason : ""));
+    const why = e.reason ? (state.fault && e.state === "faulted" ? state.fault : e.reason) : "";
+    setRunState(stateWord(e.state) + (why ? ": " + why : ""));
+    log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""));
     if (e.state === "completed") $("run-progress").value = $("run-progress").max;
     $("prompt").hidden = true;
     if (state.runId) showReports($("run-reports"), state.runId);
@@ -202,6 +262,30 @@ function log(text) {
   const list = $("event-log");
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 200) list.removeChild(list.lastChild);
+}
+
+// A reason of an outcome ({code, args}) as a wording the page can fill
+// (web.say.reason.<code>, or .<variant> when it has one).
+function reasonWording(code, args) {
+  const variant = args && args.variant;
+  return { key: "reason." + code + (variant ? "." + variant : ""), args: args || {} };
+}
+
+// The operator's prompt from the fixtures it asks for, in the page's
+// language; the engine's text when a fixture has no word.
+function promptText(fixtures, text) {
+  const name = (f) => {
+    if (f === "Up" || f === "Down") return "tumble_" + f.toLowerCase();
+    if (f && f.Arm) return "arm_" + f.Arm.toLowerCase();
+    if (f && f.Crosswise) return f.Crosswise.as_on_arm ? "crosswise_as_on_arm" : "crosswise_inverted";
+    return null;
+  };
+  const held = (fixtures || []).map((f, i) => [i, f ? name(f) : null]).filter(([, n]) => n !== null);
+  if (!held.length || held.some(([, n]) => !state.words["web.arg.fixture." + n])) return text;
+  const kinds = new Set(held.map(([, n]) => n));
+  if (kinds.size === 1) return fill("web.say.prompt.mount_all", text, { fixture: held[0][1] });
+  const list = held.map(([i, n]) => fill("web.say.prompt.mount_slot", "", { slot: i + 1, fixture: n })).join(word("web.list_separator", "; "));
+  return fill("web.say.prompt.mount_list", text, { list });
 }
 
 // The alarm banner: a fault (red, stays) or a notice (amber).
@@ -221,7 +305,7 @@ function renderBoard(board) {
     tr.dataset.slot = s.slot;
     const k2 = (s.k2_ug_per_g2 || []).map((k) => k[0] + " " + pm([k[1], k[2]])).join(", ") || "—";
     [s.slot, s.serial, s.mount || "—", s.output_hz === null ? "—" : s.output_hz.toFixed(4), s.temperature_c === null ? "—" : s.temperature_c.toFixed(2),
-      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + s.reason : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—"]
+      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + say(s.reason_code ? reasonWording(s.reason_code, s.reason_args) : null, s.reason) : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—"]
       .forEach((v, k) => {
         const td = tr.insertCell(); td.textContent = v;
         if (k === 5) td.className = "phase " + s.phase;
@@ -244,14 +328,15 @@ async function refreshStatus() {
   try { s = await api("GET", "/api/status"); } catch (_) { return; }
   state.status = s;
   const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
-  $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (virtual bench)" : "");
-  $("st-run").textContent = s.run_id || "none";
-  $("st-state").textContent = s.state || "idle";
-  $("st-rate").textContent = fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")";
+  $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (" + word("web.status.virtual", "virtual bench") + ")" : "");
+  $("st-run").textContent = s.run_id || word("web.status.none", "none");
+  $("st-state").textContent = stateWord(s.state || "idle");
+  $("st-rate").textContent = fill("web.status.rate", fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")",
+    { rate: fix(s.rate_deg_s, 3), demand: fix(s.demand_deg_s, 3) });
   $("st-g").textContent = fix(s.g_at_r0, 4) + " g";
-  $("st-stable").textContent = s.on_speed === null || s.on_speed === undefined ? "—" : (s.on_speed ? "stable" : "not stable");
-  $("st-interlocks").textContent = s.interlocks_closed === null || s.interlocks_closed === undefined ? "—" : (s.interlocks_closed ? "closed" : "OPEN");
-  $("st-supply").textContent = (s.supply || []).map((o, i) => "out " + (i + 1) + ": " + o[0].toFixed(2) + " V " + o[1].toFixed(3) + " A").join("; ") || "—";
+  $("st-stable").textContent = s.on_speed === null || s.on_speed === undefined ? "—" : (s.on_speed ? word("web.status.stable", "stable") : word("web.status.not_stable", "not stable"));
+  $("st-interlocks").textContent = s.interlocks_closed === null || s.interlocks_closed === undefined ? "—" : (s.interlocks_closed ? word("web.status.closed", "closed") : word("web.status.open", "OPEN"));
+  $("st-supply").textContent = (s.supply || []).map((o, i) => fill("web.status.output", "out " + (i + 1), { n: i + 1 }) + ": " + o[0].toFixed(2) + " V " + o[1].toFixed(3) + " A").join("; ") || "—";
   const body = $("st-modules").tBodies[0];
   body.textContent = "";
   (s.modules || []).forEach((m, i) => {
@@ -259,7 +344,7 @@ async function refreshStatus() {
     [i + 1, m.frames, m.bad_crc, m.bad_tail, m.lost_ticks, m.reconnects].forEach((v) => { tr.insertCell().textContent = v; });
   });
   $("st-notices").textContent = "";
-  for (const n of s.notices || []) { const li = document.createElement("li"); li.textContent = n; $("st-notices").appendChild(li); }
+  (s.notices || []).forEach((n, i) => { const li = document.createElement("li"); li.textContent = say((s.notice_wordings || [])[i], n); $("st-notices").appendChild(li); });
   if (s.run_id) { $("run-id").textContent = s.run_id; state.runId = s.run_id; }
   // The controls that apply now, and only those.
   const st = s.state || "";
@@ -268,34 +353,38 @@ async function refreshStatus() {
   $("abort-button").hidden = !s.active;
   renderBoard(s.board);
   if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
-  $("run-eta").textContent = s.active && s.eta_s ? (s.eta_s < 120 ? "about " + Math.round(s.eta_s) + " s to go" : "about " + Math.round(s.eta_s / 60) + " min to go") : (s.active ? "" : st);
-  if (s.reason && (st === "faulted" || st === "aborted")) alarm((st === "faulted" ? "FAULT: " : "Aborted: ") + s.reason, st === "faulted");
-  if (s.state) $("run-state").textContent = s.state;
+  $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s) : (s.active ? "" : stateWord(st));
+  const why = s.reason ? say(s.reason_wording, s.reason) : "";
+  if (why && (st === "faulted" || st === "aborted")) alarm(bannerText(st === "faulted" ? "fault" : "aborted", why), st === "faulted");
+  if (s.state) $("run-state").textContent = stateWord(s.state);
   // A status fetched before an answer arrived still shows the old prompt: wait for the next.
-  if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = s.prompt; $("prompt").hidden = false; }
+  if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
   else if (s.active && !s.prompt) $("prompt").hidden = true;
-  const eta = s.eta_s ? (s.eta_s < 120 ? ", about " + Math.round(s.eta_s) + " s to go" : ", about " + Math.round(s.eta_s / 60) + " min to go") : "";
-  if (s.step) $("progress").textContent = "step " + (s.step[0] + 1) + " of " + s.step[1] + ": " + s.step[2]
-    + (s.progress ? " — " + s.progress[0] + " " + s.progress[1] + "/" + s.progress[2] + " s" : "") + eta;
+  const eta = s.active && s.eta_s ? word("web.comma", ", ") + etaText(s.eta_s) : "";
+  if (s.step) $("progress").textContent = stepText(s.step[0], s.step[1], s.step[2], s.step_wording)
+    + (s.active && s.progress ? progressText(s.progress[0], s.progress[1], s.progress[2]) : "") + eta;
 }
+
+// The curves' text in the page's fonts (the CJK one when the browser has none).
+const CANVAS_FONT = '11px "Noto Sans", "Noto Sans CJK SC", "Microsoft YaHei", "spinbench CJK", sans-serif';
 
 function draw() {
   state.dirty = false;
   const c = $("curves"), g = c.getContext("2d");
   g.clearRect(0, 0, c.width, c.height);
-  g.font = "11px sans-serif";
+  g.font = CANVAS_FONT;
   const strip = 110;
-  cell(g, 0, 0, c.width, strip, state.rate, "rate", "deg/s", "#b00");
+  cell(g, 0, 0, c.width, strip, state.rate, word("web.plot.rate", "rate"), "deg/s", "#b00");
   // Only the slots that hold an instrument in this run.
   const slots = state.history.map((_, i) => i).filter((i) => state.serials[i] || state.history[i].length);
   const n = slots.length;
-  if (!n) { g.fillStyle = "#333"; g.fillText("waiting for a run's one-second values…", 20, strip + 30); return; }
+  if (!n) { g.fillStyle = "#333"; g.fillText(word("web.plot.waiting", "waiting for a run's one-second values…"), 20, strip + 30); return; }
   const cols = Math.ceil(Math.sqrt(n * c.width / (c.height - strip)));
   const rows = Math.ceil(n / cols);
   const w = c.width / cols, h = (c.height - strip) / rows;
   slots.forEach((slot, k) => {
     const t = (state.temperatures || [])[slot];
-    const label = "slot " + (slot + 1) + " " + (state.serials[slot] || "") + (t == null ? "" : "  " + t.toFixed(2) + " °C");
+    const label = word("web.plot.slot", "slot") + " " + (slot + 1) + " " + (state.serials[slot] || "") + (t == null ? "" : "  " + t.toFixed(2) + " °C");
     cell(g, (k % cols) * w, strip + Math.floor(k / cols) * h, w, h, state.history[slot], label, "Hz", "#1d3557");
   });
 }
@@ -327,7 +416,7 @@ function cell(g, x, y, w, h, pts, label, unit, color) {
   for (let ago = 0; ago <= KEEP_S; ago += 60) {
     const px = X(t1 - ago);
     g.beginPath(); g.moveTo(px, py0); g.lineTo(px, py0 + ph); g.stroke();
-    if (h > 60) { const t = ago ? "−" + ago + " s" : "now"; g.fillText(t, px - g.measureText(t).width / 2, py0 + ph + bottom); }
+    if (h > 60) { const t = ago ? "−" + ago + " s" : word("web.plot.now", "now"); g.fillText(t, px - g.measureText(t).width / 2, py0 + ph + bottom); }
   }
   // Level marks: a dashed line where each level began, its label on the rate strip.
   g.save(); g.setLineDash([3, 3]); g.strokeStyle = "#9ab";
@@ -379,7 +468,7 @@ async function loadPlans() {
       $("station-text").value = st.toml;
       $("station-text").disabled = st.simulated;
       $("station-save").disabled = st.simulated;
-      $("station-save").title = st.simulated ? "the virtual bench's config is made from its devices" : "";
+      $("station-save").title = st.simulated ? word("web.hint.virtual_config", "the virtual bench's config is made from its devices") : "";
     }
   } catch (e) { show(e.message); }
 }
@@ -389,7 +478,7 @@ async function savePlan(ev) {
   const name = $("plan-name").value.trim();
   try {
     await api("PUT", "/api/plans/" + encodeURIComponent(name), $("plan-text").value);
-    show("plan " + name + " saved", true);
+    show(fill("web.msg.plan_saved", "plan " + name + " saved", { name }), true);
     await loadPlans();
     $("plan-select").value = name;
     fillSerials();
@@ -408,11 +497,11 @@ function fillSerials() {
   box.textContent = "";
   for (let i = 1; i <= state.slots; i++) {
     const label = document.createElement("label");
-    label.textContent = "slot " + i + " ";
+    label.textContent = word("web.plot.slot", "slot") + " " + i + " ";
     const input = document.createElement("input");
     input.id = "serial-" + i;
     input.pattern = "^([PN]:)?\\s*[^\\s:].*$|^[^:]*$";
-    input.title = "a serial number, optionally prefixed P: or N:";
+    input.title = word("web.hint.serial", "a serial number, optionally prefixed P: or N:");
     input.value = plan && plan.serials[String(i)] ? plan.serials[String(i)] : "";
     input.autocomplete = "off";
     input.addEventListener("keydown", (ev) => { if (ev.key === "Enter") { ev.preventDefault(); scanned(i); } });
@@ -422,17 +511,22 @@ function fillSerials() {
   }
 }
 
+// "slot 3: 'A7' is already in slot 1".
+function duplicateText(i, bare, j) {
+  return fill("web.serial.duplicate", "slot " + i + ": '" + bare + "' is already in slot " + j, { slot: i, serial: bare, other: j });
+}
+
 // The bare serial of an entry ("P:A7" → "A7"), or an error for one that
 // cannot be a serial: a bad mounting prefix, nothing after it, control
 // characters, over 200 characters (the plan's MAX_NAME_CHARS).
 function bareSerial(v) {
-  if (/[\u0000-\u001f\u007f]/.test(v)) return { error: "has control characters" };
-  if (v.length > 200) return { error: "is over 200 characters" };
+  if (/[\u0000-\u001f\u007f]/.test(v)) return { error: word("web.serial.control", "has control characters") };
+  if (v.length > 200) return { error: word("web.serial.long", "is over 200 characters") };
   const colon = v.indexOf(":");
   if (colon < 0) return { bare: v.trim() };
   if (!/^[PN]$/.test(v.slice(0, colon).trim())) return { error: "'" + v.slice(0, colon) + ":' is not a mounting prefix; use P: or N:" };
   const bare = v.slice(colon + 1).trim();
-  return bare ? { bare } : { error: "has no serial number after its mounting prefix" };
+  return bare ? { bare } : { error: word("web.serial.empty", "has no serial number after its mounting prefix") };
 }
 
 // A barcode scanner (keyboard wedge) types the serial and Enter: check it
@@ -445,11 +539,11 @@ function scanned(i) {
   input.classList.remove("refused");
   if (!v) { return; }
   const { bare, error } = bareSerial(v);
-  let why = error ? "slot " + i + ": '" + v + "' " + error : "";
+  let why = error ? fill("web.serial.refused", "slot " + i + ": '" + v + "' " + error, { slot: i, serial: v, why: error }) : "";
   if (!why) {
     for (let j = 1; j <= state.slots; j++) {
       const other = j === i ? "" : $("serial-" + j).value.trim();
-      if (other && bareSerial(other).bare === bare) { why = "slot " + i + ": '" + bare + "' is already in slot " + j; break; }
+      if (other && bareSerial(other).bare === bare) { why = duplicateText(i, bare, j); break; }
     }
   }
   if (why) {
@@ -471,19 +565,19 @@ async function startRun(ev) {
     const v = $("serial-" + i).value.trim();
     if (v) {
       const { bare, error } = bareSerial(v);
-      if (error) { show("slot " + i + ": '" + v + "' " + error); return; }
-      if (seen[bare]) { show("slot " + i + ": '" + bare + "' is already in slot " + seen[bare]); return; }
+      if (error) { show(fill("web.serial.refused", "slot " + i + ": '" + v + "' " + error, { slot: i, serial: v, why: error })); return; }
+      if (seen[bare]) { show(duplicateText(i, bare, seen[bare])); return; }
       seen[bare] = i;
       serials[String(i)] = v;
     }
   }
-  if (!Object.keys(serials).length) { show("enter at least one serial number"); return; }
+  if (!Object.keys(serials).length) { show(word("web.serial.none", "enter at least one serial number")); return; }
   try {
     const request = { plan: $("plan-select").value, serials };
     const reason = $("override-reason").value.trim();
     if (reason && state.session.role === "admin") request.override_overdue = reason;
     const r = await api("POST", "/api/runs", request);
-    show("run " + r.run_id + " started", true);
+    show(fill("web.log.started", "run " + r.run_id + " started", { run: r.run_id }), true);
     location.hash = "#run";
   } catch (e) { show(e.message); }
 }
@@ -501,7 +595,7 @@ async function loadHistory() {
       a.href = "#history"; a.textContent = r.id;
       a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
       tr.insertCell().appendChild(a);
-      [fmtTime(r.started_at), r.state + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (retest of " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
+      [fmtTime(r.started_at), stateWord(r.state) + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (" + word("web.history.retest_of", "retest of") + " " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
     }
   } catch (e) { show(e.message); }
 }
@@ -511,16 +605,16 @@ async function showRun(id) {
     const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
     const box = $("run-detail");
     box.textContent = "";
-    const h = document.createElement("h3"); h.textContent = "Run " + r.id + " — " + r.state; box.appendChild(h);
+    const h = document.createElement("h3"); h.textContent = word("web.run.title", "Run") + " " + r.id + " — " + stateWord(r.state); box.appendChild(h);
     showLinks(box, r);
     showReports(box, r.id);
     const t = document.createElement("table");
     const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "k2_max", "outcome", "reasons"];
-    t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = x; return th; }));
+    t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = word("web.head." + x, x); return th; }));
     const f = (v, d) => v === null ? "—" : Number(v).toFixed(d);
     for (const u of r.results) {
       const tr = t.insertRow();
-      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), u.outcome, u.reasons]
+      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), word("web.outcome." + u.outcome, u.outcome), u.reasons]
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
     }
     box.appendChild(t);
@@ -535,18 +629,18 @@ function excludeForm(r) {
   const form = document.createElement("form");
   form.id = "exclude-form";
   const field = (label, el) => { const l = document.createElement("label"); l.append(label + " ", el); form.append(l, " "); return el; };
-  const serial = field("Leave out: serial", document.createElement("select"));
+  const serial = field(word("web.exclude.serial", "Leave out: serial"), document.createElement("select"));
   serial.id = "exclude-serial";
   for (const s of [...new Set(r.results.map((u) => u.serial))]) serial.add(new Option(s, s));
-  const mount = field("mounting", document.createElement("select"));
+  const mount = field(word("web.exclude.mount", "mounting"), document.createElement("select"));
   mount.id = "exclude-mount";
   for (const m of ["P", "N"]) mount.add(new Option(m, m));
-  const g = field("level [g]", document.createElement("input"));
+  const g = field(word("web.exclude.level", "level [g]"), document.createElement("input"));
   Object.assign(g, { id: "exclude-g", type: "number", min: "0", step: "any", required: true });
-  const reason = field("reason", document.createElement("input"));
+  const reason = field(word("web.exclude.reason", "reason"), document.createElement("input"));
   Object.assign(reason, { id: "exclude-reason", required: true, maxLength: 500, size: 40 });
   const button = document.createElement("button");
-  button.type = "submit"; button.id = "exclude-button"; button.textContent = "Leave level out";
+  button.type = "submit"; button.id = "exclude-button"; button.textContent = word("web.exclude.button", "Leave level out");
   form.append(button);
   form.addEventListener("submit", async (ev) => {
     ev.preventDefault();
@@ -571,23 +665,23 @@ function showLinks(box, r) {
   };
   if (r.retest_of) {
     const p = document.createElement("p"); p.id = "retest-of";
-    p.append("Retest of run ", runLink(r.retest_of));
+    p.append(word("web.history.retest_of_run", "Retest of run") + " ", runLink(r.retest_of));
     box.appendChild(p);
   }
   if (r.retested_by && r.retested_by.length) {
     const p = document.createElement("p"); p.id = "retested-by";
-    p.append("Retested by run ");
+    p.append(word("web.history.retested_by_run", "Retested by run") + " ");
     r.retested_by.forEach((id, i) => { if (i) p.append(", "); p.append(runLink(id)); });
     box.appendChild(p);
   }
   if (r.state !== "running" && r.to_retest && r.to_retest.length) {
     const b = document.createElement("button");
     b.id = "retest-button"; b.type = "button";
-    b.textContent = "Retest " + r.to_retest.length + " instrument(s): " + r.to_retest.join(", ");
+    b.textContent = fill("web.retest.button", "Retest " + r.to_retest.length + " instrument(s): " + r.to_retest.join(", "), { n: r.to_retest.length, serials: r.to_retest.join(", ") });
     b.addEventListener("click", async () => {
       try {
         const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/retest");
-        show("retest " + res.run_id + " started: " + res.serials.join(", "), true);
+        show(fill("web.retest.started", "retest " + res.run_id + " started: " + res.serials.join(", "), { run: res.run_id, serials: res.serials.join(", ") }), true);
         location.hash = "#run";
       } catch (e) { show(e.message); }
     });
@@ -621,7 +715,7 @@ async function loadCharts() {
         figures.appendChild(fig);
       }
     }
-    if (!flags.rows.length) { flags.insertRow().insertCell().textContent = "no rule broken over " + c.runs + " runs"; }
+    if (!flags.rows.length) { flags.insertRow().insertCell().textContent = fill("web.charts.no_rule", "no rule broken over " + c.runs + " runs", { runs: c.runs }); }
     const yields = $("yield-table").tBodies[0];
     yields.textContent = "";
     for (const y of c.yield_by_run.concat(c.yield_by_day)) {
@@ -643,7 +737,7 @@ async function loadEquipment() {
     for (const d of list) {
       const tr = body.insertRow();
       tr.dataset.role = d.role;
-      [d.role, d.identity || "—", d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", d.status, d.updated_by || "—"]
+      [d.role, d.identity || "—", d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", word("web.calibration." + d.status.replace(/ /g, "_"), d.status), d.updated_by || "—"]
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 5) td.className = "cal " + d.status.replace(/ /g, "-"); });
       roles.add(new Option(d.role, d.role));
     }
@@ -667,7 +761,7 @@ async function saveEquipment(ev) {
 function showReports(box, id) {
   const p = document.createElement("p");
   p.className = "reports";
-  p.append("Report: ");
+  p.append(word("web.report", "Report") + ": ");
   for (const f of ["pdf", "html", "xlsx", "csv"]) {
     const a = document.createElement("a");
     a.href = "/api/runs/" + encodeURIComponent(id) + "/report/" + f;
@@ -701,7 +795,7 @@ async function loadUsers() {
     for (const u of users) {
       const tr = body.insertRow();
       tr.insertCell().textContent = u.name; tr.insertCell().textContent = u.role;
-      const b = document.createElement("button"); b.textContent = "Remove";
+      const b = document.createElement("button"); b.textContent = word("web.button.remove", "Remove");
       b.addEventListener("click", async () => { try { await api("DELETE", "/api/users/" + encodeURIComponent(u.name)); loadUsers(); } catch (e) { show(e.message); } });
       tr.insertCell().appendChild(b);
     }
@@ -716,7 +810,7 @@ async function addUser(ev) {
   ev.preventDefault();
   try {
     await api("POST", "/api/users", { name: $("user-name").value, role: $("user-role").value, password: $("user-password").value });
-    $("user-password").value = ""; show("user added", true); loadUsers();
+    $("user-password").value = ""; show(word("web.msg.user_added", "user added"), true); loadUsers();
   } catch (e) { show(e.message); }
 }
 
