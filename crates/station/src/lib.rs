@@ -16,6 +16,7 @@
 
 pub mod cli;
 pub mod demo;
+pub mod doctor;
 pub mod equipment;
 pub mod export;
 pub mod paths;

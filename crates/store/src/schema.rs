@@ -350,6 +350,21 @@ impl Store {
             .map_err(self.err("cannot read the schema version"))
     }
 
+    /// Whether this connection may write the store (a write that changes
+    /// nothing, rolled back): `spinbench doctor`'s check.
+    pub fn check_writable(&self) -> Result<(), StoreError> {
+        let mut db = self.db.borrow_mut();
+        db.batch("BEGIN").map_err(self.err("a write check"))?;
+        // A write that changes nothing: refused on a read-only file or
+        // without the privilege; rolled back either way.
+        let wrote = db.execute(
+            "UPDATE runs SET station = station WHERE id = $1",
+            &["spinbench doctor: a write check".into()],
+        );
+        let _ = db.batch("ROLLBACK");
+        wrote.map(|_| ()).map_err(self.err("a write check"))
+    }
+
     /// "ok" when the database is sound (SQLite's `PRAGMA integrity_check`;
     /// on PostgreSQL, that every table can be read).
     pub fn integrity_check(&self) -> Result<String, StoreError> {

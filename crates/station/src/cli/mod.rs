@@ -299,6 +299,23 @@ pub enum Command {
         #[arg(long)]
         data: Option<PathBuf>,
     },
+    /// Is the station ready to run? Checks the station config, every port
+    /// and device (opened, identified, answering in time), the store, the
+    /// clock and the free disk, and says what to fix. Nothing moves.
+    Doctor {
+        /// Station config (TOML).
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Check the virtual bench instead of hardware.
+        #[arg(long)]
+        simulate: bool,
+        /// Where runs are kept (its free disk is checked).
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
     /// Restore a backup made by `spinbench backup` into a store file that
     /// does not exist yet (move the old one aside first).
     Restore {
@@ -629,6 +646,15 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         Command::Replay { run, data, db } => reports::replay(&run, &data, db, out),
         Command::Serve { args } => crate::web::serve(args, out),
         Command::Backup { dir, db, data } => backup::backup(&dir, &db, data.as_deref(), out),
+        Command::Doctor {
+            station,
+            simulate,
+            data,
+            db,
+        } => {
+            let db = db.unwrap_or_else(|| StoreTarget::File(data.join(crate::run_setup::DB_FILE)));
+            crate::doctor::run(station.as_deref(), simulate, &db, &data, out)
+        }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
         Command::Equipment { action } => match action {
             EquipmentAction::List { db } => equipment::list(&db, out),

@@ -260,11 +260,13 @@ pub fn session_token(cookie_header: &str) -> Option<String> {
         .map(|c| c.value().to_string())
 }
 
-/// The `Set-Cookie` value that opens (or, with `None`, ends) a session.
-pub fn session_cookie(token: Option<&str>) -> String {
+/// The `Set-Cookie` value that opens (or, with `None`, ends) a session;
+/// `secure` (served over TLS) keeps the browser from sending it over plain HTTP.
+pub fn session_cookie(token: Option<&str>, secure: bool) -> String {
+    let secure = if secure { "; Secure" } else { "" };
     match token {
-        Some(t) => format!("{SESSION_COOKIE}={t}; HttpOnly; SameSite=Strict; Path=/"),
-        None => format!("{SESSION_COOKIE}=; HttpOnly; SameSite=Strict; Path=/; Max-Age=0"),
+        Some(t) => format!("{SESSION_COOKIE}={t}; HttpOnly; SameSite=Strict; Path=/{secure}"),
+        None => format!("{SESSION_COOKIE}=; HttpOnly; SameSite=Strict; Path=/; Max-Age=0{secure}"),
     }
 }
 
@@ -299,7 +301,10 @@ mod tests {
             Some("abc")
         );
         assert_eq!(session_token("a=1"), None);
-        assert!(session_cookie(Some("t")).contains("HttpOnly; SameSite=Strict"));
+        assert!(session_cookie(Some("t"), false).contains("HttpOnly; SameSite=Strict"));
+        assert!(!session_cookie(Some("t"), false).contains("Secure"));
+        assert!(session_cookie(Some("t"), true).ends_with("; Secure"));
+        assert!(session_cookie(None, true).ends_with("Max-Age=0; Secure"));
         assert!(same_token("abc", "abc") && !same_token("abc", "abd") && !same_token("a", "ab"));
         assert!(check_new_user("op_1", "12345678").is_ok());
         assert!(check_new_user("bad name", "12345678").is_err());

@@ -11,6 +11,7 @@ pub mod hub;
 pub mod runner;
 pub mod server;
 pub mod throttle;
+pub mod tls;
 
 use anyhow::{Context, Result};
 use spinbench_engine::StationConfig;
@@ -42,6 +43,8 @@ pub struct AppState {
     pub plans_dir: PathBuf,
     /// The station config file an engineer's edit is saved to (none on the virtual bench).
     pub station_path: Option<PathBuf>,
+    /// Served over TLS: session cookies are `Secure`.
+    pub secure_cookies: bool,
 }
 
 /// How `spinbench serve` was asked to run (its command-line options).
@@ -83,6 +86,12 @@ pub struct ServeArgs {
     /// Seconds a connection may stay silent both ways before it is closed (1 to 3600).
     #[arg(long, default_value_t = 60.0)]
     pub idle_timeout_s: f64,
+    /// Serve HTTPS with this PEM certificate chain (the server's first; with --tls-key).
+    #[arg(long, requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// The PEM private key of --tls-cert.
+    #[arg(long, requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
 }
 
 impl ServeArgs {
@@ -168,6 +177,11 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     if std::fs::read_dir(&plans_dir).map_or(true, |mut d| d.next().is_none()) {
         std::fs::write(plans_dir.join("short.toml"), EXAMPLE_PLAN)?;
     }
+    // TLS first: a wrong certificate is said before anything starts.
+    let tls = match (&args.tls_cert, &args.tls_key) {
+        (Some(cert), Some(key)) => Some(tls::server_config(cert, key)?),
+        _ => None,
+    };
     let store = Store::connect(&db)?;
     if store.users()?.is_empty() {
         writeln!(
@@ -199,6 +213,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         } else {
             args.station.clone()
         },
+        secure_cookies: tls.is_some(),
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -211,7 +226,8 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     let local = listener.local_addr()?;
     writeln!(
         out,
-        "spinbench serve: http://{local}/ ({}; data in {}, store {})",
+        "spinbench serve: {}://{local}/ ({}; data in {}, store {})",
+        if tls.is_some() { "https" } else { "http" },
         if args.simulate {
             "virtual bench"
         } else {
@@ -229,7 +245,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
     };
     let stopping = state.clone();
-    runtime.block_on(server::serve(listener, app, limits, async move {
+    runtime.block_on(server::serve(listener, app, limits, tls, async move {
         let reason = signals.await;
         eprintln!("{reason}: stopping the run (safe state), then closing the connections…");
         // The run first: it goes to its safe state and is recorded while the

@@ -1,6 +1,7 @@
 //! The HTTP connections of `spinbench serve`, held to a plant network's
-//! limits: a cap on open connections, a deadline for a request's headers,
-//! an idle timeout, and a shutdown that ends within a bounded time.
+//! limits: a cap on open connections, a deadline for a request's headers
+//! (and for the TLS handshake under `--tls-cert`), an idle timeout, and a
+//! shutdown that ends within a bounded time.
 //!
 //! Written over hyper's connection API rather than `axum::serve`, because
 //! `axum::serve` sets none of these limits (no header timeout, no idle
@@ -97,13 +98,16 @@ impl AsyncWrite for Watched {
 
 /// Serve `app` on `listener` until `shutdown` completes; then stop
 /// accepting, ask every connection to finish (`closing` is set first, so
-/// event streams end) and wait at most `limits.drain` for them.
+/// event streams end) and wait at most `limits.drain` for them. With `tls`,
+/// every connection is HTTPS (its handshake within `limits.header_timeout`).
 pub async fn serve(
     listener: TcpListener,
     app: Router,
     limits: ConnectionLimits,
+    tls: Option<Arc<rustls::ServerConfig>>,
     shutdown: impl Future<Output = ()>,
 ) {
+    let acceptor = tls.map(tokio_rustls::TlsAcceptor::from);
     let slots = Arc::new(Semaphore::new(limits.max_connections.max(1)));
     let (stop_tx, stop_rx) = watch::channel(false);
     let mut tasks = tokio::task::JoinSet::new();
@@ -123,7 +127,8 @@ pub async fn serve(
             continue;
         };
         let app = app.clone();
-        let mut stop = stop_rx.clone();
+        let stop = stop_rx.clone();
+        let acceptor = acceptor.clone();
         tasks.spawn(async move {
             let _permit = permit;
             let watched = Watched {
@@ -131,35 +136,21 @@ pub async fn serve(
                 born: Instant::now(),
                 last_ms: Arc::new(AtomicU64::new(0)),
             };
-            let last = watched.last_ms.clone();
-            let born = watched.born;
+            let activity = (watched.born, watched.last_ms.clone());
             let service = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
                 req.extensions_mut().insert(ConnectInfo(peer));
                 let mut app = app.clone();
                 async move { app.call(req).await }
             });
-            let mut builder = hyper::server::conn::http1::Builder::new();
-            builder
-                .timer(TokioTimer::new())
-                .header_read_timeout(limits.header_timeout);
-            let conn = builder.serve_connection(TokioIo::new(watched), service);
-            tokio::pin!(conn);
-            let mut tick = tokio::time::interval(Duration::from_millis(250));
-            let mut stopping = false;
-            loop {
-                tokio::select! {
-                    _ = conn.as_mut() => break,
-                    changed = stop.changed(), if !stopping => {
-                        let _ = changed;
-                        stopping = true;
-                        conn.as_mut().graceful_shutdown();
-                    }
-                    _ = tick.tick() => {
-                        let idle_ms = (born.elapsed().as_millis() as u64)
-                            .saturating_sub(last.load(Ordering::Relaxed));
-                        if idle_ms > limits.idle_timeout.as_millis() as u64 {
-                            break;
-                        }
+            match acceptor {
+                None => drive(TokioIo::new(watched), service, limits, activity, stop).await,
+                // TLS over the watched stream: its idle clock sees every byte.
+                Some(acceptor) => {
+                    let handshake =
+                        tokio::time::timeout(limits.header_timeout, acceptor.accept(watched)).await;
+                    // A failed or slow handshake just closes the connection.
+                    if let Ok(Ok(tls)) = handshake {
+                        drive(TokioIo::new(tls), service, limits, activity, stop).await;
                     }
                 }
             }
@@ -175,5 +166,50 @@ pub async fn serve(
     .await;
     if drained.is_err() {
         tasks.abort_all();
+    }
+}
+
+/// One connection served until it ends, the server stops (gracefully), or
+/// it is idle longer than `limits.idle_timeout` (by `activity`: when the
+/// stream was born, and the milliseconds after that of its last byte).
+async fn drive<I, S>(
+    io: I,
+    service: S,
+    limits: ConnectionLimits,
+    activity: (Instant, Arc<AtomicU64>),
+    mut stop: watch::Receiver<bool>,
+) where
+    I: hyper::rt::Read + hyper::rt::Write + Unpin + Send + 'static,
+    S: hyper::service::HttpService<Incoming> + Send + 'static,
+    S::Future: Send + 'static,
+    S::ResBody: Send + 'static,
+    <S::ResBody as hyper::body::Body>::Data: Send,
+    <S::ResBody as hyper::body::Body>::Error: Into<Box<dyn std::error::Error + Send + Sync>>,
+{
+    let (born, last) = activity;
+    let mut builder = hyper::server::conn::http1::Builder::new();
+    builder
+        .timer(TokioTimer::new())
+        .header_read_timeout(limits.header_timeout);
+    let conn = builder.serve_connection(io, service);
+    tokio::pin!(conn);
+    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    let mut stopping = false;
+    loop {
+        tokio::select! {
+            _ = conn.as_mut() => break,
+            changed = stop.changed(), if !stopping => {
+                let _ = changed;
+                stopping = true;
+                conn.as_mut().graceful_shutdown();
+            }
+            _ = tick.tick() => {
+                let idle_ms = (born.elapsed().as_millis() as u64)
+                    .saturating_sub(last.load(Ordering::Relaxed));
+                if idle_ms > limits.idle_timeout.as_millis() as u64 {
+                    break;
+                }
+            }
+        }
     }
 }

@@ -25,7 +25,7 @@ pub fn short_plan(title: &str, serials: &[&str]) -> String {
 /// A running server; killed when dropped.
 pub struct Server {
     child: Child,
-    /// `http://127.0.0.1:PORT`.
+    /// `http://127.0.0.1:PORT` (`https://` under `--tls-cert`).
     pub base: String,
 }
 
@@ -100,9 +100,12 @@ pub fn serve_with(data: &Path, sim_speed: &str, extra: &[&str]) -> Server {
             .next()
             .expect("the server said where it listens")
             .expect("a line");
-        if let Some(rest) = line.split("http://").nth(1) {
+        let scheme = ["https://", "http://"]
+            .into_iter()
+            .find_map(|s| line.split(s).nth(1).map(|rest| (s, rest)));
+        if let Some((scheme, rest)) = scheme {
             let addr = rest.split('/').next().expect("address");
-            break format!("http://{addr}");
+            break format!("{scheme}{addr}");
         }
     };
     // Keep reading its output so it never blocks on a full pipe.
@@ -147,6 +150,12 @@ impl Client {
             .http_status_as_error(false)
             .build()
             .into();
+        Client::with_agent(server, agent)
+    }
+
+    /// A client without a session that sends through `agent` (e.g. one
+    /// that trusts a test's own certificate).
+    pub fn with_agent(server: &Server, agent: ureq::Agent) -> Client {
         Client {
             agent,
             base: server.base.clone(),
@@ -162,7 +171,12 @@ impl Client {
 
     /// Log in; panics unless it succeeds.
     pub fn login(server: &Server, user: &str, password: &str) -> Client {
-        let mut c = Client::new(server);
+        Client::new(server).log_in(user, password)
+    }
+
+    /// This client logged in; panics unless it succeeds.
+    pub fn log_in(mut self, user: &str, password: &str) -> Client {
+        let c = &mut self;
         let r = c.send(
             "POST",
             "/api/login",
@@ -172,7 +186,7 @@ impl Client {
         let cookie = r.set_cookie.clone().expect("a session cookie");
         c.cookie = Some(cookie.split(';').next().unwrap_or("").to_string());
         c.csrf = r.json()["csrf"].as_str().map(str::to_string);
-        c
+        self
     }
 
     /// Send a request (with the cookie and CSRF token, when held).

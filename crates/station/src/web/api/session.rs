@@ -78,7 +78,7 @@ pub(super) async fn login(
     let mut response = axum::Json(json!(session)).into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
-        HeaderValue::from_str(&auth::session_cookie(Some(&token)))
+        HeaderValue::from_str(&auth::session_cookie(Some(&token), app.secure_cookies))
             .map_err(|e| ApiError::internal(e.to_string()))?,
     );
     Ok(response)
@@ -101,7 +101,7 @@ pub(super) async fn logout(
     let mut response = StatusCode::NO_CONTENT.into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
-        HeaderValue::from_str(&auth::session_cookie(None))
+        HeaderValue::from_str(&auth::session_cookie(None, app.secure_cookies))
             .map_err(|e| ApiError::internal(e.to_string()))?,
     );
     Ok(response)
