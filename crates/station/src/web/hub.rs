@@ -29,17 +29,20 @@ pub struct HubEvent {
 }
 
 /// What the status panel shows, kept current from the events.
-#[derive(Debug, Clone, Default, Serialize)]
+#[derive(Debug, Clone, Default, Serialize, utoipa::ToSchema)]
 pub struct StatusSnapshot {
     /// The run on the station, if any was started since the server began.
     pub run_id: Option<String>,
     /// Its state (`running`, `prompting`, `paused`, `completed`, …).
     pub state: Option<String>,
     /// Current step: index (0-based), of, label.
+    #[schema(value_type = Option<Vec<Object>>)]
     pub step: Option<(usize, usize, String)>,
     /// The current step's label as a key and values, for the page's language.
+    #[schema(value_type = Option<Object>)]
     pub step_wording: Option<Wording>,
     /// Settling or averaging at a level: phase, done, of.
+    #[schema(value_type = Option<Vec<Object>>)]
     pub progress: Option<(String, u32, u32)>,
     /// Measured rate [deg/s].
     pub rate_deg_s: Option<f64>,
@@ -50,22 +53,27 @@ pub struct StatusSnapshot {
     /// Rate within tolerance.
     pub on_speed: Option<bool>,
     /// Supply outputs: (volts, amperes).
+    #[schema(value_type = Vec<Vec<f64>>)]
     pub supply: Vec<(f64, f64)>,
     /// Interlocks closed.
     pub interlocks_closed: Option<bool>,
     /// Counter-module counters.
+    #[schema(value_type = Vec<Object>)]
     pub modules: Vec<ModuleHealth>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
     /// The fixture it asks of each slot (for the page's language).
+    #[schema(value_type = Vec<Object>)]
     pub prompt_fixtures: Vec<Option<spinbench_engine::plan::Fixture>>,
     /// The last notices (newest last).
     pub notices: Vec<String>,
     /// Each of `notices` as a key and values (`None` for the server's own).
+    #[schema(value_type = Vec<Object>)]
     pub notice_wordings: Vec<Option<Wording>>,
     /// Why the run stopped, when it faulted or was aborted.
     pub reason: Option<String>,
     /// `reason` as a key and values, when the fault that stopped it had one.
+    #[schema(value_type = Option<Object>)]
     pub reason_wording: Option<Wording>,
     /// Points taken.
     pub points: usize,
@@ -78,6 +86,7 @@ pub struct StatusSnapshot {
     /// Serial number per slot.
     pub serials: Vec<Option<String>>,
     /// Every slot's live state (the board, issue 16 part 1).
+    #[schema(value_type = Vec<Object>)]
     pub board: Vec<spinbench_engine::board::SlotState>,
 }
 

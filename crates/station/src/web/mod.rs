@@ -1,6 +1,6 @@
 //! The station's web UI and HTTP API (`spinbench serve`): an axum server in
 //! the station process. The browser page (`assets/`) and a line's MES use
-//! the same JSON API (documented in `openapi.json`); live data reach the
+//! the same JSON API (its OpenAPI document generated from the handlers, `api::doc`); live data reach the
 //! browser as server-sent events from the engine's event stream ([`hub`]).
 //! The UI never touches a driver: it starts runs through [`runner`] and
 //! hears the engine's events, like the store and the journal do.
@@ -22,8 +22,10 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
-/// The OpenAPI document of the HTTP API.
-pub const OPENAPI: &str = include_str!("openapi.json");
+/// The OpenAPI document of the HTTP API, generated from the handlers.
+pub fn openapi() -> &'static str {
+    api::doc::json()
+}
 
 /// Everything a request handler may reach.
 pub struct AppState {

@@ -18,6 +18,7 @@ pub(super) fn asset(content_type: &'static str, body: &'static str) -> Response 
         .into_response()
 }
 
+/// The web UI's page.
 pub(super) async fn page() -> Response {
     asset(
         "text/html; charset=utf-8",
@@ -25,6 +26,7 @@ pub(super) async fn page() -> Response {
     )
 }
 
+/// The web UI's script.
 pub(super) async fn script() -> Response {
     asset(
         "text/javascript; charset=utf-8",
@@ -32,14 +34,18 @@ pub(super) async fn script() -> Response {
     )
 }
 
+/// The web UI's style sheet.
 pub(super) async fn style() -> Response {
     asset("text/css; charset=utf-8", include_str!("../assets/app.css"))
 }
 
+/// This document (generated from the handlers and their types).
+#[utoipa::path(get, path = "/api/openapi.json", tag = "page",
+    responses((status = 200, description = "the OpenAPI document", content_type = "application/json", body = Object)))]
 pub(super) async fn openapi() -> Response {
     (
         [(header::CONTENT_TYPE, "application/json")],
-        crate::web::OPENAPI,
+        super::doc::json(),
     )
         .into_response()
 }

@@ -4,23 +4,36 @@
 
 use super::*;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+use super::schema::{ChartPoint, ChartReply, ChartViolation, ChartsReply, ErrorBody, YieldRow};
+
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
 pub(super) struct Baseline {
     /// Limits from the first this many runs (default 10, 1 to 100,000).
+    #[param(minimum = 1, maximum = 100000)]
     baseline_runs: Option<usize>,
 }
 
 /// Most runs a baseline may name.
 const MAX_BASELINE_RUNS: usize = 100_000;
 
+/// Control charts across the stored runs, with the rules broken and the yields.
+#[utoipa::path(get, path = "/api/control-charts", tag = "charts",
+    security(("session" = [])),
+    params(Baseline),
+    responses(
+        (status = 200, description = "the charts", body = ChartsReply),
+        (status = 400, description = "a baseline outside 1 to 100,000 runs", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn control_charts(
     State(app): State<App>,
     headers: HeaderMap,
-    Query(q): Query<Baseline>,
-) -> ApiResult<axum::Json<Value>> {
+    q: Result<Query<Baseline>, QueryRejection>,
+) -> ApiResult<Json<ChartsReply>> {
     use spinbench_report::control::{DEFAULT_BASELINE_RUNS, control_chart_svg};
     let session = authorize(&app, &headers, Role::Operator, false)?;
+    let Query(q) = q.map_err(query_error)?;
     // The rules' texts in the user's language (`rule` is the stable name).
     let lang = super::session::language_of(&app, &headers, Some(&session));
     let baseline = q.baseline_runs.unwrap_or(DEFAULT_BASELINE_RUNS);
@@ -36,44 +49,57 @@ pub(super) async fn control_charts(
     .map_err(|e| ApiError::internal(e.to_string()))?;
     batch.rebaseline(baseline);
     let c = &batch.control;
-    let charts: Vec<Value> = c
+    let charts: Vec<ChartReply> = c
         .charts
         .iter()
-        .map(|chart| {
-            json!({
-                "quantity": chart.quantity,
-                "unit": chart.unit,
-                "slot": chart.position.map(|p| p.0),
-                "baseline": chart.baseline,
-                "centre": chart.limits.map(|l| l.centre),
-                "sigma": chart.limits.map(|l| l.sigma),
-                "flagged": chart.flagged(),
-                "points": chart.points.iter().map(|p| json!({
-                    "run_id": p.run_id, "serial": p.serial, "value": p.value,
-                })).collect::<Vec<_>>(),
-                "violations": chart.violations.iter().map(|v| json!({
-                    "point": v.index + 1, "run_id": chart.points[v.index].run_id,
-                    "rule": v.rule, "says": spinbench_report::control::rule_text(lang, v.rule),
-                })).collect::<Vec<_>>(),
-                "svg": control_chart_svg(chart, lang),
-            })
+        .map(|chart| ChartReply {
+            quantity: chart.quantity.clone(),
+            unit: chart.unit.to_string(),
+            slot: chart.position.map(|p| p.0),
+            baseline: chart.baseline,
+            centre: chart.limits.map(|l| l.centre),
+            sigma: chart.limits.map(|l| l.sigma),
+            flagged: chart.flagged(),
+            points: chart
+                .points
+                .iter()
+                .map(|p| ChartPoint {
+                    run_id: p.run_id.clone(),
+                    serial: p.serial.clone(),
+                    value: p.value,
+                })
+                .collect(),
+            violations: chart
+                .violations
+                .iter()
+                .map(|v| ChartViolation {
+                    point: v.index + 1,
+                    run_id: chart.points[v.index].run_id.clone(),
+                    rule: serde_json::to_value(v.rule)
+                        .ok()
+                        .and_then(|r| r.as_str().map(str::to_string))
+                        .unwrap_or_default(),
+                    says: spinbench_report::control::rule_text(lang, v.rule),
+                })
+                .collect(),
+            svg: control_chart_svg(chart, lang),
         })
         .collect();
-    let yields = |list: &[spinbench_report::control::Yield]| -> Vec<Value> {
+    let yields = |list: &[spinbench_report::control::Yield]| -> Vec<YieldRow> {
         list.iter()
-            .map(|y| {
-                json!({
-                    "label": y.label, "first_tests": y.first_tests,
-                    "first_passes": y.first_passes, "yield": y.fraction(),
-                })
+            .map(|y| YieldRow {
+                label: y.label.clone(),
+                first_tests: y.first_tests,
+                first_passes: y.first_passes,
+                fraction: y.fraction(),
             })
             .collect()
     };
-    Ok(axum::Json(json!({
-        "baseline_runs": baseline,
-        "runs": batch.runs.len(),
-        "charts": charts,
-        "yield_by_run": yields(&c.yield_by_run),
-        "yield_by_day": yields(&c.yield_by_day),
-    })))
+    Ok(Json(ChartsReply {
+        baseline_runs: baseline,
+        runs: batch.runs.len(),
+        charts,
+        yield_by_run: yields(&c.yield_by_run),
+        yield_by_day: yields(&c.yield_by_day),
+    }))
 }

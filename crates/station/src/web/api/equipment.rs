@@ -2,51 +2,63 @@
 //! with its calibration certificate, dates and status, read by everyone and
 //! kept by engineers (each change in the audit log).
 
+use super::schema::{EquipmentEntry, EquipmentSaved, ErrorBody, SetEquipment};
 use super::*;
 use spinbench_store::equipment::{EquipmentRow, parse_date};
 
+/// Every device of the station with its calibration and status.
+#[utoipa::path(get, path = "/api/equipment", tag = "equipment",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the register", body = Vec<EquipmentEntry>),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn equipment(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Vec<EquipmentEntry>>> {
     authorize(&app, &headers, Role::Operator, false)?;
     let station = app.runner.station().0;
     let list = crate::equipment::station_equipment(&store(&app), &station)?;
-    Ok(axum::Json(json!(
+    Ok(Json(
         list.iter()
-            .map(|(role, row, status)| json!({
-                "role": role,
-                "identity": row.as_ref().map(|r| r.identity.clone()),
-                "certificate": row.as_ref().map(|r| r.certificate.clone()),
-                "calibrated_on": row.as_ref().map(|r| r.calibrated_on.clone()),
-                "due_on": row.as_ref().map(|r| r.due_on.clone()),
-                "updated_by": row.as_ref().map(|r| r.updated_by.clone()),
-                "status": status.as_str(),
-            }))
-            .collect::<Vec<_>>()
-    )))
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct SetEquipment {
-    identity: String,
-    certificate: String,
-    calibrated_on: String,
-    due_on: String,
+            .map(|(role, row, status)| EquipmentEntry {
+                role: role.clone(),
+                identity: row.as_ref().map(|r| r.identity.clone()),
+                certificate: row.as_ref().map(|r| r.certificate.clone()),
+                calibrated_on: row.as_ref().map(|r| r.calibrated_on.clone()),
+                due_on: row.as_ref().map(|r| r.due_on.clone()),
+                updated_by: row.as_ref().map(|r| r.updated_by.clone()),
+                status: status.as_str().to_string(),
+            })
+            .collect(),
+    ))
 }
 
 /// Longest text of a register entry [characters].
 const MAX_TEXT_CHARS: usize = 200;
 
+/// Record a device's calibration (an engineer; in the audit log).
+#[utoipa::path(put, path = "/api/equipment/{role}", tag = "equipment",
+    security(("session" = [], "csrf" = [])),
+    params(("role" = String, Path, description = "the device (`centrifuge`, `fmu 1`, `instrument supply`, …)")),
+    request_body(content = SetEquipment, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "recorded", body = EquipmentSaved),
+        (status = 400, description = "a bad text or date, or due before calibrated", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 404, description = "no such device in this station", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn set_equipment(
     State(app): State<App>,
     headers: HeaderMap,
     Path(role): Path<String>,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<EquipmentSaved>> {
     let session = authorize(&app, &headers, Role::Engineer, true)?;
-    let set: SetEquipment = parse_json(&body)?;
+    // The device first: a body for a device the station has not is not looked at.
     let roles = app.runner.station().0.device_roles();
     if !roles.contains(&role) {
         return Err(ApiError::not_found(format!(
@@ -55,6 +67,7 @@ pub(super) async fn set_equipment(
             roles.join(", ")
         )));
     }
+    let set: SetEquipment = parse_json(&body)?;
     for (field, text) in [
         ("identity", &set.identity),
         ("certificate", &set.certificate),
@@ -88,5 +101,8 @@ pub(super) async fn set_equipment(
         updated_at: 0,
     };
     store(&app).set_equipment(&row, &session.user)?;
-    Ok(axum::Json(json!({ "role": role, "due_on": row.due_on })))
+    Ok(Json(EquipmentSaved {
+        role,
+        due_on: row.due_on,
+    }))
 }

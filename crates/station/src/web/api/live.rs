@@ -1,24 +1,36 @@
 //! The station's status now and the live event stream (server-sent events
 //! with catch-up), both from the hub.
 
+use super::schema::{ErrorBody, StatusReply};
 use super::*;
 
+/// The station now: run, step, rate, supplies, interlocks, modules, the board.
+#[utoipa::path(get, path = "/api/status", tag = "live",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the station now", body = StatusReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn status(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<StatusReply>> {
     authorize(&app, &headers, Role::Operator, false)?;
-    let mut status =
-        serde_json::to_value(app.hub.status()).map_err(|e| ApiError::internal(e.to_string()))?;
-    status["active"] = json!(app.runner.active());
-    status["prompt"] = json!(app.runner.prompt());
-    status["simulated"] = json!(app.runner.simulated());
-    status["station"] = json!(app.runner.station().0.station);
-    Ok(axum::Json(status))
+    let mut snapshot = app.hub.status();
+    // The runner's prompt is the one waiting now (the hub's may be answered).
+    snapshot.prompt = app.runner.prompt();
+    Ok(Json(StatusReply {
+        snapshot,
+        active: app.runner.active(),
+        simulated: app.runner.simulated(),
+        station: app.runner.station().0.station,
+    }))
 }
 
-#[derive(Deserialize)]
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
 pub(super) struct Since {
+    /// Catch up from after this event's number (as `Last-Event-ID`).
     since: Option<u64>,
 }
 
@@ -26,12 +38,20 @@ pub(super) struct Since {
 /// number. A browser that reconnects sends `Last-Event-ID` (or `?since=N`)
 /// and first gets what it missed. One-second values are decimated to at
 /// most one per 100 ms per browser (a fast virtual bench makes hundreds).
+#[utoipa::path(get, path = "/api/events", tag = "live",
+    security(("session" = [])),
+    params(Since, ("last-event-id" = Option<u64>, Header, description = "the last event seen")),
+    responses(
+        (status = 200, description = "the engine's events, one JSON object each (`event` names its kind); the stream stays open", content_type = "text/event-stream", body = String),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn events(
     State(app): State<App>,
     headers: HeaderMap,
-    Query(q): Query<Since>,
+    q: Result<Query<Since>, QueryRejection>,
 ) -> ApiResult<Sse<impl Stream<Item = Result<SseEvent, Infallible>>>> {
     authorize(&app, &headers, Role::Operator, false)?;
+    let Query(q) = q.map_err(query_error)?;
     let last = headers
         .get("last-event-id")
         .and_then(|v| v.to_str().ok())

@@ -7,8 +7,10 @@
 use super::AppState;
 use super::auth::{self, CSRF_HEADER, Role, Session};
 use crate::web::runner::StartError;
+use axum::Json;
 use axum::Router;
 use axum::body::Bytes;
+use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
@@ -16,7 +18,7 @@ use axum::response::{IntoResponse, Response};
 use axum::routing::{MethodRouter, delete, get, post, put};
 use futures_util::Stream;
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::json;
 use spinbench_engine::TestPlan;
 use spinbench_report::ReportFormat;
 use std::collections::BTreeMap;
@@ -26,10 +28,12 @@ use std::time::{Duration, Instant};
 
 mod assets;
 mod charts;
+pub mod doc;
 mod equipment;
 mod live;
 mod plans;
 mod runs;
+pub mod schema;
 mod session;
 mod users;
 
@@ -65,7 +69,13 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.status, axum::Json(json!({ "error": self.message }))).into_response()
+        (
+            self.status,
+            Json(schema::ErrorBody {
+                error: self.message,
+            }),
+        )
+            .into_response()
     }
 }
 
@@ -120,6 +130,11 @@ pub(super) fn authorize(
         ));
     }
     Ok(session)
+}
+
+/// A query string the handler's type refuses, as a JSON error.
+fn query_error(e: QueryRejection) -> ApiError {
+    ApiError::bad(format!("the query string: {}", e.body_text()))
 }
 
 fn parse_json<T: for<'de> Deserialize<'de>>(body: &[u8]) -> ApiResult<T> {

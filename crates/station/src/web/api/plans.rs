@@ -1,6 +1,7 @@
 //! Test plans and the station config, read by everyone, saved by engineers
 //! after being checked against the station.
 
+use super::schema::{ErrorBody, PlanEntry, PlanSaved, PlansReply, Saved, StationReply};
 use super::*;
 
 pub(super) fn plan_name_ok(name: &str) -> bool {
@@ -11,10 +12,17 @@ pub(super) fn plan_name_ok(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
 }
 
+/// Every plan of the station, with its text and whether it reads.
+#[utoipa::path(get, path = "/api/plans", tag = "plans",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the plans", body = PlansReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn plans(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<PlansReply>> {
     authorize(&app, &headers, Role::Operator, false)?;
     let mut out = Vec::new();
     let dir = std::fs::read_dir(&app.plans_dir)
@@ -26,27 +34,40 @@ pub(super) async fn plans(
         {
             let text = std::fs::read_to_string(&path).unwrap_or_default();
             let plan = TestPlan::from_toml(&text);
-            out.push(json!({
-                "name": name,
-                "text": text,
-                "title": plan.as_ref().map(|p| p.name.clone()).unwrap_or_default(),
-                "serials": plan.as_ref().map(|p| p.serials.clone()).unwrap_or_default(),
-                "problem": plan.err().map(|e| e.to_string()),
-            }));
+            out.push(PlanEntry {
+                name: name.to_string(),
+                title: plan.as_ref().map(|p| p.name.clone()).unwrap_or_default(),
+                serials: plan.as_ref().map(|p| p.serials.clone()).unwrap_or_default(),
+                problem: plan.err().map(|e| e.to_string()),
+                text,
+            });
         }
     }
-    out.sort_by(|a, b| a["name"].as_str().cmp(&b["name"].as_str()));
-    Ok(axum::Json(
-        json!({ "slots": app.runner.station().0.slots(), "plans": out }),
-    ))
+    out.sort_by(|a, b| a.name.cmp(&b.name));
+    Ok(Json(PlansReply {
+        slots: app.runner.station().0.slots(),
+        plans: out,
+    }))
 }
 
+/// Save a plan (an engineer): checked against the station first.
+#[utoipa::path(put, path = "/api/plans/{name}", tag = "plans",
+    security(("session" = [], "csrf" = [])),
+    params(("name" = String, Path, description = "1 to 64 letters, digits, `-` or `_`", pattern = "^[A-Za-z0-9_-]{1,64}$")),
+    request_body(content = String, content_type = "text/plain", description = "The plan as TOML (see the README's plan keys). At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "saved", body = PlanSaved),
+        (status = 400, description = "not a plan, or one this station cannot run", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn save_plan(
     State(app): State<App>,
     headers: HeaderMap,
     Path(name): Path<String>,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<PlanSaved>> {
     let session = authorize(&app, &headers, Role::Engineer, true)?;
     if !plan_name_ok(&name) {
         return Err(ApiError::bad(format!(
@@ -62,28 +83,47 @@ pub(super) async fn save_plan(
     std::fs::write(&path, text)
         .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
     audit(&app, &session.user, "save plan", &name)?;
-    Ok(axum::Json(json!({ "name": name, "saved": true })))
+    Ok(Json(PlanSaved { name, saved: true }))
 }
 
+/// The station config in use.
+#[utoipa::path(get, path = "/api/station", tag = "plans",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the station", body = StationReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn station(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<StationReply>> {
     authorize(&app, &headers, Role::Operator, false)?;
     let (s, text) = app.runner.station();
-    Ok(axum::Json(json!({
-        "name": s.station,
-        "slots": s.slots(),
-        "simulated": app.runner.simulated(),
-        "toml": text,
-    })))
+    Ok(Json(StationReply {
+        slots: s.slots(),
+        name: s.station,
+        simulated: app.runner.simulated(),
+        toml: text,
+    }))
 }
 
+/// Save the station config (an engineer; not on the virtual bench, nor during a run).
+#[utoipa::path(put, path = "/api/station", tag = "plans",
+    security(("session" = [], "csrf" = [])),
+    request_body(content = String, content_type = "text/plain", description = "The station config as TOML. At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "saved and in use", body = Saved),
+        (status = 400, description = "not a station config", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 409, description = "the virtual bench's config, or a run is active", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn save_station(
     State(app): State<App>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Saved>> {
     let session = authorize(&app, &headers, Role::Engineer, true)?;
     let text = std::str::from_utf8(&body)
         .map_err(|_| ApiError::bad("the station config is not UTF-8 text"))?;
@@ -105,5 +145,5 @@ pub(super) async fn save_station(
         "save station config",
         &path.display().to_string(),
     )?;
-    Ok(axum::Json(json!({ "saved": true })))
+    Ok(Json(Saved { saved: true }))
 }

@@ -2,31 +2,43 @@
 //! one run's results, its reports, every run of one serial number.
 
 use super::plans::plan_name_ok;
+use super::schema::{
+    ErrorBody, ExcludeLevel, Excluded, PromptAnswer, ResultRow, RetestStarted, RunDetail, RunEntry,
+    RunId, StartRun, UnitHistory, UnitTest,
+};
 use super::*;
 
-#[derive(Deserialize)]
-pub(super) struct StartRun {
-    plan: String,
-    #[serde(default)]
-    serials: BTreeMap<String, String>,
-    /// An admin's reason to start although a device is overdue for calibration.
-    #[serde(default)]
-    override_overdue: Option<String>,
-}
-
+/// Start a run of a plan; serials per slot replace the plan's.
+#[utoipa::path(post, path = "/api/runs", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    request_body(content = StartRun, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 201, description = "started", body = RunId),
+        (status = 400, description = "not a start body, bad serials, or a plan that cannot run", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token; an override by someone not an admin", body = ErrorBody),
+        (status = 404, description = "no plan of that name", body = ErrorBody),
+        (status = 409, description = "a run is active, or a device is overdue for calibration", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+        (status = 503, description = "the hardware cannot be reached", body = ErrorBody),
+    ))]
 pub(super) async fn start_run(
     State(app): State<App>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<(StatusCode, axum::Json<Value>)> {
+) -> ApiResult<(StatusCode, Json<RunId>)> {
     let session = authorize(&app, &headers, Role::Operator, true)?;
     let start: StartRun = parse_json(&body)?;
     if !plan_name_ok(&start.plan) {
-        return Err(ApiError::bad(format!("no plan named '{}'", start.plan)));
+        return Err(ApiError::bad(format!(
+            "plan '{}': 1 to 64 letters, digits, - or _",
+            spinbench_engine::bounds::shown(&start.plan)
+        )));
     }
     let path = app.plans_dir.join(format!("{}.toml", start.plan));
-    let text = std::fs::read_to_string(&path)
-        .map_err(|_| ApiError::bad(format!("no plan named '{}' (GET /api/plans)", start.plan)))?;
+    let text = std::fs::read_to_string(&path).map_err(|_| {
+        ApiError::not_found(format!("no plan named '{}' (GET /api/plans)", start.plan))
+    })?;
     let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
     let serials: BTreeMap<String, String> = start
         .serials
@@ -65,7 +77,7 @@ pub(super) async fn start_run(
             serial_list.join(" ")
         ),
     )?;
-    Ok((StatusCode::CREATED, axum::Json(json!({ "run_id": run_id }))))
+    Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }
 
 /// Refuse a run while a device is overdue for calibration, unless an admin
@@ -117,11 +129,23 @@ fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
 /// `POST /api/runs/{id}/retest`: a run of the finished run's failed,
 /// inconclusive, incomplete and flagged instruments, same serials and plan,
 /// linked to it (`retest_of`).
+#[utoipa::path(post, path = "/api/runs/{id}/retest", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the finished run")),
+    responses(
+        (status = 201, description = "the retest started", body = RetestStarted),
+        (status = 400, description = "not a run id", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 404, description = "no such run", body = ErrorBody),
+        (status = 409, description = "the run has not ended, has nothing to retest, or a run is active", body = ErrorBody),
+        (status = 503, description = "the hardware cannot be reached", body = ErrorBody),
+    ))]
 pub(super) async fn retest(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
-) -> ApiResult<(StatusCode, axum::Json<Value>)> {
+) -> ApiResult<(StatusCode, Json<RetestStarted>)> {
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
     let session = authorize(&app, &headers, Role::Operator, true)?;
@@ -132,7 +156,8 @@ pub(super) async fn retest(
         | E::Retest(RetestError::NothingToRetest(_) | RetestError::NotGraded(_)) => {
             ApiError::conflict(e.to_string())
         }
-        E::Retest(RetestError::BadRunId(_)) => ApiError::bad(e.to_string()),
+        // No run has such an id.
+        E::Retest(RetestError::BadRunId(_)) => ApiError::not_found(e.to_string()),
         E::Plan(..) => ApiError::internal(e.to_string()),
         E::Store(s) => ApiError::from(s),
     })?;
@@ -147,20 +172,31 @@ pub(super) async fn retest(
     )?;
     Ok((
         StatusCode::CREATED,
-        axum::Json(json!({ "run_id": run_id, "retest_of": id, "serials": serials })),
+        Json(RetestStarted {
+            run_id,
+            retest_of: id,
+            serials,
+        }),
     ))
 }
 
-#[derive(Deserialize)]
-pub(super) struct PromptAnswer {
-    proceed: bool,
-}
-
+/// Answer the operator prompt waiting now: done as asked, or abort.
+#[utoipa::path(post, path = "/api/run/prompt", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    request_body(content = PromptAnswer, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "answered", body = RunId),
+        (status = 400, description = "not an answer body", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 409, description = "no prompt is waiting", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn answer_prompt(
     State(app): State<App>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunId>> {
     let session = authorize(&app, &headers, Role::Operator, true)?;
     let answer: PromptAnswer = parse_json(&body)?;
     let prompt = app.runner.prompt().unwrap_or_default();
@@ -178,7 +214,7 @@ pub(super) async fn answer_prompt(
         },
         &format!("{run_id}: {prompt}"),
     )?;
-    Ok(axum::Json(json!({ "run_id": run_id })))
+    Ok(Json(RunId { run_id }))
 }
 
 pub(super) async fn control(
@@ -186,67 +222,97 @@ pub(super) async fn control(
     headers: &HeaderMap,
     action: &str,
     act: impl FnOnce(&crate::web::runner::Runner, &str) -> Result<String, String>,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunId>> {
     let session = authorize(app, headers, Role::Operator, true)?;
     let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
     audit(app, &session.user, action, &run_id)?;
-    Ok(axum::Json(json!({ "run_id": run_id })))
+    Ok(Json(RunId { run_id }))
 }
 
+/// Hold the active run between steps (the ports are still read).
+#[utoipa::path(post, path = "/api/run/pause", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    responses(
+        (status = 200, description = "held", body = RunId),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 409, description = "no active run", body = ErrorBody),
+    ))]
 pub(super) async fn pause(
     State(app): State<App>,
     headers: HeaderMap,
     _body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunId>> {
     control(&app, &headers, "pause", |r, _| r.pause(true)).await
 }
 
+/// Let a held run go on.
+#[utoipa::path(post, path = "/api/run/resume", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    responses(
+        (status = 200, description = "going on", body = RunId),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 409, description = "no active run", body = ErrorBody),
+    ))]
 pub(super) async fn resume(
     State(app): State<App>,
     headers: HeaderMap,
     _body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunId>> {
     control(&app, &headers, "resume", |r, _| r.pause(false)).await
 }
 
+/// Abort the active run: the station goes to its safe state, the run is recorded.
+#[utoipa::path(post, path = "/api/run/abort", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    responses(
+        (status = 200, description = "aborting", body = RunId),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 409, description = "no active run", body = ErrorBody),
+    ))]
 pub(super) async fn abort(
     State(app): State<App>,
     headers: HeaderMap,
     _body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunId>> {
     control(&app, &headers, "abort", |r, user| {
         r.abort(&format!("the web UI (user {user})"))
     })
     .await
 }
 
+/// Every run, newest first.
+#[utoipa::path(get, path = "/api/runs", tag = "runs",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the runs", body = Vec<RunEntry>),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn runs(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Vec<RunEntry>>> {
     authorize(&app, &headers, Role::Operator, false)?;
     let runs = store(&app).runs()?;
-    Ok(axum::Json(json!(
-        runs.iter()
-            .map(|r| json!({
-                "id": r.id,
-                "station": r.station,
-                "state": r.state,
-                "reason": r.reason,
-                "started_at": r.started_at,
-                "units": r.units,
-                "points": r.points,
-                "retest_of": r.retest_of,
-            }))
-            .collect::<Vec<_>>()
-    )))
+    Ok(Json(runs.iter().map(RunEntry::from).collect()))
 }
 
+/// One run: its results (reasons in the user's language), links and reports.
+#[utoipa::path(get, path = "/api/runs/{id}", tag = "runs",
+    security(("session" = [])),
+    params(("id" = String, Path, description = "the run")),
+    responses(
+        (status = 200, description = "the run", body = RunDetail),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no such run", body = ErrorBody),
+    ))]
 pub(super) async fn run(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<RunDetail>> {
     let session = authorize(&app, &headers, Role::Operator, false)?;
     // The results' reasons in the user's language (the records keep codes).
     let lang = super::session::language_of(&app, &headers, Some(&session));
@@ -258,52 +324,82 @@ pub(super) async fn run(
         spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
         other => ApiError::internal(other.to_string()),
     })?;
-    let rows: Vec<Value> = spinbench_report::summary_in(&report, lang)
-        .iter()
-        .map(|r| {
-            json!({
-                "serial": r.serial, "slot": r.slot, "mount": r.mount,
-                "radius_m": r.radius_m, "drawing_radius_m": r.drawing_radius_m,
-                "k0_g": r.k0_g, "k1_hz_per_g": r.k1_hz_per_g,
-                "k2_ug_per_g2": r.k2_ug_per_g2, "k2_ci95_half_ug_per_g2": r.k2_ci95_half_ug_per_g2,
-                "k2_U95": r.k2_u95_ug_per_g2,
-                "k3_ug_per_g3": r.k3_ug_per_g3, "k2_max_ug_per_g2": r.k2_max_ug_per_g2,
-                "sf_nonlinearity_ppm": r.sf_nonlinearity_ppm, "asymmetry_ppm": r.asymmetry_ppm,
-                "hysteresis_ug": r.hysteresis_ug, "outcome": r.outcome, "reasons": r.reasons,
-            })
+    let rows: Vec<ResultRow> = spinbench_report::summary_in(&report, lang)
+        .into_iter()
+        .map(|r| ResultRow {
+            serial: r.serial,
+            slot: r.slot,
+            mount: r.mount,
+            radius_m: r.radius_m,
+            drawing_radius_m: r.drawing_radius_m,
+            k0_g: r.k0_g,
+            k1_hz_per_g: r.k1_hz_per_g,
+            k2_ug_per_g2: r.k2_ug_per_g2,
+            k2_ci95_half_ug_per_g2: r.k2_ci95_half_ug_per_g2,
+            k2_u95_ug_per_g2: r.k2_u95_ug_per_g2,
+            k3_ug_per_g3: r.k3_ug_per_g3,
+            k2_max_ug_per_g2: r.k2_max_ug_per_g2,
+            sf_nonlinearity_ppm: r.sf_nonlinearity_ppm,
+            asymmetry_ppm: r.asymmetry_ppm,
+            hysteresis_ug: r.hysteresis_ug,
+            outcome: r.outcome,
+            reasons: r.reasons,
         })
         .collect();
     let run = &report.run;
-    let to_retest: Vec<&str> = report
+    let to_retest: Vec<String> = report
         .units
         .iter()
         .filter(|u| spinbench_engine::retest::needs_retest(u.record()))
-        .map(|u| u.result.serial.as_str())
+        .map(|u| u.result.serial.clone())
         .collect();
-    Ok(axum::Json(json!({
-        "id": run.id, "station": run.station, "state": run.state, "reason": run.reason,
-        "started_at": run.started_at, "units": run.units, "points": run.points,
-        "retest_of": run.retest_of, "retested_by": report.retested_by,
-        "to_retest": to_retest,
-        "results": rows,
-        "reports": ReportFormat::ALL.iter().map(|f| format!("/api/runs/{}/report/{}", run.id, f.ext())).collect::<Vec<_>>(),
-    })))
+    Ok(Json(RunDetail {
+        run: RunEntry::from(run),
+        retested_by: report.retested_by.clone(),
+        to_retest,
+        results: rows,
+        reports: ReportFormat::ALL
+            .iter()
+            .map(|f| format!("/api/runs/{}/report/{}", run.id, f.ext()))
+            .collect(),
+    }))
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
 pub(super) struct ReportQuery {
     /// `en` or `zh-CN` (default: the user's language, else the browser's).
+    #[param(value_type = Option<super::schema::LanguageTag>)]
     lang: Option<String>,
 }
 
+/// A run's report as a file.
+#[utoipa::path(get, path = "/api/runs/{id}/report/{format}", tag = "runs",
+    security(("session" = [])),
+    params(
+        ("id" = String, Path, description = "the run"),
+        ("format" = super::schema::ReportFormatName, Path, description = "the file's format"),
+        ReportQuery,
+    ),
+    responses(
+        (status = 200, description = "the report", content(
+            (Vec<u8> = "application/pdf"),
+            (String = "text/html; charset=utf-8"),
+            (Vec<u8> = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"),
+            (String = "text/csv; charset=utf-8"),
+        )),
+        (status = 400, description = "an unknown format or language", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no such run", body = ErrorBody),
+    ))]
 pub(super) async fn report(
     State(app): State<App>,
     headers: HeaderMap,
     Path((id, format)): Path<(String, String)>,
-    Query(q): Query<ReportQuery>,
+    q: Result<Query<ReportQuery>, QueryRejection>,
 ) -> ApiResult<Response> {
     let session = authorize(&app, &headers, Role::Operator, false)?;
+    let Query(q) = q.map_err(query_error)?;
     let format = ReportFormat::parse(&format).ok_or_else(|| {
         ApiError::bad(format!(
             "report format '{format}': use pdf, html, xlsx or csv"
@@ -345,11 +441,20 @@ pub(super) async fn report(
         .into_response())
 }
 
+/// Every test of one serial number.
+#[utoipa::path(get, path = "/api/units/{serial}", tag = "runs",
+    security(("session" = [])),
+    params(("serial" = String, Path, description = "the serial number")),
+    responses(
+        (status = 200, description = "its tests", body = UnitHistory),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no run holds it", body = ErrorBody),
+    ))]
 pub(super) async fn unit(
     State(app): State<App>,
     headers: HeaderMap,
     Path(serial): Path<String>,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<UnitHistory>> {
     authorize(&app, &headers, Role::Operator, false)?;
     let history = store(&app).unit_history(&serial)?;
     if history.is_empty() {
@@ -357,22 +462,18 @@ pub(super) async fn unit(
             "no run holds serial '{serial}'"
         )));
     }
-    Ok(axum::Json(json!({
-        "serial": serial,
-        "tests": history.iter().map(|h| json!({
-            "run_id": h.run_id, "slot": h.slot + 1, "outcome": h.outcome,
-            "k2_max_ug_per_g2": h.k2_max_ug_per_g2,
-        })).collect::<Vec<_>>(),
-    })))
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct ExcludeLevel {
-    serial: String,
-    mount: spinbench_analysis::Mount,
-    g: f64,
-    reason: String,
+    Ok(Json(UnitHistory {
+        serial,
+        tests: history
+            .iter()
+            .map(|h| UnitTest {
+                run_id: h.run_id.clone(),
+                slot: h.slot + 1,
+                outcome: h.outcome.to_string(),
+                k2_max_ug_per_g2: h.k2_max_ug_per_g2,
+            })
+            .collect(),
+    }))
 }
 
 /// Leave a level of one instrument of a finished run out of its reduction
@@ -380,12 +481,25 @@ pub(super) struct ExcludeLevel {
 /// the run's own plan and station config, its exclusions list who, why and
 /// how many readings, and the audit log keeps the figures before and after.
 /// The readings themselves stay.
+#[utoipa::path(post, path = "/api/runs/{id}/exclusions", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the finished run")),
+    request_body(content = ExcludeLevel, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "reduced and graded again", body = Excluded),
+        (status = 400, description = "not an exclusion body, or a level the run does not have", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 404, description = "no such run or instrument", body = ErrorBody),
+        (status = 409, description = "the run is still going, or did not record its station config", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn exclude_level(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Excluded>> {
     let session = authorize(&app, &headers, Role::Engineer, true)?;
     let ask: ExcludeLevel = parse_json(&body)?;
     if !(ask.g.is_finite() && (0.0..=spinbench_engine::bounds::MAX_LEVEL_G).contains(&ask.g)) {
@@ -461,11 +575,11 @@ pub(super) async fn exclude_level(
         after.outcome
     );
     store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
-    Ok(axum::Json(json!({
-        "run_id": id,
-        "serial": after.serial,
-        "outcome": after.outcome,
-        "k2_max_ug_per_g2": after.k2_max_ug_per_g2,
-        "exclusions": after.exclusions,
-    })))
+    Ok(Json(Excluded {
+        run_id: id,
+        exclusions: json!(after.exclusions),
+        outcome: after.outcome.to_string(),
+        k2_max_ug_per_g2: after.k2_max_ug_per_g2,
+        serial: after.serial,
+    }))
 }

@@ -4,12 +4,34 @@
 use super::*;
 use spinbench_report::Lang;
 
-#[derive(Deserialize)]
-pub(super) struct Login {
-    user: String,
-    password: String,
+use super::schema::{Catalogue, ErrorBody, Language, Login, SessionReply};
+
+/// The session as the API shows it.
+fn reply(session: &Session, language: Option<Lang>) -> SessionReply {
+    SessionReply {
+        user: session.user.clone(),
+        role: match session.role {
+            Role::Operator => super::schema::RoleName::Operator,
+            Role::Engineer => super::schema::RoleName::Engineer,
+            Role::Admin => super::schema::RoleName::Admin,
+        },
+        csrf: session.csrf.clone(),
+        language: language.map(|l| l.code().to_string()),
+    }
 }
 
+/// Log in: the session cookie, and the CSRF token in the answer.
+#[utoipa::path(post, path = "/api/login", tag = "session",
+    request_body(content = Login, description = "At most 4 KiB (413 beyond)."),
+    responses(
+        (status = 200, description = "logged in; the session cookie is set", body = SessionReply,
+            headers(("set-cookie" = String, description = "the session cookie (HttpOnly, SameSite=Strict; Secure under TLS)"))),
+        (status = 400, description = "not a login body", body = ErrorBody),
+        (status = 401, description = "wrong user name or password", body = ErrorBody),
+        (status = 413, description = "a body over 4 KiB"),
+        (status = 429, description = "too many failed logins; wait Retry-After seconds", body = ErrorBody,
+            headers(("retry-after" = u64, description = "seconds to wait"))),
+    ))]
 pub(super) async fn login(
     State(app): State<App>,
     axum::extract::ConnectInfo(peer): axum::extract::ConnectInfo<std::net::SocketAddr>,
@@ -75,7 +97,7 @@ pub(super) async fn login(
     app.logins.succeeded(&name);
     let (token, session) = app.sessions.open(&store(&app), &name, role);
     audit(&app, &name, "login", role.as_str())?;
-    let mut response = axum::Json(json!(session)).into_response();
+    let mut response = Json(reply(&session, None)).into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
         HeaderValue::from_str(&auth::session_cookie(Some(&token), app.secure_cookies))
@@ -84,6 +106,14 @@ pub(super) async fn login(
     Ok(response)
 }
 
+/// Log out: the session ends.
+#[utoipa::path(post, path = "/api/logout", tag = "session",
+    security(("session" = [], "csrf" = [])),
+    responses(
+        (status = 204, description = "logged out; the cookie is cleared"),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+    ))]
 pub(super) async fn logout(
     State(app): State<App>,
     headers: HeaderMap,
@@ -107,16 +137,20 @@ pub(super) async fn logout(
     Ok(response)
 }
 
+/// The session of the request: user, role, CSRF token, language.
+#[utoipa::path(get, path = "/api/session", tag = "session",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the session", body = SessionReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
 pub(super) async fn session(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<SessionReply>> {
     let session = authorize(&app, &headers, Role::Operator, false)?;
     let language = language_of(&app, &headers, Some(&session));
-    let mut value =
-        serde_json::to_value(&session).map_err(|e| ApiError::internal(e.to_string()))?;
-    value["language"] = json!(language.code());
-    Ok(axum::Json(value))
+    Ok(Json(reply(&session, Some(language))))
 }
 
 /// The language of a request: the user's own choice, else the browser's
@@ -135,20 +169,23 @@ pub(super) fn language_of(app: &App, headers: &HeaderMap, session: Option<&Sessi
         })
 }
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-pub(super) struct SetLanguage {
-    language: String,
-}
-
 /// `PUT /api/session/language`: the user's language, kept in the store.
+#[utoipa::path(put, path = "/api/session/language", tag = "session",
+    security(("session" = [], "csrf" = [])),
+    request_body(content = Language, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "kept", body = Language),
+        (status = 400, description = "a language the station does not speak", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+    ))]
 pub(super) async fn set_language(
     State(app): State<App>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Language>> {
     let session = authorize(&app, &headers, Role::Operator, true)?;
-    let set: SetLanguage = parse_json(&body)?;
+    let set: Language = parse_json(&body)?;
     let lang = Lang::parse(&set.language).ok_or_else(|| {
         ApiError::bad(format!(
             "language '{}': the station speaks en and zh-CN",
@@ -156,7 +193,9 @@ pub(super) async fn set_language(
         ))
     })?;
     store(&app).set_user_language(&session.user, lang.code())?;
-    Ok(axum::Json(json!({ "language": lang.code() })))
+    Ok(Json(Language {
+        language: lang.code().to_string(),
+    }))
 }
 
 /// `GET /api/i18n/{language}`: the web UI's words in that language (the
@@ -165,7 +204,13 @@ pub(super) async fn set_language(
 /// `web.say.reason.`), their word-valued values (`arg.`), the table headers
 /// (`head.`) and the run states (`state.`), so the page words them as the
 /// reports do); open to everyone, the login page needs it.
-pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<axum::Json<Value>> {
+#[utoipa::path(get, path = "/api/i18n/{language}", tag = "session",
+    params(("language" = String, Path, description = "`en` or `zh-CN` (also `zh`, `zh-Hans`, …)")),
+    responses(
+        (status = 200, description = "the words", body = Catalogue),
+        (status = 404, description = "no catalogue for that language", body = ErrorBody),
+    ))]
+pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<Json<Catalogue>> {
     let lang = Lang::parse(&language).ok_or_else(|| {
         ApiError::not_found(format!(
             "no catalogue for '{}': en and zh-CN",
@@ -187,8 +232,8 @@ pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<axum::J
                 .map(|(key, text)| (format!("{shown_as}{}", &key[prefix.len()..]), text)),
         );
     }
-    Ok(axum::Json(json!({
-        "language": lang.code(),
-        "words": words,
-    })))
+    Ok(Json(Catalogue {
+        language: lang.code().to_string(),
+        words,
+    }))
 }

@@ -1,33 +1,51 @@
 //! Users (admins manage them) and the audit log.
 
+use super::schema::{AuditEntry, ErrorBody, NewUser, UserAdded, UserEntry};
 use super::*;
 
+/// Every user (an admin).
+#[utoipa::path(get, path = "/api/users", tag = "users",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the users", body = Vec<UserEntry>),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "not an admin", body = ErrorBody),
+    ))]
 pub(super) async fn users(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Vec<UserEntry>>> {
     authorize(&app, &headers, Role::Admin, false)?;
     let users = store(&app).users()?;
-    Ok(axum::Json(json!(
+    Ok(Json(
         users
             .iter()
-            .map(|u| json!({ "name": u.name, "role": u.role, "created_at": u.created_at }))
-            .collect::<Vec<_>>()
-    )))
+            .map(|u| UserEntry {
+                name: u.name.clone(),
+                role: u.role.clone(),
+                created_at: u.created_at,
+            })
+            .collect(),
+    ))
 }
 
-#[derive(Deserialize)]
-pub(super) struct NewUser {
-    name: String,
-    role: String,
-    password: String,
-}
-
+/// Add a user (an admin).
+#[utoipa::path(post, path = "/api/users", tag = "users",
+    security(("session" = [], "csrf" = [])),
+    request_body(content = NewUser, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 201, description = "added", body = UserAdded),
+        (status = 400, description = "a bad name, role or password", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an admin", body = ErrorBody),
+        (status = 409, description = "the name is taken", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
 pub(super) async fn add_user(
     State(app): State<App>,
     headers: HeaderMap,
     body: Bytes,
-) -> ApiResult<(StatusCode, axum::Json<Value>)> {
+) -> ApiResult<(StatusCode, Json<UserAdded>)> {
     let session = authorize(&app, &headers, Role::Admin, true)?;
     let new: NewUser = parse_json(&body)?;
     use crate::users::AddUserError;
@@ -46,10 +64,24 @@ pub(super) async fn add_user(
     })?;
     Ok((
         StatusCode::CREATED,
-        axum::Json(json!({ "name": new.name, "role": role.as_str() })),
+        Json(UserAdded {
+            name: new.name,
+            role: role.as_str().to_string(),
+        }),
     ))
 }
 
+/// Remove a user (an admin; not oneself): their sessions end.
+#[utoipa::path(delete, path = "/api/users/{name}", tag = "users",
+    security(("session" = [], "csrf" = [])),
+    params(("name" = String, Path, description = "the user")),
+    responses(
+        (status = 204, description = "removed"),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an admin", body = ErrorBody),
+        (status = 404, description = "no such user", body = ErrorBody),
+        (status = 409, description = "one's own name", body = ErrorBody),
+    ))]
 pub(super) async fn delete_user(
     State(app): State<App>,
     headers: HeaderMap,
@@ -70,15 +102,29 @@ pub(super) async fn delete_user(
     Ok(StatusCode::NO_CONTENT)
 }
 
+/// The last 500 entries of the audit log, newest first (an admin).
+#[utoipa::path(get, path = "/api/audit", tag = "users",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the entries", body = Vec<AuditEntry>),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "not an admin", body = ErrorBody),
+    ))]
 pub(super) async fn audit_log(
     State(app): State<App>,
     headers: HeaderMap,
-) -> ApiResult<axum::Json<Value>> {
+) -> ApiResult<Json<Vec<AuditEntry>>> {
     authorize(&app, &headers, Role::Admin, false)?;
     let rows = store(&app).audit_log(500)?;
-    Ok(axum::Json(json!(
+    Ok(Json(
         rows.iter()
-            .map(|r| json!({ "seq": r.seq, "at": r.at, "who": r.who, "action": r.action, "detail": r.detail }))
-            .collect::<Vec<_>>()
-    )))
+            .map(|r| AuditEntry {
+                seq: r.seq,
+                at: r.at,
+                who: r.who.clone(),
+                action: r.action.clone(),
+                detail: r.detail.clone(),
+            })
+            .collect(),
+    ))
 }

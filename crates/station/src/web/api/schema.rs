@@ -1,0 +1,547 @@
+//! The API's bodies as types (issue 17, part 1): every request a handler
+//! parses and every JSON answer it sends is one of these, and the OpenAPI
+//! document's schemas are derived from the same types (utoipa), so the
+//! document cannot say one thing while the server does another. Deep
+//! records of the engine (a plan, an exclusion, a board slot) travel as
+//! JSON objects, described as such.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use utoipa::ToSchema;
+
+/// Every error: what went wrong and what to do.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ErrorBody {
+    /// What went wrong, and what to do about it.
+    pub error: String,
+}
+
+/// `POST /api/login`.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct Login {
+    /// User name (lower-case ASCII letters, digits, `.`, `_`, `-`).
+    #[schema(max_length = 64)]
+    pub user: String,
+    /// Password.
+    #[schema(max_length = 1024)]
+    pub password: String,
+}
+
+/// A user's role: each may do everything the ones before it may.
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum RoleName {
+    /// Runs tests and reads everything.
+    Operator,
+    /// Also saves plans and the station config, leaves levels out.
+    Engineer,
+    /// Also manages users and reads the audit log.
+    Admin,
+}
+
+/// A logged-in session (the login's answer; `GET /api/session` adds the language).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SessionReply {
+    /// User name.
+    pub user: String,
+    /// Role.
+    pub role: RoleName,
+    /// The token to send in `X-CSRF-Token` with every change.
+    pub csrf: String,
+    /// The user's language (`en` or `zh-CN`), on `GET /api/session`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub language: Option<String>,
+}
+
+/// `PUT /api/session/language`, and its answer.
+#[derive(Debug, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct Language {
+    /// `en` or `zh-CN` (the server also takes `zh`, `zh-Hans`, `en-GB`, …).
+    #[schema(value_type = LanguageTag)]
+    pub language: String,
+}
+
+/// A language the station speaks.
+#[derive(Debug, ToSchema)]
+pub enum LanguageTag {
+    /// English.
+    #[schema(rename = "en")]
+    En,
+    /// Simplified Chinese.
+    #[schema(rename = "zh-CN")]
+    ZhCn,
+}
+
+/// `GET /api/i18n/{language}`: the page's words.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Catalogue {
+    /// The language given (`en` or `zh-CN`).
+    pub language: String,
+    /// Key → text.
+    pub words: BTreeMap<String, String>,
+}
+
+/// `GET /api/status`: the station now.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct StatusReply {
+    /// What the engine's events say (run, step, rate, supplies, board, …).
+    #[serde(flatten)]
+    pub snapshot: crate::web::hub::StatusSnapshot,
+    /// The active run, if any.
+    pub active: Option<String>,
+    /// Served by the virtual bench.
+    pub simulated: bool,
+    /// The station's name.
+    pub station: String,
+}
+
+/// One plan in `GET /api/plans`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PlanEntry {
+    /// Its name (the file `DATA/plans/NAME.toml`).
+    pub name: String,
+    /// Its TOML text.
+    pub text: String,
+    /// The plan's own title (`name = …` inside it).
+    pub title: String,
+    /// Its serials by slot (`"1": "SN-001"`).
+    pub serials: BTreeMap<String, String>,
+    /// Why it cannot be read, if it cannot.
+    pub problem: Option<String>,
+}
+
+/// `GET /api/plans`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PlansReply {
+    /// The station's slots.
+    pub slots: usize,
+    /// Every plan, by name.
+    pub plans: Vec<PlanEntry>,
+}
+
+/// `PUT /api/plans/{name}`'s answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PlanSaved {
+    /// The plan's name.
+    pub name: String,
+    /// Always true.
+    pub saved: bool,
+}
+
+/// `PUT /api/station`'s answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Saved {
+    /// Always true.
+    pub saved: bool,
+}
+
+/// `GET /api/station`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct StationReply {
+    /// The station's name.
+    pub name: String,
+    /// Its slots.
+    pub slots: usize,
+    /// The virtual bench.
+    pub simulated: bool,
+    /// Its config (TOML).
+    pub toml: String,
+}
+
+/// A report's format.
+#[derive(Debug, ToSchema)]
+#[schema(rename_all = "lowercase")]
+pub enum ReportFormatName {
+    /// PDF, for signing.
+    Pdf,
+    /// One HTML page.
+    Html,
+    /// A workbook.
+    Xlsx,
+    /// The summary table.
+    Csv,
+}
+
+/// `POST /api/runs`.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct StartRun {
+    /// The plan's name (`GET /api/plans`).
+    #[schema(pattern = "^[A-Za-z0-9_-]{1,64}$")]
+    pub plan: String,
+    /// Serials by slot (`"1": "P:SN-1"`), replacing the plan's.
+    #[serde(default)]
+    pub serials: BTreeMap<String, String>,
+    /// An admin's reason to start although a device is overdue for
+    /// calibration (in the audit log).
+    #[serde(default)]
+    #[schema(max_length = 500)]
+    pub override_overdue: Option<String>,
+}
+
+/// A run started, answered, paused, resumed or aborted.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RunId {
+    /// The run.
+    pub run_id: String,
+}
+
+/// `POST /api/runs/{id}/retest`'s answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RetestStarted {
+    /// The new run.
+    pub run_id: String,
+    /// The run it retests.
+    pub retest_of: String,
+    /// The serials retested.
+    pub serials: Vec<String>,
+}
+
+/// `POST /api/run/prompt`.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct PromptAnswer {
+    /// Done as asked (true) or abort the run (false).
+    pub proceed: bool,
+}
+
+/// One run in `GET /api/runs`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RunEntry {
+    /// Run identifier.
+    pub id: String,
+    /// Station name.
+    pub station: String,
+    /// `running`, `completed`, `faulted`, `aborted`, …
+    pub state: String,
+    /// Why it ended, when not completed.
+    pub reason: Option<String>,
+    /// Unix time it started [s].
+    pub started_at: i64,
+    /// Instruments with results.
+    pub units: i64,
+    /// Points stored.
+    pub points: i64,
+    /// The run it retests, if a retest.
+    pub retest_of: Option<String>,
+}
+
+impl From<&spinbench_store::RunRow> for RunEntry {
+    fn from(r: &spinbench_store::RunRow) -> RunEntry {
+        RunEntry {
+            id: r.id.clone(),
+            station: r.station.clone(),
+            state: r.state.clone(),
+            reason: r.reason.clone(),
+            started_at: r.started_at,
+            units: r.units,
+            points: r.points,
+            retest_of: r.retest_of.clone(),
+        }
+    }
+}
+
+/// One instrument and mounting of a run's results.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ResultRow {
+    /// Serial number.
+    pub serial: String,
+    /// Slot (1-based).
+    pub slot: i64,
+    /// P or N (empty when not measured).
+    pub mount: String,
+    /// Found radius [m].
+    pub radius_m: Option<f64>,
+    /// Drawing radius [m].
+    pub drawing_radius_m: Option<f64>,
+    /// Bias [g].
+    pub k0_g: Option<f64>,
+    /// Scale factor [Hz/g].
+    pub k1_hz_per_g: Option<f64>,
+    /// k2 [µg/g²].
+    pub k2_ug_per_g2: Option<f64>,
+    /// Half-width of k2's 95 % interval [µg/g²].
+    pub k2_ci95_half_ug_per_g2: Option<f64>,
+    /// k2's expanded uncertainty (GUM, 95 %) [µg/g²].
+    #[serde(rename = "k2_U95")]
+    pub k2_u95_ug_per_g2: Option<f64>,
+    /// k3 [µg/g³].
+    pub k3_ug_per_g3: Option<f64>,
+    /// The larger |k2| of the mountings [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Scale-factor nonlinearity [ppm].
+    pub sf_nonlinearity_ppm: Option<f64>,
+    /// Asymmetry [ppm].
+    pub asymmetry_ppm: Option<f64>,
+    /// Hysteresis [µg].
+    pub hysteresis_ug: Option<f64>,
+    /// `pass`, `marginal`, `fail`, `inconclusive` or `incomplete`.
+    pub outcome: String,
+    /// Why, in the user's language.
+    pub reasons: String,
+}
+
+/// `GET /api/runs/{id}`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RunDetail {
+    /// The run as listed.
+    #[serde(flatten)]
+    pub run: RunEntry,
+    /// The runs that retest it.
+    pub retested_by: Vec<String>,
+    /// Its serials a retest would take.
+    pub to_retest: Vec<String>,
+    /// Every instrument and mounting.
+    pub results: Vec<ResultRow>,
+    /// Its report downloads.
+    pub reports: Vec<String>,
+}
+
+/// One test of a serial number.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UnitTest {
+    /// The run.
+    pub run_id: String,
+    /// Slot (1-based).
+    pub slot: i64,
+    /// Its outcome.
+    pub outcome: String,
+    /// k2_max [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+}
+
+/// `GET /api/units/{serial}`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UnitHistory {
+    /// The serial number.
+    pub serial: String,
+    /// Every test of it, oldest first.
+    pub tests: Vec<UnitTest>,
+}
+
+/// A mounting: P (input axis toward the spin axis) or N.
+#[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
+pub enum MountName {
+    /// Input axis toward the spin axis.
+    P,
+    /// Input axis away from it.
+    N,
+}
+
+/// `POST /api/runs/{id}/exclusions`.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ExcludeLevel {
+    /// The instrument.
+    #[schema(max_length = 200)]
+    pub serial: String,
+    /// Its mounting.
+    #[schema(value_type = MountName)]
+    pub mount: spinbench_analysis::Mount,
+    /// The level [g], as the plan names it.
+    #[schema(minimum = 0.0, maximum = 1000.0)]
+    pub g: f64,
+    /// Why it is left out (not blank).
+    #[schema(min_length = 1, max_length = 500, pattern = "\\S")]
+    pub reason: String,
+}
+
+/// Its answer: the instrument reduced and graded again.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Excluded {
+    /// The run.
+    pub run_id: String,
+    /// The instrument.
+    pub serial: String,
+    /// Its new outcome.
+    pub outcome: String,
+    /// Its new k2_max [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Every level left out of it (who, which, why, how many readings).
+    #[schema(value_type = Vec<Object>)]
+    pub exclusions: serde_json::Value,
+}
+
+/// One point of a control chart.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ChartPoint {
+    /// Its run.
+    pub run_id: String,
+    /// Its serial (empty for a per-run figure).
+    pub serial: String,
+    /// Its value, in the chart's unit.
+    pub value: f64,
+}
+
+/// A Western Electric rule broken.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ChartViolation {
+    /// The point (1-based) that completes it.
+    pub point: usize,
+    /// Its run.
+    pub run_id: String,
+    /// The rule (`beyond3_sigma`, …).
+    pub rule: String,
+    /// The rule in words, in the user's language.
+    pub says: String,
+}
+
+/// One control chart.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ChartReply {
+    /// What it charts (`k2_max`, `radius slot 2 P`, …).
+    pub quantity: String,
+    /// Its unit.
+    pub unit: String,
+    /// The fixture position (slot), for a radius chart.
+    pub slot: Option<usize>,
+    /// Points that set its limits.
+    pub baseline: usize,
+    /// Centre line.
+    pub centre: Option<f64>,
+    /// σ̂ (from the mean moving range).
+    pub sigma: Option<f64>,
+    /// A rule is broken.
+    pub flagged: bool,
+    /// Its points, in time order.
+    pub points: Vec<ChartPoint>,
+    /// The rules broken.
+    pub violations: Vec<ChartViolation>,
+    /// The chart as SVG.
+    pub svg: Option<String>,
+}
+
+/// First-pass yield of a run or a day.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct YieldRow {
+    /// The run or the day.
+    pub label: String,
+    /// Serials tested for the first time.
+    pub first_tests: usize,
+    /// Of those, passed.
+    pub first_passes: usize,
+    /// The fraction (none without first tests).
+    #[serde(rename = "yield")]
+    pub fraction: Option<f64>,
+}
+
+/// `GET /api/control-charts`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ChartsReply {
+    /// Limits from the first this many runs.
+    pub baseline_runs: usize,
+    /// Runs in the store.
+    pub runs: usize,
+    /// Every chart.
+    pub charts: Vec<ChartReply>,
+    /// First-pass yield per run.
+    pub yield_by_run: Vec<YieldRow>,
+    /// First-pass yield per day.
+    pub yield_by_day: Vec<YieldRow>,
+}
+
+/// One device of the equipment register.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EquipmentEntry {
+    /// Its role (`centrifuge`, `fmu 1`, `instrument supply`, …).
+    pub role: String,
+    /// Identity as registered.
+    pub identity: Option<String>,
+    /// Calibration certificate.
+    pub certificate: Option<String>,
+    /// Calibrated on (YYYY-MM-DD).
+    pub calibrated_on: Option<String>,
+    /// Due on (YYYY-MM-DD).
+    pub due_on: Option<String>,
+    /// Who registered it.
+    pub updated_by: Option<String>,
+    /// `valid`, `due soon`, `overdue` or `not in the register`.
+    pub status: String,
+}
+
+/// `PUT /api/equipment/{role}`.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SetEquipment {
+    /// Make, model, serial (not blank, no control characters).
+    #[schema(
+        min_length = 1,
+        max_length = 200,
+        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*\\S[^\\x00-\\x1f\\x7f-\\x9f]*$"
+    )]
+    pub identity: String,
+    /// Certificate number (not blank, no control characters).
+    #[schema(
+        min_length = 1,
+        max_length = 200,
+        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*\\S[^\\x00-\\x1f\\x7f-\\x9f]*$"
+    )]
+    pub certificate: String,
+    /// YYYY-MM-DD, 1970 to 2200.
+    #[schema(
+        pattern = "^(19[7-9][0-9]|2[01][0-9][0-9]|2200)-(0[1-9]|1[0-2])-(0[1-9]|1[0-9]|2[0-8])$"
+    )]
+    pub calibrated_on: String,
+    /// YYYY-MM-DD, after `calibrated_on`.
+    #[schema(
+        pattern = "^(19[7-9][0-9]|2[01][0-9][0-9]|2200)-(0[1-9]|1[0-2])-(0[1-9]|1[0-9]|2[0-8])$"
+    )]
+    pub due_on: String,
+}
+
+/// Its answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EquipmentSaved {
+    /// The device.
+    pub role: String,
+    /// Its new due date.
+    pub due_on: String,
+}
+
+/// One user.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UserEntry {
+    /// Name.
+    pub name: String,
+    /// Role.
+    pub role: String,
+    /// Unix time it was made [s].
+    pub created_at: i64,
+}
+
+/// `POST /api/users`.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct NewUser {
+    /// Lower-case ASCII letters, digits, `.`, `_`, `-`, `@`, with at least one letter or digit.
+    #[schema(max_length = 64, pattern = "^[a-z0-9._@-]*[a-z0-9][a-z0-9._@-]*$")]
+    pub name: String,
+    /// Its role.
+    #[schema(value_type = RoleName)]
+    pub role: String,
+    /// At least 8 characters.
+    #[schema(min_length = 8, max_length = 1024)]
+    pub password: String,
+}
+
+/// Its answer.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct UserAdded {
+    /// Name.
+    pub name: String,
+    /// Role.
+    pub role: String,
+}
+
+/// One entry of the audit log.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AuditEntry {
+    /// Its number.
+    pub seq: i64,
+    /// Unix time [s].
+    pub at: i64,
+    /// Who.
+    pub who: String,
+    /// What.
+    pub action: String,
+    /// The details.
+    pub detail: String,
+}
