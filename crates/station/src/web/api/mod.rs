@@ -39,11 +39,14 @@ mod users;
 
 type App = Arc<AppState>;
 
-/// An API error: a status and what to do about it.
+/// An API error: a status and what to do about it (in English, and for
+/// the errors an operator meets, also as a key and values the page words
+/// in its own language).
 #[derive(Debug)]
 pub struct ApiError {
     status: StatusCode,
     message: String,
+    wording: Option<spinbench_engine::event::Wording>,
 }
 
 impl ApiError {
@@ -51,7 +54,13 @@ impl ApiError {
         ApiError {
             status,
             message: message.into(),
+            wording: None,
         }
+    }
+    /// The same error with its wording (`say.<key>` in the catalogue).
+    fn worded(mut self, wording: spinbench_engine::event::Wording) -> ApiError {
+        self.wording = Some(wording);
+        self
     }
     fn bad(message: impl Into<String>) -> ApiError {
         ApiError::new(StatusCode::BAD_REQUEST, message)
@@ -73,6 +82,7 @@ impl IntoResponse for ApiError {
             self.status,
             Json(schema::ErrorBody {
                 error: self.message,
+                wording: self.wording,
             }),
         )
             .into_response()

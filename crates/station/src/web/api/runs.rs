@@ -7,6 +7,7 @@ use super::schema::{
     RunId, StartRun, UnitHistory, UnitTest,
 };
 use super::*;
+use spinbench_engine::event::Wording;
 
 /// Start a run of a plan; serials per slot replace the plan's.
 #[utoipa::path(post, path = "/api/runs", tag = "runs",
@@ -104,10 +105,12 @@ fn check_equipment(
         Some(_) if session.role < Role::Admin => Err(ApiError::new(
             StatusCode::FORBIDDEN,
             format!("{late} overdue for calibration: only an admin may start a run anyway"),
-        )),
+        )
+        .worded(Wording::new("error.overdue_admin_only").with("devices", &late))),
         _ => Err(ApiError::conflict(format!(
             "{late} overdue for calibration: calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
-        ))),
+        ))
+        .worded(Wording::new("error.overdue").with("devices", &late))),
     }
 }
 
@@ -119,7 +122,8 @@ fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
         .map_err(|e| match e {
             StartError::Busy(id) => ApiError::conflict(format!(
                 "run {id} is active; wait for it to end or abort it"
-            )),
+            ))
+            .worded(Wording::new("error.busy").with("run", id)),
             StartError::Invalid(why) => ApiError::bad(why),
             StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
             StartError::Files(why) => ApiError::internal(why),

@@ -12,8 +12,14 @@ use utoipa::ToSchema;
 /// Every error: what went wrong and what to do.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct ErrorBody {
-    /// What went wrong, and what to do about it.
+    /// What went wrong, and what to do about it (English).
     pub error: String,
+    /// For the errors an operator meets: `error` as a catalogue key and
+    /// its values (`{"key": "error.overdue", "args": {…}}`), so a page
+    /// words it in the user's language.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub wording: Option<spinbench_engine::event::Wording>,
 }
 
 /// `POST /api/login`.

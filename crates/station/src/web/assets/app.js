@@ -40,7 +40,8 @@ async function api(method, path, body) {
   const text = await r.text();
   let data = null;
   try { data = text ? JSON.parse(text) : null; } catch (_) { data = text; }
-  if (!r.ok) throw new Error((data && data.error) || (r.status + " " + r.statusText));
+  // An error the server also gives as a wording is shown in the page's language.
+  if (!r.ok) throw new Error(say(data && data.wording, (data && data.error) || (r.status + " " + r.statusText)));
   return data;
 }
 
@@ -166,7 +167,7 @@ async function start() {
 }
 
 async function afterLogin() {
-  $("who").textContent = state.session ? state.session.user + " (" + state.session.role + ")" : "";
+  $("who").textContent = state.session ? state.session.user + " (" + word("web.role." + state.session.role, state.session.role) + ")" : "";
   $("nav-users").hidden = !(state.session && state.session.role === "admin");
   route();
   if (state.session) { connect(); refreshStatus(); }

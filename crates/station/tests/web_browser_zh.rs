@@ -1,0 +1,208 @@
+//! The web UI in Chinese (issue 16, part 5), in a real browser: an operator
+//! whose language is zh-CN runs a test — the board, the step line, the
+//! prompt and the outcome in Chinese — retests it from the history, aborts
+//! the retest (the banner in Chinese), and is refused a run while the
+//! centrifuge is overdue for calibration, the refusal worded in Chinese.
+//! (The English walk is `web_browser.rs`.)
+
+#[path = "common/web.rs"]
+mod web;
+#[path = "common/webdriver.rs"]
+mod webdriver;
+
+use serde_json::Value;
+use std::time::{Duration, Instant};
+use webdriver::Browser;
+
+#[test]
+fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    web::add_user(dir.path(), "op", "operator", "op-password");
+    web::add_user(dir.path(), "eng", "engineer", "eng-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    // A k2 limit no instrument meets: the run has an instrument to retest.
+    let strict = format!(
+        "{}[limits]\nk2_max_ug_per_g2 = 0.001\n",
+        web::short_plan("zh test", &["ZH-1"])
+    );
+    std::fs::write(dir.path().join("plans").join("zh.toml"), strict).expect("plan");
+    let server = web::serve(dir.path(), "10");
+    // The operator's language, chosen before (kept in the store).
+    let mut api = web::Client::login(&server, "op", "op-password");
+    let r = api.send(
+        "PUT",
+        "/api/session/language",
+        Some(r#"{"language": "zh-CN"}"#),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    std::fs::create_dir_all(&shots).expect("screenshot dir");
+
+    let b = Browser::start();
+    b.go(&server.base);
+    b.wait_for(
+        10,
+        "the login form",
+        "return !document.getElementById('login').hidden",
+    );
+    b.type_into("#login-user", "op");
+    b.type_into("#login-password", "op-password");
+    b.click("#login-button");
+    b.wait_for(
+        10,
+        "the page in the operator's Chinese",
+        "return !document.getElementById('status').hidden \
+         && document.getElementById('nav-history').textContent === '历史'",
+    );
+
+    // A run: the board and the step line in Chinese while it goes.
+    b.click("#nav-new");
+    b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-1')");
+    b.script("const s = document.getElementById('plan-select'); s.value = 'zh'; s.dispatchEvent(new Event('change'));");
+    b.click("#start-button");
+    b.wait_for(
+        10,
+        "the run screen",
+        "return !document.getElementById('run').hidden",
+    );
+    let chinese_phases = [
+        "等待",
+        "预热",
+        "翻滚",
+        "测半径",
+        "稳定中",
+        "采样平均",
+        "完成",
+    ];
+    let mut board_seen = false;
+    let mut prompt_seen = false;
+    let until = Instant::now() + Duration::from_secs(240);
+    loop {
+        let state = b.script("return document.getElementById('run-state').textContent");
+        assert!(
+            Instant::now() < until,
+            "the run did not finish in time: {state}"
+        );
+        if state.as_str().is_some_and(|s| s.starts_with("已完成")) {
+            break;
+        }
+        assert!(
+            !state
+                .as_str()
+                .is_some_and(|s| s.starts_with("故障") || s.starts_with("已中止")),
+            "the run ended: {state}"
+        );
+        if !board_seen {
+            let row = b.script(
+                "const r = document.querySelector('#board tbody tr[data-slot=\"1\"]'); \
+                 return r ? [r.cells[2].textContent, r.cells[5].textContent, document.getElementById('progress').textContent] : null",
+            );
+            if row[0] == "P"
+                && row[1]
+                    .as_str()
+                    .is_some_and(|p| chinese_phases.iter().any(|w| p.starts_with(w)))
+                && row[2]
+                    .as_str()
+                    .is_some_and(|p| p.starts_with("第 ") && p.contains(" g "))
+            {
+                b.screenshot(&shots.join("zh-1-board-during-run.png"));
+                board_seen = true;
+            }
+        }
+        if b.script("return !document.getElementById('prompt').hidden") == Value::Bool(true) {
+            let text = b.script("return document.getElementById('prompt-text').textContent");
+            if text
+                .as_str()
+                .is_some_and(|t| t.contains("翻滚夹具") || t.contains("转臂"))
+            {
+                prompt_seen = true;
+            }
+            b.click("#prompt-done");
+            std::thread::sleep(Duration::from_millis(300));
+            continue;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+    assert!(
+        board_seen,
+        "the board and the step line in Chinese during the run"
+    );
+    assert!(prompt_seen, "the operator's prompt in Chinese");
+    b.wait_for(
+        10,
+        "the board's final row in Chinese",
+        "const r = document.querySelector('#board tbody tr[data-slot=\"1\"]'); \
+         return !!r && r.cells[5].textContent.startsWith('完成') \
+         && ['不合格', '无法判定'].includes(r.cells[9].textContent)",
+    );
+    b.screenshot(&shots.join("zh-2-run-done.png"));
+
+    // Retest from the history: the run's row, its results' reasons in Chinese,
+    // the retest button; the retest aborted, the banner in Chinese.
+    b.click("#nav-history");
+    b.wait_for(
+        10,
+        "the runs table",
+        "return document.querySelectorAll('#runs-table tbody tr').length > 0",
+    );
+    b.click("#runs-table tbody tr a");
+    b.wait_for(
+        10,
+        "the run with its reasons and the retest button in Chinese",
+        "const b = document.getElementById('retest-button'); \
+         return !!b && b.textContent.startsWith('复测 1 台仪表') \
+         && document.getElementById('run-detail').textContent.includes('超过限值')",
+    );
+    b.screenshot(&shots.join("zh-3-retest-offered.png"));
+    b.click("#retest-button");
+    b.wait_for(
+        20,
+        "the retest started, said in Chinese",
+        "return !document.getElementById('run').hidden && document.getElementById('message').textContent.startsWith('复测 ')",
+    );
+    b.wait_for(
+        10,
+        "the abort button",
+        "return !document.getElementById('abort-button').hidden",
+    );
+    b.click("#abort-button");
+    b.accept_dialog();
+    b.wait_for(
+        30,
+        "the retest aborted, its banner in Chinese",
+        "return document.getElementById('run-state').textContent.startsWith('已中止') \
+         && document.getElementById('alarm').textContent.startsWith('已中止：')",
+    );
+    b.screenshot(&shots.join("zh-4-retest-aborted.png"));
+
+    // The register: an engineer records the centrifuge overdue; the register
+    // says so in Chinese and the operator's start is refused in Chinese.
+    let mut eng = web::Client::login(&server, "eng", "eng-password");
+    let r = eng.send(
+        "PUT",
+        "/api/equipment/centrifuge",
+        Some(r#"{"identity": "ACUTRONIC table", "certificate": "C-1", "calibrated_on": "2025-01-01", "due_on": "2026-01-01"}"#),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    b.click("#nav-equipment");
+    b.wait_for(
+        10,
+        "the centrifuge overdue, in Chinese",
+        "const r = document.querySelector('#equipment-table tbody tr[data-role=\"centrifuge\"]'); return !!r && r.cells[5].textContent === '已过期'",
+    );
+    b.click("#nav-new");
+    b.wait_for(
+        10,
+        "the serials",
+        "return !!document.getElementById('serial-1')",
+    );
+    b.type_into("#serial-1", "REG-1");
+    b.click("#start-button");
+    b.wait_for(
+        10,
+        "the refusal in Chinese, naming the device",
+        "const m = document.getElementById('message').textContent; \
+         return m.includes('centrifuge (due 2026-01-01)') && m.includes('校准已过期')",
+    );
+    b.screenshot(&shots.join("zh-5-register-refusal.png"));
+}
