@@ -4,6 +4,9 @@
 //! already use: these are eight JSON calls, and a WebDriver crate would
 //! bring an async runtime and a connector stack into the tests for them.
 
+// Shared by the browser tests; each uses a part.
+#![allow(dead_code)]
+
 use base64::Engine;
 use serde_json::{Value, json};
 use std::net::TcpListener;
