@@ -97,6 +97,7 @@ struct HubState {
     status: StatusSnapshot,
     started: Option<std::time::Instant>,
     board: spinbench_engine::board::SlotBoard,
+    clock: super::eta::StepClock,
 }
 
 /// The hub; share it in an `Arc`.
@@ -122,6 +123,7 @@ impl Hub {
                 status: StatusSnapshot::default(),
                 started: None,
                 board: spinbench_engine::board::SlotBoard::new(),
+                clock: super::eta::StepClock::default(),
             }),
             tx,
             closing: tokio::sync::watch::channel(false).0,
@@ -173,12 +175,13 @@ impl Hub {
         status.board = state.board.slots().to_vec();
         if let Some(t) = state.started {
             status.elapsed_s = t.elapsed().as_secs_f64();
-            if let Some((index, of, _)) = &status.step
-                && *index > 0
-                && status.state.as_deref().is_some_and(|s| s != "completed")
+            if status.step.is_some()
+                && status
+                    .state
+                    .as_deref()
+                    .is_some_and(|s| !["completed", "faulted", "aborted"].contains(&s))
             {
-                status.eta_s =
-                    Some(status.elapsed_s / *index as f64 * (*of as f64 - *index as f64));
+                status.eta_s = state.clock.eta_s(std::time::Instant::now());
             }
         }
         status
@@ -240,6 +243,7 @@ impl Hub {
                 state.others.clear();
                 state.next_seq = keep_seq;
                 state.started = Some(std::time::Instant::now());
+                state.clock.run_started(&plan.steps);
                 *s = StatusSnapshot {
                     run_id: Some(run_id.clone()),
                     state: Some("running".into()),
@@ -259,6 +263,7 @@ impl Hub {
                 label,
                 wording,
             } => {
+                state.clock.step_started(*index, std::time::Instant::now());
                 s.step = Some((*index, *of, label.clone()));
                 s.step_wording = wording.clone();
                 s.progress = None;

@@ -7,6 +7,7 @@
 
 pub mod api;
 pub mod auth;
+pub mod eta;
 pub mod hub;
 pub mod runner;
 pub mod server;

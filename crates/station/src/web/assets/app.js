@@ -58,6 +58,7 @@ async function setLanguage(language) {
       if (w) el.textContent = w;
     }
     if (state.status) renderBoard(state.status.board);
+    if (state.session) $("who").textContent = state.session.user + " (" + word("web.role." + state.session.role, state.session.role) + ")";
     // The last message was in the other language; the curves' labels redrawn.
     show("");
     state.dirty = true;
@@ -354,7 +355,8 @@ async function refreshStatus() {
   $("abort-button").hidden = !s.active;
   renderBoard(s.board);
   if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
-  $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s) : (s.active ? "" : stateWord(st));
+  $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
+    : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
   const why = s.reason ? say(s.reason_wording, s.reason) : "";
   if (why && (st === "faulted" || st === "aborted")) alarm(bannerText(st === "faulted" ? "fault" : "aborted", why), st === "faulted");
   if (s.state) $("run-state").textContent = stateWord(s.state);
