@@ -300,9 +300,10 @@ mod tests {
             say(Lang::ZhCn, &EngineError::InterlockOpen.wording()).as_deref(),
             Some("离心机联锁已断开；转台已停止（请关好舱门并复位联锁）")
         );
-        // English from the catalogue reads as the engine's own text.
-        let e = EngineError::SupplyTripped { volts: 1.0 };
-        assert_eq!(say(Lang::En, &e.wording()), Some(e.to_string()));
+        // English from the catalogue reads as the engine's own text, word for word.
+        for e in &faults {
+            assert_eq!(say(Lang::En, &e.wording()), Some(e.to_string()), "{e:?}");
+        }
         let steps = [
             Step::PowerOn,
             Step::CheckAlive,

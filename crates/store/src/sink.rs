@@ -66,6 +66,7 @@ impl StoreSink {
             } => {
                 self.run_id = run_id.clone();
                 self.serials = plan.serials.clone();
+                self.fault = None;
                 let plan_json = serde_json::to_string(&plan.plan).unwrap_or_default();
                 let now = now_s();
                 db.transaction(|db| {
