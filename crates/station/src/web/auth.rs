@@ -23,7 +23,7 @@ pub const CSRF_HEADER: &str = "x-csrf-token";
 const IDLE_LIMIT: Duration = Duration::from_secs(12 * 3600);
 
 /// What a user may do; each role may do everything the ones before it may.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Role {
     /// Runs tests: start, answer prompts, pause, resume, abort; reads everything.

@@ -33,25 +33,13 @@ pub struct Login {
     pub password: String,
 }
 
-/// A user's role: each may do everything the ones before it may.
-#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum RoleName {
-    /// Runs tests and reads everything.
-    Operator,
-    /// Also saves plans and the station config, leaves levels out.
-    Engineer,
-    /// Also manages users and reads the audit log.
-    Admin,
-}
-
 /// A logged-in session (the login's answer; `GET /api/session` adds the language).
 #[derive(Debug, Serialize, ToSchema)]
 pub struct SessionReply {
     /// User name.
     pub user: String,
     /// Role.
-    pub role: RoleName,
+    pub role: crate::web::auth::Role,
     /// The token to send in `X-CSRF-Token` with every change.
     pub csrf: String,
     /// The user's language (`en` or `zh-CN`), on `GET /api/session`.
@@ -521,7 +509,7 @@ pub struct NewUser {
     #[schema(max_length = 64, pattern = "^[a-z0-9._@-]*[a-z0-9][a-z0-9._@-]*$")]
     pub name: String,
     /// Its role.
-    #[schema(value_type = RoleName)]
+    #[schema(value_type = crate::web::auth::Role)]
     pub role: String,
     /// At least 8 characters.
     #[schema(min_length = 8, max_length = 1024)]

@@ -10,11 +10,7 @@ use super::schema::{Catalogue, ErrorBody, Language, Login, SessionReply};
 fn reply(session: &Session, language: Option<Lang>) -> SessionReply {
     SessionReply {
         user: session.user.clone(),
-        role: match session.role {
-            Role::Operator => super::schema::RoleName::Operator,
-            Role::Engineer => super::schema::RoleName::Engineer,
-            Role::Admin => super::schema::RoleName::Admin,
-        },
+        role: session.role,
         csrf: session.csrf.clone(),
         language: language.map(|l| l.code().to_string()),
     }
