@@ -161,6 +161,24 @@ pub fn decision_rule(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> 
     }
 }
 
+/// A device's role as `lang` names it (`instrument supply` → 仪表电源,
+/// `fmu 2` → 计数模块 2); the role itself when the catalogue has no word.
+pub fn device_role(lang: Lang, role: &str) -> String {
+    let (kind, number) = match role.rsplit_once(' ') {
+        Some((kind, n)) if n.chars().all(|c| c.is_ascii_digit()) => (kind, Some(n)),
+        _ => (role, None),
+    };
+    let key = format!("device.{}", kind.replace(' ', "_"));
+    let word = tr(lang, &key);
+    if word == key {
+        return role.to_string();
+    }
+    match number {
+        Some(n) => format!("{word} {n}"),
+        None => word,
+    }
+}
+
 /// A run state's word (`completed` → "已完成").
 pub fn state(lang: Lang, state: &str) -> String {
     let key = format!("state.{state}");
@@ -253,6 +271,10 @@ mod tests {
         assert_eq!(header(Lang::ZhCn, "radius [m]"), "半径 [m]");
         assert_eq!(header(Lang::ZhCn, "no such header"), "no such header");
         assert_eq!(outcome(Lang::ZhCn, "fail"), "不合格");
+        assert_eq!(device_role(Lang::ZhCn, "fmu 2"), "计数模块 2");
+        assert_eq!(device_role(Lang::ZhCn, "instrument supply"), "仪表电源");
+        assert_eq!(device_role(Lang::En, "fmu 2"), "fmu 2");
+        assert_eq!(device_role(Lang::ZhCn, "something else"), "something else");
         assert_eq!(
             date_time(Lang::ZhCn, 1_795_446_697),
             "2026年11月23日 15:11 UTC"

@@ -421,7 +421,11 @@ pub(crate) fn devices(report: &RunReport, lang: Lang) -> Option<Vec<(String, Str
                     (None, Some(s)) => status(s),
                     _ => String::new(),
                 };
-                (text(d, "role"), text(d, "identity"), calibration)
+                (
+                    lang::device_role(lang, &text(d, "role")),
+                    text(d, "identity"),
+                    calibration,
+                )
             })
             .collect(),
     )

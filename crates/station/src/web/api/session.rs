@@ -221,6 +221,7 @@ pub(super) async fn catalogue(Path(language): Path<String>) -> ApiResult<Json<Ca
         ("arg.", "web.arg."),
         ("head.", "web.head."),
         ("state.", "web.state."),
+        ("device.", "web.device."),
     ] {
         words.extend(
             catalogue(lang, prefix)

@@ -92,6 +92,13 @@ function fill(key, fallback, args) {
 // for it, else the engine's own (English) text.
 function say(wording, text) { return wording ? fill("web.say." + wording.key, text, wording.args) : text; }
 
+// A device's role in the page's language ("fmu 2" → "计数模块 2").
+function deviceWord(role) {
+  const m = /^(.*?)(?: ([0-9]+))?$/.exec(role);
+  const w = state.words["web.device." + m[1].replace(/ /g, "_")];
+  return w === undefined ? role : w + (m[2] ? " " + m[2] : "");
+}
+
 // A run state's word (running, faulted, …).
 function stateWord(st) { return st ? word("web.state." + st, st) : ""; }
 
@@ -740,9 +747,9 @@ async function loadEquipment() {
     for (const d of list) {
       const tr = body.insertRow();
       tr.dataset.role = d.role;
-      [d.role, d.identity || "—", d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", word("web.calibration." + d.status.replace(/ /g, "_"), d.status), d.updated_by || "—"]
+      [deviceWord(d.role), d.identity || "—", d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", word("web.calibration." + d.status.replace(/ /g, "_"), d.status), d.updated_by || "—"]
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 5) td.className = "cal " + d.status.replace(/ /g, "-"); });
-      roles.add(new Option(d.role, d.role));
+      roles.add(new Option(deviceWord(d.role), d.role));
     }
     $("equipment-form").hidden = !(state.session && state.session.role !== "operator");
   } catch (e) { show(e.message); }
