@@ -13,6 +13,7 @@ impl Executor<'_> {
         let st = self.plan.plan.stability;
         let dwell = self.plan.plan.dwell;
         let mut restarts = 0;
+        let mut short_restarts = 0;
         // The slope test runs on every instrument at once: its critical t
         // keeps the chance that noise alone holds the station at 1 % per
         // look (Bonferroni over the instruments; at least 3). With one
@@ -116,6 +117,32 @@ impl Executor<'_> {
                 {
                     break;
                 }
+            }
+            // An instrument with fewer than two whole one-second values (a
+            // module's data lost — a host too busy to read its port loses
+            // bytes, and a window with lost ticks is never averaged): the
+            // reading is taken again before the instrument is failed for no
+            // output (tumble, radius and levels alike).
+            let short: Vec<String> = slots
+                .iter()
+                .filter(|&&s| values.iter().filter(|w| w.outputs[s].is_some()).count() < 2)
+                .map(|s| (s + 1).to_string())
+                .collect();
+            if !short.is_empty() && short_restarts < st.max_restarts {
+                short_restarts += 1;
+                let short = short.join(", ");
+                self.emit(Event::Notice {
+                    message: format!(
+                        "slot(s) {short} gave fewer than 2 whole one-second values \
+                         (a module's data lost); taking the reading again ({short_restarts})"
+                    ),
+                    wording: Some(
+                        Wording::new("notice.too_few_values")
+                            .with("slots", &short)
+                            .with("restarts", short_restarts),
+                    ),
+                })?;
+                continue 'settle;
             }
             return Ok(values);
         }
