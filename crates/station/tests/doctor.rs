@@ -18,6 +18,15 @@ fn doctor(args: &[&str]) -> (bool, String, String) {
     )
 }
 
+/// Every failing line is the disk's (a machine short of space here).
+fn only_disk_failed(out: &str) -> bool {
+    let failing: Vec<&str> = out.lines().filter(|l| l.starts_with("FAIL")).collect();
+    !failing.is_empty()
+        && failing
+            .iter()
+            .all(|l| l.starts_with("FAIL  disk") && l.contains("GB free"))
+}
+
 #[test]
 fn the_virtual_bench_is_ready() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -25,9 +34,7 @@ fn the_virtual_bench_is_ready() {
     let (ok, out, err) = doctor(&["--simulate", "--data", data.to_str().expect("utf-8")]);
     // A machine short of disk fails that line alone (and says so): the rest
     // must still pass.
-    let short_of_disk = out
-        .lines()
-        .any(|l| l.starts_with("FAIL  disk") && l.contains("GB free"));
+    let short_of_disk = only_disk_failed(&out);
     assert!(ok || short_of_disk, "{out}\n{err}");
     for what in [
         "config: the virtual bench",
@@ -87,7 +94,10 @@ fn a_port_that_does_not_exist_is_named_with_what_to_check() {
     let data = dir.path().join("data");
     let data_s = data.to_str().expect("utf-8");
     let (ok, out, err) = doctor(&["--station", good.to_str().expect("utf-8"), "--data", data_s]);
-    assert!(ok, "the bench's own config: {out}\n{err}");
+    assert!(
+        ok || only_disk_failed(&out),
+        "the bench's own config: {out}\n{err}"
+    );
 
     // The centrifuge's section names its port first: move it.
     let start = devices
