@@ -242,6 +242,10 @@ pub enum Event {
         state: RunState,
         /// Why, if not completed.
         reason: Option<String>,
+        /// Why, as a key and values: the wording of the fault that ended the
+        /// run (what making safe found after it is in `reason` only).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        wording: Option<Wording>,
     },
 }
 

@@ -310,14 +310,13 @@ pub(crate) fn flag_rows(c: &ControlReport, lang: crate::Lang) -> Vec<Vec<String>
 
 /// A Western Electric rule's text in `lang` (English: its own description).
 pub fn rule_text(lang: crate::Lang, rule: spinbench_analysis::control::WesternElectric) -> String {
-    let name = serde_json::to_value(rule)
-        .ok()
-        .and_then(|v| v.as_str().map(str::to_string))
-        .unwrap_or_default();
-    let key = format!("we.{name}");
-    match crate::tr(lang, &key) {
-        word if lang != crate::Lang::En && word != key => word,
-        _ => rule.describe().to_string(),
+    match lang {
+        crate::Lang::En => rule.describe().to_string(),
+        _ => crate::lang::tr_or(
+            lang,
+            &format!("we.{}", crate::lang::serde_name(rule)),
+            rule.describe(),
+        ),
     }
 }
 

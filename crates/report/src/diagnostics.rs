@@ -209,17 +209,8 @@ fn budget(lang: Lang, u: &Uncertainty) -> String {
         .budget
         .iter()
         .map(|c| {
-            let name = serde_json::to_value(c.source)
-                .ok()
-                .and_then(|v| v.as_str().map(str::to_string))
-                .unwrap_or_default();
-            let key = format!("source.{name}");
-            let word = lang::tr(lang, &key);
-            let word = if word == key {
-                c.source.to_string()
-            } else {
-                word
-            };
+            let key = format!("source.{}", lang::serde_name(c.source));
+            let word = lang::tr_or(lang, &key, &c.source.to_string());
             format!("{word} {}", sig(c.u))
         })
         .collect();

@@ -81,22 +81,34 @@ pub fn catalogue(lang: Lang, prefix: &str) -> std::collections::BTreeMap<String,
         .collect()
 }
 
-/// A table header in `lang` ("radius [m]" → "半径 [m]").
-pub fn header(lang: Lang, english: &str) -> String {
-    let key = format!("head.{english}");
-    let text = tr(lang, &key);
+/// The catalogue's `key` in `lang`, or `fallback` when the catalogue has none.
+pub fn tr_or(lang: Lang, key: &str, fallback: &str) -> String {
+    let text = tr(lang, key);
     if text == key {
-        english.to_string()
+        fallback.to_string()
     } else {
         text
     }
 }
 
+/// An enum's serde name (`Beyond3Sigma` → `beyond3_sigma`), as the
+/// catalogue's keys and the API name it; empty for a value that is not a
+/// plain name.
+pub fn serde_name(value: impl serde::Serialize) -> String {
+    serde_json::to_value(value)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default()
+}
+
+/// A table header in `lang` ("radius [m]" → "半径 [m]").
+pub fn header(lang: Lang, english: &str) -> String {
+    tr_or(lang, &format!("head.{english}"), english)
+}
+
 /// An outcome's word in `lang` (its class in the markup stays the English name).
 pub fn outcome(lang: Lang, name: &str) -> String {
-    let key = format!("outcome.{name}");
-    let text = tr(lang, &key);
-    if text == key { name.to_string() } else { text }
+    tr_or(lang, &format!("outcome.{name}"), name)
 }
 
 /// A date and time as `lang` writes it: "2026-11-23 15:11 UTC" or
@@ -154,10 +166,9 @@ pub fn say(lang: Lang, wording: &spinbench_engine::event::Wording) -> Option<Str
 
 /// A decision rule's description (English: the engine's own).
 pub fn decision_rule(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> String {
-    let key = format!("rule.{}", rule.name());
-    match tr(lang, &key) {
-        word if lang != Lang::En && word != key => word,
-        _ => rule.describe().to_string(),
+    match lang {
+        Lang::En => rule.describe().to_string(),
+        _ => tr_or(lang, &format!("rule.{}", rule.name()), rule.describe()),
     }
 }
 
@@ -181,9 +192,7 @@ pub fn device_role(lang: Lang, role: &str) -> String {
 
 /// A run state's word (`completed` → "已完成").
 pub fn state(lang: Lang, state: &str) -> String {
-    let key = format!("state.{state}");
-    let word = tr(lang, &key);
-    if word == key { state.to_string() } else { word }
+    tr_or(lang, &format!("state.{state}"), state)
 }
 
 /// A reason of an outcome in `lang`. English: its text, as the engine wrote

@@ -308,15 +308,11 @@ const POINT_HEADERS: [&str; 10] = [
 
 /// One row of the point table, as shown.
 fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
-    let direction = {
-        let key = format!("arg.direction.{}", p.direction);
-        let word = tr(lang, &key);
-        if word == key {
-            p.direction.clone()
-        } else {
-            word
-        }
-    };
+    let direction = lang::tr_or(
+        lang,
+        &format!("arg.direction.{}", p.direction),
+        &p.direction,
+    );
     [
         p.step.to_string(),
         p.mount.clone(),
@@ -405,9 +401,11 @@ pub(crate) fn devices(report: &RunReport, lang: Lang) -> Option<Vec<(String, Str
             .iter()
             .map(|d| {
                 let status = |s: &str| {
-                    let key = format!("calibration_status.{}", s.replace(' ', "_"));
-                    let word = tr(lang, &key);
-                    if word == key { s.to_string() } else { word }
+                    lang::tr_or(
+                        lang,
+                        &format!("calibration_status.{}", s.replace(' ', "_")),
+                        s,
+                    )
                 };
                 let calibration = match (d["certificate"].as_str(), d["calibration"].as_str()) {
                     (Some(cert), Some(s)) => rust_i18n::t!(

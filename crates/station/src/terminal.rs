@@ -239,7 +239,7 @@ impl EventSink for ProgressPrinter {
                     phase_counts(&self.board)
                 );
             }
-            Event::RunFinished { state, reason } => {
+            Event::RunFinished { state, reason, .. } => {
                 eprintln!(
                     "\r\x1b[2K  run {state:?}{}",
                     reason

@@ -14,8 +14,6 @@ pub struct StoreSink {
     run_id: String,
     /// The last prompt, recorded with the operator's answer.
     prompt: String,
-    /// The last fault's text and wording, kept with the run's reason.
-    fault: Option<(String, spinbench_engine::event::Wording)>,
 }
 
 impl StoreSink {
@@ -66,7 +64,6 @@ impl StoreSink {
             } => {
                 self.run_id = run_id.clone();
                 self.serials = plan.serials.clone();
-                self.fault = None;
                 let plan_json = serde_json::to_string(&plan.plan).unwrap_or_default();
                 let now = now_s();
                 db.transaction(|db| {
@@ -236,23 +233,12 @@ impl StoreSink {
                     ],
                 )?;
             }
-            // The first fault is the run's reason; later ones (making
-            // safe) are appended to its text.
-            Event::Fault {
+            Event::RunFinished {
+                state,
                 reason,
-                wording: Some(wording),
-            } if self.fault.is_none() => {
-                self.fault = Some((reason.clone(), wording.clone()));
-            }
-            Event::RunFinished { state, reason } => {
-                // The run's reason begins with its fault's: the fault's
-                // wording stands for it in another language.
-                let wording = match (reason, &self.fault) {
-                    (Some(r), Some((text, w))) if r.starts_with(text.as_str()) => {
-                        serde_json::to_string(w).ok()
-                    }
-                    _ => None,
-                };
+                wording,
+            } => {
+                let wording = wording.as_ref().and_then(|w| serde_json::to_string(w).ok());
                 db.execute(
                     "UPDATE runs SET state = $2, reason = $3, finished_at = $4, reason_wording = $5
                      WHERE id = $1",
@@ -308,7 +294,6 @@ impl Store {
             serials: Vec::new(),
             run_id: String::new(),
             prompt: String::new(),
-            fault: None,
         })
     }
 }

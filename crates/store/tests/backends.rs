@@ -133,6 +133,7 @@ fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
         Event::RunFinished {
             state: RunState::Completed,
             reason: None,
+            wording: None,
         },
     ];
     for e in &events {

@@ -485,6 +485,15 @@ impl<'a> Executor<'a> {
             }
         }
         let complete = result.is_ok();
+        // The reason's wording: the fault's (what making safe found after it
+        // is in the text only), else what making safe found.
+        let wording = match &result {
+            Err(e) => Some(e.wording()),
+            Ok(()) if !safe_problems.is_empty() => {
+                Some(Wording::new("fault.not_safe").with("detail", safe_problems.join("; ")))
+            }
+            Ok(()) => None,
+        };
         let reason = match (reason, safe_problems.is_empty()) {
             (r, true) => r,
             (Some(r), false) => Some(format!(
@@ -507,6 +516,7 @@ impl<'a> Executor<'a> {
         let _ = self.emit(Event::RunFinished {
             state,
             reason: reason.clone(),
+            wording,
         });
         RunSummary {
             state,

@@ -311,20 +311,16 @@ impl Hub {
                 s.reason = Some(reason.clone());
                 s.reason_wording = wording.clone();
             }
-            Event::RunFinished { state: st, reason } => {
+            Event::RunFinished {
+                state: st,
+                reason,
+                wording,
+            } => {
                 s.state = serde_json::to_value(st)
                     .ok()
                     .and_then(|v| v.as_str().map(str::to_string));
-                // The run's reason begins with its fault's (then what making
-                // safe found): the fault's wording stands for it.
-                let same = match (reason, &s.reason) {
-                    (Some(r), Some(fault)) => r.starts_with(fault.as_str()),
-                    _ => false,
-                };
-                if !same {
-                    s.reason_wording = None;
-                }
                 s.reason = reason.clone();
+                s.reason_wording = wording.clone();
                 s.prompt = None;
                 s.eta_s = None;
             }

@@ -75,10 +75,7 @@ pub(super) async fn control_charts(
                 .map(|v| ChartViolation {
                     point: v.index + 1,
                     run_id: chart.points[v.index].run_id.clone(),
-                    rule: serde_json::to_value(v.rule)
-                        .ok()
-                        .and_then(|r| r.as_str().map(str::to_string))
-                        .unwrap_or_default(),
+                    rule: spinbench_report::lang::serde_name(v.rule),
                     says: spinbench_report::control::rule_text(lang, v.rule),
                 })
                 .collect(),
