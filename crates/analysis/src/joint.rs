@@ -16,7 +16,9 @@
 //! The published per-mounting k2 and k2_max stay as the method defines them.
 
 use crate::model::{MountingFit, student_t_975};
-use crate::uncertainty::{MountingBudget, Uncertainty, joint_uncertainty};
+use crate::uncertainty::{
+    MountingBudget, PairedInadequacy, Uncertainty, coverage_factor_95, joint_uncertainty,
+};
 use serde::{Deserialize, Serialize};
 
 /// K2 and the odd part, each with its uncertainty.
@@ -71,9 +73,10 @@ pub fn joint_k2(
     p: &MountingFit,
     n: &MountingFit,
     budgets: Option<(&MountingBudget, &MountingBudget)>,
+    paired: Option<PairedInadequacy>,
 ) -> Option<JointK2> {
     let (kp, kn) = (p.fit.k2_ug_per_g2?, n.fit.k2_ug_per_g2?);
-    if let Some((even, odd)) = budgets.and_then(|(bp, bn)| joint_uncertainty(bp, bn)) {
+    if let Some((even, odd)) = budgets.and_then(|(bp, bn)| joint_uncertainty(bp, bn, paired)) {
         return Some(JointK2 {
             k2_even_ug_per_g2: 0.5 * (kp - kn),
             k2_even_u95: Some(even.u95),
@@ -99,9 +102,9 @@ pub fn joint_k2(
         }
         _ => (None, None),
     };
-    // Student t at the (fractional) effective dof, rounded down (conservative).
+    // Student t at the effective dof, rounded down (conservative).
     let expanded = match (u, dof) {
-        (Some(u), Some(dof)) => student_t_975(dof.floor().max(1.0) as usize).map(|t| t * u),
+        (Some(u), Some(dof)) => Some(coverage_factor_95(Some(dof)) * u),
         _ => None,
     };
     Some(JointK2 {

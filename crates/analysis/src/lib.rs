@@ -18,6 +18,9 @@
 //!   (Koq plus arm stretch), method.md (15);
 //! * [`diagnostics`] — does the model fit: lack of fit against pure error,
 //!   outlier levels, each level's influence on k2;
+//! * [`inadequacy`] — the level random effect: the pure error, the
+//!   between-level variance a misfit adds, the outlier-level test, and the
+//!   same for the two mountings paired (K2);
 //! * [`scale_factor`] — the scale-factor nonlinearity model (10)–(11);
 //! * [`figures`] — asymmetry, nonlinearity, hysteresis, repeatability;
 //! * [`compare`] — polynomial and non-polynomial model families side by side;
@@ -38,6 +41,7 @@ pub mod diagnostics;
 mod error;
 pub mod exclusion;
 pub mod figures;
+pub mod inadequacy;
 pub mod joint;
 pub mod lsq;
 pub mod model;
@@ -52,7 +56,9 @@ pub mod unit;
 pub use error::AnalysisError;
 pub use model::{Coefficients, Ieee1293Fit, ModelOrder, MountingFit};
 pub use points::{Direction, Mount, Point};
-pub use unit::{AnalysisOptions, DatasetAnalysis, UnitAnalysis, UnitPoints, analyze_dataset};
+pub use unit::{
+    AnalysisOptions, AnomalyRule, DatasetAnalysis, UnitAnalysis, UnitPoints, analyze_dataset,
+};
 
 /// Standard gravity, 9.80665 m/s² (the default `g_local`).
 pub const STANDARD_GRAVITY_M_S2: f64 = 9.806_65;

@@ -115,42 +115,15 @@ pub fn solve(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<LinearFit, 
         });
     }
 
-    // Equilibrate: divide each column by its norm.
-    let norms: Vec<f64> = design
-        .column_iter()
-        .map(|c| {
-            let norm = c.norm();
-            if norm > 0.0 { norm } else { 1.0 }
-        })
-        .collect();
-    let mut scaled = design.clone();
-    for (j, norm) in norms.iter().enumerate() {
-        scaled.column_mut(j).scale_mut(1.0 / norm);
-    }
-
-    let svd = scaled.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u.as_ref(), svd.v_t.as_ref()) else {
-        return Err(AnalysisError::InvalidInput(format!(
-            "{what}: the singular value decomposition did not converge"
-        )));
-    };
-    let s = &svd.singular_values;
-    let s_max = s.max();
-    let s_min = s.min();
-    if s_min.is_nan() || s_min <= RANK_TOLERANCE * s_max {
-        return Err(AnalysisError::Singular {
-            what: what.to_string(),
-            condition: if s_min > 0.0 {
-                s_max / s_min
-            } else {
-                f64::INFINITY
-            },
-        });
-    }
+    let Scaled {
+        u,
+        v_t,
+        s_inv,
+        norms,
+    } = scaled_svd(design, what)?;
 
     let y_vec = DVector::from_column_slice(y);
     let uty = u.transpose() * &y_vec;
-    let s_inv = s.map(|v| 1.0 / v);
     let beta_scaled = v_t.transpose() * uty.component_mul(&s_inv);
     let coefficients: Vec<f64> = beta_scaled
         .iter()
@@ -185,6 +158,89 @@ pub fn solve(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<LinearFit, 
         residuals,
         stats,
     })
+}
+
+/// The SVD of a column-equilibrated design: `design·diag(1/norms) = U·S·Vᵀ`.
+struct Scaled {
+    u: DMatrix<f64>,
+    v_t: DMatrix<f64>,
+    s_inv: DVector<f64>,
+    norms: Vec<f64>,
+}
+
+/// Equilibrate `design` (each column divided by its 2-norm) and decompose
+/// it; refuses a rank-deficient design.
+fn scaled_svd(design: &DMatrix<f64>, what: &str) -> Result<Scaled, AnalysisError> {
+    // Equilibrate: divide each column by its norm.
+    let norms: Vec<f64> = design
+        .column_iter()
+        .map(|c| {
+            let norm = c.norm();
+            if norm > 0.0 { norm } else { 1.0 }
+        })
+        .collect();
+    let mut scaled = design.clone();
+    for (j, norm) in norms.iter().enumerate() {
+        scaled.column_mut(j).scale_mut(1.0 / norm);
+    }
+
+    let svd = scaled.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{what}: the singular value decomposition did not converge"
+        )));
+    };
+    let s = &svd.singular_values;
+    let s_max = s.max();
+    let s_min = s.min();
+    if s_min.is_nan() || s_min <= RANK_TOLERANCE * s_max {
+        return Err(AnalysisError::Singular {
+            what: what.to_string(),
+            condition: if s_min > 0.0 {
+                s_max / s_min
+            } else {
+                f64::INFINITY
+            },
+        });
+    }
+
+    Ok(Scaled {
+        u,
+        v_t,
+        s_inv: s.map(|v| 1.0 / v),
+        norms,
+    })
+}
+
+/// The least-squares solution operator `(XᵀX)⁻¹Xᵀ` of `design` (p × n):
+/// coefficient j of the fit of any y is `Σᵢ P[j,i]·yᵢ`, which is what a
+/// budget needs to propagate a variance structure other than σ²·I
+/// (`crate::inadequacy`). Computed from the same scaled SVD as [`solve`].
+pub fn solution_operator(design: &DMatrix<f64>, what: &str) -> Result<DMatrix<f64>, AnalysisError> {
+    if design.nrows() < design.ncols() || design.ncols() == 0 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{what}: {} observation(s) cannot determine {} coefficient(s)",
+            design.nrows(),
+            design.ncols()
+        )));
+    }
+    if let Some(v) = design.iter().find(|v| !v.is_finite()) {
+        return Err(AnalysisError::NonFinite {
+            what: format!("{what}: an input value"),
+            value: *v,
+        });
+    }
+    let Scaled {
+        u,
+        v_t,
+        s_inv,
+        norms,
+    } = scaled_svd(design, what)?;
+    let mut op = v_t.transpose() * DMatrix::from_diagonal(&s_inv) * u.transpose();
+    for (j, norm) in norms.iter().enumerate() {
+        op.row_mut(j).scale_mut(1.0 / norm);
+    }
+    Ok(op)
 }
 
 /// Design matrix of a polynomial in `x` of the given degree: columns 1, x, …, x^degree.

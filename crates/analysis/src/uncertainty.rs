@@ -9,8 +9,10 @@
 //!
 //! | source | model | distribution | shared |
 //! |---|---|---|---|
-//! | repeatability (Type A) | the fit's covariance with the pure-error variance of replicated levels (up, down, repeated visits), a drift linear in time taken out ([`pure_error`]) | Student t, ν = pure-error dof | per mounting |
-//! | fit scatter (Type A) | the fit's covariance with the residual variance, when no level is replicated | Student t, ν = fit dof | per mounting |
+//! | repeatability (Type A) | σ̂²·G·Gᵀ: the pure-error variance of replicated levels (up, down, repeated visits; [`crate::inadequacy::pure_error`]) through the fit | Student t, ν = pure-error dof | per mounting |
+//! | model inadequacy (Type A) | the leverage-adjusted jackknife over levels beyond the repeatability, when the lack of fit is significant ([`crate::inadequacy`]) | Student t, ν = L − p | per mounting; for K2 and the odd part each level left out of both mountings together ([`PairedInadequacy`]) |
+//! | fit scatter (Type A) | the fit's covariance with the residual variance, when no level is replicated (misfit and noise together) | Student t, ν = fit dof | per mounting |
+//! | anomaly rule | a level left out by `anomalies = "exclude"`: the change its exclusion made to the coefficient ([`anomaly_rule_effect`]) | rectangular, half-width the change | per mounting |
 //! | radius | a → a·(1 + δR/R), method.md (9) | normal, u = `radius_ppm` (the fixture, the drawing) | per mounting (R+ and R− measured apart) |
 //! | radius reading | the same, from the noise of the tumble's and the radius step's readings | normal, u = `radius_reading_ppm_p`/`_n` (measured per instrument) | per mounting |
 //! | cross axis | a → a·(1 ± c): gravity across the input axis in the 1 g radius reading, when no four-position tumble measured it | rectangular ± `cross_axis_ug_per_g`, sign + in P, − in N | common, with the mounting's sign |
@@ -30,13 +32,18 @@
 //! Combined: u_c² = Σ uᵢ²; effective degrees of freedom by Welch–Satterthwaite
 //! ν_eff = u_c⁴ / Σ uᵢ⁴/νᵢ (Type B sources ν = ∞); U95 = t₀.₉₇₅(ν_eff)·u_c.
 //!
-//! The Type A part is the repeatability (pure error) because the measurand
-//! is the published method's coefficient over the plan's levels on this
-//! centrifuge: a misfit that repeats in every reading (a level displaced up
-//! and down alike) is part of what that coefficient is, and the
-//! diagnostics ([`crate::diagnostics`]) say how large it is and where; the
-//! joint K2 ([`joint_uncertainty`]) is where the centrifuge's part is
-//! separated from the instrument's.
+//! **The measurand is the instrument's coefficient**, the value another
+//! station would find for the same instrument, not "the method's
+//! coefficient over this plan's levels on this centrifuge". A misfit that
+//! repeats in every reading of a level (a level displaced up and down
+//! alike: an activity dip of the instrument, a resonance of the table) is
+//! therefore an error of the coefficient, and the budget carries it as its
+//! own Type A source, model inadequacy, estimated from the lack of fit
+//! (method.md §5; the GUM asks that every significant effect be corrected
+//! or included). A level the diagnostics find off the curve can instead be
+//! left out by the plan's stated rule (`anomalies = "exclude"`), whose
+//! effect then enters as the anomaly-rule source. For K2 the part of the
+//! misfit the two mountings share (the table's) cancels, as K2 itself does.
 
 use crate::AnalysisError;
 use crate::model::{Coefficients, ModelOrder, student_t_975};
@@ -186,6 +193,11 @@ impl TypeBInputs {
 pub enum Source {
     /// Type A: the pure error of replicated levels.
     Repeatability,
+    /// Type A: the between-level variance beyond the pure error (the model
+    /// does not describe the levels; a level random effect).
+    ModelInadequacy,
+    /// The effect of leaving out the levels the anomaly rule flagged.
+    AnomalyRule,
     /// Type A: the residual scatter, when no level is replicated.
     FitScatter,
     /// Each instrument's radius (the fixture's bound).
@@ -228,7 +240,10 @@ impl Source {
 
     /// Type A (statistical) or B.
     pub fn is_type_a(self) -> bool {
-        matches!(self, Source::Repeatability | Source::FitScatter)
+        matches!(
+            self,
+            Source::Repeatability | Source::ModelInadequacy | Source::FitScatter
+        )
     }
 }
 
@@ -236,6 +251,8 @@ impl fmt::Display for Source {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             Source::Repeatability => "repeatability (A)",
+            Source::ModelInadequacy => "model inadequacy (A)",
+            Source::AnomalyRule => "anomaly rule",
             Source::FitScatter => "fit scatter (A)",
             Source::Radius => "radius",
             Source::RadiusReading => "radius reading",
@@ -357,11 +374,7 @@ pub fn combine(components: Vec<(Source, f64, Option<f64>)>) -> Uncertainty {
         .filter_map(|(_, d, dof)| dof.map(|n| d.powi(4) / n.max(1.0)))
         .sum();
     let dof_eff = (ws > 0.0).then(|| u2 * u2 / ws).filter(|d| d.is_finite());
-    let k = match dof_eff {
-        // Rounded down to a whole number (conservative), at least 1.
-        Some(d) if d < 1e6 => student_t_975(d.floor().max(1.0) as usize).unwrap_or(1.959_964),
-        _ => 1.959_964,
-    };
+    let k = coverage_factor_95(dof_eff);
     let mut budget: Vec<Contribution> = Vec::new();
     for (source, d, _) in components {
         match budget.iter_mut().find(|c| c.source == source) {
@@ -375,6 +388,21 @@ pub fn combine(components: Vec<(Source, f64, Option<f64>)>) -> Uncertainty {
         u95: k * u,
         dof_eff,
         budget,
+    }
+}
+
+/// The 95 % coverage factor t₀.₉₇₅(ν) for effective degrees of freedom ν
+/// (`None`: infinite): ν rounded down to a whole number (conservative, as
+/// the GUM allows), but only past a relative tolerance of 1e-9, so that a
+/// ν that is 14 up to rounding (13.999999999999998) is 14 and the
+/// coefficients of one fit get the same factor.
+pub fn coverage_factor_95(dof_eff: Option<f64>) -> f64 {
+    match dof_eff {
+        Some(d) if d.is_finite() && d < 1e6 => {
+            let whole = (d * (1.0 + 1e-9)).floor().max(1.0);
+            student_t_975(whole as usize).unwrap_or(1.959_964)
+        }
+        _ => 1.959_964,
     }
 }
 
@@ -411,6 +439,42 @@ fn sensitivity(
     Ok(std::array::from_fn(|j| (plus[j] - minus[j]) / (2.0 * step)))
 }
 
+/// Level of the lack-of-fit F test above which the misfit is a significant
+/// effect that the budget carries (model inadequacy).
+pub const LACK_OF_FIT_ALPHA: f64 = 0.05;
+
+/// Whether `v`'s lack of fit is significant at [`LACK_OF_FIT_ALPHA`].
+fn lack_of_fit_significant(v: &crate::inadequacy::LevelVariance) -> Result<bool, AnalysisError> {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    if v.sigma2.is_nan() || v.sigma2 <= 0.0 {
+        return Ok(v.ms_lof > 0.0);
+    }
+    let dist = FisherSnedecor::new(v.dof_lof as f64, v.dof_pe as f64)
+        .map_err(|e| AnalysisError::InvalidInput(format!("lack-of-fit distribution: {e}")))?;
+    Ok(dist.sf(v.ms_lof / v.sigma2) < LACK_OF_FIT_ALPHA)
+}
+
+/// The coefficients with each level of `levels` left out in turn.
+pub fn leave_each_level_out(
+    points: &[Point],
+    levels: &[crate::inadequacy::Level],
+    order: ModelOrder,
+    what: &str,
+) -> Result<Vec<[f64; 4]>, AnalysisError> {
+    levels
+        .iter()
+        .map(|l| {
+            let kept: Vec<Point> = points
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !l.members.contains(i))
+                .map(|(_, p)| *p)
+                .collect();
+            coefficients(&kept, order, what)
+        })
+        .collect()
+}
+
 /// The budget of one mounting's fit of `points` with `inputs`.
 pub fn mounting_budget(
     points: &[Point],
@@ -424,29 +488,69 @@ pub fn mounting_budget(
     let present: [bool; 4] = std::array::from_fn(|j| j < p);
     let mut effects = Vec::new();
 
-    // Type A: the fit's standard errors rescaled from the residual variance
-    // to the pure-error variance where levels are replicated.
+    // Type A: the pure error and the between-level variance through the
+    // fit's sensitivities (crate::inadequacy); with no replicated level the
+    // residual scatter, which holds both.
     let residuals: Vec<f64> = fit.residuals.iter().map(|r| r.residual).collect();
-    let (ss_pe, dof_pe) = pure_error(points, &residuals);
-    let rss: f64 = residuals.iter().map(|r| r * r).sum();
+    let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
+    let degree = usize::from(order.degree());
+    let levels = crate::inadequacy::levels(points);
+    let design = crate::lsq::polynomial_design(&x, degree);
+    let variance = crate::inadequacy::LevelVariance::estimate(&levels, &residuals, &design, what)?;
     let se = [
         fit.std_error.k0_g,
         fit.std_error.k1,
         fit.std_error.k2_ug_per_g2,
         fit.std_error.k3_ug_per_g3,
     ];
-    if fit.dof > 0 && rss > 0.0 {
-        let (source, scale, dof) = if dof_pe > 0 {
-            let ratio = (ss_pe / dof_pe as f64) / (rss / fit.dof as f64);
-            (Source::Repeatability, ratio.sqrt(), dof_pe)
-        } else {
-            (Source::FitScatter, 1.0, fit.dof)
-        };
-        effects.push(Effect {
-            source,
-            delta: std::array::from_fn(|j| se[j].unwrap_or(0.0) * scale),
-            dof: Some(dof as f64),
-        });
+    match variance {
+        Some(v) => {
+            let g = crate::inadequacy::coefficient_sensitivities(
+                &x,
+                fit.polynomial_coefficients(),
+                degree,
+                what,
+            )?;
+            let repeatability = crate::inadequacy::repeatability(&g, v.sigma2);
+            effects.push(Effect {
+                source: Source::Repeatability,
+                delta: repeatability,
+                dof: Some(v.dof_pe as f64),
+            });
+            if lack_of_fit_significant(&v)? {
+                let without = leave_each_level_out(points, &levels, order, what)?;
+                let leverage = crate::inadequacy::level_leverage(&levels, &design, what)?;
+                let full = coefficients(points, order, what)?;
+                let jk = crate::inadequacy::jackknife_variance(full, &without, &leverage);
+                let inadequacy: [f64; 4] = std::array::from_fn(|j| {
+                    crate::inadequacy::inadequacy_beyond(jk[j], repeatability[j])
+                });
+                if inadequacy.iter().any(|u| *u > 0.0) {
+                    effects.push(Effect {
+                        source: Source::ModelInadequacy,
+                        delta: inadequacy,
+                        dof: Some(v.dof_lof as f64),
+                    });
+                }
+            }
+        }
+        None if fit.dof > 0 => {
+            let (ss_pe, dof_pe) = crate::inadequacy::pure_error(&levels, &residuals);
+            // Replicates but no spare level: the pure error alone; else the residual scatter.
+            let rss: f64 = residuals.iter().map(|r| r * r).sum();
+            let (source, scale, dof) = if dof_pe > 0 && rss > 0.0 {
+                let ratio = (ss_pe / dof_pe as f64) / (rss / fit.dof as f64);
+                (Source::Repeatability, ratio.sqrt(), dof_pe)
+            } else {
+                (Source::FitScatter, 1.0, fit.dof)
+            };
+            effects.push(Effect {
+                source,
+                delta: std::array::from_fn(|j| se[j].unwrap_or(0.0) * scale),
+                dof: Some(dof as f64),
+            });
+        }
+        None => {}
     }
 
     let scaled = |p: &Point, h: f64| Point {
@@ -608,58 +712,36 @@ pub fn mounting_budget(
     Ok(MountingBudget { present, effects })
 }
 
-/// Sum of squares and dof of the replicated levels' residuals about their
-/// level's mean (levels by |g_nominal|), with a drift linear in time taken
-/// out first (the points' order is the order taken, their index the time):
-/// the published up-then-down sequence visits each level symmetrically
-/// about the top, so such a drift cancels in the fit, and left in the pure
-/// error it would be counted as scatter it is not. One dof is spent on the
-/// drift when there are at least two.
-pub fn pure_error(points: &[Point], residuals: &[f64]) -> (f64, usize) {
-    // (level, [(time index, residual)])
-    let mut levels: Vec<(f64, Vec<(f64, f64)>)> = Vec::new();
-    for (i, (p, &r)) in points.iter().zip(residuals).enumerate() {
-        let g = p.g_nominal.abs();
-        match levels.iter_mut().find(|(l, _)| *l == g) {
-            Some((_, rs)) => rs.push((i as f64, r)),
-            None => levels.push((g, vec![(i as f64, r)])),
-        }
-    }
-    // Deviations from each replicated level's mean time and residual.
-    let mut dev: Vec<(f64, f64)> = Vec::new();
-    let mut dof = 0;
-    for (_, rs) in levels.iter().filter(|(_, rs)| rs.len() >= 2) {
-        let n = rs.len() as f64;
-        let (tm, rm) = (
-            rs.iter().map(|x| x.0).sum::<f64>() / n,
-            rs.iter().map(|x| x.1).sum::<f64>() / n,
-        );
-        dev.extend(rs.iter().map(|&(t, r)| (t - tm, r - rm)));
-        dof += rs.len() - 1;
-    }
-    let stt: f64 = dev.iter().map(|d| d.0 * d.0).sum();
-    let drift = if dof >= 2 && stt > 0.0 {
-        dof -= 1;
-        dev.iter().map(|d| d.0 * d.1).sum::<f64>() / stt
-    } else {
-        0.0
-    };
-    let ss = dev.iter().map(|&(t, r)| (r - drift * t).powi(2)).sum();
-    (ss, dof)
+/// The model inadequacy of K2 and of the odd part with the two mountings
+/// paired level by level (each level left out of both together, so the
+/// misfit both share, the table's, cancels in K2 as it does in K2 itself;
+/// [`crate::inadequacy`]); it replaces the mountings' own model-inadequacy
+/// sources in [`joint_uncertainty`].
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct PairedInadequacy {
+    /// Of K2 [µg/g²] and its dof; `None`: the half-difference fits.
+    pub even: Option<(f64, f64)>,
+    /// Of the odd part [µg/g²] and its dof; `None`: the half-sum fits.
+    pub odd: Option<(f64, f64)>,
 }
 
 /// K2 = (k2_P − k2_N)/2 and the odd part (k2_P + k2_N)/2, method.md (15):
 /// a source both mountings share adds with its sign, each mounting's own
-/// sources in quadrature. `None` unless both budgets have k2.
+/// sources in quadrature. The model inadequacy is `paired`'s when the
+/// mountings could be paired level by level (else each mounting's own, in
+/// quadrature: an upper bound, since their shared part would cancel).
+/// `None` unless both budgets have k2.
 pub fn joint_uncertainty(
     p: &MountingBudget,
     n: &MountingBudget,
+    paired: Option<PairedInadequacy>,
 ) -> Option<(Uncertainty, Uncertainty)> {
     if !(p.present[2] && n.present[2]) {
         return None;
     }
     let (mut even, mut odd) = (Vec::new(), Vec::new());
-    for e in &p.effects {
+    let skip = |s: Source| paired.is_some() && s == Source::ModelInadequacy;
+    for e in p.effects.iter().filter(|e| !skip(e.source)) {
         let shared = e.source.shared_by_mountings();
         let other = n.effects.iter().find(|o| o.source == e.source);
         match (shared, other) {
@@ -673,7 +755,7 @@ pub fn joint_uncertainty(
             }
         }
     }
-    for o in &n.effects {
+    for o in n.effects.iter().filter(|e| !skip(e.source)) {
         let shared_and_done =
             o.source.shared_by_mountings() && p.effects.iter().any(|e| e.source == o.source);
         if !shared_and_done {
@@ -681,5 +763,48 @@ pub fn joint_uncertainty(
             odd.push((o.source, 0.5 * o.delta[2], o.dof));
         }
     }
+    if let Some(paired) = paired {
+        if let Some((u, dof)) = paired.even {
+            even.push((Source::ModelInadequacy, u, Some(dof)));
+        }
+        if let Some((u, dof)) = paired.odd {
+            odd.push((Source::ModelInadequacy, u, Some(dof)));
+        }
+    }
     Some((combine(even), combine(odd)))
+}
+
+/// The anomaly rule's source: `with` and `without` are a mounting's
+/// coefficients (k0 [g], k1, k2 [µg/g²], k3 [µg/g³]) with every level and
+/// with the flagged levels left out. The reported value is `without`; the
+/// rule's choice is bounded by the change it made, a rectangular
+/// distribution of that half-width (u = |Δ|/√3), so a value the other
+/// defensible reduction gives is never outside the budget.
+pub fn anomaly_rule_effect(with: [f64; 4], without: [f64; 4]) -> Effect {
+    Effect {
+        source: Source::AnomalyRule,
+        delta: std::array::from_fn(|j| (with[j] - without[j]).abs() / 3f64.sqrt()),
+        dof: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_dof_that_is_whole_up_to_rounding_gets_its_whole_coverage_factor() {
+        let t14 = student_t_975(14).expect("t");
+        assert_eq!(coverage_factor_95(Some(13.999_999_999_999_998)), t14);
+        assert_eq!(coverage_factor_95(Some(14.0)), t14);
+        // Fractional: rounded down, conservative.
+        assert_eq!(coverage_factor_95(Some(14.5)), t14);
+        assert_eq!(
+            coverage_factor_95(Some(13.9)),
+            student_t_975(13).expect("t")
+        );
+        assert_eq!(coverage_factor_95(None), 1.959_964);
+        let single = combine(vec![(Source::Repeatability, 1.0, Some(14.0 - 2e-15))]);
+        assert_eq!(single.u95, t14);
+    }
 }

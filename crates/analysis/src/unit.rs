@@ -22,6 +22,53 @@ pub struct AnalysisOptions {
     pub order: ModelOrder,
     /// The Type B inputs of the GUM budget (all zero: Type A only).
     pub type_b: crate::uncertainty::TypeBInputs,
+    /// What happens to a level the diagnostics find off the curve.
+    pub anomalies: AnomalyRule,
+}
+
+/// What the reduction does with a level found off the curve
+/// ([`crate::inadequacy::outlier_levels`]); a plan's `anomalies` key.
+///
+/// `flag` is the default: every level stays in the fit, the level is named
+/// in the diagnostics, and the misfit it makes is in the budget as model
+/// inadequacy (a level random effect), so the U95 covers it without
+/// anything being left out. `exclude` leaves each flagged level out
+/// automatically, says so in the record and the report (level, rule,
+/// reason), and carries the change that made to every coefficient in the
+/// budget as the anomaly-rule source: a smaller U where the anomaly was a
+/// single level, never one that hides the choice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AnomalyRule {
+    /// Keep every level; the misfit is in the budget.
+    #[default]
+    Flag,
+    /// Leave flagged levels out, the effect of doing so in the budget.
+    Exclude,
+}
+
+impl AnomalyRule {
+    /// Its name in plans and reports: `flag` or `exclude`.
+    pub fn name(self) -> &'static str {
+        match self {
+            AnomalyRule::Flag => "flag",
+            AnomalyRule::Exclude => "exclude",
+        }
+    }
+}
+
+impl std::str::FromStr for AnomalyRule {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.trim() {
+            "flag" => Ok(AnomalyRule::Flag),
+            "exclude" => Ok(AnomalyRule::Exclude),
+            other => Err(format!(
+                "anomalies = '{other}': write \"flag\" or \"exclude\""
+            )),
+        }
+    }
 }
 
 /// The points of one unit (serial number) from one run, in the order taken.
@@ -115,6 +162,10 @@ pub struct UnitAnalysis {
     pub model_comparison: BTreeMap<Mount, ModelComparison>,
     /// Why any secondary result is missing.
     pub notes: Vec<String>,
+    /// Levels the anomaly rule left out (`anomalies = "exclude"`), with the
+    /// rule and the reason; their effect is in the budget.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub rule_exclusions: Vec<crate::exclusion::LevelExclusion>,
 }
 
 /// Reduce one unit's points.
@@ -136,15 +187,42 @@ pub fn analyze_unit(
     for points in by_mount.values_mut() {
         infer_directions(points);
     }
-    let all: Vec<Point> = by_mount.values().flatten().copied().collect();
 
     let mut fits = BTreeMap::new();
     let mut budgets = BTreeMap::new();
-    for (&mount, points) in &by_mount {
+    let mut rule_exclusions = Vec::new();
+    let mut unfit: Vec<(Mount, AnalysisError)> = Vec::new();
+    for (&mount, points) in by_mount.iter_mut() {
         let what = format!("{label} mounting {mount}");
-        let mut fit = fit_mounting(points, mount, options.order, &what)?;
+        // A mounting that cannot be fitted leaves the other's fit standing.
+        let mut fit = match fit_mounting(points, mount, options.order, &what) {
+            Ok(fit) => fit,
+            Err(e) => {
+                unfit.push((mount, e));
+                continue;
+            }
+        };
+        let mut anomaly_effect = None;
+        if options.anomalies == AnomalyRule::Exclude {
+            match exclude_flagged(points, &fit, options.order, &input.unit, &what)? {
+                Excluded::Nothing => {}
+                Excluded::Levels {
+                    kept,
+                    refit,
+                    removed,
+                    effect,
+                } => {
+                    *points = kept;
+                    fit = *refit;
+                    rule_exclusions.extend(removed);
+                    anomaly_effect = Some(effect);
+                }
+                Excluded::TooFew(why) => notes.push(why),
+            }
+        }
         match crate::uncertainty::mounting_budget(points, options.order, &options.type_b, &what) {
-            Ok(budget) => {
+            Ok(mut budget) => {
+                budget.effects.extend(anomaly_effect);
                 fit.uncertainty = Some(budget.uncertainties());
                 budgets.insert(mount, budget);
             }
@@ -152,6 +230,21 @@ pub fn analyze_unit(
         }
         fits.insert(mount, fit);
     }
+    if fits.is_empty() {
+        // Nothing to report: the first mounting's reason is the unit's.
+        if let Some((_, e)) = unfit.into_iter().next() {
+            return Err(e);
+        }
+    } else {
+        for (mount, e) in &unfit {
+            notes.push(format!(
+                "mounting {mount} not reduced ({e}); the other mounting's results stand, K2 of both mountings needs it"
+            ));
+        }
+        // The fits that follow use only the mountings that could be fitted.
+        by_mount.retain(|m, _| fits.contains_key(m));
+    }
+    let all: Vec<Point> = by_mount.values().flatten().copied().collect();
 
     let k2_max = fits
         .values()
@@ -212,9 +305,12 @@ pub fn analyze_unit(
     }
 
     let joint = match (fits.get(&Mount::P), fits.get(&Mount::N)) {
-        (Some(p), Some(n)) => {
-            crate::joint::joint_k2(p, n, budgets.get(&Mount::P).zip(budgets.get(&Mount::N)))
-        }
+        (Some(p), Some(n)) => crate::joint::joint_k2(
+            p,
+            n,
+            budgets.get(&Mount::P).zip(budgets.get(&Mount::N)),
+            paired_inadequacy(&by_mount, &fits, &budgets, options.order, &label),
+        ),
         _ => None,
     };
     Ok(UnitAnalysis {
@@ -237,6 +333,193 @@ pub fn analyze_unit(
         },
         model_comparison,
         notes,
+        rule_exclusions,
+    })
+}
+
+/// What the anomaly rule did to one mounting.
+enum Excluded {
+    /// No level was flagged.
+    Nothing,
+    /// Flagged levels left out: the points kept, their fit, the exclusions
+    /// and the budget's anomaly-rule source.
+    Levels {
+        kept: Vec<Point>,
+        refit: Box<MountingFit>,
+        removed: Vec<crate::exclusion::LevelExclusion>,
+        effect: crate::uncertainty::Effect,
+    },
+    /// Levels were flagged but too few would be left: kept, with why.
+    TooFew(String),
+}
+
+/// Leave the levels `fit`'s diagnostics flagged out of `points`, when
+/// enough levels remain for the model with a residual and a spare level.
+fn exclude_flagged(
+    points: &[Point],
+    fit: &MountingFit,
+    order: ModelOrder,
+    unit: &str,
+    what: &str,
+) -> Result<Excluded, AnalysisError> {
+    let flagged: Vec<&crate::inadequacy::OutlierLevel> = fit
+        .diagnostics
+        .as_ref()
+        .map(|d| d.outlier_levels.iter().collect())
+        .unwrap_or_default();
+    if flagged.is_empty() {
+        return Ok(Excluded::Nothing);
+    }
+    let mount = fit.mount;
+    let kept: Vec<Point> = points
+        .iter()
+        .filter(|p| !flagged.iter().any(|o| o.g == p.g_nominal.abs()))
+        .copied()
+        .collect();
+    let left = crate::inadequacy::levels(&kept).len();
+    if left < order.coefficients() + 2 {
+        return Ok(Excluded::TooFew(format!(
+            "mounting {mount}: {} level(s) flagged off the curve were kept (leaving them out would leave {left} levels, fewer than the model needs with a spare); the budget's model inadequacy covers them",
+            flagged.len()
+        )));
+    }
+    let refit = fit_mounting(&kept, mount, order, what)?;
+    let coefficients = |f: &MountingFit| {
+        [
+            f.fit.k0_g,
+            f.fit.k1,
+            f.fit.k2_ug_per_g2.unwrap_or(0.0),
+            f.fit.k3_ug_per_g3.unwrap_or(0.0),
+        ]
+    };
+    let effect = crate::uncertainty::anomaly_rule_effect(coefficients(fit), coefficients(&refit));
+    let removed = flagged
+        .iter()
+        .map(|o| crate::exclusion::LevelExclusion {
+            unit: Some(unit.to_string()),
+            mount,
+            g: o.g,
+            reason: format!(
+                "off the curve through the other levels by {:+.0} µg (t = {:.1}, p = {:.1e}, Bonferroni over the levels)",
+                o.residual_ug, o.t, o.p
+            ),
+            by: "the anomaly rule (anomalies = \"exclude\")".into(),
+            points_removed: points
+                .iter()
+                .filter(|p| p.g_nominal.abs() == o.g)
+                .count(),
+        })
+        .collect();
+    Ok(Excluded::Levels {
+        kept,
+        refit: Box::new(refit),
+        removed,
+        effect,
+    })
+}
+
+/// The model inadequacy of K2 and the odd part with the two mountings'
+/// levels paired ([`crate::uncertainty::PairedInadequacy`]): when the
+/// half-difference (half-sum) shows a significant lack of fit
+/// ([`crate::inadequacy::paired_lack_of_fit`]), the jackknife of K2 (the
+/// odd part) with each shared level left out of both mountings, beyond its
+/// repeatability. `None` when the mountings cannot be paired (each
+/// mounting's own is used instead).
+fn paired_inadequacy(
+    by_mount: &BTreeMap<Mount, Vec<Point>>,
+    fits: &BTreeMap<Mount, MountingFit>,
+    budgets: &BTreeMap<Mount, crate::uncertainty::MountingBudget>,
+    order: ModelOrder,
+    label: &str,
+) -> Option<crate::uncertainty::PairedInadequacy> {
+    use crate::uncertainty::Source;
+    let series = |m: Mount| {
+        let points = by_mount.get(&m)?;
+        let fit = fits.get(&m)?;
+        let levels = crate::inadequacy::levels(points);
+        let outputs: Vec<f64> = points.iter().map(|p| p.output).collect();
+        let (ss, dof_pe) = crate::inadequacy::pure_error(&levels, &outputs);
+        (dof_pe > 0).then(|| crate::inadequacy::MountingSeries {
+            points,
+            k1: fit.fit.k1,
+            sigma2: ss / dof_pe as f64,
+            dof_pe,
+        })
+    };
+    let (p, n) = (series(Mount::P)?, series(Mount::N)?);
+    let degree = usize::from(order.degree());
+    let what = format!("{label} both mountings");
+    let shared: Vec<f64> = crate::inadequacy::levels(p.points)
+        .iter()
+        .map(|l| l.g)
+        .filter(|g| n.points.iter().any(|q| q.g_nominal.abs() == *g))
+        .collect();
+    if shared.len() < degree + 2 || degree < 2 {
+        return None;
+    }
+    // k2 of both mountings with level g left out of both.
+    let k2_without = |points: &[Point], g: f64| {
+        let kept: Vec<Point> = points
+            .iter()
+            .filter(|q| q.g_nominal.abs() != g)
+            .copied()
+            .collect();
+        crate::model::fit_ieee1293(&kept, order, crate::model::Convention::PerMounting, &what)
+            .ok()
+            .and_then(|f| f.k2_ug_per_g2)
+    };
+    let mut without: Vec<[f64; 2]> = Vec::new();
+    for &g in &shared {
+        let (kp, kn) = (k2_without(p.points, g)?, k2_without(n.points, g)?);
+        without.push([0.5 * (kp - kn), 0.5 * (kp + kn)]);
+    }
+    // Each shared level's leverage: the mean of its leverage in the two fits.
+    let leverage_of = |points: &[Point]| {
+        let levels = crate::inadequacy::levels(points);
+        let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
+        let h = crate::inadequacy::level_leverage(
+            &levels,
+            &crate::lsq::polynomial_design(&x, degree),
+            &what,
+        )
+        .ok()?;
+        Some(
+            shared
+                .iter()
+                .map(|g| levels.iter().position(|l| l.g == *g).map_or(0.0, |i| h[i]))
+                .collect::<Vec<f64>>(),
+        )
+    };
+    let (hp, hn) = (leverage_of(p.points)?, leverage_of(n.points)?);
+    let leverage: Vec<f64> = hp.iter().zip(&hn).map(|(a, b)| 0.5 * (a + b)).collect();
+    let (kp, kn) = (
+        fits.get(&Mount::P)?.fit.k2_ug_per_g2?,
+        fits.get(&Mount::N)?.fit.k2_ug_per_g2?,
+    );
+    let jk = crate::inadequacy::jackknife_variance(
+        [0.5 * (kp - kn), 0.5 * (kp + kn)],
+        &without,
+        &leverage,
+    );
+    let repeat = |m: Mount| {
+        budgets
+            .get(&m)
+            .and_then(|b| b.effects.iter().find(|e| e.source == Source::Repeatability))
+            .map_or(0.0, |e| e.delta[2])
+    };
+    let repeatability = 0.5 * repeat(Mount::P).hypot(repeat(Mount::N));
+    let dof = (shared.len() - (degree + 1)) as f64;
+    let part = |even: bool, index: usize| {
+        let significant = crate::inadequacy::paired_lack_of_fit(&p, &n, degree, even, &what)
+            .ok()
+            .flatten()
+            .is_some_and(|(_, pv)| pv < crate::uncertainty::LACK_OF_FIT_ALPHA);
+        let u = crate::inadequacy::inadequacy_beyond(jk[index], repeatability);
+        (significant && u > 0.0).then_some((u, dof))
+    };
+    Some(crate::uncertainty::PairedInadequacy {
+        even: part(true, 0),
+        odd: part(false, 1),
     })
 }
 
@@ -393,5 +676,49 @@ mod tests {
         assert_eq!(d.failed.len(), 1);
         assert_eq!(d.failed[0].unit, "ONE-LEVEL");
         assert!(d.failed[0].error.contains("level"), "{}", d.failed[0].error);
+    }
+
+    #[test]
+    fn a_mounting_that_cannot_be_fitted_leaves_the_other_standing() {
+        let mut input = faster_descent(Mount::P);
+        let n = faster_descent(Mount::N);
+        // Two N readings: too few levels for a cubic.
+        input.points.extend(n.points.iter().take(2).copied());
+        let a = analyze_unit(&input, AnalysisOptions::default()).expect("P still reduced");
+        assert!(a.fits.contains_key(&Mount::P) && !a.fits.contains_key(&Mount::N));
+        assert!(
+            a.notes.iter().any(|n| n.contains("mounting N not reduced")),
+            "{:?}",
+            a.notes
+        );
+    }
+
+    #[test]
+    fn the_budget_and_the_diagnostics_share_one_pure_error() {
+        let mut input = faster_descent(Mount::P);
+        for (i, p) in input.points.iter_mut().enumerate() {
+            p.output += 1e-3 * ((i * 7919) % 13) as f64;
+        }
+        let a = analyze_unit(&input, AnalysisOptions::default()).expect("reduced");
+        let fit = &a.fits[&Mount::P];
+        let dof_pe = fit
+            .diagnostics
+            .as_ref()
+            .and_then(|d| d.lack_of_fit.as_ref())
+            .map(|l| l.dof[1]);
+        let budget = fit
+            .uncertainty
+            .as_ref()
+            .and_then(|u| u.k2_ug_per_g2.as_ref())
+            .expect("budget");
+        let repeat = budget
+            .budget
+            .iter()
+            .find(|c| c.source == crate::uncertainty::Source::Repeatability)
+            .expect("repeatability");
+        assert!(repeat.u > 0.0);
+        // No drift term: the dof is the replicates' own (levels with two readings).
+        assert_eq!(dof_pe, Some(7));
+        assert_eq!(budget.dof_eff.map(|d| d.round() as usize), Some(7));
     }
 }

@@ -151,7 +151,7 @@ fn the_linearised_budget_agrees_with_a_monte_carlo_propagation() {
     let budget_n =
         mounting_budget(&points(Mount::N, &b, None), ModelOrder::Cubic, &b, "N").expect("budget N");
     let lin = budget_p.uncertainties();
-    let (even, odd) = joint_uncertainty(&budget_p, &budget_n).expect("joint");
+    let (even, odd) = joint_uncertainty(&budget_p, &budget_n, None).expect("joint");
 
     let mut rng = ChaCha8Rng::seed_from_u64(101);
     let trials = 20_000;

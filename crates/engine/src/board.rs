@@ -316,6 +316,7 @@ impl SlotBoard {
             let options = AnalysisOptions {
                 order,
                 type_b: Default::default(),
+                anomalies: plan.plan.anomalies,
             };
             if let Ok(a) = analyze_unit(&input, options) {
                 let (per_mount, big) = figures(&a);

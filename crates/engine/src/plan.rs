@@ -75,6 +75,13 @@ pub struct TestPlan {
     /// (recorded in every record it touches, and in the reports).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub exclusions: Vec<PlanExclusion>,
+    /// What the reduction does with a level it finds off the curve:
+    /// `"flag"` (the default: kept, named, its misfit in the budget as model
+    /// inadequacy) or `"exclude"` (left out automatically, named in the
+    /// record and the report, the change in the budget);
+    /// [`spinbench_analysis::AnomalyRule`].
+    #[serde(default, skip_serializing_if = "is_default_rule")]
+    pub anomalies: spinbench_analysis::AnomalyRule,
     /// The run this one retests (its failed, inconclusive and flagged
     /// instruments, [`crate::retest`]); absent for a first test.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -94,6 +101,10 @@ pub struct PlanExclusion {
     pub g: f64,
     /// Why (required).
     pub reason: String,
+}
+
+fn is_default_rule(rule: &spinbench_analysis::AnomalyRule) -> bool {
+    *rule == spinbench_analysis::AnomalyRule::default()
 }
 
 fn default_name() -> String {
@@ -241,7 +252,8 @@ impl DecisionRule {
 
     /// Judge |value| against `limit`, with its expanded uncertainty `u95`
     /// when known; above `marginal_fraction`·limit a pass is marginal.
-    /// Guarded without an uncertainty cannot decide: inconclusive.
+    /// Guarded without an uncertainty cannot decide: inconclusive. A value
+    /// or limit that is not a number is never a pass (inconclusive).
     pub fn decide(
         self,
         value: f64,
@@ -249,6 +261,9 @@ impl DecisionRule {
         limit: f64,
         marginal_fraction: f64,
     ) -> Verdict {
+        if !(value.is_finite() && limit.is_finite()) {
+            return Verdict::Inconclusive;
+        }
         let v = value.abs();
         let (low, high) = match (self, u95) {
             (DecisionRule::Simple, _) => (v, v),
@@ -263,6 +278,43 @@ impl DecisionRule {
             Verdict::Marginal
         } else {
             Verdict::Pass
+        }
+    }
+
+    /// Judge the larger |value| of several (one per mounting, k2_max) against
+    /// `limit`: the limit is on the maximum, so under the guarded rule the
+    /// result passes only when every value passes with its own U95, fails
+    /// when any fails with its own, and is otherwise inconclusive — the
+    /// worst of the values' verdicts. Returns it with the index of the value
+    /// that decided it. No values: inconclusive.
+    pub fn decide_all(
+        self,
+        values: &[(f64, Option<f64>)],
+        limit: f64,
+        marginal_fraction: f64,
+    ) -> (Verdict, Option<usize>) {
+        let rank = |v: Verdict| match v {
+            Verdict::Pass => 0,
+            Verdict::Marginal => 1,
+            Verdict::Inconclusive => 2,
+            Verdict::Fail => 3,
+        };
+        let mut worst: Option<(Verdict, usize, f64)> = None;
+        for (i, &(value, u95)) in values.iter().enumerate() {
+            let verdict = self.decide(value, u95, limit, marginal_fraction);
+            let better = match worst {
+                None => true,
+                Some((w, _, wv)) => {
+                    rank(verdict) > rank(w) || (rank(verdict) == rank(w) && value.abs() > wv)
+                }
+            };
+            if better {
+                worst = Some((verdict, i, value.abs()));
+            }
+        }
+        match worst {
+            Some((verdict, i, _)) => (verdict, Some(i)),
+            None => (Verdict::Inconclusive, None),
         }
     }
 
@@ -408,6 +460,7 @@ impl Default for TestPlan {
             stability: StabilityConfig::default(),
             limits: Limits::default(),
             exclusions: Vec::new(),
+            anomalies: Default::default(),
             retest_of: None,
         }
     }
@@ -992,6 +1045,51 @@ mod tests {
             TestPlan::from_toml("[serials]\n1 = \"A\"\n[limits]\ndecision_rule = \"simple\"\n")
                 .expect("plan");
         assert_eq!(plan.limits.decision_rule, Simple);
+    }
+
+    #[test]
+    fn a_value_that_is_not_a_number_never_passes() {
+        for rule in [DecisionRule::Guarded, DecisionRule::Simple] {
+            for v in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+                assert_eq!(
+                    rule.decide(v, Some(0.1), 20.0, 0.9),
+                    Verdict::Inconclusive,
+                    "{rule:?} {v}"
+                );
+            }
+            assert_eq!(
+                rule.decide(1.0, Some(0.1), f64::NAN, 0.9),
+                Verdict::Inconclusive
+            );
+        }
+    }
+
+    #[test]
+    fn guarded_k2_max_needs_every_mounting_inside_the_limit() {
+        use DecisionRule::Guarded;
+        // Issue 30's case: P alone straddles the limit (15.99 + 5.39 > 20),
+        // while the larger |k2| (N) is well inside: inconclusive, decided by P.
+        let both = [(15.99, Some(5.39)), (-17.49, Some(0.10))];
+        assert_eq!(
+            Guarded.decide_all(&both, 20.0, 0.9),
+            (Verdict::Inconclusive, Some(0))
+        );
+        // Every mounting inside with its U: the larger |k2| decides (marginal here).
+        let inside = [(10.0, Some(1.0)), (-18.5, Some(1.0))];
+        assert_eq!(
+            Guarded.decide_all(&inside, 20.0, 0.9),
+            (Verdict::Marginal, Some(1))
+        );
+        // Any mounting beyond with its U: fail.
+        let beyond = [(25.0, Some(1.0)), (-1.0, Some(30.0))];
+        assert_eq!(
+            Guarded.decide_all(&beyond, 20.0, 0.9),
+            (Verdict::Fail, Some(0))
+        );
+        assert_eq!(
+            Guarded.decide_all(&[], 20.0, 0.9),
+            (Verdict::Inconclusive, None)
+        );
     }
 
     fn station(slots_modules: usize) -> StationConfig {

@@ -34,6 +34,7 @@ pub fn diagnostic_lines_in(u: &UnitReport, lang: Lang) -> Vec<String> {
     let mut lines: Vec<String> = r
         .exclusions
         .iter()
+        .chain(r.analysis.iter().flat_map(|a| &a.rule_exclusions))
         .map(|e| lang::exclusion(lang, e))
         .collect();
     if let Some(text) = temperature_line_in(&r.points, lang) {
@@ -151,6 +152,13 @@ fn model_verdict(lang: Lang, d: &Diagnostics) -> String {
             lang,
             "diag.pure_error",
             &[("rms", format!("{pe:.1}"))],
+        ));
+    }
+    if let Some(tau) = d.between_level_ug.filter(|t| *t > 0.0) {
+        text.push_str(&line(
+            lang,
+            "diag.between_levels",
+            &[("tau", format!("{tau:.0}"))],
         ));
     }
     if d.outlier_levels.is_empty() {

@@ -221,6 +221,64 @@ pub struct PopulationConfig {
     pub flicker_ug: f64,
     /// Range of each instrument's gain on the disturbances.
     pub disturbance_gain: [f64; 2],
+    /// Activity dips drawn for the population (resonator mode crossings).
+    pub activity_dips: ActivityDipDraw,
+    /// Activity dips given one by one (replace the drawn ones of their resonator).
+    pub dips: Vec<DipConfig>,
+}
+
+/// How each instrument's activity dips are drawn: each resonator, with
+/// probability `probability`, has one mode crossing at the frequency it
+/// reaches at an acceleration drawn from `at_g` (resonator 1 rises in
+/// mounting P, resonator 2 in N, so the two mountings meet different dips
+/// at different levels), of a size and width drawn from their ranges, the
+/// sign at random. From its own random stream: a bench without dips draws
+/// everything else as before.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ActivityDipDraw {
+    /// Chance that a resonator has a dip (0: none).
+    pub probability: f64,
+    /// Range of the acceleration at which its resonator meets it [g].
+    pub at_g: [f64; 2],
+    /// Range of its size, the shift of dF at its centre as acceleration [µg].
+    pub size_ug: [f64; 2],
+    /// Range of its width (the standard deviation of a Gaussian in the
+    /// resonator's frequency), as acceleration [g].
+    pub width_g: [f64; 2],
+}
+
+impl Default for ActivityDipDraw {
+    fn default() -> Self {
+        ActivityDipDraw {
+            probability: 0.0,
+            at_g: [10.0, 70.0],
+            size_ug: [1_000.0, 20_000.0],
+            width_g: [0.3, 2.0],
+        }
+    }
+}
+
+/// One activity dip given in the bench config.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DipConfig {
+    /// The instrument.
+    pub module: usize,
+    /// Its slot (0-based).
+    pub slot: usize,
+    /// Resonator 1 (met in mounting P) or 2 (met in N).
+    pub resonator: u8,
+    /// Where: the acceleration at which the resonator reaches it [g] ...
+    #[serde(default)]
+    pub at_g: Option<f64>,
+    /// ... or the resonator frequency itself [Hz].
+    #[serde(default)]
+    pub at_hz: Option<f64>,
+    /// Shift of dF at its centre, as acceleration, signed [µg].
+    pub size_ug: f64,
+    /// Width (Gaussian standard deviation) as acceleration [g].
+    pub width_g: f64,
 }
 
 impl Default for PopulationConfig {
@@ -246,6 +304,8 @@ impl Default for PopulationConfig {
             resonator_sum_ppm_per_c: 0.0,
             flicker_ug: 0.0,
             disturbance_gain: [1.0, 1.0],
+            activity_dips: ActivityDipDraw::default(),
+            dips: Vec::new(),
         }
     }
 }
@@ -294,6 +354,11 @@ pub struct FaultConfig {
 pub const MAX_SPEED: f64 = 1e6;
 /// Most fixture positions a bench config may shift.
 pub const MAX_POSITION_SHIFTS: usize = 1024;
+
+/// The largest acceleration at which, or width over which, an activity dip is set [g].
+pub const MAX_DIP_G: f64 = 1_000.0;
+/// The largest activity dip [µg].
+pub const MAX_DIP_UG: f64 = 1e6;
 
 /// Most structural disturbances a bench may have.
 pub const MAX_DISTURBANCES: usize = 32;
@@ -406,6 +471,73 @@ impl SimConfig {
         ] {
             if !(0.0..=1.0).contains(&p) {
                 return err(key, format!("must be a probability 0 to 1, got {p}"));
+            }
+        }
+        let d = &self.instruments.activity_dips;
+        if !(0.0..=1.0).contains(&d.probability) {
+            return err(
+                "instruments.activity_dips.probability",
+                format!("must be a probability 0 to 1, got {}", d.probability),
+            );
+        }
+        for (key, [lo, hi], max) in [
+            ("instruments.activity_dips.at_g", d.at_g, MAX_DIP_G),
+            ("instruments.activity_dips.size_ug", d.size_ug, MAX_DIP_UG),
+            ("instruments.activity_dips.width_g", d.width_g, MAX_DIP_G),
+        ] {
+            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && lo <= hi && hi <= max) {
+                return err(
+                    key,
+                    format!(
+                        "must be a range [low, high] with 0 < low ≤ high ≤ {max}, got [{lo}, {hi}]"
+                    ),
+                );
+            }
+        }
+        let slots = self.modules * spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
+        for (i, dip) in self.instruments.dips.iter().enumerate() {
+            let key = format!("instruments.dips[{i}]");
+            if dip.module * spinbench_wire::fmu::INSTRUMENTS_PER_MODULE + dip.slot >= slots
+                || dip.slot >= spinbench_wire::fmu::INSTRUMENTS_PER_MODULE
+            {
+                return err(
+                    &key,
+                    format!(
+                        "module {} slot {} is not on the bench",
+                        dip.module, dip.slot
+                    ),
+                );
+            }
+            if !(dip.resonator == 1 || dip.resonator == 2) {
+                return err(
+                    &key,
+                    format!("resonator must be 1 or 2, got {}", dip.resonator),
+                );
+            }
+            let place_ok = match (dip.at_g, dip.at_hz) {
+                (Some(g), None) => g.is_finite() && g > 0.0 && g <= MAX_DIP_G,
+                (None, Some(hz)) => hz.is_finite() && hz > 0.0 && hz <= 1e7,
+                _ => false,
+            };
+            if !place_ok {
+                return err(
+                    &key,
+                    format!(
+                        "give exactly one of at_g (0 to {MAX_DIP_G} g) or at_hz (a positive frequency)"
+                    ),
+                );
+            }
+            if !(dip.size_ug.is_finite() && dip.size_ug.abs() <= MAX_DIP_UG) {
+                return err(
+                    &key,
+                    format!("size_ug must be within ±{MAX_DIP_UG}, got {}", dip.size_ug),
+                );
+            }
+            if !(dip.width_g.is_finite() && dip.width_g > 0.0 && dip.width_g <= MAX_DIP_G) {
+                return err(
+                    &key,
+                    format!("width_g must be from 0 to {MAX_DIP_G}, got {}", dip.width_g),
+                );
             }
         }
         // Every other number: finite, of the right sign, within a named bound.

@@ -77,6 +77,92 @@ pub struct VbaTruth {
     pub flicker_ug: f64,
     /// Gain on the centrifuge's structural disturbances.
     pub disturbance_gain: f64,
+    /// Activity dips (resonator mode crossings), one per resonator at most.
+    pub dips: [Option<ActivityDip>; 2],
+}
+
+/// A resonator mode crossing (an "activity dip", method.md §5): near one
+/// frequency of one resonator the difference frequency is pulled off the
+/// model. It belongs to the instrument: reached at the same acceleration on
+/// every centrifuge, by resonator 1 in mounting P and resonator 2 in N, and
+/// not part of its K2.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ActivityDip {
+    /// Resonator 1 or 2.
+    pub resonator: u8,
+    /// The resonator frequency at its centre [Hz].
+    pub frequency_hz: f64,
+    /// Its width, the standard deviation of a Gaussian in that frequency [Hz].
+    pub width_hz: f64,
+    /// The shift of dF at its centre, as acceleration [µg].
+    pub size_ug: f64,
+    /// The acceleration at which the resonator reaches it at rest temperature [g].
+    pub reached_at_g: f64,
+}
+
+impl ActivityDip {
+    /// A dip that `truth`'s resonator reaches at `at_g`, `width_g` wide.
+    pub fn at_acceleration(
+        truth: &VbaTruth,
+        resonator: u8,
+        at_g: f64,
+        width_g: f64,
+        size_ug: f64,
+    ) -> ActivityDip {
+        // f1 = common + k1·(k0 + a)/2 rises in P (a > 0); f2 = common +
+        // k1·(|a| − k0)/2 rises in N (a < 0).
+        let bias = if resonator == 1 {
+            truth.k0_g
+        } else {
+            -truth.k0_g
+        };
+        let frequency_hz = truth.resonator_hz * (1.0 + COMMON_MODE_PER_G2 * at_g * at_g)
+            + 0.5 * truth.k1_hz_per_g * (at_g + bias);
+        ActivityDip {
+            resonator,
+            frequency_hz,
+            width_hz: 0.5 * truth.k1_hz_per_g * width_g,
+            size_ug,
+            reached_at_g: at_g,
+        }
+    }
+
+    /// A dip at resonator frequency `at_hz`, `width_g` wide, for `truth`.
+    pub fn at_frequency(
+        truth: &VbaTruth,
+        resonator: u8,
+        at_hz: f64,
+        width_g: f64,
+        size_ug: f64,
+    ) -> ActivityDip {
+        let half = 0.5 * truth.k1_hz_per_g;
+        let bias = if resonator == 1 {
+            truth.k0_g
+        } else {
+            -truth.k0_g
+        };
+        ActivityDip {
+            resonator,
+            frequency_hz: at_hz,
+            width_hz: half * width_g,
+            size_ug,
+            // f = R·(1 + c·a²) + half·(a + bias), solved for a (c the common mode).
+            reached_at_g: {
+                let (r, c) = (truth.resonator_hz, COMMON_MODE_PER_G2);
+                let constant = r + half * bias - at_hz;
+                (-half + (half * half - 4.0 * r * c * constant).max(0.0).sqrt()) / (2.0 * r * c)
+            },
+        }
+    }
+
+    /// The shift of dF [Hz] when its resonator is at `f_hz`.
+    fn shift_hz(&self, f_hz: f64, k1_hz_per_g: f64) -> f64 {
+        let x = (f_hz - self.frequency_hz) / self.width_hz;
+        if x.abs() > 12.0 {
+            return 0.0;
+        }
+        self.size_ug * 1e-6 * k1_hz_per_g * (-0.5 * x * x).exp()
+    }
 }
 
 /// What an instrument feels at one instant.
@@ -158,7 +244,23 @@ impl Vba {
         let half = k1 * input / 2.0;
         let common = t.resonator_hz
             * (1.0 + COMMON_MODE_PER_G2 * a * a + t.resonator_sum_ppm_per_c * 1e-6 * dt);
-        (common + half, common - half)
+        let (f1, f2) = (common + half, common - half);
+        // A mode crossing pulls dF by its shift, split over the two resonators.
+        let pull: f64 = t
+            .dips
+            .iter()
+            .flatten()
+            .map(|d| d.shift_hz(if d.resonator == 1 { f1 } else { f2 }, t.k1_hz_per_g))
+            .sum();
+        (f1 + 0.5 * pull, f2 - 0.5 * pull)
+    }
+
+    /// The same instrument without its activity dips (its smooth model, the truth of K2).
+    pub fn without_dips(&self) -> Vba {
+        Vba::new(VbaTruth {
+            dips: [None; 2],
+            ..self.truth
+        })
     }
 }
 
@@ -185,6 +287,7 @@ mod tests {
             resonator_sum_ppm_per_c: 0.0,
             flicker_ug: 0.0,
             disturbance_gain: 1.0,
+            dips: [None; 2],
         };
         let v = Vba::new(truth);
         for a in [-70.0, -1.0, 0.0, 1.0, 35.0, 100.0] {
@@ -226,6 +329,67 @@ mod tests {
         assert_eq!(
             Mounting::parse("cross-inverted"),
             Some(Mounting::TumbleCrosswise { as_on_arm: false })
+        );
+    }
+
+    #[test]
+    fn an_activity_dip_is_met_at_one_acceleration_in_one_mounting_only() {
+        let base = VbaTruth {
+            k0_g: 0.02,
+            k1_hz_per_g: 100.0,
+            k2_ug_per_g2: 10.0,
+            k3_ug_per_g3: 0.0,
+            cross_axis_ug_per_g: 0.0,
+            resonator_hz: 30_000.0,
+            noise_ug: 0.0,
+            bias_walk_ug_per_sqrt_h: 0.0,
+            temp_coeff_ug_per_c: 0.0,
+            koq_ug_per_g2: 0.0,
+            asymmetry_ppm: 0.0,
+            k1_temp_coeff_ppm_per_c: 0.0,
+            k2_temp_coeff_ug_per_g2_per_c: 0.0,
+            resonator_sum_ppm_per_c: 0.0,
+            flicker_ug: 0.0,
+            disturbance_gain: 1.0,
+            dips: [None; 2],
+        };
+        let p_dip = ActivityDip::at_acceleration(&base, 1, 30.0, 1.0, 15_000.0);
+        let n_dip = ActivityDip::at_acceleration(&base, 2, 65.0, 1.0, -8_000.0);
+        let v = Vba::new(VbaTruth {
+            dips: [Some(p_dip), Some(n_dip)],
+            ..base
+        });
+        let smooth = v.without_dips();
+        let shift_ug = |a: f64| {
+            let df = |v: &Vba| {
+                let (f1, f2) = v.resonators(&Inputs {
+                    a_g: a,
+                    ..Inputs::default()
+                });
+                f1 - f2
+            };
+            (df(&v) - df(&smooth)) / 100.0 * 1e6
+        };
+        // Mounting P (+a) meets resonator 1's dip at 30 g, N (−a) resonator 2's at 65 g.
+        assert!(
+            (shift_ug(30.0) - 15_000.0).abs() < 100.0,
+            "{}",
+            shift_ug(30.0)
+        );
+        assert!(shift_ug(-30.0).abs() < 1.0, "{}", shift_ug(-30.0));
+        assert!(
+            (shift_ug(-65.0) + 8_000.0).abs() < 100.0,
+            "{}",
+            shift_ug(-65.0)
+        );
+        assert!(shift_ug(65.0).abs() < 1.0);
+        // Five widths away it is gone; the same dip given by its frequency is the same dip.
+        assert!(shift_ug(35.0).abs() < 1.0);
+        let again = ActivityDip::at_frequency(&base, 1, p_dip.frequency_hz, 1.0, 15_000.0);
+        assert!(
+            (again.reached_at_g - 30.0).abs() < 1e-3,
+            "{}",
+            again.reached_at_g
         );
     }
 }

@@ -20,7 +20,7 @@ use crate::config::{SimConfig, SimDialect, SlotRef};
 use crate::counter::InputCounter;
 use crate::supply::Supply;
 use crate::table::Table;
-use crate::vba::{Inputs, Mounting, Vba, VbaTruth};
+use crate::vba::{ActivityDip, Inputs, Mounting, Vba, VbaTruth};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal, StandardNormal, Uniform};
@@ -45,6 +45,8 @@ const ERRORS_STREAM: u64 = 0x0000_6572_726f_7273;
 /// The temperature coefficients drawn since the chamber came: their own
 /// stream, so a bench without them draws everything else as before.
 const TEMPCO_STREAM: u64 = 0x7465_6d70_636f;
+/// The activity dips' draws ("dips"): their own stream, likewise.
+const DIPS_STREAM: u64 = 0x6469_7073;
 /// The Earth's rate [rad/s] (the station's own constant).
 pub const EARTH_RATE_RAD_S: f64 = spinbench_analysis::centrifuge::EARTH_RATE_RAD_S;
 /// Time constants of the low-frequency noise's relaxation processes [s]:
@@ -215,6 +217,23 @@ pub struct World {
     chamber: Option<crate::chamber::ChamberModel>,
 }
 
+/// Each resonator's activity dip, drawn as `how` says (always the same
+/// number of draws, so the stream does not depend on which are kept).
+fn draw_dips(
+    truth: &VbaTruth,
+    how: &crate::config::ActivityDipDraw,
+    rng: &mut ChaCha8Rng,
+) -> [Option<ActivityDip>; 2] {
+    std::array::from_fn(|r| {
+        let present = rng.random::<f64>() < how.probability;
+        let at_g = draw(rng, how.at_g[0], how.at_g[1]);
+        let width_g = draw(rng, how.width_g[0], how.width_g[1]);
+        let sign = if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let size_ug = sign * draw(rng, how.size_ug[0], how.size_ug[1]);
+        present.then(|| ActivityDip::at_acceleration(truth, r as u8 + 1, at_g, width_g, size_ug))
+    })
+}
+
 fn draw(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     if hi > lo {
         Uniform::new(lo, hi).map_or(lo, |u| u.sample(rng))
@@ -229,6 +248,7 @@ impl World {
         let mut rng = ChaCha8Rng::seed_from_u64(config.seed);
         let mut errors_rng = ChaCha8Rng::seed_from_u64(config.seed ^ ERRORS_STREAM);
         let mut tempco_rng = ChaCha8Rng::seed_from_u64(config.seed ^ TEMPCO_STREAM);
+        let mut dips_rng = ChaCha8Rng::seed_from_u64(config.seed ^ DIPS_STREAM);
         let n = config.modules * INSTRUMENTS_PER_MODULE;
         let p = &config.instruments;
         let t = &config.centrifuge;
@@ -263,6 +283,11 @@ impl World {
                     p.disturbance_gain[0],
                     p.disturbance_gain[1],
                 ),
+                dips: [None; 2],
+            };
+            let truth = VbaTruth {
+                dips: draw_dips(&truth, &p.activity_dips, &mut dips_rng),
+                ..truth
             };
             instruments.push(Vba::new(truth));
             let scatter: f64 = StandardNormal.sample(&mut rng);
@@ -279,6 +304,23 @@ impl World {
                 radius_n_m: centre - offset,
                 azimuth_rad: std::f64::consts::TAU * positions.len() as f64 / n as f64,
             });
+        }
+        for dip in &p.dips {
+            let Some(v) = instruments.get_mut(dip.module * INSTRUMENTS_PER_MODULE + dip.slot)
+            else {
+                continue;
+            };
+            let t = &v.truth;
+            let d = match (dip.at_g, dip.at_hz) {
+                (_, Some(hz)) => {
+                    ActivityDip::at_frequency(t, dip.resonator, hz, dip.width_g, dip.size_ug)
+                }
+                (Some(g), None) => {
+                    ActivityDip::at_acceleration(t, dip.resonator, g, dip.width_g, dip.size_ug)
+                }
+                (None, None) => continue,
+            };
+            v.truth.dips[usize::from(dip.resonator == 2)] = Some(d);
         }
         let module = ModuleSim {
             relay_mask: 0,
@@ -468,12 +510,16 @@ impl World {
 
     /// What a perfect per-mounting fit of method.md (2) of `order` over the
     /// nominal levels `levels_g` (at the drawing radius) returns for
-    /// instrument `i` in `mount`: the instrument's noise-free output at the
-    /// true input of each level (its physics with arm stretch and the
-    /// Earth's rate, a table turning counter-clockwise), fitted against the
-    /// input the station computes (the rate, the position's radius). Unlike
-    /// the sum K2 ± (c + Koq) this holds every cross term (k3 times the
-    /// stretch is ~0.02 µg/g² at 8 µg/g² of stretch). `None` if it cannot fit.
+    /// instrument `i` in `mount`: the instrument's noise-free smooth output
+    /// (its physics without its activity dips, which are not part of its
+    /// k2) at the true input of each level on a perfect arm of this
+    /// centrifuge (arm stretch and the Earth's rate, a table turning
+    /// counter-clockwise, but none of the table's structural resonances,
+    /// which are the station's error, not the instrument's), fitted against
+    /// the input the station computes (the rate, the position's radius).
+    /// Unlike the sum K2 ± (c + Koq) this holds every cross term (k3 times
+    /// the stretch is ~0.02 µg/g² at 8 µg/g² of stretch). `None` if it
+    /// cannot fit.
     pub fn perfect_fit_k2(
         &self,
         i: usize,
@@ -484,8 +530,7 @@ impl World {
         use spinbench_analysis::{Mount, Point, model::fit_mounting};
         // The instrument as built: no random walk, warm-up or temperature
         // (the world may have run on in real time since the run ended).
-        let v_truth = self.instruments.get(i)?.truth;
-        let v = Vba::new(v_truth);
+        let v = self.instruments.get(i)?.without_dips();
         let p = self.positions.get(i)?;
         let (g, t) = (self.config.g_local_m_s2, &self.config.centrifuge);
         let r = match mount {
@@ -497,19 +542,10 @@ impl World {
             .map(|&level| {
                 let w2 = level * g / t.arm_radius_m;
                 let inertial = w2.sqrt() + self.earth_rate_vertical_rad_s();
-                // The arm's structural disturbance at this level is part of
-                // the acceleration applied on this centrifuge.
-                let disturbance_g = t
-                    .disturbances
-                    .iter()
-                    .map(|d| d.shift_ug(level))
-                    .sum::<f64>()
-                    * 1e-6
-                    * v_truth.disturbance_gain;
                 let a_true = if level == 0.0 {
                     0.0
                 } else {
-                    inertial * inertial * (r + t.arm_stretch_m_per_rad2_s2 * w2) / g + disturbance_g
+                    inertial * inertial * (r + t.arm_stretch_m_per_rad2_s2 * w2) / g
                 };
                 let (f1, f2) = v.resonators(&Inputs {
                     a_g: mount.input_sign() * a_true,

@@ -153,6 +153,19 @@ pub fn compare_with_truth(
     out
 }
 
+/// What of the demo's plan the command line chooses.
+#[derive(Debug, Clone, Default)]
+pub struct DemoPlanChoice {
+    /// 2 or 4 tumble positions.
+    pub tumble_positions: u8,
+    /// Chamber temperatures (none: the room).
+    pub temperatures_c: Vec<f64>,
+    /// The levels (none: the published levels to 70 g); the plan checks them.
+    pub levels_g: Option<Vec<f64>>,
+    /// What the reduction does with a level found off the curve.
+    pub anomalies: spinbench_analysis::AnomalyRule,
+}
+
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
 /// a 10-minute warm-up (virtual time is cheap), `tumble_positions` (2 or 4),
 /// at the chamber `temperatures_c` (none: the room).
@@ -231,8 +244,7 @@ pub fn start_sim(choice: &BenchChoice) -> Result<(RunningBench, StationConfig)> 
 /// `spinbench demo`.
 pub fn demo(
     choice: &BenchChoice,
-    tumble_positions: u8,
-    temperatures_c: &[f64],
+    plan_choice: DemoPlanChoice,
     json: bool,
     data_dir: &Path,
     db: Option<&StoreTarget>,
@@ -242,18 +254,27 @@ pub fn demo(
     let seed = choice.seed;
     let (sim, station) = start_sim(choice)?;
     let realism = sim.with_world(|w| w.config().realism);
-    let plan = demo_plan(station.slots(), tumble_positions, temperatures_c);
-    let (plan_range_g, plan_order) = (
-        plan.range_g,
-        spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default(),
+    let mut plan = demo_plan(
+        station.slots(),
+        plan_choice.tumble_positions,
+        &plan_choice.temperatures_c,
     );
+    plan.anomalies = plan_choice.anomalies;
+    if let Some(levels) = plan_choice.levels_g {
+        plan.range_g = levels.iter().copied().fold(0.0, f64::max);
+        plan.levels = Some(levels);
+    }
+    let plan_levels = plan.level_table();
+    let plan_order = spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default();
+    let arm_radius_m = sim.with_world(|w| w.config().centrifuge.arm_radius_m);
     if !json {
         writeln!(
             out,
-            "spinbench demo: a virtual bench (seed {seed}, realism {realism}) with {} instruments on {} counter modules, a 0.8 m centrifuge,\n\
-             ±70 g in mountings P and N, in virtual time. Operator prompts are answered by the simulator.\n",
+            "spinbench demo: a virtual bench (seed {seed}, realism {realism}) with {} instruments on {} counter modules, a {arm_radius_m} m centrifuge,\n\
+             ±{} g in mountings P and N, in virtual time. Operator prompts are answered by the simulator.\n",
             station.slots(),
-            station.fmu.len()
+            station.fmu.len(),
+            plan.range_g
         )?;
         out.flush()?;
     }
@@ -278,9 +299,7 @@ pub fn demo(
     )?;
     let truth = sim.with_world(|w| w.truth());
     // The demo plan's levels, up and down, as its fits see them.
-    let levels = spinbench_analysis::points::up_down(
-        &spinbench_analysis::points::published_levels(plan_range_g),
-    );
+    let levels = spinbench_analysis::points::up_down(&plan_levels);
     let perfect = |slot: usize, mount: Mount| {
         sim.with_world(|w| w.perfect_fit_k2(slot, mount, &levels, plan_order))
     };

@@ -113,8 +113,25 @@ pub struct PointsFile {
     /// Number of data rows read.
     pub rows: usize,
     /// Rows that repeat an earlier row exactly, one at a time (two readings
-    /// that agree to the printed digits): kept, and said so.
+    /// that agree to the printed digits): kept, and said so; rows that
+    /// repeat the row just before them (a row written twice): dropped, and
+    /// said so.
     pub warnings: Vec<String>,
+    /// Units with a row whose values cannot be read (not a number, not
+    /// finite, no mounting): not reduced, each with its bad rows named; the
+    /// file's other units are.
+    pub rejected: Vec<RejectedUnit>,
+}
+
+/// A unit of a points file that cannot be reduced because of bad rows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RejectedUnit {
+    /// Serial number.
+    pub unit: String,
+    /// Run label, when the file has one.
+    pub run: Option<String>,
+    /// What is wrong, row by row.
+    pub errors: Vec<String>,
 }
 
 /// Consecutive rows repeating earlier rows exactly that make a repeated
@@ -529,6 +546,8 @@ fn parse_rows(
     let mut seen: std::collections::HashMap<String, u64> = Default::default();
     let mut warnings = Vec::new();
     let mut repeated_run: Vec<(u64, u64)> = Vec::new();
+    let mut rejected: Vec<RejectedUnit> = Vec::new();
+    let mut previous_key: Option<(String, u64)> = None;
     for row in rows {
         let cell = |i: usize| row.cells.get(i).unwrap_or(&Cell::Empty);
         let loc = |i: usize, name: &str| Some(at(row.number, Some((i, name))));
@@ -586,45 +605,66 @@ fn parse_rows(
                 ),
             ));
         }
-        let mount_text = text(columns.mount, "mount")?.unwrap_or_default();
-        let mount = Mount::parse(&mount_text).ok_or_else(|| {
-            fail(
-                loc(columns.mount, "mount"),
-                format!(
-                    "expected P (input axis toward the spin axis) or N (away), found '{mount_text}'"
-                ),
-            )
-        })?;
-        let g_nominal = number(columns.g_nominal, "g_nominal")?.ok_or_else(|| {
-            fail(
-                loc(columns.g_nominal, "g_nominal"),
-                "expected the nominal level in g, the cell is empty".into(),
-            )
-        })?;
-        let g_applied = number(columns.g_applied, "g_applied")?.unwrap_or(g_nominal);
-        let output = number(columns.output, "output")?.ok_or_else(|| {
-            fail(
-                loc(columns.output, "output"),
-                "expected the averaged instrument output, the cell is empty".into(),
-            )
-        })?;
-        let direction = match columns.direction {
-            Some(i) => match text(i, "direction")? {
-                None => None,
-                Some(t) => Some(Direction::parse(&t).ok_or_else(|| {
-                    fail(
-                        loc(i, "direction"),
-                        format!("expected up or down, found '{t}'"),
-                    )
-                })?),
-            },
-            None => None,
-        };
         let run = match columns.run {
             Some(i) => text(i, "run")?,
             None => None,
         };
 
+        let parsed = (|| -> Result<(Mount, f64, f64, f64, Option<Direction>), PointsFileError> {
+            let mount_text = text(columns.mount, "mount")?.unwrap_or_default();
+            let mount = Mount::parse(&mount_text).ok_or_else(|| {
+                fail(
+                    loc(columns.mount, "mount"),
+                    format!(
+                        "expected P (input axis toward the spin axis) or N (away), found '{mount_text}'"
+                    ),
+                )
+            })?;
+            let g_nominal = number(columns.g_nominal, "g_nominal")?.ok_or_else(|| {
+                fail(
+                    loc(columns.g_nominal, "g_nominal"),
+                    "expected the nominal level in g, the cell is empty".into(),
+                )
+            })?;
+            let g_applied = number(columns.g_applied, "g_applied")?.unwrap_or(g_nominal);
+            let output = number(columns.output, "output")?.ok_or_else(|| {
+                fail(
+                    loc(columns.output, "output"),
+                    "expected the averaged instrument output, the cell is empty".into(),
+                )
+            })?;
+            let direction = match columns.direction {
+                Some(i) => match text(i, "direction")? {
+                    None => None,
+                    Some(t) => Some(Direction::parse(&t).ok_or_else(|| {
+                        fail(
+                            loc(i, "direction"),
+                            format!("expected up or down, found '{t}'"),
+                        )
+                    })?),
+                },
+                None => None,
+            };
+            Ok((mount, g_nominal, g_applied, output, direction))
+        })();
+        let (mount, g_nominal, g_applied, output, direction) = match parsed {
+            Ok(values) => values,
+            Err(e) => {
+                let message = e.to_string();
+                match rejected
+                    .iter_mut()
+                    .find(|r: &&mut RejectedUnit| r.unit == unit && r.run == run)
+                {
+                    Some(r) => r.errors.push(message),
+                    None => rejected.push(RejectedUnit {
+                        unit,
+                        run,
+                        errors: vec![message],
+                    }),
+                }
+                continue;
+            }
+        };
         let key = format!(
             "{unit}\u{1f}{run:?}\u{1f}{mount}\u{1f}{:x}\u{1f}{:x}\u{1f}{:x}\u{1f}{direction:?}",
             g_nominal.to_bits(),
@@ -635,6 +675,21 @@ fn parse_rows(
             Some(_) => format!("row {n}"),
             None => format!("line {n}"),
         };
+        // A row that repeats the row just before it is the same row written
+        // twice (a station never takes two readings of one level bit for bit
+        // alike back to back): dropped, said so.
+        if let Some((previous, previous_line)) = &previous_key
+            && *previous == key
+        {
+            warnings.push(format!(
+                "{}: {} repeats {} just before it exactly (unit {unit}, mounting {mount}, {g_nominal} g, output {output}): a row written twice; dropped",
+                path.display(),
+                place(row.number),
+                place(*previous_line)
+            ));
+            continue;
+        }
+        previous_key = Some((key.clone(), row.number));
         match seen.get(&key) {
             Some(&first) => {
                 repeated_run.push((row.number, first));
@@ -680,7 +735,15 @@ fn parse_rows(
         }
         count += 1;
     }
-    if count == 0 {
+    // A unit with a bad row is not reduced at all (a fit without the row
+    // would pass as a reduction of every point).
+    units.retain(|u| !rejected.iter().any(|r| r.unit == u.unit && r.run == u.run));
+    if units.is_empty() {
+        if let Some(r) = rejected.first()
+            && let Some(first) = r.errors.first()
+        {
+            return Err(fail(None, format!("no unit can be reduced: {first}")));
+        }
         return Err(fail(
             Some(at(header.number, None)),
             "the header is followed by no data rows; expected one row per averaged point".into(),
@@ -690,6 +753,7 @@ fn parse_rows(
         units,
         rows: count,
         warnings,
+        rejected,
     })
 }
 

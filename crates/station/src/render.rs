@@ -1,8 +1,9 @@
 //! Human-readable output of `spinbench analyze`: one table per unit.
 
 use spinbench_analysis::model::Interval;
+use spinbench_analysis::uncertainty::Uncertainty;
 use spinbench_analysis::unit::UnitAnalysis;
-use spinbench_analysis::{DatasetAnalysis, Ieee1293Fit, Mount};
+use spinbench_analysis::{DatasetAnalysis, Mount, MountingFit};
 use std::fmt::Write;
 
 /// `value ± half-width` of a 95 % interval, or the bare value.
@@ -17,25 +18,52 @@ fn opt(value: Option<f64>, decimals: usize, unit: &str) -> String {
     value.map_or_else(|| "—".to_string(), |v| format!("{v:.decimals$}{unit}"))
 }
 
-/// The table rows of one fit: (label, text).
-fn fit_rows(fit: &Ieee1293Fit) -> Vec<(&'static str, String)> {
+/// `value ± U95` of the GUM budget, or the bare value: the one interval a
+/// coefficient is printed with (the regression interval, which ignores the
+/// budget's other sources, is in the JSON as `ci95`).
+fn with_u95(value: f64, u: Option<&Uncertainty>, decimals: usize) -> String {
+    match u {
+        Some(u) => format!("{value:+.decimals$} ± {:.decimals$}", u.u95),
+        None => format!("{value:+.decimals$}"),
+    }
+}
+
+/// The table rows of one mounting's fit: (label, text), each coefficient
+/// with its budget's U95 (the regression interval when no budget could be made).
+fn fit_rows(mounting: &MountingFit) -> Vec<(&'static str, String)> {
+    let fit = &mounting.fit;
     let ci = &fit.ci95;
+    let interval = |value: f64,
+                    u: Option<&Option<Uncertainty>>,
+                    ci: Option<Interval>,
+                    decimals: usize| match mounting.uncertainty {
+        Some(_) => with_u95(value, u.and_then(Option::as_ref), decimals),
+        None => with_ci(value, ci, decimals),
+    };
+    let u = mounting.uncertainty.as_ref();
     vec![
         (
             "points / levels",
             format!("{} / {}", fit.points, fit.levels),
         ),
-        ("k0 [g]", with_ci(fit.k0_g, ci.k0_g, 7)),
-        ("k1 [output/g]", with_ci(fit.k1, ci.k1, 6)),
+        ("k0 [g]", interval(fit.k0_g, u.map(|u| &u.k0_g), ci.k0_g, 7)),
+        (
+            "k1 [output/g]",
+            interval(fit.k1, u.map(|u| &u.k1), ci.k1, 6),
+        ),
         (
             "k2 [µg/g²]",
-            fit.k2_ug_per_g2
-                .map_or_else(|| "—".into(), |v| with_ci(v, ci.k2_ug_per_g2, 3)),
+            fit.k2_ug_per_g2.map_or_else(
+                || "—".into(),
+                |v| interval(v, u.map(|u| &u.k2_ug_per_g2), ci.k2_ug_per_g2, 3),
+            ),
         ),
         (
             "k3 [µg/g³]",
-            fit.k3_ug_per_g3
-                .map_or_else(|| "—".into(), |v| with_ci(v, ci.k3_ug_per_g3, 4)),
+            fit.k3_ug_per_g3.map_or_else(
+                || "—".into(),
+                |v| interval(v, u.map(|u| &u.k3_ug_per_g3), ci.k3_ug_per_g3, 4),
+            ),
         ),
         ("residual RMS [µg]", format!("{:.3}", fit.residual_rms_ug)),
         ("R²", opt(fit.r_squared, 12, "")),
@@ -52,8 +80,14 @@ pub fn render_dataset(source: &str, analysis: &DatasetAnalysis) -> String {
         analysis.units.len(),
         analysis.order.degree()
     );
-    let _ = writeln!(out, "uncertainties are 95 % intervals (Student t)");
+    let _ = writeln!(
+        out,
+        "± is the expanded uncertainty U95 of each coefficient's GUM budget (repeatability, model inadequacy when the model does not fit, and the Type B inputs given); the full-range fits are secondary figures, printed without an interval (their regression intervals are in the JSON)"
+    );
     for e in &analysis.exclusions {
+        let _ = writeln!(out, "{e}");
+    }
+    for e in analysis.units.iter().flat_map(|u| &u.rule_exclusions) {
         let _ = writeln!(out, "{e}");
     }
     for unit in &analysis.units {
@@ -98,7 +132,7 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
     }
     out.truncate(out.trim_end().len());
     out.push('\n');
-    let columns: Vec<Vec<(&str, String)>> = unit.fits.values().map(|f| fit_rows(&f.fit)).collect();
+    let columns: Vec<Vec<(&str, String)>> = unit.fits.values().map(fit_rows).collect();
     if let Some(first) = columns.first() {
         for (row, (label, _)) in first.iter().enumerate() {
             let _ = write!(out, "  {label:LABEL$}");
@@ -121,32 +155,20 @@ fn render_unit(out: &mut String, unit: &UnitAnalysis) {
         let mounts: Vec<String> = full.mounts.iter().map(Mount::to_string).collect();
         let _ = writeln!(
             out,
-            "  full range, signed input ({}): K0 = {} g, K1 = {}, K2 = {} µg/g², K3 = {} µg/g³, residual RMS {:.3} µg",
+            "  full range, signed input ({}): K0 = {:+.7} g, K1 = {:+.6}, K2 = {} µg/g², K3 = {} µg/g³, residual RMS {:.3} µg",
             mounts.join("+"),
-            with_ci(f.k0_g, f.ci95.k0_g, 7),
-            with_ci(f.k1, f.ci95.k1, 6),
-            f.k2_ug_per_g2
-                .map_or_else(|| "—".into(), |v| with_ci(v, f.ci95.k2_ug_per_g2, 4)),
-            f.k3_ug_per_g3
-                .map_or_else(|| "—".into(), |v| with_ci(v, f.ci95.k3_ug_per_g3, 5)),
+            f.k0_g,
+            f.k1,
+            opt(f.k2_ug_per_g2, 4, ""),
+            opt(f.k3_ug_per_g3, 5, ""),
             f.residual_rms_ug,
         );
     }
     if let Some(k) = unit.full_range.as_ref().and_then(|f| f.with_koq.as_ref()) {
-        let ci = |c: Option<[f64; 2]>| {
-            c.map_or_else(
-                || "—".into(),
-                |[lo, hi]| format!("± {:.3}", 0.5 * (hi - lo)),
-            )
-        };
         let _ = writeln!(
             out,
-            "  full range with Koq·a·|a| (method.md (12)): K2 = {:.3} {} µg/g², Koq (+ arm stretch) = {:.3} {} µg/g², residual RMS {:.3} µg",
-            k.k2_ug_per_g2,
-            ci(k.k2_ci95),
-            k.koq_ug_per_g2,
-            ci(k.koq_ci95),
-            k.residual_rms_ug
+            "  full range with Koq·a·|a| (method.md (12)): K2 = {:.3} µg/g², Koq (+ arm stretch) = {:.3} µg/g², residual RMS {:.3} µg",
+            k.k2_ug_per_g2, k.koq_ug_per_g2, k.residual_rms_ug
         );
     }
     if let Some(sf) = &unit.scale_factor {

@@ -43,3 +43,36 @@ pub fn add_user(
     store.audit(by, "add user", &format!("{name} ({})", role.as_str()))?;
     Ok(role)
 }
+
+/// The name of the operating-system user running this process, for records
+/// of who did something from the command line: `$USER` or `$LOGNAME`, else
+/// the name `/etc/passwd` gives the process's user id, else `uid N`.
+pub fn os_user() -> String {
+    for key in ["USER", "LOGNAME"] {
+        if let Ok(name) = std::env::var(key)
+            && !name.trim().is_empty()
+        {
+            return name.trim().to_string();
+        }
+    }
+    // The real uid from /proc (no libc call needed), then its passwd entry.
+    let uid = std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find_map(|l| l.strip_prefix("Uid:"))
+                .and_then(|rest| rest.split_whitespace().next().map(str::to_string))
+        });
+    let Some(uid) = uid else {
+        return "unknown user".into();
+    };
+    std::fs::read_to_string("/etc/passwd")
+        .ok()
+        .and_then(|passwd| {
+            passwd.lines().find_map(|line| {
+                let fields: Vec<&str> = line.split(':').collect();
+                (fields.len() > 2 && fields[2] == uid).then(|| fields[0].to_string())
+            })
+        })
+        .unwrap_or_else(|| format!("uid {uid}"))
+}

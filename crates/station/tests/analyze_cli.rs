@@ -405,3 +405,236 @@ fn type_b_inputs_from_a_file_enter_every_budget_and_bad_ones_are_refused_by_key(
     assert_ne!(code, 0);
     assert!(err.contains("radius"), "{err}");
 }
+
+/// The published station's Tables 1–2 (method.md §5), the only real data.
+fn published_tables() -> PathBuf {
+    repo_file("../shared/data/published-tables-1-2.csv")
+}
+
+fn reduce_published(anomalies: &str, exclude: &[&str]) -> Value {
+    let path = published_tables();
+    let mut args = vec![
+        "analyze",
+        path.to_str().expect("utf8 path"),
+        "--json",
+        "--anomalies",
+        anomalies,
+    ];
+    for e in exclude {
+        args.extend(["--exclude-level", e]);
+    }
+    if !exclude.is_empty() {
+        args.extend(["--reason", "an alternative reduction", "--by", "test"]);
+    }
+    let (code, stdout, stderr) = spinbench(&args);
+    assert_eq!(code, 0, "{stderr}");
+    serde_json::from_str(&stdout).expect("one JSON document")
+}
+
+fn joint(doc: &Value) -> (f64, f64) {
+    let j = &doc["units"][0]["joint"];
+    (
+        j["k2_even_ug_per_g2"].as_f64().expect("K2"),
+        j["k2_even_U95"].as_f64().expect("U95"),
+    )
+}
+
+#[test]
+fn the_published_tables_flag_their_anomalies_and_every_defensible_reduction_agrees_within_u() {
+    let all = reduce_published("flag", &[]);
+    let flagged = |mount: &str| -> Vec<f64> {
+        all["units"][0]["fits"][mount]["diagnostics"]["outlier_levels"]
+            .as_array()
+            .expect("outliers")
+            .iter()
+            .map(|o| o["g"].as_f64().expect("g"))
+            .collect()
+    };
+    // P's dip at 30 g, N's at 65 and/or 70 g, at most one more level each
+    // (the repeated search flagged 6 and 4).
+    let (p, n) = (flagged("P"), flagged("N"));
+    assert!(p.contains(&30.0) && p.len() <= 2, "P flagged {p:?}");
+    assert!(
+        (n.contains(&65.0) || n.contains(&70.0)) && n.len() <= 3,
+        "N flagged {n:?}"
+    );
+    // The model does not fit: the budget carries the misfit, so the K2
+    // interval is no longer ten times narrower than one level's effect.
+    let source = |mount: &str| {
+        all["units"][0]["fits"][mount]["uncertainty"]["k2_ug_per_g2"]["budget"]
+            .as_array()
+            .expect("budget")
+            .iter()
+            .map(|c| c["source"].as_str().unwrap_or("").to_string())
+            .collect::<Vec<_>>()
+    };
+    assert!(source("P").contains(&"model_inadequacy".to_string()));
+    // The defensible reductions: all levels (flag), the anomaly rule, and
+    // the levels left out by hand; each pair agrees within its U95s (E_n ≤ 1).
+    let reductions = [
+        ("all levels", joint(&all)),
+        ("anomaly rule", joint(&reduce_published("exclude", &[]))),
+        (
+            "without P 30 g",
+            joint(&reduce_published("flag", &["P:30"])),
+        ),
+        (
+            "without P 30, N 65, N 70 g",
+            joint(&reduce_published("flag", &["P:30", "N:65", "N:70"])),
+        ),
+    ];
+    for (a, (ka, ua)) in &reductions {
+        for (b, (kb, ub)) in &reductions {
+            let en = (ka - kb).abs() / ua.hypot(*ub);
+            assert!(
+                en <= 1.0,
+                "{a} {ka:.3} ± {ua:.3} vs {b} {kb:.3} ± {ub:.3}: E_n {en:.2}"
+            );
+        }
+    }
+    // The anomaly rule left its levels out by name, with the rule and why.
+    let excluded = reduce_published("exclude", &[]);
+    let rule = excluded["units"][0]["rule_exclusions"]
+        .as_array()
+        .expect("rule exclusions");
+    assert!(
+        rule.iter().any(|e| e["mount"] == "P" && e["g"] == 30.0),
+        "{rule:?}"
+    );
+    assert!(
+        rule.iter()
+            .all(|e| e["by"].as_str().unwrap_or("").contains("anomaly rule"))
+    );
+    let budget = excluded["units"][0]["joint"]["uncertainty"]["k2_even_ug_per_g2"]["budget"]
+        .as_array()
+        .expect("K2 budget");
+    assert!(
+        budget.iter().any(|c| c["source"] == "anomaly_rule"),
+        "{budget:?}"
+    );
+}
+
+#[test]
+fn one_interval_per_coefficient_in_the_human_output() {
+    let path = published_tables();
+    let (code, stdout, stderr) = spinbench(&["analyze", path.to_str().expect("utf8")]);
+    assert_eq!(code, 0, "{stderr}");
+    let doc = reduce_published("flag", &[]);
+    let u95 = doc["units"][0]["fits"]["P"]["uncertainty"]["k2_ug_per_g2"]["U95"]
+        .as_f64()
+        .expect("U95");
+    let row = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("k2 [µg/g²]"))
+        .expect("k2 row");
+    // The table's ± is the budget's U95, not the regression interval.
+    assert!(
+        row.contains(&format!("± {u95:.3}")),
+        "{row} vs U95 {u95:.3}"
+    );
+    let ci = doc["units"][0]["fits"]["P"]["ci95"]["k2_ug_per_g2"]
+        .as_array()
+        .expect("ci95 stays in the JSON");
+    let half = (ci[1].as_f64().unwrap_or(0.0) - ci[0].as_f64().unwrap_or(0.0)) / 2.0;
+    assert!(!row.contains(&format!("± {half:.3}")), "{row}");
+}
+
+#[test]
+fn a_bad_number_refuses_its_unit_only_and_names_the_row() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("two.csv");
+    let mut text = String::from("unit,mount,g_nominal,g_applied,output\n");
+    for unit in ["GOOD", "BAD"] {
+        for (i, g) in [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0]
+            .iter()
+            .enumerate()
+        {
+            let out = if unit == "BAD" && i == 3 {
+                "NaN".to_string()
+            } else {
+                format!("{}", 100.0 * g + 1e-4 * g * g)
+            };
+            text.push_str(&format!("{unit},P,{g},{g},{out}\n"));
+        }
+    }
+    std::fs::write(&path, text).expect("write");
+    let (code, stdout, stderr) = spinbench(&["analyze", path.to_str().expect("utf8"), "--json"]);
+    // The good unit is reduced; the bad one is named with its line; exit 1.
+    assert_eq!(code, 1, "{stderr}");
+    let doc: Value = serde_json::from_str(&stdout).expect("JSON");
+    assert_eq!(doc["units"][0]["unit"], "GOOD");
+    let failed = &doc["failed"][0];
+    assert_eq!(failed["unit"], "BAD");
+    let error = failed["error"].as_str().expect("error");
+    assert!(
+        error.contains("two.csv:13") && error.contains("finite"),
+        "{error}"
+    );
+}
+
+#[test]
+fn a_row_written_twice_is_dropped_not_counted_as_a_replicate() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let clean = dir.path().join("clean.csv");
+    let doubled = dir.path().join("doubled.csv");
+    let mut a = String::from("unit,mount,g_nominal,g_applied,output\n");
+    let mut b = a.clone();
+    let levels = [0.0, 5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0];
+    let pass: Vec<f64> = levels
+        .iter()
+        .chain(levels.iter().rev().skip(1))
+        .copied()
+        .collect();
+    for (i, g) in pass.iter().enumerate() {
+        let row = format!(
+            "U,P,{g},{g},{:.6}\n",
+            100.0 * g + 1e-3 * g * g + 1e-4 * (i as f64).sin()
+        );
+        a.push_str(&row);
+        b.push_str(&row);
+        if i % 2 == 0 {
+            b.push_str(&row);
+        }
+    }
+    std::fs::write(&clean, a).expect("write");
+    std::fs::write(&doubled, b).expect("write");
+    let dof = |path: &Path| {
+        let (code, stdout, stderr) =
+            spinbench(&["analyze", path.to_str().expect("utf8"), "--json"]);
+        assert_eq!(code, 0, "{stderr}");
+        let doc: Value = serde_json::from_str(&stdout).expect("JSON");
+        (
+            doc["units"][0]["fits"]["P"]["diagnostics"]["lack_of_fit"]["dof"][1].clone(),
+            stderr,
+        )
+    };
+    let (clean_dof, _) = dof(&clean);
+    let (doubled_dof, warnings) = dof(&doubled);
+    assert_eq!(clean_dof, doubled_dof, "pure-error dof changed: {warnings}");
+    assert!(warnings.contains("written twice; dropped"), "{warnings}");
+}
+
+#[test]
+fn an_exclusion_from_the_command_line_names_who_made_it() {
+    let path = published_tables();
+    let doc = reduce_published("flag", &["P:30"]);
+    assert_eq!(doc["exclusions"][0]["by"], "test");
+    // Without --by: the operating-system user, never "unknown".
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args([
+            "analyze",
+            path.to_str().expect("utf8"),
+            "--json",
+            "--exclude-level",
+            "P:30",
+            "--reason",
+            "dip",
+        ])
+        .env_remove("USER")
+        .env_remove("LOGNAME")
+        .output()
+        .expect("run");
+    let doc: Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let by = doc["exclusions"][0]["by"].as_str().expect("by");
+    assert!(!by.is_empty() && by != "unknown", "{by}");
+}

@@ -316,6 +316,7 @@ pub fn analysis_options(
     let station_b = station.type_b(slot);
     let dwell = &plan.plan.dwell;
     AnalysisOptions {
+        anomalies: plan.plan.anomalies,
         // A plan read back from the store has no compiled order: its degree says it.
         order: spinbench_analysis::ModelOrder::from_degree(plan.plan.order).unwrap_or(plan.order),
         type_b: spinbench_analysis::uncertainty::TypeBInputs {
@@ -518,13 +519,6 @@ pub fn grade(
             let f = &a.figures;
             let checks = [
                 (
-                    "|k2|",
-                    k2_max,
-                    Some(limits.k2_max_ug_per_g2),
-                    "µg/g²",
-                    [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
-                ),
-                (
                     "nonlinearity",
                     f.nonlinearity_ppm_fs,
                     limits.nonlinearity_max_ppm_fs,
@@ -556,27 +550,13 @@ pub fn grade(
                 ),
             ];
             outcome = Outcome::Pass;
-            // k2's U95: its mounting's GUM budget (Type A and the
-            // station's Type B inputs), else its interval half-width.
-            let k2_u95 = a.k2_max_mount.and_then(|m| a.fits.get(&m)).and_then(|f| {
-                f.uncertainty
-                    .as_ref()
-                    .and_then(|u| u.k2_ug_per_g2.as_ref())
-                    .map(|u| u.u95)
-                    .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)))
-            });
-            let rule = limits.decision_rule;
+            grade_k2(&a, limits, &mut outcome, &mut reasons);
             for (name, value, limit, unit, [over, near]) in checks {
                 let (Some(v), Some(l)) = (value, limit) else {
                     continue;
                 };
-                // k2 carries its U95; the other figures carry no
-                // uncertainty yet and are judged by their value.
-                let (rule, u) = if over == ReasonCode::K2OverLimit {
-                    (rule, k2_u95)
-                } else {
-                    (DecisionRule::Simple, None)
-                };
+                // These figures carry no uncertainty yet and are judged by their value.
+                let (rule, u) = (DecisionRule::Simple, None::<f64>);
                 let shown = match (rule, u) {
                     (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
                     _ => format!("{v:.3}"),
@@ -657,6 +637,135 @@ pub fn grade(
         k2_max_ug_per_g2: k2_max,
         outcome,
         reasons,
+    }
+}
+
+/// Hold k2_max, the larger |k2| of the mountings, against its limit under
+/// the limits' decision rule: each mounting's k2 with its own GUM U95 (the
+/// limit is on the maximum, so under the guarded rule every mounting must
+/// pass with its U and any one failing with its U fails;
+/// [`DecisionRule::decide_all`]). A mounting whose fit has a level flagged
+/// off the curve while its U95 carries no misfit (no model-inadequacy or
+/// fit-scatter source) is never a pass on that U: inconclusive, said so.
+fn grade_k2(
+    a: &spinbench_analysis::UnitAnalysis,
+    limits: &crate::plan::Limits,
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    use spinbench_analysis::uncertainty::Source;
+    let rule = limits.decision_rule;
+    let l = limits.k2_max_ug_per_g2;
+    let unit = "µg/g²";
+    let mut values = Vec::new();
+    let mut mounts = Vec::new();
+    let mut unhandled = Vec::new();
+    for (mount, f) in &a.fits {
+        let Some(k2) = f.fit.k2_ug_per_g2 else {
+            continue;
+        };
+        let budget = f.uncertainty.as_ref().and_then(|u| u.k2_ug_per_g2.as_ref());
+        // Its GUM budget (Type A and the station's Type B), else its interval half-width.
+        let u = budget
+            .map(|u| u.u95)
+            .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)));
+        let flagged = f
+            .diagnostics
+            .as_ref()
+            .map(|d| d.outlier_levels.iter().map(|o| o.g).collect::<Vec<f64>>())
+            .unwrap_or_default();
+        let misfit_in_u = budget.is_some_and(|u| {
+            u.budget
+                .iter()
+                .any(|c| matches!(c.source, Source::ModelInadequacy | Source::FitScatter))
+        });
+        if !flagged.is_empty() && !misfit_in_u {
+            unhandled.push(format!("{mount}: {flagged:?} g"));
+        }
+        values.push((k2, u));
+        mounts.push(*mount);
+    }
+    if values.is_empty() {
+        return;
+    }
+    let (verdict, decided_by) = rule.decide_all(&values, l, limits.marginal_fraction);
+    let i = decided_by.unwrap_or(0);
+    let (v, u) = values[i];
+    let mount = mounts[i];
+    let shown = match (rule, u) {
+        (DecisionRule::Guarded, Some(u)) => format!("{:.3} ± {u:.3}", v.abs()),
+        _ => format!("{:.3}", v.abs()),
+    };
+    let guarded = if rule == DecisionRule::Guarded {
+        " (guarded rule)"
+    } else {
+        ""
+    };
+    let name = format!("|k2| (mounting {mount})");
+    if !unhandled.is_empty() && matches!(verdict, Verdict::Pass | Verdict::Marginal) {
+        reasons.push(
+            Reason::new(
+                ReasonCode::K2Inconclusive,
+                format!(
+                    "{name} {shown} {unit}: a level off the curve ({}) is not in its U95, so the result cannot be graded a pass; retest, or reduce with anomalies = \"exclude\"",
+                    unhandled.join("; ")
+                ),
+            )
+            .with("value", &shown)
+            .with("unit", unit)
+            .with("limit", l),
+        );
+        *outcome = Outcome::Inconclusive;
+        return;
+    }
+    match verdict {
+        Verdict::Fail => {
+            reasons.push(
+                Reason::new(
+                    ReasonCode::K2OverLimit,
+                    format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
+                )
+                .with("value", &shown)
+                .with("unit", unit)
+                .with("limit", l)
+                .with("rule", rule.name()),
+            );
+            *outcome = Outcome::Fail;
+        }
+        Verdict::Inconclusive => {
+            reasons.push(
+                Reason::new(
+                    ReasonCode::K2Inconclusive,
+                    format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
+                )
+                .with("value", &shown)
+                .with("unit", unit)
+                .with("limit", l),
+            );
+            if *outcome != Outcome::Fail {
+                *outcome = Outcome::Inconclusive;
+            }
+        }
+        Verdict::Marginal => {
+            let band = format!("{:.0}", (1.0 - limits.marginal_fraction) * 100.0);
+            reasons.push(
+                Reason::new(
+                    ReasonCode::K2NearLimit,
+                    format!(
+                        "{name} {shown} {unit} within {band} % of the limit {l} {unit}{guarded}"
+                    ),
+                )
+                .with("value", &shown)
+                .with("unit", unit)
+                .with("limit", l)
+                .with("band", band)
+                .with("rule", rule.name()),
+            );
+            if *outcome == Outcome::Pass {
+                *outcome = Outcome::Marginal;
+            }
+        }
+        Verdict::Pass => {}
     }
 }
 

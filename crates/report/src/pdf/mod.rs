@@ -226,11 +226,17 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
     c.text_colored(x, y, 14.0, &word, Align::Left, color);
     y += 6.0;
     let fits = u.record().analysis.as_ref().map(|a| &a.fits);
-    for (mount, fit) in fits.into_iter().flatten() {
-        let fit = &fit.fit;
-        let half = fit.ci95.k2_ug_per_g2.map(|[a, b]| (b - a) / 2.0);
+    for (mount, mounting) in fits.into_iter().flatten() {
+        let fit = &mounting.fit;
+        // The one interval: the budget's U95 (the decision's), else the fit's.
+        let half = mounting
+            .uncertainty
+            .as_ref()
+            .and_then(|u| u.k2_ug_per_g2.as_ref())
+            .map(|u| u.u95)
+            .or_else(|| fit.ci95.k2_ug_per_g2.map(|[a, b]| (b - a) / 2.0));
         let line = format!(
-            "mounting {mount}: k0 {} g · k1 {} Hz/g · k2 {} ± {} µg/g² (95 %) · k3 {} µg/g³ · residual RMS {} µg",
+            "mounting {mount}: k0 {} g · k1 {} Hz/g · k2 {} ± {} µg/g² (U95) · k3 {} µg/g³ · residual RMS {} µg",
             crate::fmt(Some(fit.k0_g), 6),
             crate::fmt(Some(fit.k1), 6),
             crate::fmt(fit.k2_ug_per_g2, 3),

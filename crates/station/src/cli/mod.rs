@@ -13,7 +13,7 @@
 use crate::paths::parse_store;
 use crate::points_file::read_points_file;
 use crate::render::render_dataset;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use spinbench_analysis::exclusion::LevelExclusion;
 use spinbench_analysis::uncertainty::TypeBInputs;
@@ -77,6 +77,15 @@ pub enum Command {
         /// budget is Type A only, and says so.
         #[arg(long = "type-b", value_name = "FILE")]
         type_b: Option<PathBuf>,
+        /// What to do with a level found off the curve: flag (keep it, name
+        /// it, its misfit in the budget as model inadequacy) or exclude
+        /// (leave it out, say so, the change in the budget).
+        #[arg(long, default_value = "flag")]
+        anomalies: spinbench_analysis::AnomalyRule,
+        /// Who makes the --exclude-level exclusions (recorded with them;
+        /// default: the logged-in user).
+        #[arg(long, value_name = "NAME")]
+        by: Option<String>,
     },
     /// The main job, with no hardware: a complete simulated station (virtual
     /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
@@ -104,6 +113,14 @@ pub enum Command {
         /// temperature coefficients beside the bench's truth.
         #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
         temperatures: Vec<f64>,
+        /// The levels of the range test [g], e.g. `--levels=0,2,8,14,…,66`
+        /// (ascending from 0, at least 6; default 0, 1, 5, then every 5 g to 70).
+        #[arg(long, value_delimiter = ',')]
+        levels: Vec<f64>,
+        /// What the reduction does with a level found off the curve: flag or exclude
+        /// (the plan key `anomalies`).
+        #[arg(long, default_value = "flag")]
+        anomalies: spinbench_analysis::AnomalyRule,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,
@@ -445,7 +462,7 @@ fn open_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
 
 /// Read and reduce a points file.
 pub fn analyze_file(file: &Path, order: u8, sheet: Option<&str>) -> Result<DatasetAnalysis> {
-    analyze_file_excluding(file, order, sheet, Vec::new(), TypeBInputs::default())
+    analyze_file_excluding(file, order, sheet, Vec::new(), AnalysisOptions::default())
 }
 
 /// Read and check a Type B inputs file (`analyze --type-b`).
@@ -473,7 +490,7 @@ pub fn analyze_file_excluding(
     order: u8,
     sheet: Option<&str>,
     mut exclusions: Vec<LevelExclusion>,
-    type_b: TypeBInputs,
+    options: AnalysisOptions,
 ) -> Result<DatasetAnalysis> {
     let order = ModelOrder::from_degree(order)
         .with_context(|| format!("model order {order} is not 1, 2 or 3"))?;
@@ -483,8 +500,18 @@ pub fn analyze_file_excluding(
     }
     spinbench_analysis::exclusion::apply_all(&mut points.units, &mut exclusions)
         .with_context(|| file.display().to_string())?;
-    let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order, type_b });
+    let mut analysis = analyze_dataset(&points.units, AnalysisOptions { order, ..options });
     analysis.exclusions = exclusions;
+    for r in points.rejected {
+        analysis.failed.push(spinbench_analysis::unit::UnitFailure {
+            unit: r.unit,
+            run: r.run,
+            error: format!(
+                "bad row(s), the unit is not reduced: {}",
+                r.errors.join("; ")
+            ),
+        });
+    }
     Ok(analysis)
 }
 
@@ -499,19 +526,34 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             exclude_level,
             reason,
             type_b,
+            anomalies,
+            by,
         } => {
             let type_b = type_b
                 .as_deref()
                 .map(read_type_b)
                 .transpose()?
                 .unwrap_or_default();
-            let by = std::env::var("USER").unwrap_or_else(|_| "unknown".into());
+            let by = match by {
+                Some(name) if !name.trim().is_empty() => name.trim().to_string(),
+                Some(_) => bail!("--by: give the name of who makes the exclusion"),
+                None => crate::users::os_user(),
+            };
             let exclusions = exclude_level
                 .iter()
                 .map(|e| LevelExclusion::parse(e, reason.as_deref().unwrap_or(""), &by))
                 .collect::<Result<Vec<_>, _>>()?;
-            let analysis =
-                analyze_file_excluding(&file, order, sheet.as_deref(), exclusions, type_b)?;
+            let analysis = analyze_file_excluding(
+                &file,
+                order,
+                sheet.as_deref(),
+                exclusions,
+                AnalysisOptions {
+                    type_b,
+                    anomalies,
+                    ..AnalysisOptions::default()
+                },
+            )?;
             if json {
                 serde_json::to_writer_pretty(&mut *out, &analysis)?;
                 writeln!(out)?;
@@ -547,6 +589,8 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             sim_config,
             tumble_positions,
             temperatures,
+            levels,
+            anomalies,
             json,
             data,
             db,
@@ -559,8 +603,12 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             };
             crate::demo::demo(
                 &bench,
-                tumble_positions,
-                &temperatures,
+                crate::demo::DemoPlanChoice {
+                    tumble_positions,
+                    temperatures_c: temperatures,
+                    levels_g: (!levels.is_empty()).then_some(levels),
+                    anomalies,
+                },
                 json,
                 &data,
                 db.as_ref(),
