@@ -164,7 +164,7 @@ impl std::fmt::Display for Diagnostics {
         if let Some(pe) = self.pure_error_rms_ug {
             write!(f, "; pure error {pe:.1} µg RMS")?;
         }
-        if let Some(tau) = self.between_level_ug.filter(|t| *t > 0.0) {
+        if let Some(tau) = self.between_level_ug.filter(|t| *t >= 0.5) {
             write!(f, "; between levels {tau:.0} µg")?;
         }
         if self.outlier_levels.is_empty() {

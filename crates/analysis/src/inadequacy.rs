@@ -44,14 +44,14 @@
 //! (CR2, HC2) form: since k₍₋ℓ₎ − k = Pℓ·rℓ/(1 − hℓ), it is Σ Pℓ²·rℓ²/(1 − hℓ),
 //! unbiased for level effects of equal variance, where the plain delete-one
 //! jackknife's Σ Pℓ²·rℓ²/(1 − hℓ)² inflates the end levels (h ≈ 0.6 at the
-//! top level of a cubic) several times over.
+//! top level of a cubic) several times over. It is included when the lack
+//! of fit is significant (F test at 5 %; the GUM's "significant effects"),
+//! since with a model that fits the jackknife only re-measures the
+//! repeatability, less well. The repeatability itself is σ̂²·G·Gᵀ
+//! ([`repeatability`], G = ∂k/∂y). The coefficients stay the ordinary
+//! least-squares ones (the published method's).
 //!
-//! included when the lack of fit is significant (F test at 5 %; the GUM's
-//! "significant effects"), since with a model that fits the jackknife only
-//! re-measures the repeatability, less well. The coefficients stay the
-//! ordinary least-squares ones (the published method's).
-//!
-//! //! The same structure judges each level ([`outlier_levels`]): a level's
+//! The same structure judges each level ([`outlier_levels`]): a level's
 //! mean is compared with the curve through the other levels, against the
 //! scatter those other levels show (τ̂² of their fit) plus its own pure
 //! error — once, with a Bonferroni correction over the levels, never
@@ -134,8 +134,6 @@ pub struct LevelVariance {
     pub dof_lof: usize,
     /// Between-level variance τ̂² ≥ 0 [output units²].
     pub tau2: f64,
-    /// Satterthwaite degrees of freedom of τ̂² (`None` when τ̂² = 0).
-    pub tau2_dof: Option<f64>,
 }
 
 impl LevelVariance {
@@ -159,26 +157,17 @@ impl LevelVariance {
         let ss_lof = (rss - ss_pe).max(0.0);
         let sigma2 = ss_pe / dof_pe as f64;
         let ms_lof = ss_lof / dof_lof as f64;
-        // T = Σᵢ (nᵢ − 1ᵀ·H_ii·1), H = X·(XᵀX)⁻¹Xᵀ.
-        let op = lsq::solution_operator(design, what)?;
-        let mut t = 0.0;
-        for l in levels {
-            let mut block = 0.0;
-            for &a in &l.members {
-                for &b in &l.members {
-                    block += (0..p).map(|j| design[(a, j)] * op[(j, b)]).sum::<f64>();
-                }
-            }
-            t += l.members.len() as f64 - block;
-        }
+        // T = Σᵢ (nᵢ − 1ᵀ·H_ii·1) = Σᵢ nᵢ·(1 − hᵢ), hᵢ the level mean's leverage.
+        let t: f64 = level_leverage(levels, design, what)?
+            .iter()
+            .zip(levels)
+            .map(|(h, l)| l.members.len() as f64 * (1.0 - h))
+            .sum();
         let excess = ss_lof - dof_lof as f64 * sigma2;
-        let (tau2, tau2_dof) = if excess > 0.0 && t > 0.0 {
-            (
-                excess / t,
-                Some(satterthwaite(ms_lof, dof_lof as f64, sigma2, dof_pe as f64)),
-            )
+        let tau2 = if excess > 0.0 && t > 0.0 {
+            excess / t
         } else {
-            (0.0, None)
+            0.0
         };
         Ok(Some(LevelVariance {
             sigma2,
@@ -186,19 +175,7 @@ impl LevelVariance {
             ms_lof,
             dof_lof,
             tau2,
-            tau2_dof,
         }))
-    }
-}
-
-/// Satterthwaite's degrees of freedom of MS_a − MS_b.
-fn satterthwaite(ms_a: f64, dof_a: f64, ms_b: f64, dof_b: f64) -> f64 {
-    let num = (ms_a - ms_b).powi(2);
-    let den = ms_a * ms_a / dof_a + ms_b * ms_b / dof_b;
-    if den > 0.0 && num.is_finite() {
-        (num / den).max(1.0)
-    } else {
-        1.0
     }
 }
 

@@ -103,17 +103,7 @@ pub fn solve(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<LinearFit, 
             y.len()
         )));
     }
-    if n < p || p == 0 {
-        return Err(AnalysisError::InvalidInput(format!(
-            "{what}: {n} observation(s) cannot determine {p} coefficient(s)"
-        )));
-    }
-    if let Some(v) = design.iter().chain(y).find(|v| !v.is_finite()) {
-        return Err(AnalysisError::NonFinite {
-            what: format!("{what}: an input value"),
-            value: *v,
-        });
-    }
+    check_design(design, y, what)?;
 
     let Scaled {
         u,
@@ -158,6 +148,24 @@ pub fn solve(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<LinearFit, 
         residuals,
         stats,
     })
+}
+
+/// Refuse a design with fewer rows than columns, or any value of it or of
+/// `y` that is not finite.
+fn check_design(design: &DMatrix<f64>, y: &[f64], what: &str) -> Result<(), AnalysisError> {
+    let (n, p) = design.shape();
+    if n < p || p == 0 {
+        return Err(AnalysisError::InvalidInput(format!(
+            "{what}: {n} observation(s) cannot determine {p} coefficient(s)"
+        )));
+    }
+    match design.iter().chain(y).find(|v| !v.is_finite()) {
+        Some(v) => Err(AnalysisError::NonFinite {
+            what: format!("{what}: an input value"),
+            value: *v,
+        }),
+        None => Ok(()),
+    }
 }
 
 /// The SVD of a column-equilibrated design: `design·diag(1/norms) = U·S·Vᵀ`.
@@ -217,19 +225,7 @@ fn scaled_svd(design: &DMatrix<f64>, what: &str) -> Result<Scaled, AnalysisError
 /// budget needs to propagate a variance structure other than σ²·I
 /// (`crate::inadequacy`). Computed from the same scaled SVD as [`solve`].
 pub fn solution_operator(design: &DMatrix<f64>, what: &str) -> Result<DMatrix<f64>, AnalysisError> {
-    if design.nrows() < design.ncols() || design.ncols() == 0 {
-        return Err(AnalysisError::InvalidInput(format!(
-            "{what}: {} observation(s) cannot determine {} coefficient(s)",
-            design.nrows(),
-            design.ncols()
-        )));
-    }
-    if let Some(v) = design.iter().find(|v| !v.is_finite()) {
-        return Err(AnalysisError::NonFinite {
-            what: format!("{what}: an input value"),
-            value: *v,
-        });
-    }
+    check_design(design, &[], what)?;
     let Scaled {
         u,
         v_t,

@@ -154,7 +154,7 @@ fn model_verdict(lang: Lang, d: &Diagnostics) -> String {
             &[("rms", format!("{pe:.1}"))],
         ));
     }
-    if let Some(tau) = d.between_level_ug.filter(|t| *t > 0.0) {
+    if let Some(tau) = d.between_level_ug.filter(|t| *t >= 0.5) {
         text.push_str(&line(
             lang,
             "diag.between_levels",

@@ -268,9 +268,9 @@ impl Vba {
 mod tests {
     use super::*;
 
-    #[test]
-    fn difference_follows_the_ieee_model_and_common_mode_cancels() {
-        let truth = VbaTruth {
+    /// A clean instrument: 100 Hz/g, k2 = 15 µg/g², no error source.
+    fn clean_truth() -> VbaTruth {
+        VbaTruth {
             k0_g: 0.01,
             k1_hz_per_g: 100.0,
             k2_ug_per_g2: 15.0,
@@ -288,7 +288,12 @@ mod tests {
             flicker_ug: 0.0,
             disturbance_gain: 1.0,
             dips: [None; 2],
-        };
+        }
+    }
+
+    #[test]
+    fn difference_follows_the_ieee_model_and_common_mode_cancels() {
+        let truth = clean_truth();
         let v = Vba::new(truth);
         for a in [-70.0, -1.0, 0.0, 1.0, 35.0, 100.0] {
             let (f1, f2) = v.resonators(&Inputs {
@@ -336,22 +341,8 @@ mod tests {
     fn an_activity_dip_is_met_at_one_acceleration_in_one_mounting_only() {
         let base = VbaTruth {
             k0_g: 0.02,
-            k1_hz_per_g: 100.0,
-            k2_ug_per_g2: 10.0,
             k3_ug_per_g3: 0.0,
-            cross_axis_ug_per_g: 0.0,
-            resonator_hz: 30_000.0,
-            noise_ug: 0.0,
-            bias_walk_ug_per_sqrt_h: 0.0,
-            temp_coeff_ug_per_c: 0.0,
-            koq_ug_per_g2: 0.0,
-            asymmetry_ppm: 0.0,
-            k1_temp_coeff_ppm_per_c: 0.0,
-            k2_temp_coeff_ug_per_g2_per_c: 0.0,
-            resonator_sum_ppm_per_c: 0.0,
-            flicker_ug: 0.0,
-            disturbance_gain: 1.0,
-            dips: [None; 2],
+            ..clean_truth()
         };
         let p_dip = ActivityDip::at_acceleration(&base, 1, 30.0, 1.0, 15_000.0);
         let n_dip = ActivityDip::at_acceleration(&base, 2, 65.0, 1.0, -8_000.0);

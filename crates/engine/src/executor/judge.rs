@@ -557,66 +557,22 @@ pub fn grade(
                 };
                 // These figures carry no uncertainty yet and are judged by their value.
                 let (rule, u) = (DecisionRule::Simple, None::<f64>);
-                let shown = match (rule, u) {
-                    (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
-                    _ => format!("{v:.3}"),
+                let judged = Judged {
+                    name: name.to_string(),
+                    shown: shown_value(rule, v, u),
+                    unit,
+                    limit: l,
+                    rule,
+                    codes: [over, near],
                 };
-                let guarded = if rule == DecisionRule::Guarded {
-                    " (guarded rule)"
-                } else {
-                    ""
-                };
-                match rule.decide(v, u, l, limits.marginal_fraction) {
-                    Verdict::Fail => {
-                        reasons.push(
-                            Reason::new(
-                                over,
-                                format!(
-                                    "{name} {shown} {unit} above the limit {l} {unit}{guarded}"
-                                ),
-                            )
-                            .with("value", &shown)
-                            .with("unit", unit)
-                            .with("limit", l)
-                            .with("rule", rule.name()),
-                        );
-                        outcome = Outcome::Fail;
-                    }
-                    Verdict::Inconclusive => {
-                        reasons.push(
-                            Reason::new(
-                                ReasonCode::K2Inconclusive,
-                                format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
-                            )
-                            .with("value", &shown)
-                            .with("unit", unit)
-                            .with("limit", l),
-                        );
-                        if outcome != Outcome::Fail {
-                            outcome = Outcome::Inconclusive;
-                        }
-                    }
-                    Verdict::Marginal => {
-                        let band = format!("{:.0}", (1.0 - limits.marginal_fraction) * 100.0);
-                        reasons.push(
-                            Reason::new(
-                                near,
-                                format!(
-                                    "{name} {shown} {unit} within {band} % of the limit {l} {unit}{guarded}"
-                                ),
-                            )
-                            .with("value", &shown)
-                            .with("unit", unit)
-                            .with("limit", l)
-                            .with("band", band)
-                            .with("rule", rule.name()),
-                        );
-                        if outcome == Outcome::Pass {
-                            outcome = Outcome::Marginal;
-                        }
-                    }
-                    Verdict::Pass => {}
-                }
+                let verdict = rule.decide(v, u, l, limits.marginal_fraction);
+                record_verdict(
+                    verdict,
+                    &judged,
+                    limits.marginal_fraction,
+                    &mut outcome,
+                    &mut reasons,
+                );
             }
             if k2_max.is_none() {
                 reasons.push(Reason::new(ReasonCode::NoK2, "the model order has no k2"));
@@ -656,7 +612,6 @@ fn grade_k2(
     use spinbench_analysis::uncertainty::Source;
     let rule = limits.decision_rule;
     let l = limits.k2_max_ug_per_g2;
-    let unit = "µg/g²";
     let mut values = Vec::new();
     let mut mounts = Vec::new();
     let mut unhandled = Vec::new();
@@ -692,17 +647,18 @@ fn grade_k2(
     let i = decided_by.unwrap_or(0);
     let (v, u) = values[i];
     let mount = mounts[i];
-    let shown = match (rule, u) {
-        (DecisionRule::Guarded, Some(u)) => format!("{:.3} ± {u:.3}", v.abs()),
-        _ => format!("{:.3}", v.abs()),
+    let judged = Judged {
+        name: format!("|k2| (mounting {mount})"),
+        shown: shown_value(rule, v.abs(), u),
+        unit: "µg/g²",
+        limit: l,
+        rule,
+        codes: [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
     };
-    let guarded = if rule == DecisionRule::Guarded {
-        " (guarded rule)"
-    } else {
-        ""
-    };
-    let name = format!("|k2| (mounting {mount})");
     if !unhandled.is_empty() && matches!(verdict, Verdict::Pass | Verdict::Marginal) {
+        let Judged {
+            name, shown, unit, ..
+        } = &judged;
         reasons.push(
             Reason::new(
                 ReasonCode::K2Inconclusive,
@@ -711,23 +667,71 @@ fn grade_k2(
                     unhandled.join("; ")
                 ),
             )
-            .with("value", &shown)
-            .with("unit", unit)
+            .with("value", shown)
+            .with("unit", *unit)
             .with("limit", l),
         );
         *outcome = Outcome::Inconclusive;
         return;
     }
+    record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
+}
+
+/// A figure held against its limit: what the reasons say of it.
+struct Judged {
+    /// The figure's name ("|k2| (mounting P)", "nonlinearity").
+    name: String,
+    /// Its value as shown, with ± U95 under the guarded rule.
+    shown: String,
+    /// Its unit.
+    unit: &'static str,
+    /// The limit.
+    limit: f64,
+    /// The rule it was judged by.
+    rule: DecisionRule,
+    /// Its reason codes: over the limit, near it.
+    codes: [ReasonCode; 2],
+}
+
+/// "v ± U" under the guarded rule with a U, else "v".
+fn shown_value(rule: DecisionRule, v: f64, u: Option<f64>) -> String {
+    match (rule, u) {
+        (DecisionRule::Guarded, Some(u)) => format!("{v:.3} ± {u:.3}"),
+        _ => format!("{v:.3}"),
+    }
+}
+
+/// The reason a verdict gives, and the outcome it makes (the worst so far).
+fn record_verdict(
+    verdict: Verdict,
+    judged: &Judged,
+    marginal_fraction: f64,
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    let Judged {
+        name,
+        shown,
+        unit,
+        limit: l,
+        rule,
+        codes: [over, near],
+    } = judged;
+    let guarded = if *rule == DecisionRule::Guarded {
+        " (guarded rule)"
+    } else {
+        ""
+    };
     match verdict {
         Verdict::Fail => {
             reasons.push(
                 Reason::new(
-                    ReasonCode::K2OverLimit,
+                    *over,
                     format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
                 )
-                .with("value", &shown)
-                .with("unit", unit)
-                .with("limit", l)
+                .with("value", shown)
+                .with("unit", *unit)
+                .with("limit", *l)
                 .with("rule", rule.name()),
             );
             *outcome = Outcome::Fail;
@@ -738,26 +742,26 @@ fn grade_k2(
                     ReasonCode::K2Inconclusive,
                     format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
                 )
-                .with("value", &shown)
-                .with("unit", unit)
-                .with("limit", l),
+                .with("value", shown)
+                .with("unit", *unit)
+                .with("limit", *l),
             );
             if *outcome != Outcome::Fail {
                 *outcome = Outcome::Inconclusive;
             }
         }
         Verdict::Marginal => {
-            let band = format!("{:.0}", (1.0 - limits.marginal_fraction) * 100.0);
+            let band = format!("{:.0}", (1.0 - marginal_fraction) * 100.0);
             reasons.push(
                 Reason::new(
-                    ReasonCode::K2NearLimit,
+                    *near,
                     format!(
                         "{name} {shown} {unit} within {band} % of the limit {l} {unit}{guarded}"
                     ),
                 )
-                .with("value", &shown)
-                .with("unit", unit)
-                .with("limit", l)
+                .with("value", shown)
+                .with("unit", *unit)
+                .with("limit", *l)
                 .with("band", band)
                 .with("rule", rule.name()),
             );
