@@ -24,12 +24,25 @@
 //! of the passes, the instruments' temperature lag — shows as scatter of
 //! the yᵢ about their line. One instrument's three temperatures give one
 //! degree of freedom, too few to judge it, so the batch judges it
-//! ([`pool`]): the Birge ratio B = √(Σχ²/Σν) over every instrument of the
-//! run, per coefficient; when B > 1 every u(c) grows by B, and U95 takes
-//! Student's t at Σν degrees of freedom, the judgement's own (a batch of
-//! twelve at three temperatures: t(12) = 2.18; one instrument alone: t(1) =
-//! 12.7 — it cannot judge its line). With Σν = 0 (two temperatures)
-//! U95 = 1.96·u: nothing judges the line.
+//! ([`pool`]), per coefficient, by an additive between-instrument term: what
+//! the pairs cannot see is the same size in every instrument (the walk and
+//! the lag do not shrink with an instrument's small u), so the slope of each
+//! gains the same variance τ², estimated by moments over the run,
+//! τ² = max(0, Σⱼ(χ²ⱼ − νⱼ)·uⱼ²) / Σν (for a line with equal uᵢ,
+//! E[χ²] = ν·(1 + s²/u(yᵢ)²) and the slope's share of s² is u(c)²·s²/u(yᵢ)²),
+//! and U95 = t(Σν)·√(u(c)² + τ²), Student's t at Σν degrees of freedom, the
+//! judgement's own (a batch of twelve at three temperatures: t(12) = 2.18;
+//! one instrument alone: t(1) = 12.7 — it cannot judge its line). With
+//! Σν = 0 (two temperatures) U95 = 1.96·u: nothing judges the line. (A
+//! multiplicative Birge ratio B = √(Σχ²/Σν), kept in the record beside τ,
+//! widens a small u by the same ratio as a large one, and left the
+//! small-u instruments' coefficients outside their U95: issue 30.)
+//!
+//! **The arm.** The radius is found at the reference temperature only, so
+//! an arm that grows with the chamber's temperature reads as a scale
+//! factor that grows with it. The station's `arm_expansion_ppm_per_c`
+//! bounds it: the engine adds a rectangular Type B term of that half
+//! width to k1's coefficient ([`with_arm_expansion`]).
 //!
 //! The temperature's own spread over a temperature's points (the
 //! instruments still settling while they are measured) enters as errors in
@@ -189,8 +202,17 @@ pub struct PerCoefficient {
 /// The batch's judgement of the lines' scatter ([`pool`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BatchBirge {
-    /// √(Σχ²/Σν) over the batch, per coefficient.
+    /// √(Σχ²/Σν) over the batch, per coefficient (for the record: the U95
+    /// use `between_u`).
     pub birge_ratio: PerCoefficient,
+    /// τ, the between-instrument standard uncertainty every slope gains
+    /// (µg/°C, ppm/°C, µg/g²/°C; module docs).
+    #[serde(default)]
+    pub between_u: PerCoefficient,
+    /// The half width of the arm's expansion bound added to k1's
+    /// coefficient [ppm/°C] (0 when none was given).
+    #[serde(default)]
+    pub arm_expansion_ppm_per_c: f64,
     /// Σν, per coefficient.
     pub dof: [usize; 3],
     /// How many instruments.
@@ -327,43 +349,78 @@ pub fn temperature_coefficients(
 }
 
 /// Judge the lines' scatter over a batch (module docs): per coefficient,
-/// B = √(Σχ²/Σν); every U95 = t(Σν)·max(B, 1)·u (1.96·u when Σν = 0:
-/// two temperatures cannot judge their line).
-/// Depends only on each entry's `u` and `chi2`, so pooling again is safe.
+/// τ² = max(0, Σ(χ²ⱼ − νⱼ)·uⱼ²)/Σν; every U95 = t(Σν)·√(u² + τ²) (1.96·u
+/// when Σν = 0: two temperatures cannot judge their line).
+/// Depends only on each entry's `u` and `chi2`, so pooling again is safe;
+/// it keeps an arm-expansion bound already applied.
 pub fn pool(batch: &mut [TemperatureCoefficients]) {
     let dof_of = |c: &TemperatureCoefficients| c.temperatures.saturating_sub(2);
-    // (B, the factor on u): t(Σν)·max(B, 1); 1.96 with nothing to judge by.
-    let judge = |chi2: f64, dof: usize| -> (f64, f64) {
+    // Over the entries that have the coefficient: (B, τ², t) with τ² the
+    // moments estimate; (1, 0, 1.96) with nothing to judge by.
+    let judge = |rows: &mut dyn Iterator<Item = (f64, f64, usize)>| -> (f64, f64, f64) {
+        let (chi2, excess, dof) = rows.fold((0.0, 0.0, 0), |(c, e, n), (u, chi2, dof)| {
+            (c + chi2, e + (chi2 - dof as f64) * u * u, n + dof)
+        });
         if dof == 0 {
-            return (1.0, 1.96);
+            return (1.0, 0.0, 1.96);
         }
         let birge = (chi2 / dof as f64).sqrt();
-        (birge, student_t_975(dof).unwrap_or(12.71) * birge.max(1.0))
+        let tau2 = (excess / dof as f64).max(0.0);
+        (birge, tau2, student_t_975(dof).unwrap_or(12.71))
     };
-    let (chi0, chi1, dof01) = batch.iter().fold((0.0, 0.0, 0), |(a, b, n), c| {
-        (a + c.chi2.k0, b + c.chi2.k1, n + dof_of(c))
-    });
-    let with_k2 = |c: &&TemperatureCoefficients| c.u.k2.is_some() && c.chi2.k2.is_some();
-    let chi2_k2: f64 = batch.iter().filter(with_k2).filter_map(|c| c.chi2.k2).sum();
-    let dof2: usize = batch.iter().filter(with_k2).map(dof_of).sum();
-    let (b0, f0) = judge(chi0, dof01);
-    let (b1, f1) = judge(chi1, dof01);
-    let (b2, f2) = judge(chi2_k2, dof2);
+    let (b0, tau0, t0) = judge(&mut batch.iter().map(|c| (c.u.k0, c.chi2.k0, dof_of(c))));
+    let (b1, tau1, t1) = judge(&mut batch.iter().map(|c| (c.u.k1, c.chi2.k1, dof_of(c))));
+    let k2_rows = |c: &TemperatureCoefficients| Some((c.u.k2?, c.chi2.k2?, dof_of(c)));
+    let (b2, tau2, t2) = judge(&mut batch.iter().filter_map(k2_rows));
+    let dof01 = batch.iter().map(dof_of).sum();
+    let dof2 = batch.iter().filter_map(k2_rows).map(|r| r.2).sum();
     let instruments = batch.len();
     for c in batch.iter_mut() {
-        c.k0_ug_per_c_u95 = f0 * c.u.k0;
-        c.k1_ppm_per_c_u95 = f1 * c.u.k1;
-        c.k2_ug_per_g2_per_c_u95 = c.u.k2.map(|u| f2 * u);
+        let arm = c.batch.map_or(0.0, |b| b.arm_expansion_ppm_per_c);
+        c.k0_ug_per_c_u95 = t0 * c.u.k0.hypot(tau0.sqrt());
+        c.k1_ppm_per_c_u95 = t1 * (c.u.k1.powi(2) + tau1 + arm * arm / 3.0).sqrt();
+        c.k2_ug_per_g2_per_c_u95 = c.u.k2.map(|u| t2 * u.hypot(tau2.sqrt()));
         c.batch = Some(BatchBirge {
             birge_ratio: PerCoefficient {
                 k0: b0,
                 k1: b1,
                 k2: c.u.k2.map(|_| b2),
             },
+            between_u: PerCoefficient {
+                k0: tau0.sqrt(),
+                k1: tau1.sqrt(),
+                k2: c.u.k2.map(|_| tau2.sqrt()),
+            },
+            arm_expansion_ppm_per_c: arm,
             dof: [dof01, dof01, dof2],
             instruments,
         });
     }
+}
+
+/// Add the arm's expansion bound (module docs) to every k1 coefficient's
+/// U95 and judge the batch again: a rectangular Type B term of half width
+/// `arm_expansion_ppm_per_c` (the arm's whole expansion coefficient: the
+/// chamber may warm all of it or none), at the batch's coverage factor.
+/// A bound that is not finite and ≥ 0 is treated as 0.
+pub fn with_arm_expansion(batch: &mut [TemperatureCoefficients], arm_expansion_ppm_per_c: f64) {
+    let arm = if arm_expansion_ppm_per_c.is_finite() && arm_expansion_ppm_per_c > 0.0 {
+        arm_expansion_ppm_per_c
+    } else {
+        0.0
+    };
+    for c in batch.iter_mut() {
+        let mut b = c.batch.unwrap_or(BatchBirge {
+            birge_ratio: PerCoefficient::default(),
+            between_u: PerCoefficient::default(),
+            arm_expansion_ppm_per_c: 0.0,
+            dof: [0; 3],
+            instruments: 0,
+        });
+        b.arm_expansion_ppm_per_c = arm;
+        c.batch = Some(b);
+    }
+    pool(batch);
 }
 
 #[cfg(test)]
@@ -499,6 +556,54 @@ mod tests {
         // Alone, its one degree of freedom takes t(1) = 12.7.
         assert!((one.k0_ug_per_c_u95 / (birge * one.u.k0) - 12.706).abs() < 1e-2);
         // Pooling again changes nothing.
+        let again = batch.clone();
+        pool(&mut batch);
+        assert_eq!(again, batch);
+    }
+
+    #[test]
+    fn the_same_scatter_in_every_instrument_covers_the_small_u_ones_too() {
+        // Issue 30 item 6: every instrument's k1 line is bent by the same
+        // amount (what the pairs cannot see does not shrink with u), but
+        // one instrument has ten times smaller uᵢ. The additive τ²
+        // covers the error of the small-u ones; the Birge ratio did not.
+        let bent = |u_k1: f64| -> TemperatureCoefficients {
+            let figs: Vec<AtTemperature> = [(-20.0, 0.0), (25.0, 0.0), (60.0, 4e-4)]
+                .iter()
+                .map(|&(t, bend)| AtTemperature {
+                    k1_hz_per_g: [100.0 + bend, u_k1],
+                    ..at(t, 500.0, 100.0, 10.0)
+                })
+                .collect();
+            temperature_coefficients(&figs).expect("fit")
+        };
+        let mut batch: Vec<_> = (0..12)
+            .map(|i| bent(if i == 0 { 1e-5 } else { 1e-4 }))
+            .collect();
+        pool(&mut batch);
+        // The true coefficient is 0; each line's slope error is the bend's.
+        for c in &batch {
+            assert!(
+                c.k1_ppm_per_c.abs() < c.k1_ppm_per_c_u95,
+                "|{}| ≥ U95 {} (u {})",
+                c.k1_ppm_per_c,
+                c.k1_ppm_per_c_u95,
+                c.u.k1
+            );
+        }
+        let b = batch[0].batch.expect("judged");
+        assert!(b.between_u.k1 > 0.0 && b.between_u.k0 == 0.0);
+        // The arm's bound adds a rectangular term to k1's alone.
+        let before = batch.clone();
+        with_arm_expansion(&mut batch, 0.45);
+        let t12 = 2.179;
+        let grown = batch[0].k1_ppm_per_c_u95.powi(2) - before[0].k1_ppm_per_c_u95.powi(2);
+        assert!(
+            (grown / (t12 * t12) - 0.45f64.powi(2) / 3.0).abs() < 1e-3,
+            "{grown}"
+        );
+        assert_eq!(batch[0].k0_ug_per_c_u95, before[0].k0_ug_per_c_u95);
+        // Pooling again keeps the bound.
         let again = batch.clone();
         pool(&mut batch);
         assert_eq!(again, batch);

@@ -112,13 +112,30 @@ pub struct TypeBInputs {
     pub k1_tempco_ppm_per_c: f64,
     /// Bound of the arm's thermal expansion coefficient [ppm/°C] (method.md (13)).
     pub arm_expansion_ppm_per_c: f64,
+    /// Bound of how much an instrument's radius grows per °C of the
+    /// temperature chamber, relative [ppm/°C]: the length of the radius
+    /// that sits in the chamber times its expansion coefficient, over the
+    /// radius. The radius is found at the reference temperature only, so
+    /// this goes into k1's temperature coefficient as a Type B term
+    /// (analysis::temperature). Absent: `arm_expansion_ppm_per_c`, as if
+    /// the whole arm followed the chamber.
+    pub chamber_radius_expansion_ppm_per_c: Option<f64>,
+}
+
+impl TypeBInputs {
+    /// The half width of the chamber's effect on the radius [ppm/°C]
+    /// (`chamber_radius_expansion_ppm_per_c`, else the whole arm's).
+    pub fn chamber_radius_bound_ppm_per_c(&self) -> f64 {
+        self.chamber_radius_expansion_ppm_per_c
+            .unwrap_or(self.arm_expansion_ppm_per_c)
+    }
 }
 
 impl TypeBInputs {
     /// Check every field: finite, not negative, within its named bound; the
     /// error names the key.
     pub fn validate(&self) -> Result<(), String> {
-        let checks: [(&str, f64, f64); 16] = [
+        let checks: [(&str, f64, f64); 17] = [
             ("readings_per_point", self.readings_per_point, 1e5),
             ("radius_ppm", self.radius_ppm, MAX_TYPE_B_PPM),
             (
@@ -163,6 +180,11 @@ impl TypeBInputs {
             ),
             ("k0_tempco_ug_per_c", self.k0_tempco_ug_per_c, MAX_TEMPCO),
             ("k1_tempco_ppm_per_c", self.k1_tempco_ppm_per_c, MAX_TEMPCO),
+            (
+                "chamber_radius_expansion_ppm_per_c",
+                self.chamber_radius_expansion_ppm_per_c.unwrap_or(0.0),
+                MAX_TEMPCO,
+            ),
         ];
         for (key, value, bound) in checks {
             if !value.is_finite() || value < 0.0 || value > bound {

@@ -30,6 +30,7 @@ fn inputs() -> TypeBInputs {
         k0_tempco_ug_per_c: 20.0,
         k1_tempco_ppm_per_c: 15.0,
         arm_expansion_ppm_per_c: 12.0,
+        chamber_radius_expansion_ppm_per_c: None,
     }
 }
 

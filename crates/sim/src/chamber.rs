@@ -49,6 +49,11 @@ pub struct ChamberSimConfig {
     /// on its own pty, the valve on coil [`SIM_RELAY_COIL`]) and not on the
     /// controller, whose purge register then switches nothing.
     pub purge_on_relay: bool,
+    /// How much of each instrument's radius sits in the chamber and follows
+    /// its air (the fixture) [mm]: it grows with the arm's
+    /// `arm_expansion_ppm_per_c` per °C of the chamber, so a radius found
+    /// at one temperature is off at the others.
+    pub radius_in_chamber_mm: f64,
 }
 
 impl Default for ChamberSimConfig {
@@ -63,6 +68,7 @@ impl Default for ChamberSimConfig {
             fault: ChamberFault::None,
             fault_at_s: 0.0,
             purge_on_relay: false,
+            radius_in_chamber_mm: 30.0,
         }
     }
 }
@@ -93,6 +99,12 @@ impl ChamberSimConfig {
             ),
             ("chamber.alarm_band_c", self.alarm_band_c, 0.1, 100.0),
             ("chamber.fault_at_s", self.fault_at_s, 0.0, 1e7),
+            (
+                "chamber.radius_in_chamber_mm",
+                self.radius_in_chamber_mm,
+                0.0,
+                1000.0,
+            ),
         ] {
             if !(v.is_finite() && (lo..=hi).contains(&v)) {
                 return Err((key.into(), format!("{v} is not from {lo} to {hi}")));
@@ -138,7 +150,8 @@ pub const SIM_RELAY_COIL: u16 = 0;
 /// The chamber's state.
 #[derive(Debug)]
 pub struct ChamberModel {
-    config: ChamberSimConfig,
+    /// The chamber as configured.
+    pub config: ChamberSimConfig,
     /// Air temperature [°C].
     pub air_c: f64,
     /// What the instruments' surroundings are at (the air, lagged) [°C].

@@ -66,7 +66,7 @@ fn uncertainty_toml(c: &crate::config::SimConfig) -> String {
     // four-position tumble measures it); the readings' noise the station
     // measures itself; the bench's drawing-to-true radius is what the step finds.
     format!(
-        "[uncertainty]\ncross_axis_ug_per_g = {}\nrate_accuracy_ppm = {}\nrate_resolution_deg_s = {}\ntimebase_ppm = 0.1\ntemperature_rise_c_at_100g = {}\nk0_tempco_ug_per_c = {}\nk1_tempco_ppm_per_c = {}\narm_expansion_ppm_per_c = {}\n\n",
+        "[uncertainty]\ncross_axis_ug_per_g = {}\nrate_accuracy_ppm = {}\nrate_resolution_deg_s = {}\ntimebase_ppm = 0.1\ntemperature_rise_c_at_100g = {}\nk0_tempco_ug_per_c = {}\nk1_tempco_ppm_per_c = {}\narm_expansion_ppm_per_c = {}\n{}\n",
         p.cross_axis_max_ug_per_g,
         t.readback_scale_ppm.abs().max(1.0),
         t.readback_resolution_deg_s,
@@ -74,7 +74,23 @@ fn uncertainty_toml(c: &crate::config::SimConfig) -> String {
         p.temp_coeff_ug_per_c,
         p.k1_temp_coeff_ppm_per_c,
         t.arm_expansion_ppm_per_c,
+        chamber_radius_line(c),
     )
+}
+
+/// The chamber's share of the radius as a bound on its expansion, a line of
+/// `[uncertainty]` (the station's drawing of the fixture: the length in the
+/// chamber times the arm's coefficient, over the arm's radius), or nothing
+/// without a chamber.
+fn chamber_radius_line(c: &crate::config::SimConfig) -> String {
+    let t = &c.centrifuge;
+    match &c.chamber {
+        Some(ch) if t.arm_radius_m > 0.0 => format!(
+            "chamber_radius_expansion_ppm_per_c = {}\n",
+            ch.radius_in_chamber_mm * 1e-3 * t.arm_expansion_ppm_per_c / t.arm_radius_m
+        ),
+        _ => String::new(),
+    }
 }
 
 /// The simulator's mounting for a requested fixture.

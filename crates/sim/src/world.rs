@@ -681,7 +681,7 @@ impl World {
     /// Acceleration along the input axis and across it [g] for instrument
     /// `i` now. On the arm (method.md (3), (13)): a = ω_i²·R(ω)/g with ω_i
     /// the rate in inertial space (the table's plus the Earth's vertical
-    /// rate), R(ω) = R + k_s·ω² + R0·α·ΔT_arm, plus the tilted axis's
+    /// rate), R(ω) = R + k_s·ω² + R0·α·ΔT_arm + L_chamber·α·ΔT_chamber, plus the tilted axis's
     /// once-per-revolution gravity component along the radius; gravity
     /// lies across the input axis.
     pub fn input_g(&self, i: usize) -> (f64, f64) {
@@ -691,7 +691,14 @@ impl World {
         let p = self.positions[i];
         let inertial = w + self.earth_rate_vertical_rad_s();
         let stretch_m = t.arm_stretch_m_per_rad2_s2 * w * w
-            + p.drawing_radius_m * t.arm_expansion_ppm_per_c * 1e-6 * self.windage_c;
+            + p.drawing_radius_m * t.arm_expansion_ppm_per_c * 1e-6 * self.windage_c
+            // The fixture in the chamber follows the chamber's air.
+            + self.chamber.as_ref().map_or(0.0, |c| {
+                c.config.radius_in_chamber_mm * 1e-3
+                    * t.arm_expansion_ppm_per_c
+                    * 1e-6
+                    * (c.instrument_air_c - self.config.ambient_c)
+            });
         // Only while the table turns: at rest the Earth's rate is no centripetal input.
         let radial = |r: f64| {
             if w == 0.0 {

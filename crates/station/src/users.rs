@@ -44,6 +44,85 @@ pub fn add_user(
     Ok(role)
 }
 
+/// Change a user's role and/or password, the one way the command line and
+/// the web API do it: checked, written, every session of the user ended (on
+/// every server of the fleet: the store is the sessions' truth), audited.
+/// The role as it now is.
+pub fn change_user(
+    store: &Store,
+    name: &str,
+    role: Option<&str>,
+    password: Option<&str>,
+    by: &str,
+) -> Result<Role, AddUserError> {
+    let Some(user) = store.user(name)? else {
+        return Err(AddUserError::Invalid(format!(
+            "no user '{}'",
+            spinbench_engine::bounds::shown(name)
+        )));
+    };
+    let role = match role {
+        Some(r) => Role::parse(r).ok_or_else(|| {
+            AddUserError::Invalid(format!("role '{r}': use operator, engineer or admin"))
+        })?,
+        None => Role::parse(&user.role).unwrap_or(Role::Operator),
+    };
+    if role.as_str() != user.role && user.role == Role::Admin.as_str() && only_admin(store, name)? {
+        return Err(AddUserError::Invalid(format!(
+            "{name} is the only admin; make another admin first"
+        )));
+    }
+    let hash = match password {
+        Some(p) => {
+            auth::check_new_user(name, p).map_err(AddUserError::Invalid)?;
+            Some(auth::hash_password(p).map_err(AddUserError::Hash)?)
+        }
+        None => None,
+    };
+    store.update_user(name, Some(role.as_str()), hash.as_deref())?;
+    store.delete_sessions(Some(name), 0)?;
+    let mut what = Vec::new();
+    if role.as_str() != user.role {
+        what.push(format!("role {} → {}", user.role, role.as_str()));
+    }
+    if hash.is_some() {
+        what.push("password".to_string());
+    }
+    store.audit(by, "change user", &format!("{name}: {}", what.join(", ")))?;
+    Ok(role)
+}
+
+/// Remove a user, the one way the command line and the web API do it:
+/// their sessions end everywhere, audited. False when there was none.
+pub fn remove_user(store: &Store, name: &str, by: &str) -> Result<bool, AddUserError> {
+    if store
+        .user(name)?
+        .is_some_and(|u| u.role == Role::Admin.as_str())
+        && only_admin(store, name)?
+    {
+        return Err(AddUserError::Invalid(format!(
+            "{name} is the only admin; make another admin first"
+        )));
+    }
+    if !store.delete_user(name)? {
+        return Ok(false);
+    }
+    store.delete_sessions(Some(name), 0)?;
+    store.audit(by, "remove user", name)?;
+    Ok(true)
+}
+
+/// Whether `name` is the store's only admin.
+fn only_admin(store: &Store, name: &str) -> Result<bool, AddUserError> {
+    let admins: Vec<String> = store
+        .users()?
+        .into_iter()
+        .filter(|u| u.role == Role::Admin.as_str())
+        .map(|u| u.name)
+        .collect();
+    Ok(admins == [name])
+}
+
 /// The name of the operating-system user running this process, for records
 /// of who did something from the command line: `$USER` or `$LOGNAME`, else
 /// the name `/etc/passwd` gives the process's user id, else `uid N`.

@@ -1,6 +1,7 @@
-//! `spinbench backup` and `spinbench restore` (issue 17, part 5): a run's
-//! store backed up (checked), lost, and restored whole; a PostgreSQL store
-//! is pointed at its own tools; nothing is ever overwritten.
+//! `spinbench backup` and `spinbench restore` (issue 17, part 5; issue 26):
+//! a run's store backed up (checked), lost, and restored whole, on SQLite
+//! and on PostgreSQL (pg_dump, pg_restore); the password never printed;
+//! nothing is ever overwritten.
 
 mod common;
 
@@ -60,18 +61,87 @@ fn a_store_is_backed_up_lost_and_restored_whole() {
 }
 
 #[test]
-fn a_postgresql_store_is_pointed_at_its_own_tools() {
+fn a_postgresql_store_is_backed_up_and_restored_by_its_own_tools() {
     let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
     let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
     let dir = tempfile::tempdir().expect("tempdir");
-    let (ok, _, err) = spinbench(&["backup", dir.path().to_str().expect("utf-8"), "--db", &url]);
+    let data = dir.path().join("data");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("PG")).expect("plan");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--data",
+        data.to_str().expect("utf-8"),
+        "--db",
+        &url,
+        plan.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{err}");
+    let (ok, before, _) = spinbench(&["runs", "list", "--db", &url]);
+    assert!(ok && before.contains("completed"), "{before}");
+
+    let backups = dir.path().join("backups");
+    let (ok, said, err) = spinbench(&["backup", backups.to_str().expect("utf-8"), "--db", &url]);
+    assert!(ok && said.contains("pg_dump custom format"), "{said}{err}");
+    let dumps: Vec<_> = std::fs::read_dir(&backups)
+        .expect("backups")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "dump"))
+        .collect();
+    assert_eq!(dumps.len(), 1, "{dumps:?}");
+
+    // Restored into another, empty database: the same runs.
+    let other =
+        spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
+    let dump = dumps[0].to_str().expect("utf-8");
+    let (ok, said, err) = spinbench(&["restore", dump, "--db", &other]);
+    assert!(ok && said.contains("restored 1 runs"), "{said}{err}");
+    let (ok, after, _) = spinbench(&["runs", "list", "--db", &other]);
+    assert!(ok);
+    assert_eq!(after, before, "the same runs, as they were");
+    // Into a database that holds a store already: refused, said once.
+    let (ok, _, err) = spinbench(&["restore", dump, "--db", &other]);
     assert!(
-        !ok && err.contains("pg_dump --format=custom") && err.contains("pg_restore"),
+        !ok && err.matches("pg_restore failed").count() == 1,
         "{err}"
     );
-    assert_eq!(
-        std::fs::read_dir(dir.path()).expect("dir").count(),
-        0,
-        "nothing written"
+}
+
+#[test]
+fn a_postgresql_backup_without_the_tools_says_what_to_install_once_and_no_password() {
+    let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
+    // The same server, with a password in the URL (trust auth ignores it).
+    let with_password = url.replacen("://spinbench@", "://spinbench:s3cret-pw@", 1);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args([
+            "backup",
+            dir.path().to_str().expect("utf-8"),
+            "--db",
+            &with_password,
+        ])
+        .env("PATH", "/nonexistent")
+        .output()
+        .expect("spinbench backup");
+    let err = String::from_utf8_lossy(&out.stderr);
+    let debian_has_it = std::fs::read_dir("/usr/lib/postgresql")
+        .into_iter()
+        .flatten()
+        .filter_map(|e| e.ok())
+        .any(|e| e.path().join("bin").join("pg_dump").is_file());
+    if debian_has_it {
+        // Debian's own directory is searched too: the backup is made.
+        assert!(out.status.success(), "{err}");
+    } else {
+        assert!(!out.status.success());
+        assert_eq!(err.matches("pg_dump is not installed").count(), 1, "{err}");
+    }
+    let said = format!("{}{err}", String::from_utf8_lossy(&out.stdout));
+    assert!(
+        !said.contains("s3cret-pw"),
+        "the password was printed: {said}"
     );
 }

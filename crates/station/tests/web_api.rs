@@ -2,7 +2,8 @@
 //! its refusals: not logged in, wrong role, missing CSRF token, bad input,
 //! a run already active; and a whole run driven through the API as a line's
 //! MES would: start, answer the prompts, pause, resume, results, reports,
-//! the live event stream with catch-up, the audit log.
+//! the live event stream with catch-up, the audit log. Each on SQLite and
+//! on PostgreSQL (`postgres_…`, issue 26).
 
 #[path = "common/web.rs"]
 mod web;
@@ -10,7 +11,7 @@ mod web;
 use serde_json::{Value, json};
 use spinbench_station::web::api::api_routes;
 use std::io::{BufRead, BufReader};
-use web::{Client, add_user, serve};
+use web::{Backend, Client, add_user, serve};
 
 /// A short test plan (±6 g, both mountings).
 fn plan() -> String {
@@ -28,7 +29,17 @@ fn concrete(path: &str) -> String {
 
 #[test]
 fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
+    the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
+    the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(Backend::Postgres);
+}
+
+fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     let server = serve(dir.path(), "0");
     let mut anon = Client::new(&server);
     let doc = anon.get_json("/api/openapi.json", 200);
@@ -144,7 +155,17 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers() {
 
 #[test]
 fn roles_csrf_users_plans_and_the_audit_log() {
+    roles_csrf_users_plans_and_the_audit_log_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_roles_csrf_users_plans_and_the_audit_log() {
+    roles_csrf_users_plans_and_the_audit_log_on(Backend::Postgres);
+}
+
+fn roles_csrf_users_plans_and_the_audit_log_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "admin", "admin", "admin-password");
     let server = serve(dir.path(), "0");
     let mut admin = Client::login(&server, "admin", "admin-password");
@@ -298,7 +319,17 @@ fn roles_csrf_users_plans_and_the_audit_log() {
 
 #[test]
 fn a_run_through_the_api_from_start_to_report() {
+    a_run_through_the_api_from_start_to_report_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_a_run_through_the_api_from_start_to_report() {
+    a_run_through_the_api_from_start_to_report_on(Backend::Postgres);
+}
+
+fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "admin", "admin", "admin-password");
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
@@ -571,7 +602,17 @@ fn a_run_through_the_api_from_start_to_report() {
 
 #[test]
 fn an_abort_from_the_api_ends_the_run_safely() {
+    an_abort_from_the_api_ends_the_run_safely_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_an_abort_from_the_api_ends_the_run_safely() {
+    an_abort_from_the_api_ends_the_run_safely_on(Backend::Postgres);
+}
+
+fn an_abort_from_the_api_ends_the_run_safely_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(dir.path().join("plans").join("api.toml"), plan()).expect("plan");
@@ -629,7 +670,17 @@ fn read_events(
 
 #[test]
 fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides() {
+    the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides() {
+    the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(Backend::Postgres);
+}
+
+fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "admin", "admin", "admin-password");
     add_user(dir.path(), "eng", "engineer", "eng-password");
     add_user(dir.path(), "op", "operator", "op-password");

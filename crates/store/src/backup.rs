@@ -1,8 +1,11 @@
 //! Backups of an SQLite store (issue 17, part 5): a consistent copy made
 //! while the station may be writing, through SQLite's online backup API
 //! (rusqlite's `backup` feature), checked before it is called a backup.
-//! A PostgreSQL store is backed up by the server's own tools (`pg_dump`):
-//! the error says what to run.
+//! A PostgreSQL store is backed up by the server's own tools: `pg_dump` in
+//! its custom format, checked by `pg_restore --list`; restored by
+//! `pg_restore` into an empty database ([`pg_dump`], [`pg_restore`]). The
+//! password goes to them in `PGPASSWORD`, never on a command line or in a
+//! message. Without the tools, one message says what to install.
 
 use crate::db::Db;
 use crate::{Store, StoreError, StoreTarget};
@@ -50,4 +53,136 @@ impl Store {
         }
         Ok(())
     }
+}
+
+/// Where the PostgreSQL client tools are: on `PATH`, else Debian's
+/// `/usr/lib/postgresql/*/bin` (newest first).
+pub fn pg_tool(name: &str) -> Option<std::path::PathBuf> {
+    let on_path = std::env::var_os("PATH").into_iter().flat_map(|p| {
+        std::env::split_paths(&p)
+            .map(|d| d.join(name))
+            .collect::<Vec<_>>()
+    });
+    let mut debian: Vec<std::path::PathBuf> = std::fs::read_dir("/usr/lib/postgresql")
+        .into_iter()
+        .flatten()
+        .filter_map(|e| Some(e.ok()?.path().join("bin").join(name)))
+        .collect();
+    debian.sort_by_key(|p| {
+        p.parent()
+            .and_then(|b| b.parent())
+            .and_then(|v| v.file_name())
+            .and_then(|v| v.to_str())
+            .and_then(|v| v.parse::<u32>().ok())
+            .unwrap_or(0)
+    });
+    debian.reverse();
+    on_path.chain(debian).find(|p| p.is_file())
+}
+
+/// A PostgreSQL URL as libpq keywords without the password, and the password.
+fn pg_connection(url: &str) -> Result<(String, Option<String>), String> {
+    let config: postgres::Config = url
+        .parse()
+        .map_err(|e| format!("not a PostgreSQL URL: {e}"))?;
+    let mut words = Vec::new();
+    if let Some(postgres::config::Host::Tcp(h)) = config.get_hosts().first() {
+        words.push(format!("host='{h}'"));
+    }
+    if let Some(port) = config.get_ports().first() {
+        words.push(format!("port={port}"));
+    }
+    if let Some(user) = config.get_user() {
+        words.push(format!("user='{user}'"));
+    }
+    if let Some(db) = config.get_dbname() {
+        words.push(format!("dbname='{db}'"));
+    }
+    let password = config
+        .get_password()
+        .map(|p| String::from_utf8_lossy(p).into_owned());
+    Ok((words.join(" "), password))
+}
+
+/// Run a PostgreSQL client tool on `url`'s database; its error output on failure.
+fn run_pg_tool(tool: &str, url: &str, args: &[&std::ffi::OsStr]) -> Result<(), String> {
+    let path = pg_tool(tool).ok_or_else(|| {
+        format!("{tool} is not installed: install the PostgreSQL client tools (Debian: apt install postgresql-client) and run this again")
+    })?;
+    let (conninfo, password) = pg_connection(url)?;
+    let mut cmd = std::process::Command::new(&path);
+    cmd.args(args).arg(format!("--dbname={conninfo}"));
+    if let Some(p) = password {
+        cmd.env("PGPASSWORD", p);
+    }
+    let out = cmd
+        .output()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    if !out.status.success() {
+        return Err(format!(
+            "{tool} failed: {}",
+            String::from_utf8_lossy(&out.stderr).trim()
+        ));
+    }
+    Ok(())
+}
+
+/// Back a PostgreSQL store up into the new file `to` with `pg_dump`
+/// (custom format), then check the file with `pg_restore --list`.
+pub fn pg_dump(target: &StoreTarget, to: &Path) -> Result<(), StoreError> {
+    let fail = |problem: String| StoreError::message(target, "back up", problem);
+    let StoreTarget::Postgres(url) = target else {
+        return Err(fail("not a PostgreSQL store".into()));
+    };
+    if to.exists() {
+        return Err(fail(format!(
+            "{} exists already; a backup never replaces a file",
+            to.display()
+        )));
+    }
+    let file = std::ffi::OsString::from(format!("--file={}", to.display()));
+    run_pg_tool(
+        "pg_dump",
+        url,
+        &[
+            "--format=custom".as_ref(),
+            "--no-owner".as_ref(),
+            file.as_os_str(),
+        ],
+    )
+    .map_err(fail)?;
+    let list = pg_tool("pg_restore")
+        .ok_or_else(|| fail("pg_restore is not installed to check the dump".into()))?;
+    let checked = std::process::Command::new(list)
+        .arg("--list")
+        .arg(to)
+        .output()
+        .map_err(|e| fail(e.to_string()))?;
+    if !checked.status.success() {
+        return Err(fail(format!(
+            "the dump {} does not read back: {}",
+            to.display(),
+            String::from_utf8_lossy(&checked.stderr).trim()
+        )));
+    }
+    Ok(())
+}
+
+/// Restore a `pg_dump` file into the PostgreSQL store `target`, whose
+/// database must be empty (no spinbench schema yet).
+pub fn pg_restore(target: &StoreTarget, from: &Path) -> Result<(), StoreError> {
+    let fail = |problem: String| StoreError::message(target, "restore", problem);
+    let StoreTarget::Postgres(url) = target else {
+        return Err(fail("not a PostgreSQL store".into()));
+    };
+    run_pg_tool(
+        "pg_restore",
+        url,
+        &[
+            "--no-owner".as_ref(),
+            "--exit-on-error".as_ref(),
+            from.as_os_str(),
+        ],
+    )
+    .map_err(fail)
 }

@@ -21,9 +21,11 @@
 //! | [`testing`] | fresh PostgreSQL databases for tests |
 
 mod backup;
+pub use backup::{pg_dump, pg_restore, pg_tool};
 mod csv;
 pub mod db;
 pub mod equipment;
+pub mod fleet;
 mod queries;
 mod schema;
 mod sink;
@@ -45,15 +47,16 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 /// A store operation failed; says which database and what was being done.
 #[derive(Debug, thiserror::Error)]
-#[error("store {target}: {what}: {source}")]
+// The database's reason is in the message and is not also the error's
+// source: a chain printer (anyhow's `{:#}`) would say it twice.
+#[error("store {target}: {what}: {reason}")]
 pub struct StoreError {
     /// The database (a file path, or the server with the password hidden).
     pub target: String,
     /// What was being done.
     pub what: String,
     /// The database's reason.
-    #[source]
-    pub source: DbError,
+    pub reason: DbError,
 }
 
 impl StoreError {
@@ -62,7 +65,7 @@ impl StoreError {
         StoreError {
             target: target.to_string(),
             what: what.to_string(),
-            source: problem.into(),
+            reason: problem.into(),
         }
     }
 }
@@ -125,10 +128,10 @@ pub struct Store {
 /// An error of `target` while doing `what`, for `map_err`.
 fn failed(target: &StoreTarget, what: &str) -> impl Fn(DbError) -> StoreError + use<> {
     let (target, what) = (target.to_string(), what.to_string());
-    move |source| StoreError {
+    move |reason| StoreError {
         target: target.clone(),
         what: what.clone(),
-        source,
+        reason,
     }
 }
 
@@ -223,10 +226,10 @@ impl Store {
 
     fn err(&self, what: &str) -> impl Fn(DbError) -> StoreError + '_ {
         let what = what.to_string();
-        move |source| StoreError {
+        move |reason| StoreError {
             target: self.target.to_string(),
             what: what.clone(),
-            source,
+            reason,
         }
     }
 

@@ -229,7 +229,7 @@ impl Store {
                 let unreadable = |problem: String| StoreError {
                     target: self.target.to_string(),
                     what: format!("read the result of '{serial}' in run {run_id}"),
-                    source: problem.into(),
+                    reason: problem.into(),
                 };
                 let outcome_name = r.text(3);
                 let outcome = Outcome::parse(&outcome_name)

@@ -219,6 +219,21 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: "ALTER TABLE runs ADD COLUMN reason_wording TEXT;",
         postgres: "ALTER TABLE runs ADD COLUMN reason_wording TEXT;",
     },
+    Migration {
+        what: "the fleet: each station's heartbeat (state, run, progress, address)",
+        sqlite: "ALTER TABLE stations ADD COLUMN state TEXT;
+    ALTER TABLE stations ADD COLUMN run_id TEXT;
+    ALTER TABLE stations ADD COLUMN steps_done INTEGER;
+    ALTER TABLE stations ADD COLUMN steps_total INTEGER;
+    ALTER TABLE stations ADD COLUMN address TEXT;
+    CREATE INDEX runs_station ON runs (station, started_at);",
+        postgres: "ALTER TABLE stations ADD COLUMN state TEXT;
+    ALTER TABLE stations ADD COLUMN run_id TEXT;
+    ALTER TABLE stations ADD COLUMN steps_done BIGINT;
+    ALTER TABLE stations ADD COLUMN steps_total BIGINT;
+    ALTER TABLE stations ADD COLUMN address TEXT;
+    CREATE INDEX runs_station ON runs (station, started_at);",
+    },
 ];
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (

@@ -245,7 +245,12 @@ impl Executor<'_> {
             .iter()
             .filter_map(|r| r.temperature_coefficients)
             .collect();
-        spinbench_analysis::temperature::pool(&mut batch);
+        // The arm's share of the chamber's heat bounds k1's coefficient
+        // (the radius is found at the reference temperature only).
+        spinbench_analysis::temperature::with_arm_expansion(
+            &mut batch,
+            self.station.uncertainty.chamber_radius_bound_ppm_per_c(),
+        );
         let mut pooled = batch.into_iter();
         for record in out
             .iter_mut()

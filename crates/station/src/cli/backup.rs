@@ -13,7 +13,6 @@ pub(super) fn backup(
     out: &mut dyn Write,
 ) -> Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let store = Store::open_read_only(db).with_context(|| format!("cannot open the store {db}"))?;
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs() as i64);
@@ -25,16 +24,32 @@ pub(super) fn backup(
         secs % 3600 / 60,
         secs % 60
     );
-    let file = dir.join(format!("spinbench-{stamp}.db"));
-    store.backup_to(&file)?;
-    let size = std::fs::metadata(&file).map_or(0, |m| m.len());
-    writeln!(
-        out,
-        "backup: {} ({:.1} MB, checked: integrity ok, schema version {})",
-        file.display(),
-        size as f64 / 1e6,
-        store.schema_version()?
-    )?;
+    if let StoreTarget::Postgres(_) = db {
+        // The server's own tools (the password through PGPASSWORD only).
+        let file = dir.join(format!("spinbench-{stamp}.dump"));
+        spinbench_store::pg_dump(db, &file)?;
+        let size = std::fs::metadata(&file).map_or(0, |m| m.len());
+        writeln!(
+            out,
+            "backup: {} ({:.1} MB, pg_dump custom format, checked: pg_restore --list reads it); restore with `spinbench restore {} --db URL` into an empty database",
+            file.display(),
+            size as f64 / 1e6,
+            file.display()
+        )?;
+    } else {
+        let store =
+            Store::open_read_only(db).with_context(|| format!("cannot open the store {db}"))?;
+        let file = dir.join(format!("spinbench-{stamp}.db"));
+        store.backup_to(&file)?;
+        let size = std::fs::metadata(&file).map_or(0, |m| m.len());
+        writeln!(
+            out,
+            "backup: {} ({:.1} MB, checked: integrity ok, schema version {})",
+            file.display(),
+            size as f64 / 1e6,
+            store.schema_version()?
+        )?;
+    }
     if let Some(data) = data {
         let (from, to) = (
             data.join(crate::paths::RUNS_DIR),
@@ -71,8 +86,22 @@ fn copy_new_files(from: &Path, to: &Path) -> Result<usize> {
     Ok(copied)
 }
 
-/// `spinbench restore FILE --db PATH`.
-pub(super) fn restore(backup: &Path, db: &Path, out: &mut dyn Write) -> Result<()> {
+/// `spinbench restore FILE --db PATH|URL`.
+pub(super) fn restore(backup: &Path, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let db = match db {
+        StoreTarget::Postgres(_) => {
+            spinbench_store::pg_restore(db, backup)?;
+            let restored = Store::connect(db)?;
+            writeln!(
+                out,
+                "restored {} runs into {db} (schema version {})",
+                restored.runs()?.len(),
+                restored.schema_version()?
+            )?;
+            return Ok(());
+        }
+        StoreTarget::File(path) => path.as_path(),
+    };
     anyhow::ensure!(
         !db.exists(),
         "{} exists: a restore never replaces a store; move it aside first",

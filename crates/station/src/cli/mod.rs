@@ -303,9 +303,9 @@ pub enum Command {
         action: UserAction,
     },
     /// Back the store up into DIR while the station may run: an SQLite
-    /// store through SQLite's online backup API, checked; with --data, the
-    /// runs' files too (raw captures, reports). For PostgreSQL it says what
-    /// to run.
+    /// store through SQLite's online backup API, checked; a PostgreSQL
+    /// store through pg_dump (custom format), checked by pg_restore --list;
+    /// with --data, the runs' files too (raw captures, reports).
     Backup {
         /// Where the backup goes (created if missing).
         dir: PathBuf,
@@ -338,9 +338,10 @@ pub enum Command {
     Restore {
         /// The backup file.
         backup: PathBuf,
-        /// The store file to create.
-        #[arg(long, default_value = "spinbench-data/spinbench.db")]
-        db: PathBuf,
+        /// The store file to create, or a PostgreSQL URL of an empty
+        /// database (a `.dump` from a PostgreSQL backup).
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
     },
     /// The equipment register: each device's calibration certificate and
     /// due date (a run does not start while one is overdue).
@@ -399,6 +400,32 @@ pub enum UserAction {
     },
     /// List the users.
     List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Change a user's role; their sessions end on every server.
+    Role {
+        /// Login name.
+        name: String,
+        /// operator, engineer or admin.
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Change a user's password (read as for `add`); their sessions end on every server.
+    Passwd {
+        /// Login name.
+        name: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Remove a user; their sessions end on every server.
+    Remove {
+        /// Login name.
+        name: String,
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
@@ -718,6 +745,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         Command::User { action } => match action {
             UserAction::Add { name, role, db } => user::add(&name, &role, &db, out),
             UserAction::List { db } => user::list(&db, out),
+            UserAction::Role { name, role, db } => {
+                user::change(&name, Some(&role), false, &db, out)
+            }
+            UserAction::Passwd { name, db } => user::change(&name, None, true, &db, out),
+            UserAction::Remove { name, db } => user::remove(&name, &db, out),
         },
         Command::Sim {
             config,

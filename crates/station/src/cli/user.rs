@@ -8,17 +8,7 @@ use std::io::Write;
 /// `spinbench user add NAME`: the password from `SPINBENCH_PASSWORD` or one
 /// line of standard input; added the one way the web API adds users too.
 pub(super) fn add(name: &str, role: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
-    let password = match std::env::var("SPINBENCH_PASSWORD") {
-        Ok(p) => p,
-        Err(_) => {
-            eprintln!("password for {name} (one line on standard input):");
-            let mut line = String::new();
-            std::io::stdin()
-                .read_line(&mut line)
-                .context("cannot read the password")?;
-            line.trim_end_matches(['\r', '\n']).to_string()
-        }
-    };
+    let password = read_password(name)?;
     // Checked before a new store file is made for it.
     crate::web::auth::check_new_user(name, &password).map_err(anyhow::Error::msg)?;
     if let StoreTarget::File(path) = db
@@ -40,5 +30,63 @@ pub(super) fn list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     for u in store.users()? {
         writeln!(out, "{:<24} {}", u.name, u.role)?;
     }
+    Ok(())
+}
+
+/// The password from `SPINBENCH_PASSWORD`, else one line of standard input.
+fn read_password(name: &str) -> Result<String> {
+    match std::env::var("SPINBENCH_PASSWORD") {
+        Ok(p) => Ok(p),
+        Err(_) => {
+            eprintln!("password for {name} (one line on standard input):");
+            let mut line = String::new();
+            std::io::stdin()
+                .read_line(&mut line)
+                .context("cannot read the password")?;
+            Ok(line.trim_end_matches(['\r', '\n']).to_string())
+        }
+    }
+}
+
+/// `spinbench user role NAME ROLE` and `spinbench user passwd NAME`.
+pub(super) fn change(
+    name: &str,
+    role: Option<&str>,
+    password: bool,
+    db: &StoreTarget,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let password = if password {
+        Some(read_password(name)?)
+    } else {
+        None
+    };
+    let store = spinbench_store::Store::connect(db)?;
+    let by = format!("{} (command line)", crate::users::os_user());
+    let role = crate::users::change_user(&store, name, role, password.as_deref(), &by)
+        .with_context(|| format!("{db}: user '{name}'"))?;
+    writeln!(
+        out,
+        "user {name} is {}{}; their sessions have ended",
+        role.as_str(),
+        if password.is_some() {
+            ", password changed"
+        } else {
+            ""
+        }
+    )?;
+    Ok(())
+}
+
+/// `spinbench user remove NAME`.
+pub(super) fn remove(name: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = spinbench_store::Store::connect(db)?;
+    let by = format!("{} (command line)", crate::users::os_user());
+    if !crate::users::remove_user(&store, name, &by)
+        .with_context(|| format!("{db}: user '{name}'"))?
+    {
+        anyhow::bail!("{db}: no user '{name}' (spinbench user list)");
+    }
+    writeln!(out, "user {name} removed; their sessions have ended")?;
     Ok(())
 }

@@ -128,6 +128,9 @@ pub struct Session {
     /// When its use was last written to the store.
     #[serde(skip)]
     kept: Instant,
+    /// When the store last confirmed it (another server may have ended it).
+    #[serde(skip)]
+    checked: Instant,
 }
 
 fn random_token() -> String {
@@ -137,7 +140,11 @@ fn random_token() -> String {
 
 /// The open sessions: cached here, kept in the store (the SHA-256 of each
 /// token, never the token) so a restart keeps operators logged in. A kept
-/// session's role is its user's now: a user removed has no session.
+/// session's role is its user's now: a user removed has no session. The
+/// store is the truth for a fleet of servers on one store (issue 26): a
+/// cached session is confirmed against it at least every [`RECHECK`], so a
+/// logout, a user's removal or a role change on another server ends it
+/// here within that time.
 #[derive(Default)]
 pub struct Sessions {
     by_token: Mutex<HashMap<String, Session>>,
@@ -145,6 +152,9 @@ pub struct Sessions {
 
 /// How often a session's use is written to the store.
 const TOUCH_EVERY: Duration = Duration::from_secs(60);
+
+/// How long a cached session is trusted before the store confirms it again.
+pub const RECHECK: Duration = Duration::from_secs(2);
 
 /// The hex SHA-256 of a session token: what the store keeps.
 fn token_hash(token: &str) -> String {
@@ -165,6 +175,7 @@ impl Sessions {
             csrf: random_token(),
             last_seen: Instant::now(),
             kept: Instant::now(),
+            checked: Instant::now(),
         };
         // A store that cannot keep it leaves a session for this process's life.
         let _ = store.save_session(&token_hash(&token), user, &session.csrf);
@@ -194,8 +205,31 @@ impl Sessions {
             if keep {
                 session.kept = Instant::now();
             }
+            let recheck = session.checked.elapsed() >= RECHECK;
+            if recheck {
+                session.checked = Instant::now();
+            }
             let found = session.clone();
             drop(map);
+            if recheck {
+                // Ended elsewhere (logout, the user removed) or the role
+                // changed: the session is over here too. A store that
+                // cannot answer leaves the cached session.
+                let kept = store().session(&token_hash(token));
+                let over = match &kept {
+                    Ok(None) => true,
+                    Ok(Some((_, role, _, _))) => Role::parse(role) != Some(found.role),
+                    Err(_) => false,
+                };
+                if over {
+                    self.by_token
+                        .lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .remove(token);
+                    let _ = store().delete_session(&token_hash(token));
+                    return None;
+                }
+            }
             if keep {
                 let _ = store().save_session(&token_hash(token), &found.user, &found.csrf);
             }
@@ -218,6 +252,7 @@ impl Sessions {
             csrf,
             last_seen: Instant::now(),
             kept: Instant::now(),
+            checked: Instant::now(),
         };
         self.by_token
             .lock()

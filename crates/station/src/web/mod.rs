@@ -95,6 +95,10 @@ pub struct ServeArgs {
     /// The PEM private key of --tls-cert.
     #[arg(long, requires = "tls_cert")]
     pub tls_key: Option<PathBuf>,
+    /// The station's id in the fleet, instead of the station config's
+    /// `station` (several virtual benches on one store need their own).
+    #[arg(long)]
+    pub name: Option<String>,
 }
 
 impl ServeArgs {
@@ -173,6 +177,10 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             None,
         )
     };
+    let station_toml = match &args.name {
+        Some(name) => renamed(&station_toml, name)?,
+        None => station_toml,
+    };
     let station = StationConfig::from_toml(&station_toml).context("the station config")?;
     let plans_dir = args.data.join("plans");
     std::fs::create_dir_all(&plans_dir)
@@ -247,6 +255,14 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         termination_signals()
             .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
     };
+    let heartbeat = spawn_heartbeat(
+        state.clone(),
+        db.clone(),
+        format!(
+            "{}://{local}/",
+            if tls.is_some() { "https" } else { "http" }
+        ),
+    )?;
     let stopping = state.clone();
     runtime.block_on(server::serve(listener, app, limits, tls, async move {
         let reason = signals.await;
@@ -269,7 +285,97 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     }));
     // Whatever still runs goes to its safe state before the process ends.
     state.runner.shutdown("the server stopping", RUN_STOP_LIMIT);
+    state.hub.close();
+    let _ = heartbeat.join();
     Ok(())
+}
+
+/// The station config with its `station` (the fleet id) set to `name`.
+fn renamed(station_toml: &str, name: &str) -> Result<String> {
+    let name = name.trim();
+    if name.is_empty() || name.chars().count() > 64 || name.chars().any(char::is_control) {
+        anyhow::bail!(
+            "--name '{}': 1 to 64 characters, no control characters",
+            spinbench_engine::bounds::shown(name)
+        );
+    }
+    let mut table: toml::Table = station_toml.parse().context("the station config")?;
+    table.insert("station".into(), toml::Value::String(name.to_string()));
+    toml::to_string(&table).context("the station config")
+}
+
+/// How often a server writes its station's heartbeat into the store.
+const HEARTBEAT_EVERY: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// Write the station's heartbeat (state, run, progress, address) into the
+/// store every [`HEARTBEAT_EVERY`] on a thread of its own with its own
+/// connection (a store that does not answer is tried again at the next
+/// beat); once the hub closes, mark the station offline and end.
+fn spawn_heartbeat(
+    state: Arc<AppState>,
+    db: StoreTarget,
+    address: String,
+) -> Result<std::thread::JoinHandle<()>> {
+    let station = state.runner.station().0.station;
+    std::thread::Builder::new()
+        .name("heartbeat".into())
+        .spawn(move || {
+            let closing = state.hub.closing();
+            let mut store: Option<Store> = None;
+            let mut warned = false;
+            while !*closing.borrow() {
+                if store.is_none() {
+                    store = Store::connect(&db).ok();
+                }
+                let beat = heartbeat_now(&state, &station, &address);
+                if let Some(s) = &store
+                    && let Err(e) = s.heartbeat(&beat)
+                {
+                    if !warned {
+                        eprintln!(
+                            "warning: {e} (tried again every {} s)",
+                            HEARTBEAT_EVERY.as_secs()
+                        );
+                        warned = true;
+                    }
+                    store = None;
+                }
+                let until = std::time::Instant::now() + HEARTBEAT_EVERY;
+                while std::time::Instant::now() < until && !*closing.borrow() {
+                    std::thread::sleep(std::time::Duration::from_millis(100));
+                }
+            }
+            if let Some(s) = store.or_else(|| Store::connect(&db).ok()) {
+                let _ = s.station_offline(&station);
+            }
+        })
+        .context("cannot start the heartbeat thread")
+}
+
+/// The station's heartbeat now, from the hub and the runner.
+fn heartbeat_now(
+    state: &AppState,
+    station: &str,
+    address: &str,
+) -> spinbench_store::fleet::Heartbeat {
+    let status = state.hub.status();
+    let active = state.runner.active().is_some();
+    let what = match (active, status.state.as_deref()) {
+        (_, Some("faulted")) => "faulted",
+        (true, _) => "running",
+        _ => "idle",
+    };
+    spinbench_store::fleet::Heartbeat {
+        station: station.to_string(),
+        state: what.to_string(),
+        run_id: status.run_id.clone(),
+        progress: status
+            .step
+            .as_ref()
+            .filter(|_| active)
+            .map(|(index, of, _)| ((*index as i64 + 1).min(*of as i64), *of as i64)),
+        address: Some(address.to_string()),
+    }
 }
 
 /// How long shutdown waits for a run to reach its safe state.

@@ -35,6 +35,13 @@ impl Server {
         self.child.id()
     }
 
+    /// Ask the server to stop (SIGTERM), as a service manager does.
+    pub fn terminate(&self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.child.id().to_string()])
+            .status();
+    }
+
     /// Wait at most `limit` for the server to exit; its status if it did.
     pub fn wait_exit(&mut self, limit: std::time::Duration) -> Option<std::process::ExitStatus> {
         let until = std::time::Instant::now() + limit;
@@ -55,11 +62,53 @@ impl Drop for Server {
     }
 }
 
+/// The store a test's server keeps: SQLite in its data directory, or a
+/// fresh database on the test PostgreSQL server (`SPINBENCH_TEST_POSTGRES`,
+/// started by `scripts/test`). Every web test runs on both (issue 26).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Backend {
+    /// `DATA/spinbench.db`.
+    Sqlite,
+    /// A fresh PostgreSQL database.
+    Postgres,
+}
+
+/// Where `data`'s store is written down for [`store_of`].
+const STORE_URL_FILE: &str = "test-store-url";
+
+impl Backend {
+    /// Make `data`'s store on this back end: every later [`add_user`] and
+    /// [`serve`] on `data` uses it.
+    pub fn prepare(self, data: &Path) {
+        if self == Backend::Postgres {
+            let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+            let url = spinbench_store::testing::fresh_postgres_database(&admin)
+                .expect("a fresh PostgreSQL database");
+            std::fs::write(data.join(STORE_URL_FILE), url).expect("write the store's URL");
+        }
+    }
+}
+
+/// Let `other` keep the same store as `data` (two servers of a fleet).
+pub fn share_store(data: &Path, other: &Path) {
+    if let Ok(url) = std::fs::read_to_string(data.join(STORE_URL_FILE)) {
+        std::fs::write(other.join(STORE_URL_FILE), url).expect("write the store's URL");
+    }
+}
+
+/// The store `data`'s server keeps: the `--db` argument.
+pub fn store_of(data: &Path) -> std::ffi::OsString {
+    match std::fs::read_to_string(data.join(STORE_URL_FILE)) {
+        Ok(url) => url.trim().into(),
+        Err(_) => data.join("spinbench.db").into_os_string(),
+    }
+}
+
 /// Add a user through the command line (as the first admin is made).
 pub fn add_user(data: &Path, name: &str, role: &str, password: &str) {
     let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
         .args(["user", "add", name, "--role", role, "--db"])
-        .arg(data.join("spinbench.db"))
+        .arg(store_of(data))
         .env("SPINBENCH_PASSWORD", password)
         .output()
         .expect("spinbench user add");
@@ -77,6 +126,17 @@ pub fn serve(data: &Path, sim_speed: &str) -> Server {
 
 /// As [`serve`], with more options.
 pub fn serve_with(data: &Path, sim_speed: &str, extra: &[&str]) -> Server {
+    spawn_server(data, sim_speed, extra, Stdio::inherit())
+}
+
+/// As [`serve_with`], the server's standard error written to `log` (to look
+/// for panics in it).
+pub fn serve_logged(data: &Path, sim_speed: &str, extra: &[&str], log: &Path) -> Server {
+    let file = std::fs::File::create(log).expect("the server's log file");
+    spawn_server(data, sim_speed, extra, Stdio::from(file))
+}
+
+fn spawn_server(data: &Path, sim_speed: &str, extra: &[&str], stderr: Stdio) -> Server {
     let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
         .args([
             "serve",
@@ -88,9 +148,11 @@ pub fn serve_with(data: &Path, sim_speed: &str, extra: &[&str]) -> Server {
             "--data",
         ])
         .arg(data)
+        .arg("--db")
+        .arg(store_of(data))
         .args(extra)
         .stdout(Stdio::piped())
-        .stderr(Stdio::inherit())
+        .stderr(stderr)
         .spawn()
         .expect("spinbench serve");
     let stdout = child.stdout.take().expect("stdout");

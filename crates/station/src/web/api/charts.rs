@@ -32,20 +32,20 @@ pub(super) async fn control_charts(
     q: Result<Query<Baseline>, QueryRejection>,
 ) -> ApiResult<Json<ChartsReply>> {
     use spinbench_report::control::{DEFAULT_BASELINE_RUNS, control_chart_svg};
-    let session = authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
     let Query(q) = q.map_err(query_error)?;
     // The rules' texts in the user's language (`rule` is the stable name).
-    let lang = super::session::language_of(&app, &headers, Some(&session));
+    let lang = super::session::language_of(&app, &headers, Some(&session)).await;
     let baseline = q.baseline_runs.unwrap_or(DEFAULT_BASELINE_RUNS);
     if !(1..=MAX_BASELINE_RUNS).contains(&baseline) {
         return Err(ApiError::bad(format!(
             "baseline_runs = {baseline}: from 1 to {MAX_BASELINE_RUNS} runs"
         )));
     }
-    let mut batch = {
-        let store = store(&app);
-        spinbench_report::gather_batch(&store, &[])
-    }
+    let mut batch = blocking(&app, |app| {
+        Ok(spinbench_report::gather_batch(&store(app), &[]))
+    })
+    .await?
     .map_err(|e| ApiError::internal(e.to_string()))?;
     batch.rebaseline(baseline);
     let c = &batch.control;

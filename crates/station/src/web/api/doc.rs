@@ -53,7 +53,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::unit,
         charts::control_charts,
         equipment::equipment, equipment::set_equipment,
-        users::users, users::add_user, users::delete_user, users::audit_log,
+        live::fleet, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
     ),
     // Types used only as parameters are listed, so their references resolve.
     components(schemas(schema::ReportFormatName, schema::LanguageTag)),

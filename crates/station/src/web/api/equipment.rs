@@ -17,9 +17,12 @@ pub(super) async fn equipment(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<EquipmentEntry>>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
     let station = app.runner.station().0;
-    let list = crate::equipment::station_equipment(&store(&app), &station)?;
+    let list = blocking(&app, move |app| {
+        Ok(crate::equipment::station_equipment(&store(app), &station)?)
+    })
+    .await?;
     Ok(Json(
         list.iter()
             .map(|(role, row, status)| EquipmentEntry {
@@ -57,7 +60,7 @@ pub(super) async fn set_equipment(
     Path(role): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<EquipmentSaved>> {
-    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
     // The device first: a body for a device the station has not is not looked at.
     let roles = app.runner.station().0.device_roles();
     if !roles.contains(&role) {
@@ -100,9 +103,10 @@ pub(super) async fn set_equipment(
         updated_by: session.user.clone(),
         updated_at: 0,
     };
-    store(&app).set_equipment(&row, &session.user)?;
-    Ok(Json(EquipmentSaved {
-        role,
-        due_on: row.due_on,
-    }))
+    let due_on = row.due_on.clone();
+    blocking(&app, move |app| {
+        Ok(store(app).set_equipment(&row, &session.user)?)
+    })
+    .await?;
+    Ok(Json(EquipmentSaved { role, due_on }))
 }

@@ -1,7 +1,7 @@
 //! The station's status now and the live event stream (server-sent events
 //! with catch-up), both from the hub.
 
-use super::schema::{ErrorBody, StatusReply};
+use super::schema::{ErrorBody, FleetStation, StatusReply};
 use super::*;
 
 /// The station now: run, step, rate, supplies, interlocks, modules, the board.
@@ -15,7 +15,7 @@ pub(super) async fn status(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<StatusReply>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
     let mut snapshot = app.hub.status();
     // The runner's prompt is the one waiting now (the hub's may be answered).
     snapshot.prompt = app.runner.prompt();
@@ -50,7 +50,7 @@ pub(super) async fn events(
     headers: HeaderMap,
     q: Result<Query<Since>, QueryRejection>,
 ) -> ApiResult<Sse<impl Stream<Item = Result<SseEvent, Infallible>>>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
     let Query(q) = q.map_err(query_error)?;
     let last = headers
         .get("last-event-id")
@@ -60,19 +60,34 @@ pub(super) async fn events(
         .unwrap_or(0);
     let rx = app.hub.subscribe();
     let backlog = app.hub.since(last);
+    // The stream ends with its session (a logout or the user's removal on
+    // any server of the fleet): checked every second.
+    let token = headers
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(auth::session_token)
+        .unwrap_or_default();
     struct Feed {
         backlog: std::vec::IntoIter<Arc<crate::web::hub::HubEvent>>,
         rx: tokio::sync::broadcast::Receiver<Arc<crate::web::hub::HubEvent>>,
         closing: tokio::sync::watch::Receiver<bool>,
         last: u64,
         last_values: Option<Instant>,
+        app: App,
+        token: String,
+        check: tokio::time::Interval,
     }
+    let mut check = tokio::time::interval(Duration::from_secs(1));
+    check.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let feed = Feed {
         backlog: backlog.into_iter(),
         rx,
         closing: app.hub.closing(),
         last,
         last_values: None,
+        app: app.clone(),
+        token,
+        check,
     };
     let stream = futures_util::stream::unfold(feed, |mut feed| async move {
         loop {
@@ -85,6 +100,18 @@ pub(super) async fn events(
                     let received = tokio::select! {
                         received = feed.rx.recv() => received,
                         _ = feed.closing.changed() => return None,
+                        _ = feed.check.tick() => {
+                            let token = feed.token.clone();
+                            let open = blocking(&feed.app, move |app| {
+                                Ok(app.sessions.get(&app.store, &token).is_some())
+                            })
+                            .await
+                            .unwrap_or(true);
+                            if !open {
+                                return None;
+                            }
+                            continue;
+                        }
                     };
                     match received {
                         Ok(e) => e,
@@ -116,4 +143,39 @@ pub(super) async fn events(
         }
     });
     Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+}
+
+/// Every station of the fleet on this store: state, current run, progress,
+/// today's first-pass yield.
+#[utoipa::path(get, path = "/api/fleet", tag = "live",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the stations, by id", body = Vec<FleetStation>),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
+pub(super) async fn fleet(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<Json<Vec<FleetStation>>> {
+    authorize(&app, &headers, Role::Operator, false).await?;
+    let this = app.runner.station().0.station;
+    let rows = blocking(&app, |app| Ok(store(app).stations()?)).await?;
+    Ok(Json(
+        rows.into_iter()
+            .map(|r| FleetStation {
+                this_station: r.beat.station == this,
+                station: r.beat.station,
+                state: r.beat.state,
+                run_id: r.beat.run_id,
+                steps_done: r.beat.progress.map(|p| p.0),
+                steps_total: r.beat.progress.map(|p| p.1),
+                address: r.beat.address,
+                last_seen: r.last_seen,
+                tested_today: r.tested_today,
+                passed_today: r.passed_today,
+                first_pass_yield: (r.tested_today > 0)
+                    .then(|| r.passed_today as f64 / r.tested_today as f64),
+            })
+            .collect(),
+    ))
 }

@@ -99,23 +99,27 @@ type ApiResult<T> = Result<T, ApiError>;
 
 /// The session of the request, checked for its role and (when the request
 /// changes something) its CSRF token.
-pub(super) fn authorize(
-    app: &AppState,
+pub(super) async fn authorize(
+    app: &App,
     headers: &HeaderMap,
     min: Role,
     changes: bool,
 ) -> ApiResult<Session> {
-    let session = headers
+    let token = headers
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
-        .and_then(auth::session_token)
-        .and_then(|t| app.sessions.get(&app.store, &t))
-        .ok_or_else(|| {
-            ApiError::new(
-                StatusCode::UNAUTHORIZED,
-                "not logged in: POST /api/login first",
-            )
-        })?;
+        .and_then(auth::session_token);
+    let session = match token {
+        // The session may have to be read from the store (another server's).
+        Some(t) => blocking(app, move |app| Ok(app.sessions.get(&app.store, &t))).await?,
+        None => None,
+    };
+    let session = session.ok_or_else(|| {
+        ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "not logged in: POST /api/login first",
+        )
+    })?;
     if changes {
         let sent = headers
             .get(CSRF_HEADER)
@@ -151,11 +155,38 @@ fn parse_json<T: for<'de> Deserialize<'de>>(body: &[u8]) -> ApiResult<T> {
     serde_json::from_slice(body).map_err(|e| ApiError::bad(format!("the request body: {e}")))
 }
 
+/// The one way a handler reaches the store (issue 26): `work` runs on
+/// tokio's blocking pool, never on a runtime thread. The store's
+/// connections are synchronous — rusqlite, and the `postgres` client, which
+/// drives its own small runtime and panics inside another's — and a query
+/// on a runtime thread would stall every request that thread serves. One
+/// boundary for both back ends keeps one store API (the CLI's and the
+/// engine's sink use it directly, off any runtime); the queries are short
+/// and the blocking pool is sized for them (512 threads by default).
+pub(super) async fn blocking<T: Send + 'static>(
+    app: &App,
+    work: impl FnOnce(&AppState) -> ApiResult<T> + Send + 'static,
+) -> ApiResult<T> {
+    let app = Arc::clone(app);
+    tokio::task::spawn_blocking(move || work(&app))
+        .await
+        .map_err(|e| ApiError::internal(format!("the store's call did not finish: {e}")))?
+}
+
+/// The store, locked: only inside [`blocking`] (the lock and the queries
+/// block).
 pub(super) fn store(app: &AppState) -> std::sync::MutexGuard<'_, spinbench_store::Store> {
     app.store.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-pub(super) fn audit(app: &AppState, who: &str, action: &str, detail: &str) -> ApiResult<()> {
+/// Write an entry of the audit log (through [`blocking`]).
+pub(super) async fn audit(app: &App, who: &str, action: &str, detail: &str) -> ApiResult<()> {
+    let (who, action, detail) = (who.to_string(), action.to_string(), detail.to_string());
+    blocking(app, move |app| audit_now(app, &who, &action, &detail)).await
+}
+
+/// Write an entry of the audit log: only inside [`blocking`].
+pub(super) fn audit_now(app: &AppState, who: &str, action: &str, detail: &str) -> ApiResult<()> {
     store(app)
         .audit(who, action, detail)
         .map_err(ApiError::from)
@@ -213,7 +244,9 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/api/users", get(users::users)),
         ("post", "/api/users", post(users::add_user)),
         ("delete", "/api/users/{name}", delete(users::delete_user)),
+        ("put", "/api/users/{name}", put(users::change_user)),
         ("get", "/api/audit", get(users::audit_log)),
+        ("get", "/api/fleet", get(live::fleet)),
     ]
 }
 

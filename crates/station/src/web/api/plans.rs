@@ -23,7 +23,7 @@ pub(super) async fn plans(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<PlansReply>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
     let mut out = Vec::new();
     let dir = std::fs::read_dir(&app.plans_dir)
         .map_err(|e| ApiError::internal(format!("{}: {e}", app.plans_dir.display())))?;
@@ -68,7 +68,7 @@ pub(super) async fn save_plan(
     Path(name): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<PlanSaved>> {
-    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
     if !plan_name_ok(&name) {
         return Err(ApiError::bad(format!(
             "plan name '{name}': 1 to 64 letters, digits, - or _"
@@ -82,7 +82,7 @@ pub(super) async fn save_plan(
     let path = app.plans_dir.join(format!("{name}.toml"));
     std::fs::write(&path, text)
         .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
-    audit(&app, &session.user, "save plan", &name)?;
+    audit(&app, &session.user, "save plan", &name).await?;
     Ok(Json(PlanSaved { name, saved: true }))
 }
 
@@ -97,7 +97,7 @@ pub(super) async fn station(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<StationReply>> {
-    authorize(&app, &headers, Role::Operator, false)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
     let (s, text) = app.runner.station();
     Ok(Json(StationReply {
         slots: s.slots(),
@@ -124,7 +124,7 @@ pub(super) async fn save_station(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Json<Saved>> {
-    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
     let text = std::str::from_utf8(&body)
         .map_err(|_| ApiError::bad("the station config is not UTF-8 text"))?;
     let config = spinbench_engine::StationConfig::from_toml(text)
@@ -144,6 +144,7 @@ pub(super) async fn save_station(
         &session.user,
         "save station config",
         &path.display().to_string(),
-    )?;
+    )
+    .await?;
     Ok(Json(Saved { saved: true }))
 }

@@ -28,7 +28,7 @@ pub(super) async fn start_run(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<(StatusCode, Json<RunId>)> {
-    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
     let start: StartRun = parse_json(&body)?;
     if !plan_name_ok(&start.plan) {
         return Err(ApiError::bad(format!(
@@ -50,8 +50,8 @@ pub(super) async fn start_run(
         plan.serials = serials;
     }
     plan.operator = session.user.clone();
-    let overridden = check_equipment(&app, &session, start.override_overdue.as_deref())?;
-    let run_id = start_plan(&app, &plan, &session.user)?;
+    let overridden = check_equipment(&app, &session, start.override_overdue.as_deref()).await?;
+    let run_id = start_plan(&app, &plan, &session.user).await?;
     if let Some(devices) = overridden {
         audit(
             &app,
@@ -61,7 +61,8 @@ pub(super) async fn start_run(
                 "{run_id} started with {devices} overdue: {}",
                 start.override_overdue.as_deref().unwrap_or_default()
             ),
-        )?;
+        )
+        .await?;
     }
     let serial_list: Vec<String> = plan
         .serials
@@ -77,19 +78,23 @@ pub(super) async fn start_run(
             start.plan,
             serial_list.join(" ")
         ),
-    )?;
+    )
+    .await?;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }
 
 /// Refuse a run while a device is overdue for calibration, unless an admin
 /// gives a reason to override (then the overdue devices, for the audit log).
-fn check_equipment(
+async fn check_equipment(
     app: &App,
     session: &Session,
     override_reason: Option<&str>,
 ) -> ApiResult<Option<String>> {
     let station = app.runner.station().0;
-    let list = crate::equipment::station_equipment(&store(app), &station)?;
+    let list = blocking(app, move |app| {
+        Ok(crate::equipment::station_equipment(&store(app), &station)?)
+    })
+    .await?;
     let Some(late) = crate::equipment::overdue(&list) else {
         return Ok(None);
     };
@@ -114,20 +119,24 @@ fn check_equipment(
     }
 }
 
-/// Start `plan` on the station for `user`; the run's id.
-fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
+/// Start `plan` on the station for `user`; the run's id. Off the runtime:
+/// starting opens the store, the run's files and the devices' ports.
+async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
     let plan_text = toml::to_string(plan).map_err(|e| ApiError::internal(e.to_string()))?;
-    app.runner
-        .start(plan.clone(), &plan_text, user)
-        .map_err(|e| match e {
-            StartError::Busy(id) => ApiError::conflict(format!(
-                "run {id} is active; wait for it to end or abort it"
-            ))
-            .worded(Wording::new("error.busy").with("run", id)),
-            StartError::Invalid(why) => ApiError::bad(why),
-            StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
-            StartError::Files(why) => ApiError::internal(why),
-        })
+    let (plan, user) = (plan.clone(), user.to_string());
+    blocking(app, move |app| {
+        Ok(app.runner.start(plan, &plan_text, &user))
+    })
+    .await?
+    .map_err(|e| match e {
+        StartError::Busy(id) => ApiError::conflict(format!(
+            "run {id} is active; wait for it to end or abort it"
+        ))
+        .worded(Wording::new("error.busy").with("run", id)),
+        StartError::Invalid(why) => ApiError::bad(why),
+        StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
+        StartError::Files(why) => ApiError::internal(why),
+    })
 }
 
 /// `POST /api/runs/{id}/retest`: a run of the finished run's failed,
@@ -152,8 +161,12 @@ pub(super) async fn retest(
 ) -> ApiResult<(StatusCode, Json<RetestStarted>)> {
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
-    let session = authorize(&app, &headers, Role::Operator, true)?;
-    let found = retest_plan_from_store(&store(&app), &id);
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
+    let asked = id.clone();
+    let found = blocking(&app, move |app| {
+        Ok(retest_plan_from_store(&store(app), &asked))
+    })
+    .await?;
     let (mut plan, serials, _) = found.map_err(|e| match e {
         E::NotFound(_) => ApiError::new(StatusCode::NOT_FOUND, e.to_string()),
         E::NotEnded(..)
@@ -166,14 +179,15 @@ pub(super) async fn retest(
         E::Store(s) => ApiError::from(s),
     })?;
     plan.operator = session.user.clone();
-    check_equipment(&app, &session, None)?;
-    let run_id = start_plan(&app, &plan, &session.user)?;
+    check_equipment(&app, &session, None).await?;
+    let run_id = start_plan(&app, &plan, &session.user).await?;
     audit(
         &app,
         &session.user,
         "retest run",
         &format!("{run_id} retests {id}: {}", serials.join(" ")),
-    )?;
+    )
+    .await?;
     Ok((
         StatusCode::CREATED,
         Json(RetestStarted {
@@ -201,7 +215,7 @@ pub(super) async fn answer_prompt(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Json<RunId>> {
-    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
     let answer: PromptAnswer = parse_json(&body)?;
     let prompt = app.runner.prompt().unwrap_or_default();
     let run_id = app
@@ -217,19 +231,20 @@ pub(super) async fn answer_prompt(
             "answer prompt: abort"
         },
         &format!("{run_id}: {prompt}"),
-    )?;
+    )
+    .await?;
     Ok(Json(RunId { run_id }))
 }
 
 pub(super) async fn control(
-    app: &AppState,
+    app: &App,
     headers: &HeaderMap,
     action: &str,
     act: impl FnOnce(&crate::web::runner::Runner, &str) -> Result<String, String>,
 ) -> ApiResult<Json<RunId>> {
-    let session = authorize(app, headers, Role::Operator, true)?;
+    let session = authorize(app, headers, Role::Operator, true).await?;
     let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
-    audit(app, &session.user, action, &run_id)?;
+    audit(app, &session.user, action, &run_id).await?;
     Ok(Json(RunId { run_id }))
 }
 
@@ -298,8 +313,8 @@ pub(super) async fn runs(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<RunEntry>>> {
-    authorize(&app, &headers, Role::Operator, false)?;
-    let runs = store(&app).runs()?;
+    authorize(&app, &headers, Role::Operator, false).await?;
+    let runs = blocking(&app, |app| Ok(store(app).runs()?)).await?;
     Ok(Json(runs.iter().map(RunEntry::from).collect()))
 }
 
@@ -317,13 +332,14 @@ pub(super) async fn run(
     headers: HeaderMap,
     Path(id): Path<String>,
 ) -> ApiResult<Json<RunDetail>> {
-    let session = authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
     // The results' reasons in the user's language (the records keep codes).
-    let lang = super::session::language_of(&app, &headers, Some(&session));
-    let report = {
-        let store = store(&app);
-        spinbench_report::gather(&store, &id)
-    }
+    let lang = super::session::language_of(&app, &headers, Some(&session)).await;
+    let asked = id.clone();
+    let report = blocking(&app, move |app| {
+        Ok(spinbench_report::gather(&store(app), &asked))
+    })
+    .await?
     .map_err(|e| match e {
         spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
         other => ApiError::internal(other.to_string()),
@@ -402,7 +418,7 @@ pub(super) async fn report(
     Path((id, format)): Path<(String, String)>,
     q: Result<Query<ReportQuery>, QueryRejection>,
 ) -> ApiResult<Response> {
-    let session = authorize(&app, &headers, Role::Operator, false)?;
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
     let Query(q) = q.map_err(query_error)?;
     let format = ReportFormat::parse(&format).ok_or_else(|| {
         ApiError::bad(format!(
@@ -416,7 +432,7 @@ pub(super) async fn report(
                 tag.chars().take(40).collect::<String>()
             ))
         })?,
-        None => super::session::language_of(&app, &headers, Some(&session)),
+        None => super::session::language_of(&app, &headers, Some(&session)).await,
     };
     let db = app.db.clone();
     let run_id = id.clone();
@@ -459,8 +475,9 @@ pub(super) async fn unit(
     headers: HeaderMap,
     Path(serial): Path<String>,
 ) -> ApiResult<Json<UnitHistory>> {
-    authorize(&app, &headers, Role::Operator, false)?;
-    let history = store(&app).unit_history(&serial)?;
+    authorize(&app, &headers, Role::Operator, false).await?;
+    let asked = serial.clone();
+    let history = blocking(&app, move |app| Ok(store(app).unit_history(&asked)?)).await?;
     if history.is_empty() {
         return Err(ApiError::not_found(format!(
             "no run holds serial '{serial}'"
@@ -504,7 +521,7 @@ pub(super) async fn exclude_level(
     Path(id): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<Excluded>> {
-    let session = authorize(&app, &headers, Role::Engineer, true)?;
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
     let ask: ExcludeLevel = parse_json(&body)?;
     if !(ask.g.is_finite() && (0.0..=spinbench_engine::bounds::MAX_LEVEL_G).contains(&ask.g)) {
         return Err(ApiError::bad(format!(
@@ -522,7 +539,8 @@ pub(super) async fn exclude_level(
             "run {id} is still going; leave levels out once it has ended"
         )));
     }
-    let store = store(&app);
+    blocking(&app, move |app| {
+    let store = store(app);
     let run = store
         .run(&id)?
         .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
@@ -586,4 +604,6 @@ pub(super) async fn exclude_level(
         k2_max_ug_per_g2: after.k2_max_ug_per_g2,
         serial: after.serial,
     }))
+    })
+    .await
 }

@@ -516,6 +516,18 @@ pub struct NewUser {
     pub password: String,
 }
 
+/// A change of a user (an admin): role and/or password; either may be left out.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ChangeUser {
+    /// The new role.
+    #[schema(value_type = Option<crate::web::auth::Role>)]
+    pub role: Option<String>,
+    /// The new password, at least 8 characters.
+    #[schema(min_length = 8, max_length = 1024)]
+    pub password: Option<String>,
+}
+
 /// Its answer.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct UserAdded {
@@ -538,4 +550,31 @@ pub struct AuditEntry {
     pub action: String,
     /// The details.
     pub detail: String,
+}
+
+/// One station of the fleet (every station writing into this store).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct FleetStation {
+    /// The station's id (its config's `station`).
+    pub station: String,
+    /// `idle`, `running`, `faulted` or `offline` (no heartbeat for 10 s).
+    pub state: String,
+    /// Its current or last run.
+    pub run_id: Option<String>,
+    /// Steps done of the current run.
+    pub steps_done: Option<i64>,
+    /// Steps in the current run.
+    pub steps_total: Option<i64>,
+    /// Where its web UI answers.
+    pub address: Option<String>,
+    /// When it was last heard [Unix s].
+    pub last_seen: i64,
+    /// Instruments graded today (UTC) in first tests.
+    pub tested_today: i64,
+    /// Of them, passed.
+    pub passed_today: i64,
+    /// First-pass yield today (passed over tested), absent with none tested.
+    pub first_pass_yield: Option<f64>,
+    /// This is the station of the server answering.
+    pub this_station: bool,
 }

@@ -54,18 +54,19 @@ pub(super) async fn login(
             .insert(header::RETRY_AFTER, HeaderValue::from(locked.retry_after_s));
         return Ok(response);
     }
-    let user = match auth::normalise_user_name(&login.user) {
-        Ok(name) => store(&app).user(&name)?,
-        Err(_) => None,
-    };
-    let ok = match &user {
-        Some(u) => auth::verify_password(&login.password, &u.password_hash),
-        None => {
-            // Spend the time a check takes, so a missing name is not faster to find.
-            let _ = auth::hash_password(&login.password);
-            false
-        }
-    };
+    let known = auth::normalise_user_name(&login.user).ok();
+    let password = login.password.clone();
+    // The store's row and the password's check (a deliberately slow hash)
+    // both off the runtime.
+    let (user, ok) = blocking(&app, move |app| {
+        let user = match known {
+            Some(name) => store(app).user(&name)?,
+            None => None,
+        };
+        let ok = check_password(&password, user.as_ref());
+        Ok((user, ok))
+    })
+    .await?;
     let role = user.as_ref().and_then(|u| Role::parse(&u.role));
     let (true, Some(role)) = (ok, role) else {
         audit(
@@ -73,7 +74,8 @@ pub(super) async fn login(
             &name,
             "login refused",
             &format!("wrong user name or password (from {})", peer.ip()),
-        )?;
+        )
+        .await?;
         for what in app.logins.failed(&name, peer.ip()) {
             audit(
                 &app,
@@ -83,7 +85,8 @@ pub(super) async fn login(
                     "{what} locked for {} s after repeated failures",
                     crate::web::throttle::LOCKOUT.as_secs()
                 ),
-            )?;
+            )
+            .await?;
         }
         return Err(ApiError::new(
             StatusCode::UNAUTHORIZED,
@@ -91,8 +94,12 @@ pub(super) async fn login(
         ));
     };
     app.logins.succeeded(&name);
-    let (token, session) = app.sessions.open(&store(&app), &name, role);
-    audit(&app, &name, "login", role.as_str())?;
+    let opened = name.clone();
+    let (token, session) = blocking(&app, move |app| {
+        Ok(app.sessions.open(&store(app), &opened, role))
+    })
+    .await?;
+    audit(&app, &name, "login", role.as_str()).await?;
     let mut response = Json(reply(&session, None)).into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
@@ -115,15 +122,19 @@ pub(super) async fn logout(
     headers: HeaderMap,
     _body: Bytes,
 ) -> ApiResult<Response> {
-    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
     if let Some(token) = headers
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
         .and_then(auth::session_token)
     {
-        app.sessions.close(&store(&app), &token);
+        blocking(&app, move |app| {
+            app.sessions.close(&store(app), &token);
+            Ok(())
+        })
+        .await?;
     }
-    audit(&app, &session.user, "logout", "")?;
+    audit(&app, &session.user, "logout", "").await?;
     let mut response = StatusCode::NO_CONTENT.into_response();
     response.headers_mut().insert(
         header::SET_COOKIE,
@@ -144,25 +155,43 @@ pub(super) async fn session(
     State(app): State<App>,
     headers: HeaderMap,
 ) -> ApiResult<Json<SessionReply>> {
-    let session = authorize(&app, &headers, Role::Operator, false)?;
-    let language = language_of(&app, &headers, Some(&session));
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
+    let language = language_of(&app, &headers, Some(&session)).await;
     Ok(Json(reply(&session, Some(language))))
+}
+
+/// Whether `password` is the user's; without a user, the time a check
+/// takes is spent anyway, so a missing name is not faster to find.
+fn check_password(password: &str, user: Option<&spinbench_store::UserRow>) -> bool {
+    match user {
+        Some(u) => auth::verify_password(password, &u.password_hash),
+        None => {
+            let _ = auth::hash_password(password);
+            false
+        }
+    }
 }
 
 /// The language of a request: the user's own choice, else the browser's
 /// `Accept-Language`, else English.
-pub(super) fn language_of(app: &App, headers: &HeaderMap, session: Option<&Session>) -> Lang {
-    session
-        .and_then(|s| store(app).user_language(&s.user).ok().flatten())
-        .and_then(|tag| Lang::parse(&tag))
-        .unwrap_or_else(|| {
-            Lang::from_accept_language(
-                headers
-                    .get(header::ACCEPT_LANGUAGE)
-                    .and_then(|v| v.to_str().ok())
-                    .unwrap_or(""),
-            )
+pub(super) async fn language_of(app: &App, headers: &HeaderMap, session: Option<&Session>) -> Lang {
+    let chosen = match session.map(|s| s.user.clone()) {
+        Some(user) => blocking(app, move |app| {
+            Ok(store(app).user_language(&user).ok().flatten())
         })
+        .await
+        .ok()
+        .flatten(),
+        None => None,
+    };
+    chosen.and_then(|tag| Lang::parse(&tag)).unwrap_or_else(|| {
+        Lang::from_accept_language(
+            headers
+                .get(header::ACCEPT_LANGUAGE)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or(""),
+        )
+    })
 }
 
 /// `PUT /api/session/language`: the user's language, kept in the store.
@@ -180,7 +209,7 @@ pub(super) async fn set_language(
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Json<Language>> {
-    let session = authorize(&app, &headers, Role::Operator, true)?;
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
     let set: Language = parse_json(&body)?;
     let lang = Lang::parse(&set.language).ok_or_else(|| {
         ApiError::bad(format!(
@@ -188,7 +217,11 @@ pub(super) async fn set_language(
             set.language.chars().take(40).collect::<String>()
         ))
     })?;
-    store(&app).set_user_language(&session.user, lang.code())?;
+    let user = session.user.clone();
+    blocking(&app, move |app| {
+        Ok(store(app).set_user_language(&user, lang.code())?)
+    })
+    .await?;
     Ok(Json(Language {
         language: lang.code().to_string(),
     }))

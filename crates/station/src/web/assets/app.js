@@ -134,7 +134,7 @@ async function chooseLanguage() {
 function route() {
   const page = (location.hash || "#status").slice(1);
   const loggedIn = !!state.session;
-  for (const id of ["login", "status", "run", "new", "history", "charts", "equipment", "users"]) {
+  for (const id of ["login", "status", "run", "new", "history", "charts", "equipment", "fleet", "users"]) {
     $(id).hidden = loggedIn ? id !== page : id !== "login";
   }
   $("nav").hidden = !loggedIn;
@@ -145,6 +145,7 @@ function route() {
   if (page === "history") loadHistory();
   if (page === "charts") loadCharts();
   if (page === "equipment") loadEquipment();
+  if (page === "fleet") loadFleet();
   if (page === "new") $("override-box").hidden = !(state.session && state.session.role === "admin");
   if (page === "users") loadUsers();
   if (page === "run") draw();
@@ -737,6 +738,30 @@ async function loadCharts() {
 
 // The equipment register: every device with its calibration status;
 // engineers and admins keep it (each change in the audit log).
+// The fleet: every station on this store, refreshed every 3 s while shown.
+let fleetTimer = null;
+async function loadFleet() {
+  clearTimeout(fleetTimer);
+  if ((location.hash || "#status") !== "#fleet" || !state.session) return;
+  try {
+    const list = await api("GET", "/api/fleet");
+    const body = $("fleet-table").tBodies[0];
+    body.textContent = "";
+    for (const st of list) {
+      const tr = body.insertRow();
+      tr.dataset.station = st.station;
+      tr.dataset.state = st.state;
+      const what = st.state === "offline" ? word("web.fleet.offline", "offline") : stateWord(st.state);
+      const progress = st.steps_total ? st.steps_done + " / " + st.steps_total : "—";
+      const fpy = st.first_pass_yield === null || st.first_pass_yield === undefined ? "—"
+        : (100 * st.first_pass_yield).toFixed(0) + " % (" + st.passed_today + "/" + st.tested_today + ")";
+      [st.station + (st.this_station ? " *" : ""), what, st.run_id || "—", progress, fpy, fmtTime(st.last_seen)]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 1) td.className = "fleet " + st.state; });
+    }
+  } catch (e) { show(e.message); }
+  fleetTimer = setTimeout(loadFleet, 3000);
+}
+
 async function loadEquipment() {
   try {
     const list = await api("GET", "/api/equipment");

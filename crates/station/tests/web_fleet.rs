@@ -1,0 +1,219 @@
+//! The fleet (issue 26): two `spinbench serve --simulate` stations on one
+//! PostgreSQL store run a test each at the same time; each server lists
+//! both stations and both runs; the fleet view follows them from running to
+//! idle to offline; a user removed on one server is refused on the other
+//! within 5 s and their event stream there ends; neither server panics.
+
+#[path = "common/web.rs"]
+mod web;
+
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::io::{BufRead, BufReader};
+use std::time::{Duration, Instant};
+use web::{Backend, Client, add_user, serve_logged, share_store};
+
+/// Each station's state in `/api/fleet`.
+fn fleet(c: &mut Client) -> BTreeMap<String, String> {
+    c.get_json("/api/fleet", 200)
+        .as_array()
+        .expect("a list")
+        .iter()
+        .map(|s| {
+            (
+                s["station"].as_str().unwrap_or("").to_string(),
+                s["state"].as_str().unwrap_or("").to_string(),
+            )
+        })
+        .collect()
+}
+
+/// Poll the fleet until `want` holds (at most `seconds`).
+fn wait_fleet(
+    c: &mut Client,
+    seconds: u64,
+    what: &str,
+    want: impl Fn(&BTreeMap<String, String>) -> bool,
+) {
+    let until = Instant::now() + Duration::from_secs(seconds);
+    loop {
+        let now = fleet(c);
+        if want(&now) {
+            return;
+        }
+        assert!(
+            Instant::now() < until,
+            "the fleet is not {what} after {seconds} s: {now:?}"
+        );
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+#[test]
+fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
+    let a_dir = tempfile::tempdir().expect("tempdir");
+    let b_dir = tempfile::tempdir().expect("tempdir");
+    Backend::Postgres.prepare(a_dir.path());
+    share_store(a_dir.path(), b_dir.path());
+    add_user(a_dir.path(), "admin", "admin", "admin-password");
+    add_user(a_dir.path(), "op", "operator", "op-password");
+    add_user(a_dir.path(), "op2", "operator", "op2-password");
+    for dir in [a_dir.path(), b_dir.path()] {
+        std::fs::create_dir_all(dir.join("plans")).expect("plans");
+        std::fs::write(
+            dir.join("plans").join("fleet.toml"),
+            web::short_plan("fleet test", &[]),
+        )
+        .expect("plan");
+    }
+    let logs = tempfile::tempdir().expect("tempdir");
+    let (a_log, b_log) = (logs.path().join("a.log"), logs.path().join("b.log"));
+    let a = serve_logged(a_dir.path(), "0", &["--name", "station-a"], &a_log);
+    let b = serve_logged(b_dir.path(), "0", &["--name", "station-b"], &b_log);
+    let mut op_a = Client::login(&a, "op", "op-password");
+    let mut op_b = Client::login(&b, "op", "op-password");
+
+    // A test on each, at the same time.
+    let mut runs = Vec::new();
+    for (c, serial) in [(&mut op_a, "FA-1"), (&mut op_b, "FB-1")] {
+        let r = c.send(
+            "POST",
+            "/api/runs",
+            Some(&json!({"plan": "fleet", "serials": {"1": serial}}).to_string()),
+        );
+        assert_eq!(r.status, 201, "{:?}", r.json());
+        runs.push(r.json()["run_id"].as_str().expect("run id").to_string());
+    }
+    wait_fleet(&mut op_a, 20, "both running", |f| {
+        f.get("station-a").map(String::as_str) == Some("running")
+            && f.get("station-b").map(String::as_str) == Some("running")
+    });
+    // Answer both stations' prompts until both runs end.
+    let until = Instant::now() + Duration::from_secs(300);
+    let mut done = [false, false];
+    while done != [true, true] {
+        assert!(Instant::now() < until, "the runs did not end in 300 s");
+        for (k, c) in [&mut op_a, &mut op_b].into_iter().enumerate() {
+            if done[k] {
+                continue;
+            }
+            let s = c.get_json("/api/status", 200);
+            if s["active"].is_null() && s["run_id"] == runs[k].as_str() {
+                assert_eq!(s["state"], "completed", "station {k}: {s}");
+                done[k] = true;
+            } else if s["prompt"].is_string() {
+                let r = c.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+                assert!(matches!(r.status, 200 | 409), "{:?}", r.json());
+            }
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    wait_fleet(&mut op_b, 20, "both idle", |f| {
+        f.get("station-a").map(String::as_str) == Some("idle")
+            && f.get("station-b").map(String::as_str) == Some("idle")
+    });
+    // Each server lists both runs, each with its own station and records,
+    // and each station keeps its own raw data.
+    for c in [&mut op_a, &mut op_b] {
+        let listed: Vec<Value> = c
+            .get_json("/api/runs", 200)
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+        for (run, station) in runs.iter().zip(["station-a", "station-b"]) {
+            let row = listed
+                .iter()
+                .find(|r| r["id"] == run.as_str())
+                .unwrap_or_else(|| panic!("{run} not listed: {listed:?}"));
+            assert_eq!(row["station"], station, "{row}");
+            let detail = c.get_json(&format!("/api/runs/{run}"), 200);
+            assert_eq!(
+                detail["results"].as_array().map(Vec::len),
+                Some(2),
+                "{detail}"
+            );
+        }
+        let stations = c.get_json("/api/fleet", 200);
+        let yields: Vec<i64> = stations
+            .as_array()
+            .expect("a list")
+            .iter()
+            .map(|s| s["tested_today"].as_i64().unwrap_or(-1))
+            .collect();
+        assert_eq!(yields, [1, 1], "one instrument each: {stations}");
+    }
+    for (dir, run) in [(a_dir.path(), &runs[0]), (b_dir.path(), &runs[1])] {
+        let raw = dir.join("runs").join(run).join("raw");
+        let bytes: u64 = std::fs::read_dir(&raw)
+            .unwrap_or_else(|e| panic!("{}: {e}", raw.display()))
+            .filter_map(|e| e.ok()?.metadata().ok())
+            .map(|m| m.len())
+            .sum();
+        assert!(bytes > 0, "{}: no raw data", raw.display());
+    }
+
+    // A user removed on B: refused on A within 5 s, their stream on A ended.
+    let mut op2_a = Client::login(&a, "op2", "op2-password");
+    let cookie = op2_a.cookie.clone().expect("cookie");
+    let base = a.base.clone();
+    let stream = std::thread::spawn(move || {
+        let agent: ureq::Agent = ureq::Agent::config_builder()
+            .http_status_as_error(false)
+            .build()
+            .into();
+        let response = agent
+            .get(format!("{base}/api/events"))
+            .header("Cookie", &cookie)
+            .call()
+            .expect("events");
+        assert_eq!(response.status().as_u16(), 200);
+        let mut bytes = 0usize;
+        for line in BufReader::new(response.into_body().into_reader()).lines() {
+            match line {
+                Ok(l) => bytes += l.len(),
+                Err(_) => break,
+            }
+        }
+        (Instant::now(), bytes)
+    });
+    std::thread::sleep(Duration::from_millis(500));
+    let mut admin_b = Client::login(&b, "admin", "admin-password");
+    assert_eq!(admin_b.send("DELETE", "/api/users/op2", None).status, 204);
+    let removed = Instant::now();
+    loop {
+        let r = op2_a.send("GET", "/api/status", None);
+        if r.status == 401 {
+            break;
+        }
+        assert!(
+            removed.elapsed() < Duration::from_secs(5),
+            "a user removed on B still works on A after {:?}",
+            removed.elapsed()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let refused_after = removed.elapsed();
+    let (ended, _) = stream.join().expect("the stream's reader");
+    assert!(
+        ended.duration_since(removed) < Duration::from_secs(5),
+        "the removed user's event stream on A ended {:?} after the removal",
+        ended.duration_since(removed)
+    );
+    eprintln!(
+        "removed on B: refused on A after {refused_after:?}, stream ended after {:?}",
+        ended.duration_since(removed)
+    );
+
+    // B stops: A's fleet view shows it offline.
+    b.terminate();
+    wait_fleet(&mut op_a, 20, "B offline", |f| {
+        f.get("station-b").map(String::as_str) == Some("offline")
+            && f.get("station-a").map(String::as_str) == Some("idle")
+    });
+    drop(a);
+    drop(b);
+    for log in [&a_log, &b_log] {
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        assert!(!text.contains("panicked"), "{}:\n{text}", log.display());
+    }
+}
