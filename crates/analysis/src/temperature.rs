@@ -39,10 +39,14 @@
 //! small-u instruments' coefficients outside their U95: issue 30.)
 //!
 //! **The arm.** The radius is found at the reference temperature only, so
-//! an arm that grows with the chamber's temperature reads as a scale
-//! factor that grows with it. The station's `arm_expansion_ppm_per_c`
-//! bounds it: the engine adds a rectangular Type B term of that half
-//! width to k1's coefficient ([`with_arm_expansion`]).
+//! the part of the radius in the chamber (the fixture), which grows with
+//! the chamber's temperature, reads as a scale factor that grows with it by
+//! β = L·α/R [ppm/°C]. A station that states β (`[uncertainty]
+//! chamber_radius_expansion_ppm_per_c`, from its drawing) has k1's
+//! coefficient corrected by −β, with a rectangular Type B term of half
+//! width 20 % of β (L and α known to that); one that does not has no
+//! correction and a rectangular term of half width `arm_expansion_ppm_per_c`,
+//! as if the whole arm might follow the chamber ([`with_arm_expansion`]).
 //!
 //! The temperature's own spread over a temperature's points (the
 //! instruments still settling while they are measured) enters as errors in
@@ -209,10 +213,14 @@ pub struct BatchBirge {
     /// (µg/°C, ppm/°C, µg/g²/°C; module docs).
     #[serde(default)]
     pub between_u: PerCoefficient,
-    /// The half width of the arm's expansion bound added to k1's
+    /// The half width of the arm's expansion term added to k1's
     /// coefficient [ppm/°C] (0 when none was given).
     #[serde(default)]
     pub arm_expansion_ppm_per_c: f64,
+    /// The correction already applied to k1's coefficient for the radius's
+    /// growth in the chamber [ppm/°C] (subtracted; module docs).
+    #[serde(default)]
+    pub arm_correction_ppm_per_c: f64,
     /// Σν, per coefficient.
     pub dof: [usize; 3],
     /// How many instruments.
@@ -377,6 +385,7 @@ pub fn pool(batch: &mut [TemperatureCoefficients]) {
     let instruments = batch.len();
     for c in batch.iter_mut() {
         let arm = c.batch.map_or(0.0, |b| b.arm_expansion_ppm_per_c);
+        let correction = c.batch.map_or(0.0, |b| b.arm_correction_ppm_per_c);
         c.k0_ug_per_c_u95 = t0 * c.u.k0.hypot(tau0.sqrt());
         c.k1_ppm_per_c_u95 = t1 * (c.u.k1.powi(2) + tau1 + arm * arm / 3.0).sqrt();
         c.k2_ug_per_g2_per_c_u95 = c.u.k2.map(|u| t2 * u.hypot(tau2.sqrt()));
@@ -392,36 +401,49 @@ pub fn pool(batch: &mut [TemperatureCoefficients]) {
                 k2: c.u.k2.map(|_| tau2.sqrt()),
             },
             arm_expansion_ppm_per_c: arm,
+            arm_correction_ppm_per_c: correction,
             dof: [dof01, dof01, dof2],
             instruments,
         });
     }
 }
 
-/// Add the arm's expansion bound (module docs) to every k1 coefficient's
-/// U95 and judge the batch again: a rectangular Type B term of half width
-/// `arm_expansion_ppm_per_c` (the arm's whole expansion coefficient: the
-/// chamber may warm all of it or none), at the batch's coverage factor.
-/// A bound that is not finite and ≥ 0 is treated as 0.
-pub fn with_arm_expansion(batch: &mut [TemperatureCoefficients], arm_expansion_ppm_per_c: f64) {
-    let arm = if arm_expansion_ppm_per_c.is_finite() && arm_expansion_ppm_per_c > 0.0 {
-        arm_expansion_ppm_per_c
-    } else {
-        0.0
+/// The chamber's effect on the radius (module docs): with the station's
+/// `stated` β [ppm/°C], k1's coefficient corrected by −β and a rectangular
+/// term of half width 0.2·β; without, no correction and a rectangular term
+/// of half width `whole_arm_ppm_per_c`. Then the batch is judged again.
+/// Applying it again replaces the earlier correction. A value that is not
+/// finite and ≥ 0 counts as 0.
+pub fn with_arm_expansion(
+    batch: &mut [TemperatureCoefficients],
+    stated: Option<f64>,
+    whole_arm_ppm_per_c: f64,
+) {
+    let clean = |v: f64| if v.is_finite() && v > 0.0 { v } else { 0.0 };
+    let (correction, half_width) = match stated {
+        Some(beta) => (clean(beta), STATED_RADIUS_EXPANSION_REL * clean(beta)),
+        None => (0.0, clean(whole_arm_ppm_per_c)),
     };
     for c in batch.iter_mut() {
         let mut b = c.batch.unwrap_or(BatchBirge {
             birge_ratio: PerCoefficient::default(),
             between_u: PerCoefficient::default(),
             arm_expansion_ppm_per_c: 0.0,
+            arm_correction_ppm_per_c: 0.0,
             dof: [0; 3],
             instruments: 0,
         });
-        b.arm_expansion_ppm_per_c = arm;
+        c.k1_ppm_per_c -= correction - b.arm_correction_ppm_per_c;
+        b.arm_correction_ppm_per_c = correction;
+        b.arm_expansion_ppm_per_c = half_width;
         c.batch = Some(b);
     }
     pool(batch);
 }
+
+/// How well a stated β (the fixture's length in the chamber and its
+/// expansion coefficient) is known: a rectangular half width of this share.
+pub const STATED_RADIUS_EXPANSION_REL: f64 = 0.2;
 
 #[cfg(test)]
 mod tests {
@@ -593,9 +615,10 @@ mod tests {
         }
         let b = batch[0].batch.expect("judged");
         assert!(b.between_u.k1 > 0.0 && b.between_u.k0 == 0.0);
-        // The arm's bound adds a rectangular term to k1's alone.
+        // Without a stated β, the whole arm's bound adds a rectangular term
+        // to k1's alone.
         let before = batch.clone();
-        with_arm_expansion(&mut batch, 0.45);
+        with_arm_expansion(&mut batch, None, 0.45);
         let t12 = 2.179;
         let grown = batch[0].k1_ppm_per_c_u95.powi(2) - before[0].k1_ppm_per_c_u95.powi(2);
         assert!(
@@ -603,6 +626,17 @@ mod tests {
             "{grown}"
         );
         assert_eq!(batch[0].k0_ug_per_c_u95, before[0].k0_ug_per_c_u95);
+        assert_eq!(batch[0].k1_ppm_per_c, before[0].k1_ppm_per_c);
+        // A stated β corrects k1's coefficient, once however often applied,
+        // with a term of 20 % of it.
+        with_arm_expansion(&mut batch, Some(0.45), 12.0);
+        with_arm_expansion(&mut batch, Some(0.45), 12.0);
+        assert!((before[0].k1_ppm_per_c - batch[0].k1_ppm_per_c - 0.45).abs() < 1e-12);
+        let grown = batch[0].k1_ppm_per_c_u95.powi(2) - before[0].k1_ppm_per_c_u95.powi(2);
+        assert!(
+            (grown / (t12 * t12) - 0.09f64.powi(2) / 3.0).abs() < 1e-4,
+            "{grown}"
+        );
         // Pooling again keeps the bound.
         let again = batch.clone();
         pool(&mut batch);

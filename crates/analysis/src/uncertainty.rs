@@ -112,23 +112,15 @@ pub struct TypeBInputs {
     pub k1_tempco_ppm_per_c: f64,
     /// Bound of the arm's thermal expansion coefficient [ppm/°C] (method.md (13)).
     pub arm_expansion_ppm_per_c: f64,
-    /// Bound of how much an instrument's radius grows per °C of the
-    /// temperature chamber, relative [ppm/°C]: the length of the radius
-    /// that sits in the chamber times its expansion coefficient, over the
-    /// radius. The radius is found at the reference temperature only, so
-    /// this goes into k1's temperature coefficient as a Type B term
-    /// (analysis::temperature). Absent: `arm_expansion_ppm_per_c`, as if
-    /// the whole arm followed the chamber.
+    /// How much an instrument's radius grows per °C of the temperature
+    /// chamber, relative [ppm/°C]: the length of the radius that sits in
+    /// the chamber (the fixture) times its expansion coefficient, over the
+    /// radius, from the station's drawing. The radius is found at the
+    /// reference temperature only, so k1's temperature coefficient is
+    /// corrected by it, with 20 % of it as a rectangular Type B term
+    /// (analysis::temperature). Absent: no correction, and the whole arm's
+    /// `arm_expansion_ppm_per_c` as the term's half width.
     pub chamber_radius_expansion_ppm_per_c: Option<f64>,
-}
-
-impl TypeBInputs {
-    /// The half width of the chamber's effect on the radius [ppm/°C]
-    /// (`chamber_radius_expansion_ppm_per_c`, else the whole arm's).
-    pub fn chamber_radius_bound_ppm_per_c(&self) -> f64 {
-        self.chamber_radius_expansion_ppm_per_c
-            .unwrap_or(self.arm_expansion_ppm_per_c)
-    }
 }
 
 impl TypeBInputs {

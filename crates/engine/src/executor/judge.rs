@@ -245,11 +245,13 @@ impl Executor<'_> {
             .iter()
             .filter_map(|r| r.temperature_coefficients)
             .collect();
-        // The arm's share of the chamber's heat bounds k1's coefficient
-        // (the radius is found at the reference temperature only).
+        // The radius's growth in the chamber: k1's coefficient corrected by
+        // the stated share, or bounded by the whole arm's (the radius is
+        // found at the reference temperature only).
         spinbench_analysis::temperature::with_arm_expansion(
             &mut batch,
-            self.station.uncertainty.chamber_radius_bound_ppm_per_c(),
+            self.station.uncertainty.chamber_radius_expansion_ppm_per_c,
+            self.station.uncertainty.arm_expansion_ppm_per_c,
         );
         let mut pooled = batch.into_iter();
         for record in out

@@ -9,6 +9,7 @@ pub mod api;
 pub mod auth;
 pub mod eta;
 pub mod hub;
+pub mod metrics;
 pub mod runner;
 pub mod server;
 pub mod throttle;
@@ -48,6 +49,8 @@ pub struct AppState {
     pub station_path: Option<PathBuf>,
     /// Served over TLS: session cookies are `Secure`.
     pub secure_cookies: bool,
+    /// What `/metrics` tells the plant's monitoring.
+    pub metrics: metrics::Metrics,
 }
 
 /// How `spinbench serve` was asked to run (its command-line options).
@@ -225,6 +228,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             args.station.clone()
         },
         secure_cookies: tls.is_some(),
+        metrics: metrics::Metrics::new().context("the metrics")?,
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -328,9 +332,15 @@ fn spawn_heartbeat(
                     store = Store::connect(&db).ok();
                 }
                 let beat = heartbeat_now(&state, &station, &address);
-                if let Some(s) = &store
-                    && let Err(e) = s.heartbeat(&beat)
-                {
+                let started = std::time::Instant::now();
+                let written = store.as_ref().map(|s| s.heartbeat(&beat));
+                if let Some(Ok(())) = written {
+                    state
+                        .metrics
+                        .store_write_s
+                        .observe(started.elapsed().as_secs_f64());
+                }
+                if let Some(Err(e)) = written {
                     if !warned {
                         eprintln!(
                             "warning: {e} (tried again every {} s)",
@@ -352,6 +362,17 @@ fn spawn_heartbeat(
         .context("cannot start the heartbeat thread")
 }
 
+/// The station's state for the fleet and the monitoring: `faulted` (the
+/// last run faulted, until the next starts), `running` (a run is active),
+/// else `idle`.
+pub(crate) fn station_state(state: &AppState, status: &hub::StatusSnapshot) -> &'static str {
+    match (state.runner.active().is_some(), status.state.as_deref()) {
+        (_, Some("faulted")) => "faulted",
+        (true, _) => "running",
+        _ => "idle",
+    }
+}
+
 /// The station's heartbeat now, from the hub and the runner.
 fn heartbeat_now(
     state: &AppState,
@@ -360,11 +381,7 @@ fn heartbeat_now(
 ) -> spinbench_store::fleet::Heartbeat {
     let status = state.hub.status();
     let active = state.runner.active().is_some();
-    let what = match (active, status.state.as_deref()) {
-        (_, Some("faulted")) => "faulted",
-        (true, _) => "running",
-        _ => "idle",
-    };
+    let what = station_state(state, &status);
     spinbench_store::fleet::Heartbeat {
         station: station.to_string(),
         state: what.to_string(),

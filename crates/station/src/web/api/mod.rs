@@ -204,6 +204,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/app.css", get(assets::style)),
         ("get", "/cjk.ttf", get(assets::font)),
         ("get", "/api/openapi.json", get(assets::openapi)),
+        ("get", "/metrics", get(metrics)),
         (
             "post",
             "/api/login",
@@ -258,7 +259,45 @@ pub fn router(app: App) -> Router {
         .fold(Router::new(), |router, (_, path, handler)| {
             router.route(path, handler)
         })
+        .layer(axum::middleware::from_fn_with_state(
+            app.clone(),
+            count_request,
+        ))
         .with_state(app)
+}
+
+/// Count every request by its route (the table's path, not the URL: a
+/// run id does not make a series of its own) and its answer's status.
+async fn count_request(
+    State(app): State<App>,
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let route = request
+        .extensions()
+        .get::<axum::extract::MatchedPath>()
+        .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    let response = next.run(request).await;
+    app.metrics
+        .http_requests
+        .with_label_values(&[route.as_str(), response.status().as_str()])
+        .inc();
+    response
+}
+
+/// `GET /metrics`: the station for the plant's monitoring (Prometheus text
+/// format; no session, as a scraper has none; nothing in it is a secret).
+async fn metrics(State(app): State<App>) -> Response {
+    let status = app.hub.status();
+    let state = crate::web::station_state(&app, &status);
+    (
+        [(
+            header::CONTENT_TYPE,
+            "text/plain; version=0.0.4; charset=utf-8",
+        )],
+        app.metrics.render(&status, state),
+    )
+        .into_response()
 }
 
 /// Every route of the API as (method, path), from the same table as the

@@ -41,6 +41,7 @@ pub(super) async fn login(
         Err(_) => spinbench_engine::bounds::shown(&login.user),
     };
     if let Err(locked) = app.logins.check(&name, peer.ip()) {
+        app.metrics.login_failures.inc();
         let mut response = ApiError::new(
             StatusCode::TOO_MANY_REQUESTS,
             format!(
@@ -69,6 +70,7 @@ pub(super) async fn login(
     .await?;
     let role = user.as_ref().and_then(|u| Role::parse(&u.role));
     let (true, Some(role)) = (ok, role) else {
+        app.metrics.login_failures.inc();
         audit(
             &app,
             &name,

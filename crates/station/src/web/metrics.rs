@@ -1,0 +1,141 @@
+//! `GET /metrics` (issue 26): the station for the plant's monitoring, in the
+//! Prometheus text format through the `prometheus` crate (TiKV's, the
+//! classic text format `promtool check metrics` reads). The gauges are read
+//! from the hub when scraped; the counters and the store's write latency
+//! are kept as they happen.
+
+use prometheus::{
+    Encoder, Gauge, GaugeVec, Histogram, HistogramOpts, IntCounter, IntCounterVec, IntGauge, Opts,
+    Registry, TextEncoder,
+};
+
+/// The station's metrics.
+pub struct Metrics {
+    registry: Registry,
+    state: GaugeVec,
+    rate_deg_s: Gauge,
+    demand_deg_s: Gauge,
+    progress: Gauge,
+    instruments_live: IntGauge,
+    slot_temperature_c: GaugeVec,
+    /// The store's write latency [s] (each heartbeat's write).
+    pub store_write_s: Histogram,
+    /// HTTP requests by route and status.
+    pub http_requests: IntCounterVec,
+    /// Logins refused (wrong name or password, or locked out).
+    pub login_failures: IntCounter,
+}
+
+/// The run states the state gauge has a series for (1 for the one now).
+const STATES: [&str; 3] = ["idle", "running", "faulted"];
+
+impl Metrics {
+    /// Every metric, registered; names as the README lists them.
+    pub fn new() -> Result<Metrics, prometheus::Error> {
+        let registry = Registry::new();
+        let state = GaugeVec::new(
+            Opts::new(
+                "spinbench_station_state",
+                "1 for the station's state now (idle, running, faulted)",
+            ),
+            &["state"],
+        )?;
+        let rate_deg_s = Gauge::new(
+            "spinbench_table_rate_degrees_per_second",
+            "the table's measured rate [deg/s]",
+        )?;
+        let demand_deg_s = Gauge::new(
+            "spinbench_table_demand_degrees_per_second",
+            "the table's demanded rate [deg/s]",
+        )?;
+        let progress = Gauge::new(
+            "spinbench_run_progress_ratio",
+            "steps done over the run's steps (0 without a run)",
+        )?;
+        let instruments_live = IntGauge::new(
+            "spinbench_instruments_live",
+            "instruments of the run not failed (with an output or still to be measured)",
+        )?;
+        let slot_temperature_c = GaugeVec::new(
+            Opts::new(
+                "spinbench_slot_temperature_celsius",
+                "each slot's instrument temperature [°C] (slots numbered from 1, as on the fixtures)",
+            ),
+            &["slot"],
+        )?;
+        let store_write_s = Histogram::with_opts(
+            HistogramOpts::new(
+                "spinbench_store_write_seconds",
+                "the store's write latency (heartbeat writes) [s]",
+            )
+            .buckets(prometheus::exponential_buckets(0.0005, 2.0, 14)?),
+        )?;
+        let http_requests = IntCounterVec::new(
+            Opts::new(
+                "spinbench_http_requests_total",
+                "HTTP requests by route and status",
+            ),
+            &["route", "status"],
+        )?;
+        let login_failures = IntCounter::new("spinbench_login_failures_total", "logins refused")?;
+        registry.register(Box::new(state.clone()))?;
+        registry.register(Box::new(rate_deg_s.clone()))?;
+        registry.register(Box::new(demand_deg_s.clone()))?;
+        registry.register(Box::new(progress.clone()))?;
+        registry.register(Box::new(instruments_live.clone()))?;
+        registry.register(Box::new(slot_temperature_c.clone()))?;
+        registry.register(Box::new(store_write_s.clone()))?;
+        registry.register(Box::new(http_requests.clone()))?;
+        registry.register(Box::new(login_failures.clone()))?;
+        Ok(Metrics {
+            registry,
+            state,
+            rate_deg_s,
+            demand_deg_s,
+            progress,
+            instruments_live,
+            slot_temperature_c,
+            store_write_s,
+            http_requests,
+            login_failures,
+        })
+    }
+
+    /// The text a scrape gets, with the gauges set from `status` (the
+    /// hub's snapshot) and `state` (the heartbeat's word for it).
+    pub fn render(&self, status: &super::hub::StatusSnapshot, state: &str) -> String {
+        for s in STATES {
+            self.state
+                .with_label_values(&[s])
+                .set(if s == state { 1.0 } else { 0.0 });
+        }
+        self.rate_deg_s.set(status.rate_deg_s.unwrap_or(0.0));
+        self.demand_deg_s.set(status.demand_deg_s.unwrap_or(0.0));
+        let progress = match (&status.step, state) {
+            (Some((index, of, _)), "running") if *of > 0 => {
+                (*index as f64 + 1.0).min(*of as f64) / *of as f64
+            }
+            _ => 0.0,
+        };
+        self.progress.set(progress);
+        let live = status
+            .board
+            .iter()
+            .filter(|s| {
+                !s.serial.is_empty() && s.phase != spinbench_engine::board::SlotPhase::Failed
+            })
+            .count();
+        self.instruments_live.set(live as i64);
+        for s in &status.board {
+            if let Some(t) = s.temperature_c.filter(|t| t.is_finite()) {
+                self.slot_temperature_c
+                    .with_label_values(&[&s.slot.to_string()])
+                    .set(t);
+            }
+        }
+        let mut out = Vec::new();
+        // Encoding into memory fails only on a metric the registry refused.
+        let _ = TextEncoder::new().encode(&self.registry.gather(), &mut out);
+        String::from_utf8(out).unwrap_or_default()
+    }
+}
