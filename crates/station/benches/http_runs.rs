@@ -15,6 +15,7 @@ use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::Instant;
 
+/// Clients and runs when measuring (a smoke run under `cargo test` takes 3 and 20).
 const CLIENTS: usize = 50;
 const RUNS: usize = 200;
 
@@ -26,10 +27,10 @@ fn agent() -> ureq::Agent {
 }
 
 /// `RUNS` finished runs of 12 instruments in the store.
-fn fill(target: &StoreTarget) {
+fn fill(target: &StoreTarget, runs: usize) {
     let store = Store::connect(target).expect("store");
     let mut sink = store.sink().expect("sink");
-    for r in 0..RUNS {
+    for r in 0..runs {
         let plan = CompiledPlan {
             plan: TestPlan::default(),
             serials: (0..12).map(|i| Some(format!("H{r:03}-{i:02}"))).collect(),
@@ -48,8 +49,13 @@ fn fill(target: &StoreTarget) {
     }
 }
 
-fn measure(name: &str, db: &str, data: &std::path::Path, requests_each: usize) {
-    fill(&StoreTarget::parse(db));
+fn measure(name: &str, db: &str, data: &std::path::Path, measuring: bool) {
+    let (clients, runs, requests_each) = if measuring {
+        (CLIENTS, RUNS, 40)
+    } else {
+        (3, 20, 2)
+    };
+    fill(&StoreTarget::parse(db), runs);
     let add = Command::new(env!("CARGO_BIN_EXE_spinbench"))
         .args(["user", "add", "bench", "--role", "operator", "--db", db])
         .env("SPINBENCH_PASSWORD", "bench-password")
@@ -84,7 +90,7 @@ fn measure(name: &str, db: &str, data: &std::path::Path, requests_each: usize) {
         }
     };
     std::thread::spawn(move || for _ in lines {});
-    let cookies: Vec<String> = (0..CLIENTS)
+    let cookies: Vec<String> = (0..clients)
         .map(|_| {
             let r = agent()
                 .post(format!("{base}/api/login"))
@@ -136,8 +142,15 @@ fn measure(name: &str, db: &str, data: &std::path::Path, requests_each: usize) {
     let _ = server.wait();
     latencies.sort_by(f64::total_cmp);
     let at = |q: f64| latencies[((latencies.len() as f64 * q) as usize).min(latencies.len() - 1)];
+    if !measuring {
+        println!(
+            "http bench smoke run ({name}): {} requests answered (no figures outside `cargo bench`)",
+            latencies.len()
+        );
+        return;
+    }
     println!(
-        "{name}: {} requests by {CLIENTS} clients over {RUNS} runs in {elapsed:.1} s",
+        "{name}: {} requests by {clients} clients over {runs} runs in {elapsed:.1} s",
         latencies.len()
     );
     println!("bench: http_runs_{name}_p50 = {:.1} ms", at(0.50) * 1e3);
@@ -150,23 +163,17 @@ fn measure(name: &str, db: &str, data: &std::path::Path, requests_each: usize) {
 
 fn main() {
     let measuring = std::env::args().any(|a| a == "--bench");
-    let requests_each = if measuring { 40 } else { 2 };
     let dir = tempfile::tempdir().expect("tempdir");
     let sqlite = dir.path().join("sqlite");
     std::fs::create_dir_all(&sqlite).expect("dir");
     let db = sqlite.join("spinbench.db");
-    measure(
-        "sqlite",
-        db.to_str().expect("utf-8"),
-        &sqlite,
-        requests_each,
-    );
+    measure("sqlite", db.to_str().expect("utf-8"), &sqlite, measuring);
     match spinbench_store::testing::postgres_url() {
         Ok(admin) => {
             let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("database");
             let pg = dir.path().join("pg");
             std::fs::create_dir_all(&pg).expect("dir");
-            measure("postgres", &url, &pg, requests_each);
+            measure("postgres", &url, &pg, measuring);
         }
         Err(e) => println!("postgres: not measured: {e}"),
     }
