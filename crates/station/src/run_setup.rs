@@ -28,12 +28,33 @@ pub fn new_run_id() -> String {
 
 /// A run's directory: `DATA/runs/<id>`, holding its station config, plan,
 /// journal, raw captures, results and reports.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug)]
 pub struct RunDir {
     path: PathBuf,
     id: String,
     /// Made by this process for a new run (removed again if the run never starts).
     new: bool,
+    /// An exclusive OS lock on the directory, held while this process runs
+    /// it: a second `--resume` of the same run (another process, or the web
+    /// runner) is refused instead of writing a second record into it.
+    _lock: std::fs::File,
+}
+
+/// Take the exclusive lock of run directory `path` (flock on the directory
+/// itself: nothing is added to the run's files).
+fn lock_run_dir(path: &Path) -> Result<std::fs::File> {
+    let dir = std::fs::File::open(path)
+        .with_context(|| format!("{}: cannot open the run directory", path.display()))?;
+    match dir.try_lock() {
+        Ok(()) => Ok(dir),
+        Err(std::fs::TryLockError::WouldBlock) => bail!(
+            "{}: this run is being run by another process now (its directory is locked); wait for it to end, or stop that process first",
+            path.display()
+        ),
+        Err(std::fs::TryLockError::Error(e)) => {
+            Err(e).with_context(|| format!("{}: cannot lock the run directory", path.display()))
+        }
+    }
 }
 
 impl RunDir {
@@ -43,10 +64,12 @@ impl RunDir {
         let path = data.join(RUNS_DIR).join(&id);
         std::fs::create_dir_all(&path)
             .with_context(|| format!("{}: cannot create the run directory", path.display()))?;
+        let lock = lock_run_dir(&path)?;
         Ok(RunDir {
             path,
             id,
             new: true,
+            _lock: lock,
         })
     }
 
@@ -58,6 +81,7 @@ impl RunDir {
         if !path.is_dir() {
             bail!("--resume {}: no such run directory", path.display());
         }
+        let lock = lock_run_dir(path).map_err(|e| anyhow::anyhow!("--resume {e:#}"))?;
         let plan_path = path.join(PLAN_FILE);
         if !path.join(JOURNAL_FILE).is_file() || !plan_path.is_file() {
             bail!(
@@ -92,6 +116,7 @@ impl RunDir {
             path: path.to_path_buf(),
             id,
             new: false,
+            _lock: lock,
         })
     }
 

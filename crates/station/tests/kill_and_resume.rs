@@ -260,3 +260,62 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
     );
     assert_eq!(replayed_trials, resumed_trials);
 }
+
+#[test]
+fn a_run_being_run_cannot_be_resumed_by_another_process() {
+    // Issue 27, item 3: a second `--resume` of a run that a process is
+    // running (here the first run itself, at real time) is refused: the
+    // run's directory is locked, so the journal never gets a second record.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("L")).expect("plan");
+    let data = dir.path().join("data");
+    // The virtual bench at real time: the first run lasts minutes.
+    let bench = dir.path().join("bench.toml");
+    std::fs::write(&bench, "speed = 1.0\n").expect("bench");
+    let mut first = spinbench()
+        .args(["run", "--simulate", "--quiet", "--bench"])
+        .arg(&bench)
+        .arg("--data")
+        .arg(&data)
+        .arg(&plan)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let until = Instant::now() + std::time::Duration::from_secs(30);
+    let run_dir = loop {
+        if let Some(d) = the_run_dir(&data).filter(|d| d.join("journal.jsonl").exists()) {
+            break d;
+        }
+        assert!(Instant::now() < until, "the first run did not start");
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    };
+    let second = spinbench()
+        .args(["run", "--simulate", "--quiet", "--resume"])
+        .arg(&run_dir)
+        .arg(&plan)
+        .output()
+        .expect("resume");
+    let _ = first.kill();
+    let _ = first.wait();
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(
+        !second.status.success(),
+        "a second process resumed a running run"
+    );
+    assert!(stderr.contains("being run by another process"), "{stderr}");
+    // Once the first process is gone, the run can be resumed.
+    let third = spinbench()
+        .args(["run", "--simulate", "--quiet", "--resume"])
+        .arg(&run_dir)
+        .arg(&plan)
+        .stdout(Stdio::null())
+        .output()
+        .expect("resume");
+    assert!(
+        third.status.success(),
+        "{}",
+        String::from_utf8_lossy(&third.stderr)
+    );
+}
