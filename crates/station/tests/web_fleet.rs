@@ -142,6 +142,29 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
             .collect();
         assert_eq!(yields, [1, 1], "one instrument each: {stations}");
     }
+    // History by station; control charts per centrifuge (this server's by
+    // default, another's when asked).
+    let only_a = op_b.get_json("/api/runs?station=station-a", 200);
+    let ids: Vec<&str> = only_a
+        .as_array()
+        .expect("a list")
+        .iter()
+        .filter_map(|r| r["id"].as_str())
+        .collect();
+    assert_eq!(ids, [runs[0].as_str()], "{only_a}");
+    for (c, station) in [(&mut op_a, "station-a"), (&mut op_b, "station-b")] {
+        let charts = c.get_json("/api/control-charts", 200);
+        assert_eq!(charts["runs"], 1, "{station}: {charts}");
+        let other = if station == "station-a" {
+            "station-b"
+        } else {
+            "station-a"
+        };
+        let theirs = c.get_json(&format!("/api/control-charts?station={other}"), 200);
+        assert_eq!(theirs["runs"], 1, "{other}: {theirs}");
+        let none = c.get_json("/api/control-charts?station=nobody", 200);
+        assert_eq!(none["runs"], 0, "{none}");
+    }
     for (dir, run) in [(a_dir.path(), &runs[0]), (b_dir.path(), &runs[1])] {
         let raw = dir.join("runs").join(run).join("raw");
         let bytes: u64 = std::fs::read_dir(&raw)

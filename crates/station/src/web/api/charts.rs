@@ -1,6 +1,7 @@
 //! Control charts across the stored runs (issue 16, part 3): every chart
 //! with its limits, the Western Electric rules broken, its SVG, and the
-//! first-pass yields — the batch report's section, for the web UI.
+//! first-pass yields — the batch report's section, for the web UI; one
+//! station (centrifuge) at a time, this server's unless another is asked.
 
 use super::*;
 
@@ -12,6 +13,10 @@ pub(super) struct Baseline {
     /// Limits from the first this many runs (default 10, 1 to 100,000).
     #[param(minimum = 1, maximum = 100000)]
     baseline_runs: Option<usize>,
+    /// The station (centrifuge) whose runs are charted: its fixture
+    /// positions are its own (default: this server's station).
+    #[param(max_length = 64)]
+    station: Option<String>,
 }
 
 /// Most runs a baseline may name.
@@ -42,11 +47,35 @@ pub(super) async fn control_charts(
             "baseline_runs = {baseline}: from 1 to {MAX_BASELINE_RUNS} runs"
         )));
     }
-    let mut batch = blocking(&app, |app| {
-        Ok(spinbench_report::gather_batch(&store(app), &[]))
+    // One centrifuge's runs: a fixture position's radius is its own.
+    let station = q
+        .station
+        .clone()
+        .unwrap_or_else(|| app.runner.station().0.station);
+    let batch = blocking(&app, move |app| {
+        let store = store(app);
+        let ids: Vec<String> = store
+            .runs()?
+            .into_iter()
+            .filter(|r| r.station == station)
+            .map(|r| r.id)
+            .collect();
+        // No run of that station: nothing to chart (an empty list of ids
+        // would mean every run).
+        Ok((!ids.is_empty()).then(|| spinbench_report::gather_batch(&store, &ids)))
     })
     .await?
+    .transpose()
     .map_err(|e| ApiError::internal(e.to_string()))?;
+    let Some(mut batch) = batch else {
+        return Ok(Json(ChartsReply {
+            baseline_runs: baseline,
+            runs: 0,
+            charts: Vec::new(),
+            yield_by_run: Vec::new(),
+            yield_by_day: Vec::new(),
+        }));
+    };
     batch.rebaseline(baseline);
     let c = &batch.control;
     let charts: Vec<ChartReply> = c

@@ -302,20 +302,38 @@ pub(super) async fn abort(
     .await
 }
 
-/// Every run, newest first.
+/// Which station's runs (`GET /api/runs`).
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct StationFilter {
+    /// Only this station's runs (its id; every station's without it).
+    #[param(max_length = 64)]
+    station: Option<String>,
+}
+
+/// Every run of the fleet (or of one station), newest first.
 #[utoipa::path(get, path = "/api/runs", tag = "runs",
     security(("session" = [])),
+    params(StationFilter),
     responses(
         (status = 200, description = "the runs", body = Vec<RunEntry>),
+        (status = 400, description = "a bad query string", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
     ))]
 pub(super) async fn runs(
     State(app): State<App>,
     headers: HeaderMap,
+    q: Result<Query<StationFilter>, QueryRejection>,
 ) -> ApiResult<Json<Vec<RunEntry>>> {
     authorize(&app, &headers, Role::Operator, false).await?;
+    let Query(q) = q.map_err(query_error)?;
     let runs = blocking(&app, |app| Ok(store(app).runs()?)).await?;
-    Ok(Json(runs.iter().map(RunEntry::from).collect()))
+    Ok(Json(
+        runs.iter()
+            .filter(|r| q.station.as_ref().is_none_or(|s| &r.station == s))
+            .map(RunEntry::from)
+            .collect(),
+    ))
 }
 
 /// One run: its results (reasons in the user's language), links and reports.

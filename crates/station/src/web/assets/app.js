@@ -157,6 +157,7 @@ async function start() {
   $("logout-button").addEventListener("click", logout);
   $("new-form").addEventListener("submit", startRun);
   $("charts-form").addEventListener("submit", (ev) => { ev.preventDefault(); loadCharts(); });
+  $("history-station").addEventListener("change", loadHistory);
   $("lang-select").addEventListener("change", chooseLanguage);
   $("equipment-form").addEventListener("submit", saveEquipment);
   $("plan-select").addEventListener("change", fillSerials);
@@ -595,9 +596,24 @@ async function startRun(ev) {
 
 function fmtTime(t) { return new Date(t * 1000).toISOString().replace("T", " ").slice(0, 16) + " UTC"; }
 
+// Fill a station selector from the fleet, keeping its choice; `all` adds
+// "every station" first, else this server's station is the default.
+async function fillStations(id, all) {
+  const select = $(id);
+  const chosen = select.value;
+  const fleet = await api("GET", "/api/fleet");
+  select.textContent = "";
+  if (all) select.add(new Option(word("web.option.every_station", "every station"), ""));
+  for (const st of fleet) select.add(new Option(st.station, st.station));
+  const mine = fleet.find((st) => st.this_station);
+  select.value = chosen || (all ? "" : (mine ? mine.station : ""));
+}
+
 async function loadHistory() {
   try {
-    const runs = await api("GET", "/api/runs");
+    await fillStations("history-station", true);
+    const station = $("history-station").value;
+    const runs = await api("GET", "/api/runs" + (station ? "?station=" + encodeURIComponent(station) : ""));
     const body = $("runs-table").tBodies[0];
     body.textContent = "";
     for (const r of runs) {
@@ -606,7 +622,7 @@ async function loadHistory() {
       a.href = "#history"; a.textContent = r.id;
       a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
       tr.insertCell().appendChild(a);
-      [fmtTime(r.started_at), stateWord(r.state) + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (" + word("web.history.retest_of", "retest of") + " " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
+      [r.station, fmtTime(r.started_at), stateWord(r.state) + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (" + word("web.history.retest_of", "retest of") + " " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
     }
   } catch (e) { show(e.message); }
 }
@@ -704,7 +720,10 @@ function showLinks(box, r) {
 // drawn by the server as in the batch report), the first-pass yields.
 async function loadCharts() {
   try {
-    const c = await api("GET", "/api/control-charts?baseline_runs=" + encodeURIComponent($("baseline-runs").value || "10"));
+    await fillStations("charts-station", false);
+    const station = $("charts-station").value;
+    const c = await api("GET", "/api/control-charts?baseline_runs=" + encodeURIComponent($("baseline-runs").value || "10")
+      + (station ? "&station=" + encodeURIComponent(station) : ""));
     const flags = $("flags-table").tBodies[0];
     flags.textContent = "";
     const figures = $("chart-figures");
