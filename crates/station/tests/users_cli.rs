@@ -8,7 +8,7 @@ mod web;
 
 use std::process::Command;
 use std::time::{Duration, Instant};
-use web::{Client, add_user, serve, store_of};
+use web::{Backend, Client, add_user, serve, store_of};
 
 /// `spinbench user ARGS --db STORE` with `password` in the environment.
 fn user(data: &std::path::Path, args: &[&str], password: Option<&str>) -> (bool, String) {
@@ -45,7 +45,17 @@ fn refused_within_5_s(client: &mut Client) -> Duration {
 
 #[test]
 fn role_password_and_removal_end_the_users_sessions() {
+    role_password_and_removal_end_the_users_sessions_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_role_password_and_removal_end_the_users_sessions() {
+    role_password_and_removal_end_the_users_sessions_on(Backend::Postgres);
+}
+
+fn role_password_and_removal_end_the_users_sessions_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "admin", "admin", "admin-password");
     add_user(dir.path(), "op", "operator", "op-password");
     let server = serve(dir.path(), "0");

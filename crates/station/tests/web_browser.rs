@@ -20,7 +20,17 @@ fn plan() -> String {
 
 #[test]
 fn an_operator_runs_a_test_in_the_browser() {
+    an_operator_runs_a_test_in_the_browser_on(web::Backend::Sqlite);
+}
+
+#[test]
+fn postgres_an_operator_runs_a_test_in_the_browser() {
+    an_operator_runs_a_test_in_the_browser_on(web::Backend::Postgres);
+}
+
+fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     web::add_user(dir.path(), "op", "operator", "op-password");
     web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
@@ -30,7 +40,10 @@ fn an_operator_runs_a_test_in_the_browser() {
     // 10× real time: a few seconds per level, so the curves visibly move,
     // and light enough for a debug build on a loaded 2-core machine.
     let server = web::serve(dir.path(), "10");
-    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(match backend {
+        web::Backend::Sqlite => "web-browser",
+        web::Backend::Postgres => "web-browser-postgres",
+    });
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 
     let b = Browser::start();

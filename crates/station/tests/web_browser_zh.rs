@@ -16,7 +16,17 @@ use webdriver::Browser;
 
 #[test]
 fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register() {
+    a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(web::Backend::Sqlite);
+}
+
+#[test]
+fn postgres_a_chinese_operator_runs_retests_and_is_stopped_by_the_register() {
+    a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(web::Backend::Postgres);
+}
+
+fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: web::Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     web::add_user(dir.path(), "op", "operator", "op-password");
     web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
@@ -35,7 +45,10 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register() {
         Some(r#"{"language": "zh-CN"}"#),
     );
     assert_eq!(r.status, 200, "{:?}", r.json());
-    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("web-browser");
+    let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(match backend {
+        web::Backend::Sqlite => "web-browser",
+        web::Backend::Postgres => "web-browser-postgres",
+    });
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 
     let b = Browser::start();

@@ -10,7 +10,7 @@ use serde_json::{Value, json};
 use std::io::{Read, Write};
 use std::net::TcpStream;
 use std::time::{Duration, Instant};
-use web::{Client, add_user, serve, serve_with};
+use web::{Backend, Client, add_user, serve, serve_with};
 
 fn login_body(user: &str, password: &str) -> String {
     json!({"user": user, "password": password}).to_string()
@@ -85,7 +85,17 @@ fn failed_logins_are_bounded_throttled_and_audited() {
 
 #[test]
 fn the_retry_after_header_is_sent_with_429() {
+    the_retry_after_header_is_sent_with_429_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_the_retry_after_header_is_sent_with_429() {
+    the_retry_after_header_is_sent_with_429_on(Backend::Postgres);
+}
+
+fn the_retry_after_header_is_sent_with_429_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "admin", "admin", "admin-password");
     let server = serve(dir.path(), "0");
     for _ in 0..5 {
@@ -266,7 +276,17 @@ fn trickling_request_bodies_lock_no_one_out() {
 
 #[test]
 fn sigterm_stops_the_run_then_the_event_streams_in_bounded_time() {
+    sigterm_stops_the_run_then_the_event_streams_in_bounded_time_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_sigterm_stops_the_run_then_the_event_streams_in_bounded_time() {
+    sigterm_stops_the_run_then_the_event_streams_in_bounded_time_on(Backend::Postgres);
+}
+
+fn sigterm_stops_the_run_then_the_event_streams_in_bounded_time_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(
@@ -321,8 +341,8 @@ fn sigterm_stops_the_run_then_the_event_streams_in_bounded_time() {
         "serve exited {:.1} s after SIGTERM",
         signalled.elapsed().as_secs_f64()
     );
-    let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::File(
-        dir.path().join("spinbench.db"),
+    let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::parse(
+        &web::store_of(dir.path()).to_string_lossy(),
     ))
     .expect("store");
     let runs = store.runs().expect("runs");

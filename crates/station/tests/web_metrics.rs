@@ -11,7 +11,7 @@ mod web;
 use serde_json::json;
 use std::io::Write;
 use std::process::{Command, Stdio};
-use web::{Client, add_user, serve};
+use web::{Backend, Client, add_user, serve};
 
 /// `promtool check metrics` on `text`: its verdict and what it said.
 fn promtool(text: &str) -> (bool, String) {
@@ -49,7 +49,17 @@ fn sample(text: &str, series: &str) -> Option<f64> {
 
 #[test]
 fn the_metrics_are_valid_prometheus_text_and_follow_a_run() {
+    the_metrics_are_valid_prometheus_text_and_follow_a_run_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_the_metrics_are_valid_prometheus_text_and_follow_a_run() {
+    the_metrics_are_valid_prometheus_text_and_follow_a_run_on(Backend::Postgres);
+}
+
+fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     add_user(dir.path(), "op", "operator", "op-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(

@@ -8,7 +8,7 @@
 mod web;
 
 use std::sync::Arc;
-use web::Client;
+use web::{Backend, Client};
 
 /// A self-signed certificate for this machine's loopback names, as PEM
 /// files in `dir`: (certificate, key, the certificate's DER).
@@ -39,7 +39,17 @@ fn trusting(der: &[u8]) -> ureq::Agent {
 
 #[test]
 fn the_server_speaks_https_with_a_secure_session_cookie() {
+    the_server_speaks_https_with_a_secure_session_cookie_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_the_server_speaks_https_with_a_secure_session_cookie() {
+    the_server_speaks_https_with_a_secure_session_cookie_on(Backend::Postgres);
+}
+
+fn the_server_speaks_https_with_a_secure_session_cookie_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
     let (cert, key, der) = certificate(dir.path());
     web::add_user(dir.path(), "op", "operator", "op-password");
     let server = web::serve_with(
