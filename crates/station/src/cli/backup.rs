@@ -12,7 +12,8 @@ pub(super) fn backup(
     data: Option<&Path>,
     out: &mut dyn Write,
 ) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    refuse_inside(dir, db, data)?;
+    create_private_dir(dir)?;
     let now = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs() as i64);
@@ -28,6 +29,7 @@ pub(super) fn backup(
         // The server's own tools (the password through PGPASSWORD only).
         let file = dir.join(format!("spinbench-{stamp}.dump"));
         spinbench_store::pg_dump(db, &file)?;
+        make_private(&file)?;
         let size = std::fs::metadata(&file).map_or(0, |m| m.len());
         writeln!(
             out,
@@ -41,6 +43,7 @@ pub(super) fn backup(
             Store::open_read_only(db).with_context(|| format!("cannot open the store {db}"))?;
         let file = dir.join(format!("spinbench-{stamp}.db"));
         store.backup_to(&file)?;
+        make_private(&file)?;
         let size = std::fs::metadata(&file).map_or(0, |m| m.len());
         writeln!(
             out,
@@ -68,7 +71,7 @@ fn copy_new_files(from: &Path, to: &Path) -> Result<usize> {
     if !from.is_dir() {
         return Ok(0);
     }
-    std::fs::create_dir_all(to).with_context(|| format!("{}: cannot create", to.display()))?;
+    create_private_dir(to)?;
     for entry in
         std::fs::read_dir(from).with_context(|| format!("{}: cannot read", from.display()))?
     {
@@ -80,10 +83,82 @@ fn copy_new_files(from: &Path, to: &Path) -> Result<usize> {
         } else if kind.is_file() && !dst.exists() {
             std::fs::copy(&src, &dst)
                 .with_context(|| format!("{} → {}", src.display(), dst.display()))?;
+            make_private(&dst)?;
             copied += 1;
         }
     }
     Ok(copied)
+}
+
+/// A backup holds password hashes, session-token hashes and the audit log:
+/// its directories are the owner's alone (0700), its files too (0600).
+fn create_private_dir(dir: &Path) -> Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    std::fs::set_permissions(dir, std::fs::Permissions::from_mode(0o700))
+        .with_context(|| format!("{}: cannot make it private (0700)", dir.display()))
+}
+
+/// Make a backup's file the owner's alone (0600).
+fn make_private(file: &Path) -> Result<()> {
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(file, std::fs::Permissions::from_mode(0o600))
+        .with_context(|| format!("{}: cannot make it private (0600)", file.display()))
+}
+
+/// Refuse a backup directory inside the data directory or beside the store
+/// (a copy of the runs into the runs would copy itself until the path is
+/// too long).
+fn refuse_inside(dir: &Path, db: &StoreTarget, data: Option<&Path>) -> Result<()> {
+    let absolute = |p: &Path| -> std::path::PathBuf {
+        let p = if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            std::env::current_dir().unwrap_or_default().join(p)
+        };
+        // The deepest part that exists, resolved, with the rest after it.
+        let mut existing = p.clone();
+        let mut rest = Vec::new();
+        while !existing.exists() {
+            match (existing.file_name(), existing.parent()) {
+                (Some(name), Some(parent)) => {
+                    rest.push(name.to_os_string());
+                    existing = parent.to_path_buf();
+                }
+                _ => break,
+            }
+        }
+        let mut resolved = existing.canonicalize().unwrap_or(existing);
+        for name in rest.iter().rev() {
+            resolved.push(name);
+        }
+        resolved
+    };
+    let target = absolute(dir);
+    let mut forbidden = Vec::new();
+    if let Some(data) = data {
+        forbidden.push((absolute(data), "the data directory"));
+    }
+    if let StoreTarget::File(file) = db
+        && let Some(parent) = file.parent()
+    {
+        let parent = if parent.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            parent
+        };
+        forbidden.push((absolute(parent), "the store's directory"));
+    }
+    for (inside, what) in forbidden {
+        if target.starts_with(&inside) {
+            anyhow::bail!(
+                "{}: inside {what} ({}); back up to another directory (another disk is best)",
+                dir.display(),
+                inside.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// `spinbench restore FILE --db PATH|URL`.
@@ -104,9 +179,20 @@ pub(super) fn restore(backup: &Path, db: &StoreTarget, out: &mut dyn Write) -> R
     };
     anyhow::ensure!(
         !db.exists(),
-        "{} exists: a restore never replaces a store; move it aside first",
+        "{} exists: a restore never replaces a store; move it aside first (with its -wal and -shm files)",
         db.display()
     );
+    // A store moved aside without its write-ahead log leaves the log here:
+    // a new store would take it over (or SQLite would delete it), and the
+    // moved store would lose the writes it holds.
+    for suffix in ["-wal", "-shm"] {
+        let side = std::path::PathBuf::from(format!("{}{suffix}", db.display()));
+        anyhow::ensure!(
+            !side.exists(),
+            "{} exists: it belongs to a store that was moved aside without it and may hold its last writes; move it beside that store (all three files together), or open that store once to checkpoint it, then restore",
+            side.display()
+        );
+    }
     if let Some(parent) = db.parent().filter(|p| !p.as_os_str().is_empty()) {
         std::fs::create_dir_all(parent)
             .with_context(|| format!("{}: cannot create", parent.display()))?;

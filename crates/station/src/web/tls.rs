@@ -59,14 +59,38 @@ pub fn server_config(cert_path: &Path, key_path: &Path) -> Result<Arc<rustls::Se
 
 /// A PEM file, refused when missing, unreadable or implausibly large.
 fn read_bounded(path: &Path, option: &str) -> Result<Vec<u8>> {
-    let size = std::fs::metadata(path)
-        .with_context(|| format!("{option} {}: cannot read it", path.display()))?
-        .len();
+    let meta = std::fs::metadata(path)
+        .with_context(|| format!("{option} {}: cannot read it", path.display()))?;
+    // A device (/dev/zero) or a FIFO would be read for ever: a PEM is a file.
+    if !meta.is_file() {
+        bail!(
+            "{option} {}: not a regular file; give the PEM file itself",
+            path.display()
+        );
+    }
+    let size = meta.len();
     if size > MAX_PEM_BYTES {
         bail!(
             "{option} {}: {size} bytes, more than a PEM file of a certificate or key ({MAX_PEM_BYTES} at most)",
             path.display()
         );
     }
-    std::fs::read(path).with_context(|| format!("{option} {}: cannot read it", path.display()))
+    // Bounded even if the file grows while it is read.
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(
+            std::fs::File::open(path)
+                .with_context(|| format!("{option} {}: cannot read it", path.display()))?,
+            MAX_PEM_BYTES + 1,
+        ),
+        &mut bytes,
+    )
+    .with_context(|| format!("{option} {}: cannot read it", path.display()))?;
+    if bytes.len() as u64 > MAX_PEM_BYTES {
+        bail!(
+            "{option} {}: more than a PEM file of a certificate or key ({MAX_PEM_BYTES} bytes at most)",
+            path.display()
+        );
+    }
+    Ok(bytes)
 }

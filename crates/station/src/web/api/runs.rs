@@ -158,6 +158,7 @@ pub(super) async fn retest(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
+    _body: Bytes,
 ) -> ApiResult<(StatusCode, Json<RetestStarted>)> {
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
@@ -547,9 +548,14 @@ pub(super) async fn exclude_level(
             ask.g
         )));
     }
-    if ask.reason.trim().is_empty() || ask.reason.len() > 500 {
+    // Characters, not bytes (200 Chinese characters are 600 bytes); no
+    // control characters into the record and the audit log.
+    if ask.reason.trim().is_empty()
+        || ask.reason.chars().count() > 500
+        || ask.reason.chars().any(char::is_control)
+    {
         return Err(ApiError::bad(
-            "reason: say why the level is left out (1 to 500 characters)",
+            "reason: say why the level is left out (1 to 500 characters, no control characters)",
         ));
     }
     if app.runner.active().as_deref() == Some(id.as_str()) {

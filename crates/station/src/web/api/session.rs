@@ -25,14 +25,29 @@ fn reply(session: &Session, language: Option<Lang>) -> SessionReply {
         (status = 400, description = "not a login body", body = ErrorBody),
         (status = 401, description = "wrong user name or password", body = ErrorBody),
         (status = 413, description = "a body over 4 KiB"),
+        (status = 415, description = "a body that is not application/json", body = ErrorBody),
         (status = 429, description = "too many failed logins; wait Retry-After seconds", body = ErrorBody,
             headers(("retry-after" = u64, description = "seconds to wait"))),
     ))]
 pub(super) async fn login(
     State(app): State<App>,
     axum::extract::ConnectInfo(peer): axum::extract::ConnectInfo<std::net::SocketAddr>,
+    headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Response> {
+    // Only a script sends JSON: a cross-site form (text/plain, form data)
+    // cannot log a browser into someone's account.
+    let json = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.split(';').next())
+        .is_some_and(|v| v.trim().eq_ignore_ascii_case("application/json"));
+    if !json {
+        return Err(ApiError::new(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            "a login is a JSON body: send Content-Type: application/json",
+        ));
+    }
     let login: Login = parse_json(&body)?;
     // A name that cannot be a user's is refused before the store is asked,
     // and only a short prefix of it is ever written to the audit log.

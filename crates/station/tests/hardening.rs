@@ -1,0 +1,250 @@
+//! Hardening, round three (issue 27): each test names its item.
+
+mod common;
+#[path = "common/web.rs"]
+mod web;
+
+use common::spinbench;
+use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::os::unix::fs::PermissionsExt;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+use web::{Client, add_user, serve};
+
+#[test]
+fn item_14_a_device_or_a_fifo_as_the_tls_certificate_is_refused_at_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let fifo = dir.path().join("cert.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success());
+    for cert in ["/dev/zero", fifo.to_str().expect("utf-8")] {
+        let started = Instant::now();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+            .args([
+                "serve",
+                "--simulate",
+                "--bind",
+                "127.0.0.1:0",
+                "--tls-cert",
+                cert,
+                "--tls-key",
+                cert,
+                "--data",
+            ])
+            .arg(dir.path().join("data"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("serve");
+        let status = loop {
+            if let Ok(Some(status)) = child.try_wait() {
+                break status;
+            }
+            if started.elapsed() > Duration::from_secs(20) {
+                let _ = child.kill();
+                panic!("serve --tls-cert {cert} did not refuse within 20 s");
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        };
+        let mut err = String::new();
+        let _ = child
+            .stderr
+            .take()
+            .expect("stderr")
+            .read_to_string(&mut err);
+        assert!(!status.success());
+        assert!(err.contains("not a regular file"), "{cert}: {err}");
+    }
+}
+
+/// Send `request` on a raw connection and read one answer's status line.
+fn status_of(stream: &mut TcpStream) -> String {
+    let mut buf = [0u8; 4096];
+    let mut got = Vec::new();
+    let _ = stream.set_read_timeout(Some(Duration::from_secs(10)));
+    while !got.windows(4).any(|w| w == b"\r\n\r\n") {
+        match stream.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => got.extend_from_slice(&buf[..n]),
+        }
+    }
+    let text = String::from_utf8_lossy(&got).into_owned();
+    // The rest of this answer's body, by its length.
+    let length: usize = text
+        .lines()
+        .find_map(|l| {
+            l.to_ascii_lowercase()
+                .strip_prefix("content-length:")
+                .map(|v| v.trim().parse().unwrap_or(0))
+        })
+        .unwrap_or(0);
+    let head_end = got
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .map_or(got.len(), |p| p + 4);
+    let mut have = got.len() - head_end;
+    while have < length {
+        match stream.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => have += n,
+        }
+    }
+    text.lines().next().unwrap_or("").to_string()
+}
+
+#[test]
+fn items_18_20_21_login_only_as_json_retest_reads_its_body_and_reasons_are_characters() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    let server = serve(dir.path(), "0");
+    let addr = server.base.trim_start_matches("http://").to_string();
+
+    // Item 20: a cross-site form's text/plain login is refused.
+    let mut s = TcpStream::connect(&addr).expect("connect");
+    let body = r#"{"user": "eng", "password": "eng-password"}"#;
+    write!(
+        s,
+        "POST /api/login HTTP/1.1\r\nHost: x\r\nContent-Type: text/plain\r\nContent-Length: {}\r\n\r\n{body}",
+        body.len()
+    )
+    .expect("send");
+    let line = status_of(&mut s);
+    assert!(line.contains(" 415 "), "{line}");
+
+    // Item 21: the retest route reads its body, so the connection serves
+    // the next request.
+    let mut eng = Client::login(&server, "eng", "eng-password");
+    let cookie = eng.cookie.clone().expect("cookie");
+    let csrf = eng.csrf.clone().expect("csrf");
+    let mut s = TcpStream::connect(&addr).expect("connect");
+    write!(
+        s,
+        "POST /api/runs/no-such-run/retest HTTP/1.1\r\nHost: x\r\nCookie: {cookie}\r\nX-CSRF-Token: {csrf}\r\nContent-Type: application/json\r\nContent-Length: 2\r\n\r\n{{}}"
+    )
+    .expect("send");
+    let first = status_of(&mut s);
+    assert!(first.contains(" 404 "), "{first}");
+    write!(s, "GET /api/openapi.json HTTP/1.1\r\nHost: x\r\n\r\n").expect("send");
+    let second = status_of(&mut s);
+    assert!(
+        second.contains(" 200 "),
+        "the next request on the connection: {second}"
+    );
+
+    // Item 18: a reason with a control character is refused; 200 Chinese
+    // characters (600 bytes) are not too long.
+    let ask = |reason: &str| {
+        serde_json::json!({"serial": "X", "mount": "P", "g": 10.0, "reason": reason}).to_string()
+    };
+    let r = eng.send(
+        "POST",
+        "/api/runs/no-such-run/exclusions",
+        Some(&ask("bad\nline")),
+    );
+    assert_eq!(r.status, 400, "{:?}", r.json());
+    let r = eng.send(
+        "POST",
+        "/api/runs/no-such-run/exclusions",
+        Some(&ask(&"振".repeat(200))),
+    );
+    assert_eq!(
+        r.status,
+        404,
+        "past the reason's check to the run: {:?}",
+        r.json()
+    );
+    let r = eng.send(
+        "POST",
+        "/api/runs/no-such-run/exclusions",
+        Some(&ask(&"振".repeat(501))),
+    );
+    assert_eq!(r.status, 400);
+}
+
+#[test]
+fn items_5_6_25_backups_are_private_never_inside_the_data_and_never_take_a_strays_log() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("H")).expect("plan");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--data",
+        data.to_str().expect("utf-8"),
+        plan.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{err}");
+    let db = data.join("spinbench.db");
+    let db_s = db.to_str().expect("utf-8");
+
+    // Item 5: inside the data directory (its runs) or beside the store: refused.
+    for inside in [data.join("runs").join("backup"), data.join("backups")] {
+        let (ok, _, err) = spinbench(&[
+            "backup",
+            inside.to_str().expect("utf-8"),
+            "--db",
+            db_s,
+            "--data",
+            data.to_str().expect("utf-8"),
+        ]);
+        assert!(!ok && err.contains("inside"), "{}: {err}", inside.display());
+        assert!(!inside.exists(), "{} was made", inside.display());
+    }
+
+    // Item 25: a backup is the owner's alone.
+    let backups = dir.path().join("backups");
+    let (ok, _, err) = spinbench(&[
+        "backup",
+        backups.to_str().expect("utf-8"),
+        "--db",
+        db_s,
+        "--data",
+        data.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{err}");
+    let mode =
+        |p: &std::path::Path| std::fs::metadata(p).expect("meta").permissions().mode() & 0o777;
+    assert_eq!(mode(&backups), 0o700);
+    let mut files = 0;
+    let mut stack = vec![backups.clone()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).expect("dir").flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                assert_eq!(mode(&p), 0o700, "{}", p.display());
+                stack.push(p);
+            } else {
+                assert_eq!(mode(&p) & 0o077, 0, "{} is readable by others", p.display());
+                files += 1;
+            }
+        }
+    }
+    assert!(files >= 2, "the store and the runs' files");
+
+    // Item 6: a restore beside a stray -wal (a store moved aside without
+    // it) is refused, and the stray is left as it was.
+    let backup_file = std::fs::read_dir(&backups)
+        .expect("dir")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "db"))
+        .expect("the backup");
+    let target = dir.path().join("restored.db");
+    let wal = dir.path().join("restored.db-wal");
+    std::fs::write(&wal, b"a moved store's last writes").expect("wal");
+    let (ok, _, err) = spinbench(&[
+        "restore",
+        backup_file.to_str().expect("utf-8"),
+        "--db",
+        target.to_str().expect("utf-8"),
+    ]);
+    assert!(!ok && err.contains("-wal exists"), "{err}");
+    assert_eq!(
+        std::fs::read(&wal).expect("wal"),
+        b"a moved store's last writes"
+    );
+    assert!(!target.exists());
+}
