@@ -472,6 +472,28 @@ impl StationConfig {
                 key: e.key,
                 problem: e.problem,
             })?;
+            // A module's name is how every message and the device list
+            // name it: two of one name would make them ambiguous.
+            if let Some(first) = self.fmu[..i].iter().position(|o| o.name == f.name) {
+                return err(
+                    &format!("fmu[{i}].name"),
+                    format!(
+                        "'{}' is the name of fmu[{first}] too; give each counter module its own name",
+                        f.name
+                    ),
+                );
+            }
+        }
+        for (i, p) in self.power_supply.iter().enumerate() {
+            if let Some(first) = self.power_supply[..i].iter().position(|o| o.name == p.name) {
+                return err(
+                    &format!("power_supply[{i}].name"),
+                    format!(
+                        "'{}' is the name of power_supply[{first}] too; give each supply its own name",
+                        p.name
+                    ),
+                );
+            }
         }
         for (i, p) in self.power_supply.iter().enumerate() {
             p.validate(i).map_err(|e| StationConfigError {

@@ -665,6 +665,18 @@ impl TestPlan {
                     ),
                 );
             }
+            // A setpoint the station's own limit would stop the run at:
+            // refused before anything moves, not faulted after a pass.
+            if let Some(max) = station.temperature.instrument_max_c
+                && let Some(t) = self.temperatures_c.iter().find(|t| **t >= max)
+            {
+                return err(
+                    "temperatures_c",
+                    format!(
+                        "{t} °C reaches the station's temperature.instrument_max_c = {max} °C, which stops a run; leave it out or raise the limit if the instruments allow"
+                    ),
+                );
+            }
             if self.temperatures_c.len() > crate::bounds::MAX_TEMPERATURES {
                 return err(
                     "temperatures_c",
@@ -788,6 +800,15 @@ impl TestPlan {
                     key: format!("serials.{key}"),
                     problem: format!("slots are numbered 1 to {slots}"),
                 })?;
+            // "01" or "+1" beside "1" would name one slot twice and one
+            // instrument would be dropped without a word: only the plain
+            // number names a slot.
+            if key != &slot.to_string() {
+                return err(
+                    &format!("serials.{key}"),
+                    format!("write the slot as {slot} (no sign, no leading zero)"),
+                );
+            }
             let (mount, bare) = match serial.split_once(':') {
                 Some((m, rest)) => match Mount::parse(m) {
                     Some(mount) => (Some(mount), rest.trim()),
@@ -1194,5 +1215,60 @@ mod tests {
             .expect_err("unknown key")
             .to_string();
         assert!(e.contains("rnage_g"), "{e}");
+    }
+
+    #[test]
+    fn a_slot_written_two_ways_is_refused_not_dropped() {
+        // Issue 27, item 11: "01" beside "1" named slot 1 twice; one
+        // instrument was silently dropped.
+        let station = station(1);
+        for key in ["01", "+1", " 1"] {
+            let text = format!("[serials]\n1 = \"A\"\n\"{key}\" = \"B\"\n");
+            let plan = TestPlan::from_toml(&text).expect("plan");
+            let e = plan.compile(&station).expect_err(key);
+            assert_eq!(e.key, format!("serials.{key}"), "{e}");
+        }
+        let plan = TestPlan::from_toml("[serials]\n1 = \"A\"\n2 = \"B\"\n").expect("plan");
+        assert!(plan.compile(&station).is_ok());
+    }
+
+    #[test]
+    fn two_counter_modules_of_one_name_are_refused() {
+        // Issue 27, item 28.
+        let fmu =
+            "[[fmu]]\nname = \"f\"\ntransport = { kind = \"tcp\", address = \"127.0.0.1:1\" }\n";
+        let text = format!(
+            "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
+             [centrifuge]\nname = \"t\"\nmax_rate_deg_s = 2400\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n\
+             dialect = {{ kind = \"acutrol\" }}\n{fmu}{fmu}\
+             [[power_supply]]\nname = \"rails\"\nchannels = 2\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n"
+        );
+        let e = StationConfig::from_toml(&text).expect_err("two modules named f");
+        assert!(e.to_string().contains("fmu[1].name"), "{e}");
+    }
+
+    #[test]
+    fn a_temperature_the_station_would_stop_at_is_refused_before_anything_moves() {
+        // Issue 27, item 16: 70 °C on a station with instrument_max_c = 40.
+        let fmu =
+            "[[fmu]]\nname = \"f\"\ntransport = { kind = \"tcp\", address = \"127.0.0.1:1\" }\n";
+        let text = format!(
+            "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
+             [temperature]\ninstrument_max_c = 40\n\
+             [chamber]\nname = \"c\"\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n\
+             protocol = {{ kind = \"modbus-rtu\", unit_id = 1, setpoint = 100, process_value = 101, run = 102, alarms = 103, counts_per_c = 10 }}\n\
+             [centrifuge]\nname = \"t\"\nmax_rate_deg_s = 2400\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n\
+             dialect = {{ kind = \"acutrol\" }}\n{fmu}\
+             [[power_supply]]\nname = \"rails\"\nchannels = 2\ntransport = {{ kind = \"tcp\", address = \"127.0.0.1:1\" }}\n"
+        );
+        let station = StationConfig::from_toml(&text).expect("station");
+        let hot =
+            TestPlan::from_toml("temperatures_c = [25, 70]\n[serials]\n1 = \"A\"\n").expect("plan");
+        let e = hot.compile(&station).expect_err("70 °C over a 40 °C limit");
+        assert_eq!(e.key, "temperatures_c", "{e}");
+        assert!(e.to_string().contains("instrument_max_c"), "{e}");
+        let mild =
+            TestPlan::from_toml("temperatures_c = [25, 35]\n[serials]\n1 = \"A\"\n").expect("plan");
+        assert!(mild.compile(&station).is_ok());
     }
 }
