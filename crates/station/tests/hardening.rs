@@ -248,3 +248,45 @@ fn items_5_6_25_backups_are_private_never_inside_the_data_and_never_take_a_stray
     );
     assert!(!target.exists());
 }
+
+#[test]
+fn item_12_serve_refuses_to_start_on_a_store_it_cannot_write() {
+    // A store this user can read but not write: on PostgreSQL, a database
+    // user with SELECT only (root writes any file, so SQLite cannot show it
+    // in a test run as root).
+    let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
+    spinbench_store::Store::connect(&spinbench_store::StoreTarget::Postgres(url.clone()))
+        .expect("the schema made by its owner");
+    let reader = format!("reader_{}", std::process::id());
+    let mut c = postgres::Client::connect(&url, postgres::NoTls).expect("connect");
+    c.batch_execute(&format!(
+        "CREATE ROLE {reader} LOGIN; GRANT USAGE ON SCHEMA public TO {reader}; \
+         GRANT SELECT ON ALL TABLES IN SCHEMA public TO {reader};"
+    ))
+    .expect("a read-only user");
+    let read_only = url.replacen("://spinbench@", &format!("://{reader}@"), 1);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args([
+            "serve",
+            "--simulate",
+            "--bind",
+            "127.0.0.1:0",
+            "--db",
+            &read_only,
+            "--data",
+        ])
+        .arg(dir.path())
+        .output()
+        .expect("serve");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success(),
+        "serve started on a store it cannot write"
+    );
+    assert!(
+        err.contains("by this user") && err.contains("permission denied"),
+        "{err}"
+    );
+}

@@ -49,7 +49,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 #[derive(Debug, thiserror::Error)]
 // The database's reason is in the message and is not also the error's
 // source: a chain printer (anyhow's `{:#}`) would say it twice.
-#[error("store {target}: {what}: {reason}")]
+#[error("store {target}: {what}: {}", whole_reason(reason))]
 pub struct StoreError {
     /// The database (a file path, or the server with the password hidden).
     pub target: String,
@@ -57,6 +57,22 @@ pub struct StoreError {
     pub what: String,
     /// The database's reason.
     pub reason: DbError,
+}
+
+/// The database's reason with every cause under it (a PostgreSQL error
+/// says only "db error" itself; its message is its source's).
+fn whole_reason(reason: &DbError) -> String {
+    let mut text = reason.to_string();
+    let mut cause = reason.source();
+    while let Some(c) = cause {
+        let more = c.to_string();
+        if !text.ends_with(&more) {
+            text.push_str(": ");
+            text.push_str(&more);
+        }
+        cause = c.source();
+    }
+    text
 }
 
 impl StoreError {

@@ -196,7 +196,20 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         (Some(cert), Some(key)) => Some(tls::server_config(cert, key)?),
         _ => None,
     };
-    let store = Store::connect(&db)?;
+    let store = Store::connect(&db).map_err(|e| {
+        anyhow::anyhow!(
+            "{e}\nthe store {db} cannot be opened and brought up to date by this user ({}); check that it may read and write it (the file and its directory, or the database user's privileges), then start again",
+            crate::users::os_user()
+        )
+    })?;
+    // A store this user can open but not write (made by root, say) would
+    // fail every login and every run with a 500: refuse to start instead.
+    store.check_writable().map_err(|e| {
+        anyhow::anyhow!(
+            "{e}\nthe store {db} cannot be written by this user ({}); give it (and its directory) to the user that runs `spinbench serve` (chown), or grant the database user write access, then start again",
+            crate::users::os_user()
+        )
+    })?;
     if store.users()?.is_empty() {
         writeln!(
             out,
