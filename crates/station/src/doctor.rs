@@ -207,6 +207,37 @@ fn port_problem(path: &Path) -> Option<String> {
 /// The store: reachable, migrated (each migration applied), writable, sound.
 fn store_check(target: &StoreTarget) -> Finding {
     let what = format!("store ({target})");
+    // Doctor changes nothing: a store that does not exist yet is not made
+    // here (made by root, it would lock the service's user out later).
+    if let StoreTarget::File(path) = target
+        && !path.exists()
+    {
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(std::path::Path::new("."));
+        let (verdict, says) = match std::fs::metadata(dir) {
+            Ok(m) if m.is_dir() && !m.permissions().readonly() => (
+                Verdict::Ok,
+                format!("no store yet; the first run makes it in {}", dir.display()),
+            ),
+            Ok(_) => (
+                Verdict::Fail,
+                format!(
+                    "no store yet, and {} cannot be written; give it to the user that runs spinbench",
+                    dir.display()
+                ),
+            ),
+            Err(_) => (
+                Verdict::Ok,
+                format!(
+                    "no store yet; the first run makes {} and the store in it",
+                    dir.display()
+                ),
+            ),
+        };
+        return Finding::new(verdict, what, says);
+    }
     let store = match Store::connect(target) {
         Ok(s) => s,
         Err(e) => {

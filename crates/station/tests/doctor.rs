@@ -47,11 +47,24 @@ fn the_virtual_bench_is_ready() {
     ] {
         assert!(out.contains(what), "{what} in\n{out}");
     }
-    // Every device identified, the store migrated and writable.
+    // Every device identified; no store yet, and none made (issue 27,
+    // item 12: doctor changes nothing).
     assert!(
         out.contains("ACUTRONIC") && out.contains("firmware 0x"),
         "{out}"
     );
+    assert!(out.contains("no store yet"), "{out}");
+    assert!(!data.join("spinbench.db").exists(), "doctor made the store");
+    // Once a store exists: migrated and writable.
+    let made = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["user", "add", "admin", "--role", "admin", "--db"])
+        .arg(data.join("spinbench.db"))
+        .env("SPINBENCH_PASSWORD", "admin-password")
+        .output()
+        .expect("user add");
+    assert!(made.status.success());
+    let (ok, out, err) = doctor(&["--simulate", "--data", data.to_str().expect("utf-8")]);
+    assert!(ok || only_disk_failed(&out), "{out}\n{err}");
     assert!(out.contains("writable, schema version"), "{out}");
     assert!(
         out.lines()
