@@ -290,3 +290,48 @@ fn item_12_serve_refuses_to_start_on_a_store_it_cannot_write() {
         "{err}"
     );
 }
+
+#[test]
+fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let db = dir.path().join("spinbench.db");
+    let db_s = db.to_str().expect("utf-8");
+    let set = |role: &str, calibrated: &str, due: &str| {
+        spinbench(&[
+            "equipment",
+            "set",
+            role,
+            "--identity",
+            "X 1",
+            "--certificate",
+            "C-1",
+            "--calibrated",
+            calibrated,
+            "--due",
+            due,
+            "--db",
+            db_s,
+        ])
+    };
+    let (ok, _, err) = set("centrifuge", "2199-01-01", "2200-01-01");
+    assert!(!ok && err.contains("after today"), "{err}");
+    let (ok, _, err) = set("bogus role", "2025-01-01", "2027-01-01");
+    assert!(!ok && err.contains("not a device"), "{err}");
+    let (ok, _, err) = set("fmu 01", "2025-01-01", "2027-01-01");
+    assert!(!ok, "{err}");
+    let (ok, _, err) = set("fmu 2", "2025-01-01", "2027-01-01");
+    assert!(ok, "{err}");
+
+    // The same through the API.
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    let server = serve(dir.path(), "0");
+    let mut eng = Client::login(&server, "eng", "eng-password");
+    let body = serde_json::json!({"identity": "X 1", "certificate": "C-1", "calibrated_on": "2199-01-01", "due_on": "2200-01-01"});
+    let r = eng.send("PUT", "/api/equipment/centrifuge", Some(&body.to_string()));
+    assert_eq!(r.status, 400, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("after today"))
+    );
+}

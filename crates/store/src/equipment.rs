@@ -97,6 +97,37 @@ pub fn parse_date(text: &str) -> Option<i64> {
     (civil_from_days(days) == (y, m, d)).then_some(days)
 }
 
+/// Check a calibration's dates (days since 1970-01-01): calibrated no later
+/// than `today`, due after it was calibrated. The problem in words.
+pub fn check_calibration_dates(calibrated: i64, due: i64, today: i64) -> Result<(), String> {
+    if calibrated > today {
+        return Err(format!(
+            "calibrated on {} is after today ({}): give the date on the certificate",
+            civil_date(calibrated * 86_400),
+            civil_date(today * 86_400)
+        ));
+    }
+    if due <= calibrated {
+        return Err(format!(
+            "due on {} is not after calibrated on {}",
+            civil_date(due * 86_400),
+            civil_date(calibrated * 86_400)
+        ));
+    }
+    Ok(())
+}
+
+/// Whether `role` can name a device of a run: `centrifuge`, `fmu N`,
+/// `instrument supply`, `module supply` (a typo would leave the real device
+/// unregistered while the register looks kept).
+pub fn is_device_role(role: &str) -> bool {
+    matches!(role, "centrifuge" | "instrument supply" | "module supply")
+        || role
+            .strip_prefix("fmu ")
+            .and_then(|n| n.parse::<u32>().ok())
+            .is_some_and(|n| (1..=64).contains(&n) && role == format!("fmu {n}"))
+}
+
 /// The status on `today` (days since 1970-01-01) of a device due on
 /// `due_on` (YYYY-MM-DD; a date that is not one counts as overdue).
 pub fn status_of_due(due_on: &str, today: i64) -> CalibrationStatus {

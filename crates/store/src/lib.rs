@@ -86,7 +86,8 @@ impl StoreError {
     }
 }
 
-fn now_s() -> i64 {
+/// The time now [Unix s].
+pub fn now_s() -> i64 {
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs() as i64)

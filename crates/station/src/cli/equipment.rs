@@ -59,7 +59,13 @@ pub(super) fn set(
     })?;
     let d = parse_date(due)
         .with_context(|| format!("--due '{due}': a date YYYY-MM-DD (1970 to 2200)"))?;
-    anyhow::ensure!(d > c, "--due {due} is not after --calibrated {calibrated}");
+    anyhow::ensure!(
+        spinbench_store::equipment::is_device_role(role),
+        "ROLE '{role}' is not a device of a run: centrifuge, fmu 1, fmu 2 …, instrument supply or module supply"
+    );
+    let today_days = spinbench_store::now_s().div_euclid(86_400);
+    spinbench_store::equipment::check_calibration_dates(c, d, today_days)
+        .map_err(|why| anyhow::anyhow!("--calibrated {calibrated} --due {due}: {why}"))?;
     let store = spinbench_store::Store::connect(db)?;
     let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
     let row = EquipmentRow {

@@ -48,7 +48,7 @@ const MAX_TEXT_CHARS: usize = 200;
     request_body(content = SetEquipment, description = "At most 2 MiB (413 beyond)."),
     responses(
         (status = 200, description = "recorded", body = EquipmentSaved),
-        (status = 400, description = "a bad text or date, or due before calibrated", body = ErrorBody),
+        (status = 400, description = "a bad text or date, calibrated after today, or due before calibrated", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
         (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
         (status = 404, description = "no such device in this station", body = ErrorBody),
@@ -88,12 +88,9 @@ pub(super) async fn set_equipment(
         .ok_or_else(|| ApiError::bad("calibrated_on: a date YYYY-MM-DD (1970 to 2200)"))?;
     let due = parse_date(&set.due_on)
         .ok_or_else(|| ApiError::bad("due_on: a date YYYY-MM-DD (1970 to 2200)"))?;
-    if due <= calibrated {
-        return Err(ApiError::bad(format!(
-            "due_on {} is not after calibrated_on {}",
-            set.due_on, set.calibrated_on
-        )));
-    }
+    let today = spinbench_store::now_s().div_euclid(86_400);
+    spinbench_store::equipment::check_calibration_dates(calibrated, due, today)
+        .map_err(ApiError::bad)?;
     let row = EquipmentRow {
         role: role.clone(),
         identity: set.identity.trim().to_string(),
