@@ -154,6 +154,41 @@ fn the_debian_package_holds_the_binary_the_unit_and_the_maintainer_scripts() {
             "{line} in the unit:\n{unit}"
         );
     }
+    // Issue 27, item 26: the unit's exposure, as systemd rates it (offline,
+    // on the packaged file), else its hardening lines.
+    let unit_path = root.join("usr/lib/systemd/system/spinbench.service");
+    let analysed = std::process::Command::new("systemd-analyze")
+        .args(["security", "--offline=true"])
+        .arg(&unit_path)
+        .output();
+    match analysed {
+        Ok(out) if out.status.success() || !out.stdout.is_empty() => {
+            let text = String::from_utf8_lossy(&out.stdout);
+            let score: f64 = text
+                .lines()
+                .find_map(|l| l.split("spinbench.service: ").nth(1))
+                .and_then(|rest| rest.split_whitespace().next())
+                .and_then(|v| v.parse().ok())
+                .unwrap_or_else(|| panic!("no exposure level in:\n{text}"));
+            eprintln!("systemd-analyze security: {score}");
+            assert!(score <= 2.0, "exposure {score}:\n{text}");
+        }
+        _ => {
+            for line in [
+                "CapabilityBoundingSet=",
+                "RestrictAddressFamilies=AF_INET AF_INET6 AF_UNIX",
+                "SystemCallFilter=@system-service",
+                "DevicePolicy=closed",
+                "UMask=0027",
+                "ProtectKernelTunables=true",
+            ] {
+                assert!(
+                    unit.lines().any(|l| l == line),
+                    "{line} in the unit:\n{unit}"
+                );
+            }
+        }
+    }
     let defaults = text_of(&root.join("etc/default/spinbench"));
     assert!(
         defaults

@@ -624,6 +624,11 @@ fn an_abort_from_the_api_ends_the_run_safely_on(backend: Backend) {
     assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
     let s = op.wait_status(60, |s| s["active"].is_null());
     assert_eq!(s["state"], "aborted", "{s}");
+    // The record names who aborted (issue 27, item 13), not "abort".
+    let run_id = s["run_id"].as_str().expect("run id").to_string();
+    let run = op.get_json(&format!("/api/runs/{run_id}"), 200);
+    let reason = run["reason"].as_str().unwrap_or_default();
+    assert!(reason.contains("user op"), "{run}");
 }
 
 /// Read the event stream until an event of kind `until`; (ids, kinds).

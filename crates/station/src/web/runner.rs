@@ -87,9 +87,11 @@ impl Operator for WebOperator {
             Some(answer) => answer,
             None if self.abort.is_set() => {
                 state.0 = None;
+                // Who asked (the web UI's user, or a signal), as the
+                // record names it (issue 27, item 13).
                 Answer {
                     proceed: false,
-                    by: "abort while waiting for the operator".into(),
+                    by: self.abort.by(),
                 }
             }
             None => return None,

@@ -43,6 +43,7 @@ pub(super) struct Since {
     params(Since, ("last-event-id" = Option<u64>, Header, description = "the last event seen")),
     responses(
         (status = 200, description = "the engine's events, one JSON object each (`event` names its kind); the stream stays open", content_type = "text/event-stream", body = String),
+        (status = 400, description = "a bad query string (`since` is a whole number from 0)", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
     ))]
 pub(super) async fn events(
