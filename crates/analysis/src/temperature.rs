@@ -145,24 +145,59 @@ fn pairs(reference: &[Point], other: &[Point], k1: f64, mount: Option<Mount>) ->
     out
 }
 
-/// Standard errors of a cubic's coefficients through `pairs`, if it has
-/// degrees of freedom left.
+/// Standard uncertainties of a cubic's first three coefficients through
+/// `pairs`, if it has degrees of freedom left: the larger of the fit's
+/// standard error and the delete-one-level jackknife's (Hinkley's
+/// (L − p)/L·ΣΔ²). A structure the cubic does not hold — an activity dip
+/// that moves with the temperature, at one level — is scatter to the
+/// standard error but moves the coefficients; the jackknife sees how much
+/// (issue 30, item 6).
 fn cubic_errors(pairs: &[(f64, f64)]) -> Option<[f64; 3]> {
     const DEGREE: usize = 3;
     if pairs.len() < DEGREE + 3 {
         return None;
     }
-    let x: Vec<f64> = pairs.iter().map(|p| p.0).collect();
-    let y: Vec<f64> = pairs.iter().map(|p| p.1).collect();
-    let fit = solve(
-        &polynomial_design(&x, DEGREE),
-        &y,
-        "paired temperature differences",
-    )
-    .ok()?;
-    let cov = fit.covariance?;
-    let e = |i: usize| cov[(i, i)].max(0.0).sqrt();
-    Some([e(0), e(1), e(2)])
+    let fit_of = |pairs: &[&(f64, f64)]| {
+        let x: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+        let y: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+        solve(
+            &polynomial_design(&x, DEGREE),
+            &y,
+            "paired temperature differences",
+        )
+        .ok()
+    };
+    let all: Vec<&(f64, f64)> = pairs.iter().collect();
+    let fit = fit_of(&all)?;
+    let cov = fit.covariance.as_ref()?;
+    let se = |i: usize| cov[(i, i)].max(0.0).sqrt();
+    // The levels (signed input), each left out in turn.
+    let mut levels: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+    levels.sort_by(f64::total_cmp);
+    levels.dedup();
+    let p = DEGREE + 1;
+    let mut deltas = [0.0f64; 3];
+    let mut used = 0usize;
+    for level in &levels {
+        let rest: Vec<&(f64, f64)> = pairs.iter().filter(|q| q.0 != *level).collect();
+        if rest.len() < p + 1 {
+            continue;
+        }
+        if let Some(without) = fit_of(&rest) {
+            for (j, d) in deltas.iter_mut().enumerate() {
+                *d += (without.coefficients[j] - fit.coefficients[j]).powi(2);
+            }
+            used += 1;
+        }
+    }
+    let jackknife = |j: usize| {
+        if used > p {
+            ((used - p) as f64 / used as f64 * deltas[j]).sqrt()
+        } else {
+            0.0
+        }
+    };
+    Some(std::array::from_fn(|j| se(j).max(jackknife(j))))
 }
 
 /// What differs between the figures at `other` and at `reference` (module
@@ -641,6 +676,62 @@ mod tests {
         let again = batch.clone();
         pool(&mut batch);
         assert_eq!(again, batch);
+    }
+
+    #[test]
+    fn a_dip_at_one_level_moves_the_paired_slope_and_its_uncertainty_says_so() {
+        // Issue 30, item 6: paired differences with an activity dip at one
+        // level (both directions) and a little noise: the dip moves the
+        // fitted slope; the returned uncertainty covers that move, where
+        // the residuals' standard error alone did not.
+        let levels = [-70.0, -50.0, -30.0, -10.0, 0.0, 10.0, 30.0, 50.0, 70.0];
+        let noise = [1.0, -1.0, 0.5, -0.5, 0.2, -0.2, 0.8, -0.8, 0.3];
+        let make = |dip: f64| -> Vec<(f64, f64)> {
+            levels
+                .iter()
+                .zip(noise)
+                .flat_map(|(&x, n)| {
+                    let y = if x == 30.0 { dip } else { 0.0 };
+                    [(x, y + n * 1e-3), (x, y - n * 1e-3)]
+                })
+                .collect()
+        };
+        let slope = |pairs: &[(f64, f64)]| {
+            let x: Vec<f64> = pairs.iter().map(|p| p.0).collect();
+            let y: Vec<f64> = pairs.iter().map(|p| p.1).collect();
+            solve(&polynomial_design(&x, 3), &y, "test")
+                .expect("fit")
+                .coefficients[1]
+        };
+        let dipped = make(0.5);
+        let moved = (slope(&dipped) - slope(&make(0.0))).abs();
+        let u = cubic_errors(&dipped).expect("errors")[1];
+        let x: Vec<f64> = dipped.iter().map(|p| p.0).collect();
+        let y: Vec<f64> = dipped.iter().map(|p| p.1).collect();
+        let se_dipped = solve(&polynomial_design(&x, 3), &y, "test")
+            .expect("fit")
+            .covariance
+            .expect("cov")[(1, 1)]
+            .sqrt();
+        // At a coverage factor of 2 the interval holds the move; the
+        // standard error's did not.
+        assert!(
+            2.0 * u >= moved,
+            "u {u}: 2u < the dip's move of the slope {moved}"
+        );
+        assert!(
+            2.0 * se_dipped < moved,
+            "se {se_dipped} already covered {moved}"
+        );
+        // Clean data: about the standard error (the jackknife does not
+        // blow it up).
+        let clean = make(0.0);
+        let x: Vec<f64> = clean.iter().map(|p| p.0).collect();
+        let y: Vec<f64> = clean.iter().map(|p| p.1).collect();
+        let fit = solve(&polynomial_design(&x, 3), &y, "test").expect("fit");
+        let se = fit.covariance.expect("cov")[(1, 1)].sqrt();
+        let u_clean = cubic_errors(&clean).expect("errors")[1];
+        assert!(u_clean >= se && u_clean < 3.0 * se, "{u_clean} vs se {se}");
     }
 
     #[test]
