@@ -91,6 +91,27 @@ pub fn shown(name: &str) -> String {
     }
 }
 
+/// A name typed by a person (a serial number, a device's identity) as it is
+/// compared and kept: NFKC-normalised (a fullwidth `Ａ` is `A`) and
+/// trimmed; refused, naming the character, when it holds a format
+/// character (a zero-width space, a right-to-left override) or a control
+/// character, which would let two look-alike names sit side by side.
+pub fn person_text(text: &str) -> Result<String, String> {
+    use unicode_general_category::{GeneralCategory, get_general_category};
+    use unicode_normalization::UnicodeNormalization;
+    if let Some(c) = text
+        .chars()
+        .find(|&c| c.is_control() || get_general_category(c) == GeneralCategory::Format)
+    {
+        return Err(format!(
+            "'{}' holds an invisible character U+{:04X}; type it again without it",
+            shown(text),
+            u32::from(c)
+        ));
+    }
+    Ok(text.nfkc().collect::<String>().trim().to_string())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

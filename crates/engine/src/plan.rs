@@ -821,6 +821,11 @@ impl TestPlan {
                 },
                 None => (None, serial.trim()),
             };
+            let normal = match crate::bounds::person_text(bare) {
+                Ok(n) => n,
+                Err(why) => return err(&format!("serials.{key}"), why),
+            };
+            let bare = normal.as_str();
             if bare.is_empty() {
                 return err(
                     &format!("serials.{key}"),
@@ -1270,5 +1275,27 @@ mod tests {
         let mild =
             TestPlan::from_toml("temperatures_c = [25, 35]\n[serials]\n1 = \"A\"\n").expect("plan");
         assert!(mild.compile(&station).is_ok());
+    }
+
+    #[test]
+    fn look_alike_serials_are_one_serial_and_invisible_characters_are_refused() {
+        // Issue 27, item 24: a fullwidth Ａ is A (so the second is refused
+        // as the same instrument); a zero-width space or a right-to-left
+        // override is refused, naming the character.
+        let station = station(1);
+        let plan = TestPlan::from_toml("[serials]\n1 = \"A1\"\n2 = \"\u{FF21}1\"\n").expect("plan");
+        let e = plan.compile(&station).expect_err("A1 twice");
+        assert!(e.to_string().contains("already in slot 1"), "{e}");
+        for odd in ["A\u{200B}1", "\u{202E}A1"] {
+            let text = format!("[serials]\n1 = \"{odd}\"\n");
+            let plan = TestPlan::from_toml(&text).expect("plan");
+            let e = plan.compile(&station).expect_err(odd);
+            assert!(e.to_string().contains("invisible character"), "{e}");
+        }
+        let plan = TestPlan::from_toml("[serials]\n1 = \"\u{FF21}7\"\n").expect("plan");
+        assert_eq!(
+            plan.compile(&station).expect("plan").serials[0].as_deref(),
+            Some("A7")
+        );
     }
 }

@@ -321,6 +321,23 @@ fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
     assert!(!ok, "{err}");
     let (ok, _, err) = set("fmu 2", "2025-01-01", "2027-01-01");
     assert!(ok, "{err}");
+    // Item 24: an identity with a right-to-left override is refused.
+    let (ok, _, err) = spinbench(&[
+        "equipment",
+        "set",
+        "centrifuge",
+        "--identity",
+        "X\u{202E}1",
+        "--certificate",
+        "C-1",
+        "--calibrated",
+        "2025-01-01",
+        "--due",
+        "2027-01-01",
+        "--db",
+        db_s,
+    ]);
+    assert!(!ok && err.contains("invisible character"), "{err}");
 
     // The same through the API.
     add_user(dir.path(), "eng", "engineer", "eng-password");

@@ -70,8 +70,10 @@ pub(super) fn set(
     let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
     let row = EquipmentRow {
         role: role.trim().to_string(),
-        identity: identity.trim().to_string(),
-        certificate: certificate.trim().to_string(),
+        identity: spinbench_engine::bounds::person_text(identity)
+            .map_err(|why| anyhow::anyhow!("--identity: {why}"))?,
+        certificate: spinbench_engine::bounds::person_text(certificate)
+            .map_err(|why| anyhow::anyhow!("--certificate: {why}"))?,
         calibrated_on: calibrated.to_string(),
         due_on: due.to_string(),
         updated_by: who.clone(),

@@ -4,6 +4,7 @@
 
 use super::schema::{EquipmentEntry, EquipmentSaved, ErrorBody, SetEquipment};
 use super::*;
+use spinbench_engine::bounds::person_text;
 use spinbench_store::equipment::{EquipmentRow, parse_date};
 
 /// Every device of the station with its calibration and status.
@@ -93,8 +94,10 @@ pub(super) async fn set_equipment(
         .map_err(ApiError::bad)?;
     let row = EquipmentRow {
         role: role.clone(),
-        identity: set.identity.trim().to_string(),
-        certificate: set.certificate.trim().to_string(),
+        identity: person_text(&set.identity)
+            .map_err(|why| ApiError::bad(format!("identity: {why}")))?,
+        certificate: person_text(&set.certificate)
+            .map_err(|why| ApiError::bad(format!("certificate: {why}")))?,
         calibrated_on: set.calibrated_on,
         due_on: set.due_on,
         updated_by: session.user.clone(),
