@@ -352,3 +352,70 @@ fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
             .is_some_and(|e| e.contains("after today"))
     );
 }
+
+#[test]
+fn item_22_an_admin_may_retest_past_an_overdue_device_with_a_reason() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(
+        dir.path().join("plans").join("tight.toml"),
+        format!(
+            "{}[limits]\nk2_max_ug_per_g2 = 0.001\n",
+            web::short_plan("tight", &["T-1"])
+        ),
+    )
+    .expect("plan");
+    let server = serve(dir.path(), "0");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    // A run whose instrument fails the tight limit: something to retest.
+    let r = admin.send("POST", "/api/runs", Some(r#"{"plan": "tight"}"#));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let run_id = r.json()["run_id"].as_str().expect("run id").to_string();
+    let until = Instant::now() + Duration::from_secs(120);
+    loop {
+        let s = admin.get_json("/api/status", 200);
+        if s["active"].is_null() && s["run_id"] == run_id.as_str() {
+            break;
+        }
+        if s["prompt"].is_string() {
+            admin.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+        }
+        assert!(Instant::now() < until, "the run did not end");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // The centrifuge overdue: a plain retest is refused, naming the override.
+    let overdue = serde_json::json!({"identity": "C 1", "certificate": "K-1", "calibrated_on": "2020-01-01", "due_on": "2021-01-01"});
+    let r = admin.send(
+        "PUT",
+        "/api/equipment/centrifuge",
+        Some(&overdue.to_string()),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let path = format!("/api/runs/{run_id}/retest");
+    let r = admin.send("POST", &path, None);
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("override_overdue"))
+    );
+    // An operator may not override.
+    let mut op = Client::login(&server, "op", "op-password");
+    let with_reason = r#"{"override_overdue": "calibration booked for Monday"}"#;
+    assert_eq!(op.send("POST", &path, Some(with_reason)).status, 403);
+    // The admin, with a reason: started, and the override is audited.
+    let r = admin.send("POST", &path, Some(with_reason));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let audit = admin.get_json("/api/audit", 200);
+    assert!(
+        audit.as_array().expect("a list").iter().any(|e| e["action"]
+            == "override overdue calibration"
+            && e["detail"]
+                .as_str()
+                .is_some_and(|d| d.contains("retest of") && d.contains("Monday"))),
+        "{audit}"
+    );
+    let _ = admin.send("POST", "/api/run/abort", None);
+}

@@ -3,8 +3,8 @@
 
 use super::plans::plan_name_ok;
 use super::schema::{
-    ErrorBody, ExcludeLevel, Excluded, PromptAnswer, ResultRow, RetestStarted, RunDetail, RunEntry,
-    RunId, StartRun, UnitHistory, UnitTest,
+    ErrorBody, ExcludeLevel, Excluded, PromptAnswer, ResultRow, RetestRequest, RetestStarted,
+    RunDetail, RunEntry, RunId, StartRun, UnitHistory, UnitTest,
 };
 use super::*;
 use spinbench_engine::event::Wording;
@@ -145,9 +145,10 @@ async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String>
 #[utoipa::path(post, path = "/api/runs/{id}/retest", tag = "runs",
     security(("session" = [], "csrf" = [])),
     params(("id" = String, Path, description = "the finished run")),
+    request_body(content = Option<RetestRequest>, description = "Optional; at most 2 MiB (413 beyond)."),
     responses(
         (status = 201, description = "the retest started", body = RetestStarted),
-        (status = 400, description = "not a run id", body = ErrorBody),
+        (status = 400, description = "not a run id, or a bad body", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
         (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
         (status = 404, description = "no such run", body = ErrorBody),
@@ -158,11 +159,16 @@ pub(super) async fn retest(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
-    _body: Bytes,
+    body: Bytes,
 ) -> ApiResult<(StatusCode, Json<RetestStarted>)> {
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
     let session = authorize(&app, &headers, Role::Operator, true).await?;
+    let ask: RetestRequest = if body.iter().all(u8::is_ascii_whitespace) {
+        RetestRequest::default()
+    } else {
+        parse_json(&body)?
+    };
     let asked = id.clone();
     let found = blocking(&app, move |app| {
         Ok(retest_plan_from_store(&store(app), &asked))
@@ -180,8 +186,22 @@ pub(super) async fn retest(
         E::Store(s) => ApiError::from(s),
     })?;
     plan.operator = session.user.clone();
-    check_equipment(&app, &session, None).await?;
+    // As a new run: an admin may override an overdue device, with a reason
+    // (issue 27, item 22: the 409 told them to).
+    let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
     let run_id = start_plan(&app, &plan, &session.user).await?;
+    if let Some(devices) = overridden {
+        audit(
+            &app,
+            &session.user,
+            "override overdue calibration",
+            &format!(
+                "{run_id} (retest of {id}) started with {devices} overdue: {}",
+                ask.override_overdue.as_deref().unwrap_or_default()
+            ),
+        )
+        .await?;
+    }
     audit(
         &app,
         &session.user,

@@ -578,3 +578,13 @@ pub struct FleetStation {
     /// This is the station of the server answering.
     pub this_station: bool,
 }
+
+/// A retest's options (the body may be empty).
+#[derive(Debug, Default, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RetestRequest {
+    /// Start although a device is overdue for calibration (an admin), with
+    /// this reason (recorded in the audit log).
+    #[schema(max_length = 500)]
+    pub override_overdue: Option<String>,
+}
