@@ -500,8 +500,10 @@ impl ChamberConfig {
     /// Check the section; the error names the key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.io.validate("chamber")?;
+        self.transport.validate("chamber")?;
         if let Some(relay) = &self.purge_relay {
             relay.io.validate("chamber.purge_relay")?;
+            relay.transport.validate("chamber.purge_relay")?;
             let on_controller = match &self.protocol {
                 ChamberProtocol::ModbusRtu(map) | ChamberProtocol::ModbusTcp(map) => {
                     map.purge.is_some() || map.purge_coil.is_some()

@@ -59,7 +59,27 @@ fn default_connect_ms() -> u64 {
     2000
 }
 
+/// Longest connect timeout of a TCP transport [ms]: a reconnection is part
+/// of a command's retries, so it is bounded like one attempt
+/// ([`crate::line::MAX_TIMEOUT_MS`]).
+pub const MAX_CONNECT_TIMEOUT_MS: u64 = crate::line::MAX_TIMEOUT_MS;
+
 impl TransportConfig {
+    /// Check the transport's numbers; the error names the key under `section`.
+    pub fn validate(&self, section: &str) -> Result<(), ConfigError> {
+        match self {
+            TransportConfig::Tcp {
+                connect_timeout_ms, ..
+            } if !(1..=MAX_CONNECT_TIMEOUT_MS).contains(connect_timeout_ms) => Err(ConfigError {
+                key: format!("{section}.transport.connect_timeout_ms"),
+                problem: format!(
+                    "{connect_timeout_ms} ms is outside 1 to {MAX_CONNECT_TIMEOUT_MS} ms (MAX_CONNECT_TIMEOUT_MS)"
+                ),
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// Open the transport.
     pub fn open(&self) -> io::Result<Box<dyn Transport>> {
         Ok(match self {
@@ -168,6 +188,7 @@ impl CentrifugeConfig {
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.max_rate_deg_s()?;
         self.io.validate("centrifuge")?;
+        self.transport.validate("centrifuge")?;
         if let DialectConfig::Line(line) = &self.dialect {
             LineDialect::new((**line).clone()).map_err(|e| ConfigError {
                 key: format!("centrifuge.dialect.{}", e.key),
@@ -296,6 +317,7 @@ impl FmuConfig {
             });
         }
         self.io.validate(&format!("fmu[{index}]"))?;
+        self.transport.validate(&format!("fmu[{index}]"))?;
         if let TransportConfig::Serial(s) = &self.transport {
             let framing = SerialFraming {
                 data_bits: s.data_bits,
@@ -373,7 +395,8 @@ impl PowerSupplyConfig {
                 problem: format!("{} is not 1 to 16", self.channels),
             });
         }
-        self.io.validate(&format!("power_supply[{index}]"))
+        self.io.validate(&format!("power_supply[{index}]"))?;
+        self.transport.validate(&format!("power_supply[{index}]"))
     }
 
     /// Open the transport and build the driver.

@@ -28,10 +28,17 @@ fn default_retries() -> u32 {
     2
 }
 
-/// Longest deadline of one attempt [ms] (one minute).
-pub const MAX_TIMEOUT_MS: u64 = 60_000;
+/// Longest deadline of one attempt [ms] (ten seconds).
+pub const MAX_TIMEOUT_MS: u64 = 10_000;
 /// Most retries of one command.
 pub const MAX_RETRIES: u32 = 20;
+/// Longest a device may take to fail one command, all attempts together,
+/// `timeout_ms × (retries + 1)` [ms]. A shutdown sends each device a few
+/// commands on the way to the safe state; with silent devices the whole
+/// stop must end well inside the service's stop time (the packaged unit's
+/// `TimeoutStopSec=90`, issue 27 item 2), so one command may not take
+/// longer than this.
+pub const MAX_COMMAND_MS: u64 = 10_000;
 
 impl IoPolicy {
     /// Check the deadline and the retries against their bounds; the error
@@ -50,6 +57,19 @@ impl IoPolicy {
             return Err(crate::config::ConfigError {
                 key: format!("{section}.io.retries"),
                 problem: format!("{} is above {MAX_RETRIES} (MAX_RETRIES)", self.retries),
+            });
+        }
+        let command_ms = self.timeout_ms * (u64::from(self.retries) + 1);
+        if command_ms > MAX_COMMAND_MS {
+            return Err(crate::config::ConfigError {
+                key: format!("{section}.io"),
+                problem: format!(
+                    "timeout_ms × (retries + 1) = {} × {} = {command_ms} ms is over {MAX_COMMAND_MS} ms \
+                     (MAX_COMMAND_MS): a device that stops answering would hold the station's \
+                     stop past the service's stop time; shorten the timeout or take fewer retries",
+                    self.timeout_ms,
+                    self.retries + 1
+                ),
             });
         }
         Ok(())

@@ -56,6 +56,21 @@ pub struct StationConfig {
     /// The temperature chamber, if the station has one.
     #[serde(default)]
     pub chamber: Option<spinbench_devices::chamber::ChamberConfig>,
+    /// How the equipment register holds runs back.
+    #[serde(default)]
+    pub equipment: EquipmentPolicy,
+}
+
+/// `[equipment]`: what the equipment register asks before a run starts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EquipmentPolicy {
+    /// A device of the station that is not in the register holds a new run
+    /// back like an overdue one (an admin may override, with a reason).
+    /// Default false: a station that keeps no register still runs (issue
+    /// 27 item 23).
+    #[serde(default)]
+    pub require_registered: bool,
 }
 
 /// `[temperature]`: what the station does with the instruments' temperatures.

@@ -27,16 +27,25 @@ pub fn station_equipment(
         .collect())
 }
 
-/// "centrifuge (due 2026-01-01), fmu 1 (due …)": the overdue devices, if any.
-pub fn overdue(equipment: &[(String, Option<EquipmentRow>, CalibrationStatus)]) -> Option<String> {
+/// "centrifuge (due 2026-01-01), fmu 1 (due …)": the devices that hold a
+/// new run back, if any: those past their due date, and with
+/// `require_registered` (the station's `[equipment]`) those not in the
+/// register.
+pub fn overdue(
+    equipment: &[(String, Option<EquipmentRow>, CalibrationStatus)],
+    require_registered: bool,
+) -> Option<String> {
     let late: Vec<String> = equipment
         .iter()
-        .filter(|(_, _, s)| *s == CalibrationStatus::Overdue)
-        .map(|(role, row, _)| {
-            format!(
+        .filter_map(|(role, row, status)| match status {
+            CalibrationStatus::Overdue => Some(format!(
                 "{role} (due {})",
                 row.as_ref().map_or("?", |r| r.due_on.as_str())
-            )
+            )),
+            CalibrationStatus::Unregistered if require_registered => Some(format!(
+                "{role} (not in the equipment register, so its calibration is unknown)"
+            )),
+            _ => None,
         })
         .collect();
     (!late.is_empty()).then(|| late.join(", "))

@@ -21,9 +21,60 @@ pub enum RetestFromStoreError {
     /// Nothing to retest, not graded, or not a run id.
     #[error(transparent)]
     Retest(#[from] RetestError),
+    /// A plan's `retest_of` names a run that did not test this instrument,
+    /// or where it needs no retest.
+    #[error(
+        "retest_of = '{run}': {serial} is not an instrument of run {run} that needs a retest ({needing}); \
+         retest a run with `spinbench retest RUN`, or take retest_of out of the plan"
+    )]
+    NotToRetest {
+        /// The run named.
+        run: String,
+        /// The plan's serial.
+        serial: String,
+        /// The run's instruments that need one, or "none".
+        needing: String,
+    },
     /// The store failed.
     #[error(transparent)]
     Store(#[from] StoreError),
+}
+
+/// Check a plan's `retest_of` against the store (issue 27 item 10): the run
+/// exists and has ended, and every serial of the plan is one of its
+/// instruments that needs a retest ([`spinbench_engine::retest::needs_retest`]),
+/// so no record claims to retest what was never tested or passed.
+pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromStoreError> {
+    let Some(run_id) = plan.retest_of.as_deref() else {
+        return Ok(());
+    };
+    let run = store
+        .run(run_id)?
+        .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
+    if matches!(run.state.as_str(), "running" | "paused" | "created") {
+        return Err(RetestFromStoreError::NotEnded(
+            run_id.to_string(),
+            run.state,
+        ));
+    }
+    let needing: Vec<String> = store
+        .results(run_id)?
+        .into_iter()
+        .filter(|r| spinbench_engine::retest::needs_retest(&r.record))
+        .map(|r| r.record.serial)
+        .collect();
+    if let Some(serial) = plan.serials.values().find(|s| !needing.contains(s)) {
+        return Err(RetestFromStoreError::NotToRetest {
+            run: run_id.to_string(),
+            serial: serial.clone(),
+            needing: if needing.is_empty() {
+                "none".into()
+            } else {
+                needing.join(", ")
+            },
+        });
+    }
+    Ok(())
 }
 
 /// The retest plan of `run_id`, the serials it tests again, and the

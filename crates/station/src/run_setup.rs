@@ -7,7 +7,7 @@
 use anyhow::{Context, Result, bail};
 use spinbench_engine::event::Event;
 use spinbench_engine::journal::{JOURNAL_FILE, read_journal};
-use spinbench_engine::{CompiledPlan, StationConfig, TestPlan};
+use spinbench_engine::{CompiledPlan, RunState, StationConfig, TestPlan};
 use spinbench_store::StoreTarget;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
@@ -106,6 +106,23 @@ impl RunDir {
                 path.display(),
                 differences.join("; "),
                 plan_path.display()
+            );
+        }
+        // A completed run is not run again: refused before anything is
+        // connected or a raw file started in it (issue 27 item 17). An
+        // aborted or faulted run may be continued.
+        if events.iter().any(|e| {
+            matches!(
+                e,
+                Event::RunFinished {
+                    state: RunState::Completed,
+                    ..
+                }
+            )
+        }) {
+            bail!(
+                "--resume {}: this run already completed; nothing to resume (retest its instruments with `spinbench retest RUN`, or start a new run)",
+                path.display()
             );
         }
         let id = path

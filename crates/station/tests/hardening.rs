@@ -419,3 +419,367 @@ fn item_22_an_admin_may_retest_past_an_overdue_device_with_a_reason() {
     );
     let _ = admin.send("POST", "/api/run/abort", None);
 }
+
+/// Devices that take connections and never answer.
+fn silent_devices() -> (String, std::thread::JoinHandle<()>) {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = listener.local_addr().expect("addr").to_string();
+    let held = std::thread::spawn(move || {
+        let mut open = Vec::new();
+        for stream in listener.incoming().flatten() {
+            // Read nothing, answer nothing: hold the connection.
+            open.push(stream);
+        }
+    });
+    (addr, held)
+}
+
+#[test]
+fn item_2_sigterm_with_silent_devices_ends_in_bounded_time_and_records_the_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (addr, _held) = silent_devices();
+    // The longest a command may take: 5 s × 2 attempts (MAX_COMMAND_MS).
+    let io = "io = { timeout_ms = 5000, retries = 1 }";
+    let station = station_at(&addr, io);
+    let station_path = dir.path().join("station.toml");
+    std::fs::write(&station_path, station).expect("station");
+    // What was accepted before: 10 s × 3 attempts per command.
+    let slow = std::fs::read_to_string(&station_path)
+        .expect("station")
+        .replace(io, "io = { timeout_ms = 10000, retries = 2 }");
+    let slow_path = dir.path().join("slow.toml");
+    std::fs::write(&slow_path, slow).expect("slow station");
+    let data = dir.path().to_str().expect("path");
+    let (ok, _, refused) = spinbench(&[
+        "serve",
+        "--station",
+        slow_path.to_str().expect("path"),
+        "--data",
+        data,
+        "--bind",
+        "127.0.0.1:0",
+    ]);
+    assert!(!ok);
+    assert!(
+        refused.contains("MAX_COMMAND_MS") && refused.contains("centrifuge.io"),
+        "{refused}"
+    );
+
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(
+        dir.path().join("plans").join("short.toml"),
+        "name = \"short\"\nrange_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\n\
+         warmup_s = 0\ndwell = { seconds = 10 }\nstability = { hold_s = 3 }\n[serials]\n1 = \"Q-1\"\n",
+    )
+    .expect("plan");
+    let mut server = web::serve_station(dir.path(), &station_path);
+    let mut op = Client::login(&server, "op", "op-password");
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "short"}"#));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    // The station is asking its first silent device.
+    std::thread::sleep(Duration::from_secs(3));
+    let signalled = Instant::now();
+    server.terminate();
+    let status = server.wait_exit(Duration::from_secs(85));
+    let took_s = signalled.elapsed().as_secs_f64();
+    eprintln!("serve exited {took_s:.1} s after SIGTERM with silent devices");
+    assert!(
+        status.is_some(),
+        "serve did not exit within 85 s of SIGTERM (the unit's TimeoutStopSec is 90)"
+    );
+    assert!(took_s < 75.0, "{took_s:.1} s");
+    let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::parse(
+        &web::store_of(dir.path()).to_string_lossy(),
+    ))
+    .expect("store");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 1);
+    assert!(
+        runs[0].state == "aborted" || runs[0].state == "faulted",
+        "{} {:?}",
+        runs[0].state,
+        runs[0].reason
+    );
+    let reason = runs[0].reason.clone().unwrap_or_default();
+    assert!(
+        reason.contains("SIGTERM") && reason.contains("stop not confirmed: check the centrifuge"),
+        "{reason}"
+    );
+}
+
+#[test]
+fn item_4_a_backup_leaves_out_a_run_being_run_and_refreshes_a_file_that_grew() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    std::fs::create_dir_all(&data).expect("data");
+    add_user(&data, "eng", "engineer", "eng-password");
+    let runs = data.join("runs");
+    let (running, done) = (runs.join("run-2"), runs.join("run-1"));
+    for (run, text) in [(&running, "{\"running\":1}\n"), (&done, "{\"done\":1}\n")] {
+        std::fs::create_dir_all(run).expect("run dir");
+        std::fs::write(run.join("journal.jsonl"), text).expect("journal");
+    }
+    // A process runs run-2: it holds its directory's lock.
+    let lock = std::fs::File::open(&running).expect("open");
+    lock.lock().expect("lock");
+    let backup = dir.path().join("backup");
+    let store = web::store_of(&data);
+    let args = |b: &std::path::Path| {
+        vec![
+            "backup".to_string(),
+            b.to_string_lossy().into_owned(),
+            "--db".into(),
+            store.to_string_lossy().into_owned(),
+            "--data".into(),
+            data.to_string_lossy().into_owned(),
+        ]
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        spinbench(&a)
+    };
+    let (ok, out, err) = run(args(&backup));
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("runs in progress") && out.contains("run-2"),
+        "{out}"
+    );
+    assert!(backup.join("runs/run-1/journal.jsonl").is_file());
+    assert!(!backup.join("runs/run-2").exists(), "a torn copy was taken");
+    // The run ends; run-1 was resumed meanwhile and its journal grew.
+    drop(lock);
+    std::fs::write(
+        done.join("journal.jsonl"),
+        "{\"done\":1}\n{\"resumed\":1}\n",
+    )
+    .expect("grow");
+    let (ok, out, err) = run(args(&backup));
+    assert!(ok, "{err}");
+    assert!(!out.contains("in progress"), "{out}");
+    assert_eq!(
+        std::fs::read_to_string(backup.join("runs/run-2/journal.jsonl")).expect("copied"),
+        "{\"running\":1}\n"
+    );
+    assert_eq!(
+        std::fs::read_to_string(backup.join("runs/run-1/journal.jsonl")).expect("copied"),
+        "{\"done\":1}\n{\"resumed\":1}\n"
+    );
+}
+
+/// A station config whose devices all sit at `addr` (never connected
+/// until a run starts).
+fn station_at(addr: &str, io: &str) -> String {
+    let transport = format!("transport = {{ kind = \"tcp\", address = \"{addr}\" }}");
+    format!(
+        "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
+         [centrifuge]\nname = \"table\"\nmax_rate_deg_s = 2400\n{transport}\n{io}\n\
+         dialect = {{ kind = \"acutrol\" }}\n\
+         [[fmu]]\nname = \"counters\"\n{transport}\n{io}\n\
+         [[power_supply]]\nname = \"rails\"\nchannels = 2\n{transport}\n{io}\n"
+    )
+}
+
+#[test]
+fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let station_path = dir.path().join("station.toml");
+    let first = station_at("127.0.0.1:9", "");
+    std::fs::write(&station_path, &first).expect("station");
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    let server = web::serve_station(dir.path(), &station_path);
+    let mut eng = Client::login(&server, "eng", "eng-password");
+    let edited = format!("station = \"line 2\"\n{first}");
+    // The file cannot be written (root included): where its new text would
+    // be written first is taken by a directory.
+    let blocker = dir.path().join("station.toml.saving");
+    std::fs::create_dir(&blocker).expect("blocker");
+    let r = eng.send("PUT", "/api/station", Some(&edited));
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("nothing was changed")),
+        "{:?}",
+        r.json()
+    );
+    let now: serde_json::Value = eng.get_json("/api/station", 200);
+    assert_ne!(now["name"], "line 2", "applied though not written: {now}");
+    assert_eq!(std::fs::read_to_string(&station_path).expect("file"), first);
+    let audited = |action: &str| {
+        let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::parse(
+            &web::store_of(dir.path()).to_string_lossy(),
+        ))
+        .expect("store");
+        store
+            .audit_log(100)
+            .expect("audit")
+            .iter()
+            .filter(|a| a.action == action)
+            .count()
+    };
+    assert_eq!(audited("save station config"), 0);
+    // Once it can be written: written, in use, audited.
+    std::fs::remove_dir(&blocker).expect("unblock");
+    let r = eng.send("PUT", "/api/station", Some(&edited));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    assert_eq!(
+        std::fs::read_to_string(&station_path).expect("file"),
+        edited
+    );
+    let now: serde_json::Value = eng.get_json("/api/station", 200);
+    assert_eq!(now["name"], "line 2");
+    assert_eq!(audited("save station config"), 1);
+}
+
+#[test]
+fn item_8_a_store_that_cannot_be_written_is_read_and_backups_are_out_of_wal() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    std::fs::create_dir_all(&data).expect("data");
+    let db = data.join("spinbench.db");
+    let db_s = db.to_str().expect("utf-8");
+    let (ok, _, err) = spinbench(&["runs", "list", "--db", db_s]);
+    assert!(!ok, "no store yet: {err}");
+    add_user(&data, "eng", "engineer", "eng-password");
+    // A WAL store whose -shm cannot be made (as on read-only media; root
+    // included: the name is taken by a directory).
+    std::fs::create_dir(data.join("spinbench.db-shm")).expect("shm blocker");
+    let (ok, out, err) = spinbench(&["runs", "list", "--db", db_s]);
+    assert!(ok, "a store that cannot be written is read: {err}");
+    let _ = out;
+    std::fs::remove_dir(data.join("spinbench.db-shm")).expect("unblock");
+    // A backup is one file out of WAL mode (header byte 18: 1 rollback
+    // journal, 2 WAL).
+    let backup = dir.path().join("backup");
+    let (ok, _, err) = spinbench(&["backup", backup.to_str().expect("utf-8"), "--db", db_s]);
+    assert!(ok, "{err}");
+    let file = std::fs::read_dir(&backup)
+        .expect("backup dir")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|x| x == "db"))
+        .expect("the backup file");
+    let header = std::fs::read(&file).expect("read");
+    assert_eq!(header[18], 1, "the backup is in WAL mode");
+    assert!(!file.with_extension("db-wal").exists());
+}
+
+#[test]
+fn items_23_17_a_station_may_require_registered_devices_and_an_unreachable_one_leaves_no_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let station_path = dir.path().join("station.toml");
+    // Devices at an address nothing listens on (refused at once).
+    let station = format!(
+        "{}[equipment]\nrequire_registered = true\n",
+        station_at("127.0.0.1:9", "")
+    );
+    std::fs::write(&station_path, station).expect("station");
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(
+        dir.path().join("plans").join("short.toml"),
+        "name = \"short\"\nrange_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\n\
+         warmup_s = 0\ndwell = { seconds = 10 }\n[serials]\n1 = \"Q-1\"\n",
+    )
+    .expect("plan");
+    let server = web::serve_station(dir.path(), &station_path);
+    let mut op = Client::login(&server, "op", "op-password");
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "short"}"#));
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    let error = r.json()["error"].as_str().unwrap_or_default().to_string();
+    assert!(
+        error.contains("centrifuge (not in the equipment register"),
+        "{error}"
+    );
+    // Registered: the run is no longer held back; the hardware cannot be
+    // reached (503), and no run directory is left behind (item 17).
+    let db = web::store_of(dir.path());
+    for role in ["centrifuge", "fmu 1", "instrument supply"] {
+        let (ok, _, err) = spinbench(&[
+            "equipment",
+            "set",
+            role,
+            "--identity",
+            "X 1",
+            "--certificate",
+            "C-1",
+            "--calibrated",
+            "2025-01-01",
+            "--due",
+            "2099-01-01",
+            "--db",
+            db.to_str().expect("utf-8"),
+        ]);
+        assert!(ok, "{role}: {err}");
+    }
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "short"}"#));
+    assert_eq!(r.status, 503, "{:?}", r.json());
+    let runs = dir.path().join("runs");
+    let left = std::fs::read_dir(&runs).map_or(0, |d| d.count());
+    assert_eq!(left, 0, "a run directory was left in {}", runs.display());
+    // The CLI likewise leaves none, and refuses to resume a completed run
+    // before connecting anything.
+    let plan = dir.path().join("plans").join("short.toml");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        plan.to_str().expect("utf-8"),
+        "--station",
+        station_path.to_str().expect("utf-8"),
+        "--data",
+        dir.path().to_str().expect("utf-8"),
+        "--db",
+        db.to_str().expect("utf-8"),
+    ]);
+    assert!(!ok, "{err}");
+    assert_eq!(
+        std::fs::read_dir(&runs).map_or(0, |d| d.count()),
+        0,
+        "{err}"
+    );
+    let done = runs.join("run-done");
+    std::fs::create_dir_all(&done).expect("run dir");
+    std::fs::copy(&plan, done.join("plan.toml")).expect("plan");
+    let station_text = std::fs::read_to_string(&station_path).expect("station");
+    let config = spinbench_engine::StationConfig::from_toml(&station_text).expect("station");
+    let compiled =
+        spinbench_engine::TestPlan::from_toml(&std::fs::read_to_string(&plan).expect("plan"))
+            .expect("plan")
+            .compile(&config)
+            .expect("compiled");
+    let journal = [
+        spinbench_engine::Event::RunStarted {
+            run_id: "run-done".into(),
+            station: config.station.clone(),
+            plan: Box::new(compiled),
+            resumed: false,
+            station_config: station_text,
+        },
+        spinbench_engine::Event::RunFinished {
+            state: spinbench_engine::RunState::Completed,
+            reason: None,
+            wording: None,
+        },
+    ]
+    .iter()
+    .map(|e| serde_json::to_string(e).expect("event") + "\n")
+    .collect::<String>();
+    std::fs::write(done.join("journal.jsonl"), journal).expect("journal");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        plan.to_str().expect("utf-8"),
+        "--station",
+        station_path.to_str().expect("utf-8"),
+        "--resume",
+        done.to_str().expect("utf-8"),
+        "--data",
+        dir.path().to_str().expect("utf-8"),
+        "--db",
+        db.to_str().expect("utf-8"),
+    ]);
+    assert!(!ok && err.contains("already completed"), "{err}");
+    assert!(
+        !done.join("raw").exists(),
+        "raw files started in a completed run"
+    );
+}

@@ -144,6 +144,7 @@ fn the_debian_package_holds_the_binary_the_unit_and_the_maintainer_scripts() {
     for line in [
         "ExecStart=/usr/bin/spinbench serve --station /etc/spinbench/station.toml --data /var/lib/spinbench $SPINBENCH_SERVE_OPTIONS",
         "EnvironmentFile=-/etc/default/spinbench",
+        "EnvironmentFile=-/etc/spinbench/db.env",
         "User=spinbench",
         "SupplementaryGroups=dialout",
         "KillSignal=SIGTERM",

@@ -167,4 +167,36 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     assert!(!ok && err.contains("no run no-such-run"), "{err}");
     let (ok, _, err) = spinbench(&["retest", "../x", "--simulate", "--data", data_s]);
     assert!(!ok && err.contains("not a run identifier"), "{err}");
+
+    // Issue 27 item 10: a plan's retest_of is checked against the store. A
+    // run that does not exist, and a serial the run passed (R2) or never
+    // had, are refused before anything is switched on; no run is added.
+    let claims = |retest_of: &str, serial: &str| {
+        let text = format!("retest_of = \"{retest_of}\"\n{}", common::short_plan("R")).replace(
+            "1 = \"R1\"\n2 = \"R2\"\n7 = \"R7\"\n",
+            &format!("1 = \"{serial}\"\n"),
+        );
+        let path = dir.path().join("claim.toml");
+        std::fs::write(&path, text).expect("plan");
+        spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--data",
+            data_s,
+            path.to_str().expect("utf-8"),
+        ])
+    };
+    let (ok, _, err) = claims("run-that-never-was", "R1");
+    assert!(!ok && err.contains("no run run-that-never-was"), "{err}");
+    for serial in ["R2", "Z9"] {
+        let (ok, _, err) = claims(&first, serial);
+        assert!(
+            !ok && err.contains(&format!(
+                "{serial} is not an instrument of run {first} that needs a retest"
+            )),
+            "{serial}: {err}"
+        );
+    }
+    assert_eq!(store.runs().expect("runs").len(), 2);
 }

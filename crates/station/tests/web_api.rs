@@ -95,6 +95,35 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(b
             ["type"],
         "array"
     );
+    // Issue 27 item 29: the runs' list and a new run link to every
+    // operation that takes a run id, each link to an operation that exists.
+    let mut taking_id: Vec<String> = Vec::new();
+    for (path, ops) in doc["paths"].as_object().expect("paths") {
+        if path.starts_with("/api/runs/{id}") {
+            for op in ops.as_object().expect("operations").values() {
+                taking_id.push(op["operationId"].as_str().expect("operationId").to_string());
+            }
+        }
+    }
+    assert!(taking_id.len() >= 5, "{taking_id:?}");
+    for (method, status, expression) in [
+        ("get", "200", "$response.body#/0/id"),
+        ("post", "201", "$response.body#/run_id"),
+    ] {
+        let links = doc["paths"]["/api/runs"][method]["responses"][status]["links"]
+            .as_object()
+            .unwrap_or_else(|| panic!("no links from {method} /api/runs"));
+        let mut linked: Vec<String> = links
+            .values()
+            .map(|l| {
+                assert_eq!(l["parameters"]["id"], expression, "{l}");
+                l["operationId"].as_str().expect("operationId").to_string()
+            })
+            .collect();
+        linked.sort();
+        taking_id.sort();
+        assert_eq!(linked, taking_id, "{method} /api/runs");
+    }
     let mut documented: Vec<(String, String)> = Vec::new();
     for (path, ops) in doc["paths"].as_object().expect("paths") {
         for method in ops.as_object().expect("operations").keys() {
@@ -490,8 +519,8 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         "{left_out}"
     );
     for (body, status, says) in [
-        (ask("API-1", 4.0, "again"), 400, "already left out"),
-        (ask("API-1", 5.0, "no such level"), 400, "no reading at 5 g"),
+        (ask("API-1", 4.0, "again"), 409, "already left out"),
+        (ask("API-1", 5.0, "no such level"), 409, "no reading at 5 g"),
         (ask("API-1", 2.0, "  "), 400, "reason"),
         (ask("API-9", 2.0, "nobody"), 404, "no instrument 'API-9'"),
         (ask("API-1", f64::MAX, "huge"), 400, "levels"),
@@ -507,6 +536,51 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         Some(&ask("API-1", 2.0, "x")),
     );
     assert_eq!(r.status, 404);
+    // Issue 27 item 9: levels left out one by one until the fit could no
+    // longer be made: that last exclusion is refused, the record stays
+    // graded; an exclusion is withdrawn with a reason (audited).
+    let mut refused = None;
+    for g in [1.0, 2.0, 3.0, 6.0] {
+        let r = admin.send("POST", &exclusions, Some(&ask("API-1", g, "trying")));
+        if r.status != 200 {
+            refused = Some((g, r.status, r.json()));
+            break;
+        }
+        assert_ne!(r.json()["outcome"], "incomplete", "{:?}", r.json());
+    }
+    let (g, status, body) = refused.expect("an exclusion leaving too few levels is refused");
+    assert_eq!(status, 409, "{g} g: {body}");
+    assert!(
+        body["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("too few levels")),
+        "{body}"
+    );
+    let withdraw = format!("/api/runs/{run_id}/exclusions/withdraw");
+    let r = op.send("POST", &withdraw, Some(&ask("API-1", 1.0, "back")));
+    assert_eq!(r.status, 403, "an operator may not: {:?}", r.json());
+    let r = admin.send(
+        "POST",
+        &withdraw,
+        Some(&ask("API-1", 1.0, "1 g was fine after all")),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let back = r.json();
+    assert!(
+        back["exclusions"]
+            .as_array()
+            .is_some_and(|l| l.iter().all(|e| e["g"] != 1.0) && l.iter().any(|e| e["g"] == 4.0)),
+        "{back}"
+    );
+    let r = admin.send("POST", &withdraw, Some(&ask("API-1", 1.0, "twice")));
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("is not left out")),
+        "{:?}",
+        r.json()
+    );
     let html = admin.send("GET", &format!("/api/runs/{run_id}/report/html"), None);
     assert!(
         String::from_utf8_lossy(&html.body).contains("fixture knocked at 4 g"),
@@ -525,6 +599,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         "pause",
         "resume",
         "exclude level",
+        "withdraw exclusion",
     ] {
         assert!(log.contains(action), "{action} in the audit log");
     }

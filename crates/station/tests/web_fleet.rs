@@ -175,6 +175,17 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         assert!(bytes > 0, "{}: no raw data", raw.display());
     }
 
+    // Issue 27 item 27: B's run is retested on B, not on A.
+    let r = op_a.send("POST", &format!("/api/runs/{}/retest", runs[1]), None);
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("recorded by station 'station-b'")),
+        "{:?}",
+        r.json()
+    );
+
     // A user removed on B: refused on A within 5 s, their stream on A ended.
     let mut op2_a = Client::login(&a, "op2", "op2-password");
     let cookie = op2_a.cookie.clone().expect("cookie");

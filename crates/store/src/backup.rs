@@ -51,6 +51,12 @@ impl Store {
         if copy.schema_version()? != self.schema_version()? {
             return Err(fail("the copy's schema version differs".into()));
         }
+        // Out of WAL mode (issue 27 item 8): a backup is one self-contained
+        // file that reads on read-only media (a WAL file needs its -shm).
+        if let Db::Sqlite(conn) = &*copy.db.borrow() {
+            conn.pragma_update(None, "journal_mode", "DELETE")
+                .map_err(|e| fail(format!("the copy stays in WAL mode: {e}")))?;
+        }
         Ok(())
     }
 }

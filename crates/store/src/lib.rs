@@ -175,7 +175,26 @@ impl Store {
                 .map_err(|e| err("cannot open the database file to read")(e.into()))?;
                 conn.busy_timeout(std::time::Duration::from_secs(10))
                     .map_err(|e| err("cannot set the busy timeout")(e.into()))?;
-                Db::Sqlite(conn)
+                // A store in WAL mode needs its -shm beside it, which SQLite
+                // cannot make on read-only media or in a directory this user
+                // may not write (issue 27 item 8): such a file, which no one
+                // can be writing, is read as immutable.
+                let first_read = conn.query_row("SELECT count(*) FROM sqlite_master", [], |r| {
+                    r.get::<_, i64>(0)
+                });
+                if let Err(rusqlite::Error::SqliteFailure(e, _)) = &first_read
+                    && matches!(
+                        e.code,
+                        rusqlite::ErrorCode::ReadOnly | rusqlite::ErrorCode::CannotOpen
+                    )
+                {
+                    Db::Sqlite(
+                        open_immutable(path)
+                            .map_err(|e| err("cannot open the database file to read")(e.into()))?,
+                    )
+                } else {
+                    Db::Sqlite(conn)
+                }
             }
             StoreTarget::Postgres(_) => return Store::connect(target),
         };
@@ -225,7 +244,9 @@ impl Store {
                 Db::Sqlite(conn)
             }
             StoreTarget::Postgres(url) => {
-                let client = postgres::Client::connect(url, postgres::NoTls).map_err(|e| {
+                let config = pg_config(url, std::env::var("PGPASSWORD").ok())
+                    .map_err(|e| err("not a PostgreSQL URL")(e.into()))?;
+                let client = config.connect(postgres::NoTls).map_err(|e| {
                     err("cannot connect (is the server running, and the URL's user, host, port and database right?)")(
                         e.into(),
                     )
@@ -266,6 +287,31 @@ impl Store {
 /// Switch an SQLite file to WAL. SQLite answers "busy" at once (without
 /// its busy handler) while another connection creates or converts the same
 /// file, so the switch is retried for up to ten seconds.
+/// `path` opened read-only as immutable (no locks, no -shm, the WAL not
+/// read): for a file SQLite cannot open otherwise, on read-only media or in a
+/// directory this user cannot write, which therefore no one writes either.
+fn open_immutable(path: &Path) -> Result<rusqlite::Connection, rusqlite::Error> {
+    use rusqlite::OpenFlags;
+    // An SQLite URI (https://sqlite.org/uri.html): the path with the three
+    // characters that would end or escape it percent-encoded.
+    let mut uri = String::from("file:");
+    for c in path.to_string_lossy().chars() {
+        match c {
+            '%' => uri.push_str("%25"),
+            '?' => uri.push_str("%3f"),
+            '#' => uri.push_str("%23"),
+            c => uri.push(c),
+        }
+    }
+    uri.push_str("?immutable=1");
+    rusqlite::Connection::open_with_flags(
+        uri,
+        OpenFlags::SQLITE_OPEN_READ_ONLY
+            | OpenFlags::SQLITE_OPEN_URI
+            | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+    )
+}
+
 fn enable_wal(conn: &rusqlite::Connection) -> Result<(), rusqlite::Error> {
     let until = std::time::Instant::now() + std::time::Duration::from_secs(10);
     loop {
@@ -283,9 +329,46 @@ fn enable_wal(conn: &rusqlite::Connection) -> Result<(), rusqlite::Error> {
     }
 }
 
+/// A PostgreSQL URL's connection settings. A URL without a password takes
+/// `env_password` (the process's `PGPASSWORD`, as libpq and pg_dump do), so
+/// the password need not be on a command line, where every user of the
+/// machine reads it in `ps` (issue 27 item 26; the packaged unit reads it
+/// from `/etc/spinbench/db.env`, mode 0640).
+pub fn pg_config(
+    url: &str,
+    env_password: Option<String>,
+) -> Result<postgres::Config, postgres::Error> {
+    let mut config: postgres::Config = url.parse()?;
+    if config.get_password().is_none()
+        && let Some(p) = env_password.filter(|p| !p.is_empty())
+    {
+        config.password(p);
+    }
+    Ok(config)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_url_without_a_password_takes_pgpassword() {
+        // Issue 27 item 26: the password from the environment (the unit's
+        // 0640 file), not the command line; one in the URL wins.
+        let from_env =
+            pg_config("postgres://spinbench@db/spinbench", Some("s3cret".into())).expect("url");
+        assert_eq!(from_env.get_password(), Some(&b"s3cret"[..]));
+        let in_url = pg_config(
+            "postgres://spinbench:own@db/spinbench",
+            Some("s3cret".into()),
+        )
+        .expect("url");
+        assert_eq!(in_url.get_password(), Some(&b"own"[..]));
+        let none =
+            pg_config("postgres://spinbench@db/spinbench", Some(String::new())).expect("url");
+        assert_eq!(none.get_password(), None);
+        assert!(pg_config("postgres://[bad", None).is_err());
+    }
 
     #[test]
     fn targets_are_told_apart_and_passwords_hidden() {

@@ -343,89 +343,10 @@ pub fn analysis_options(
     }
 }
 
-/// A finished instrument's record reduced again with one more level left
-/// out, by an engineer after the run (the web UI): the exclusions it
-/// already had and `exclusion` applied to its points, which stay in the
-/// record; graded again by the plan's limits. Refused, with what to do, for
-/// a record that was never graded (incomplete, or the instrument failed), a
-/// level already left out, or one with no reading to leave out.
-pub fn exclude_after_run(
-    record: &UnitRecord,
-    plan: &CompiledPlan,
-    station: &StationConfig,
-    mut exclusion: LevelExclusion,
-) -> Result<UnitRecord, String> {
-    if record.outcome == Outcome::Incomplete || record.analysis.is_none() {
-        return Err(format!(
-            "{} was not graded ({}): there is no reduction to leave a level out of; retest it",
-            record.serial, record.outcome
-        ));
-    }
-    if exclusion.reason.trim().is_empty() {
-        return Err("a reason is required: say why the level is left out".into());
-    }
-    if record
-        .exclusions
-        .iter()
-        .any(|e| e.mount == exclusion.mount && e.g == exclusion.g)
-    {
-        return Err(format!(
-            "{} g in mounting {} of {} is already left out",
-            exclusion.g, exclusion.mount, record.serial
-        ));
-    }
-    exclusion.unit = Some(record.serial.clone());
-    exclusion.points_removed = 0;
-    let mut exclusions: Vec<LevelExclusion> = record
-        .exclusions
-        .iter()
-        .cloned()
-        .chain(std::iter::once(exclusion))
-        .map(|e| LevelExclusion {
-            points_removed: 0,
-            ..e
-        })
-        .collect();
-    let mut units = [UnitPoints {
-        unit: record.serial.clone(),
-        run: None,
-        points: point_list(&graded_points(plan, station, &record.points)),
-    }];
-    spinbench_analysis::exclusion::apply(&mut units, &mut exclusions);
-    if exclusions.last().is_some_and(|e| e.points_removed == 0) {
-        return Err(format!(
-            "{} has no reading at {} g in mounting {}; give one of its levels",
-            record.serial,
-            exclusions.last().map_or(0.0, |e| e.g),
-            exclusions.last().map_or(Mount::P, |e| e.mount)
-        ));
-    }
-    let [unit] = units;
-    let options = analysis_options(
-        plan,
-        station,
-        record.slot,
-        &record.radius_reading_u_ppm,
-        record.cross_axis_ug_per_g.is_some(),
-    );
-    let graded = grade(&record.serial, unit.points, options, &plan.plan.limits);
-    let mut reasons = graded.reasons;
-    reasons.extend(temperature_reasons(plan, station, &record.points));
-    Ok(UnitRecord {
-        analysis: graded.analysis,
-        k2_max_ug_per_g2: graded.k2_max_ug_per_g2,
-        outcome: graded.outcome,
-        reasons,
-        decision_rule: Some(plan.plan.limits.decision_rule),
-        exclusions,
-        ..record.clone()
-    })
-}
-
 /// The points an instrument is graded on: with temperatures, those at the
 /// reference temperature (nearest the laboratory's, `soak::reference_c`);
 /// every point stays in the record.
-fn graded_points(
+pub(super) fn graded_points(
     plan: &CompiledPlan,
     station: &StationConfig,
     points: &[PointRecord],
@@ -442,7 +363,7 @@ fn graded_points(
 /// The reasons a record carries beside its grade, from its points'
 /// temperatures: the reference temperature it was graded at, and the points
 /// taken while the temperature moved more than the plan allows.
-fn temperature_reasons(
+pub(super) fn temperature_reasons(
     plan: &CompiledPlan,
     station: &StationConfig,
     points: &[PointRecord],
@@ -781,6 +702,6 @@ fn record_verdict(
 }
 
 /// The analysis' points of a unit's records.
-fn point_list(records: &[PointRecord]) -> Vec<Point> {
+pub(super) fn point_list(records: &[PointRecord]) -> Vec<Point> {
     records.iter().map(PointRecord::point).collect()
 }

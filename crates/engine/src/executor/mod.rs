@@ -21,6 +21,7 @@
 //! simulator. Data are taken only at stable speed (method.md §3.3).
 
 mod dwell;
+mod exclusions;
 mod fanout;
 mod judge;
 mod ports;
@@ -32,7 +33,8 @@ pub mod state;
 mod steps;
 
 pub use crate::bench::Bench;
-pub use judge::{Graded, analysis_options, exclude_after_run, grade};
+pub use exclusions::{exclude_after_run, withdraw_exclusion_after_run};
+pub use judge::{Graded, analysis_options, grade};
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
 pub use steps::{label, wording};
@@ -416,31 +418,45 @@ impl<'a> Executor<'a> {
     /// Ask every device who it is, for the run's record; a device that cannot
     /// say is recorded with the reason (the run's own checks decide whether it can work).
     fn identify(&mut self) -> Result<(), EngineError> {
-        let say =
-            |r: Result<String, DeviceError>| r.unwrap_or_else(|e| format!("(no answer: {e})"));
+        // An abort stops the asking: with devices that do not answer, each
+        // question takes a whole command's time (issue 27 item 2).
+        let abort = self.options.abort.clone();
+        let asked = |f: &mut dyn FnMut() -> Result<String, DeviceError>| {
+            if abort.is_set() {
+                "(not asked: the run was aborted)".to_string()
+            } else {
+                f().unwrap_or_else(|e| format!("(no answer: {e})"))
+            }
+        };
         let mut devices = vec![DeviceIdentity {
             role: "centrifuge".into(),
-            identity: say(self.bench.centrifuge.identify()),
+            identity: asked(&mut || self.bench.centrifuge.identify()),
         }];
         for (m, module) in self.bench.modules.iter_mut().enumerate() {
             devices.push(DeviceIdentity {
                 role: format!("fmu {}", m + 1),
-                identity: say(module
-                    .status()
-                    .map(|s| format!("firmware {:#06x}", s.firmware_id))),
+                identity: asked(&mut || {
+                    module
+                        .status()
+                        .map(|s| format!("firmware {:#06x}", s.firmware_id))
+                }),
             });
         }
         devices.push(DeviceIdentity {
             role: "instrument supply".into(),
-            identity: say(self.bench.instrument_supply.identify()),
+            identity: asked(&mut || self.bench.instrument_supply.identify()),
         });
         if let Some(supply) = self.bench.module_supply.as_mut() {
             devices.push(DeviceIdentity {
                 role: "module supply".into(),
-                identity: say(supply.identify()),
+                identity: asked(&mut || supply.identify()),
             });
         }
-        self.emit(Event::Identified { devices })
+        self.emit(Event::Identified { devices })?;
+        if self.options.abort.is_set() {
+            return Err(EngineError::Aborted(self.options.abort.by()));
+        }
+        Ok(())
     }
 
     /// Run the plan to the end (or to a fault or abort) and return the records.

@@ -22,6 +22,7 @@ impl Executor<'_> {
     pub(super) fn safe_state(&mut self) -> Vec<String> {
         let mut problems = Vec::new();
         let mut last_stop_error = None;
+        let mut budget = SafeStateBudget::new(Instant::now() + SAFE_STATE_BUDGET);
         self.stop_confirmed = false;
         for attempt in 0..STOP_ATTEMPTS {
             // Confirmed: the stop was sent and the controller answers after
@@ -33,7 +34,14 @@ impl Executor<'_> {
                     break;
                 }
                 Err(e) => {
+                    // A controller that said nothing through all of the
+                    // driver's own retries is not asked again here: the stop
+                    // keeper goes on asking after the run is recorded.
+                    let silent = matches!(e.kind, DeviceErrorKind::Timeout { .. });
                     last_stop_error = Some(e.to_string());
+                    if silent || budget.spent() {
+                        break;
+                    }
                     if attempt + 1 < STOP_ATTEMPTS {
                         std::thread::sleep(Duration::from_millis(200));
                     }
@@ -42,36 +50,104 @@ impl Executor<'_> {
         }
         if !self.stop_confirmed {
             problems.push(format!(
-                "{STOP_NOT_CONFIRMED} (the controller did not acknowledge the stop after {STOP_ATTEMPTS} tries: {}; \
+                "{STOP_NOT_CONFIRMED} (the controller did not acknowledge the stop: {}; \
                  the station keeps commanding it while this program runs)",
                 last_stop_error.unwrap_or_default()
             ));
         }
-        let mut note = |r: Result<(), DeviceError>| {
-            if let Err(e) = r {
-                problems.push(e.to_string());
-            }
-        };
         if self.stop_confirmed {
-            note(self.bench.centrifuge.disarm());
+            let centrifuge = self.bench.centrifuge.as_mut();
+            budget.attempt("centrifuge", "disarm", &mut problems, || {
+                centrifuge.disarm()
+            });
         }
-        for m in &mut self.bench.modules {
+        for (index, m) in self.bench.modules.iter_mut().enumerate() {
+            let device = format!("counter module {}", index + 1);
             if self.streaming {
-                note(m.stop());
+                budget.attempt(&device, "stop streaming", &mut problems, || m.stop());
             }
-            note(m.set_power(0));
+            budget.attempt(&device, "power off", &mut problems, || m.set_power(0));
         }
         for ch in [1, 2] {
-            note(self.bench.instrument_supply.set_output(ch, false));
+            let supply = self.bench.instrument_supply.as_mut();
+            budget.attempt(
+                "instrument supply",
+                &format!("output {ch} off"),
+                &mut problems,
+                || supply.set_output(ch, false),
+            );
         }
         // The chamber back to the laboratory's temperature with the purge on
         // first, so cold air never meets humid air on the instruments.
+        let ambient_c = self.station.temperature.ambient_c;
         if let Some(chamber) = self.bench.chamber.as_mut() {
-            note(chamber.set_purge(true));
-            note(chamber.set_setpoint_c(self.station.temperature.ambient_c));
+            budget.attempt("chamber", "purge on", &mut problems, || {
+                chamber.set_purge(true)
+            });
+            budget.attempt("chamber", "setpoint to ambient", &mut problems, || {
+                chamber.set_setpoint_c(ambient_c)
+            });
+        }
+        if !budget.skipped.is_empty() {
+            problems.push(format!(
+                "not tried, since the devices did not answer within the safe state's {} s: {}; \
+                 switch them off by hand",
+                SAFE_STATE_BUDGET.as_secs(),
+                budget.skipped.join(", ")
+            ));
         }
         self.demand_deg_s = 0.0;
         problems
+    }
+}
+
+/// Longest the safe state goes on trying devices once it has started
+/// (issue 27 item 2). With every command bounded by
+/// [`spinbench_devices::line::MAX_COMMAND_MS`], a stop with silent devices
+/// ends within this plus one command, and the run is recorded well inside
+/// the service's stop time (`TimeoutStopSec=90`).
+pub const SAFE_STATE_BUDGET: Duration = Duration::from_secs(30);
+
+/// The safe state's time: a device that timed out is not asked again (its
+/// driver already retried), and nothing is started after the deadline.
+struct SafeStateBudget {
+    until: Instant,
+    silent: Vec<String>,
+    skipped: Vec<String>,
+}
+
+impl SafeStateBudget {
+    fn new(until: Instant) -> Self {
+        SafeStateBudget {
+            until,
+            silent: Vec::new(),
+            skipped: Vec::new(),
+        }
+    }
+
+    fn spent(&self) -> bool {
+        Instant::now() >= self.until
+    }
+
+    /// Try `action` on `device` unless the device was silent or the time is
+    /// spent (then `what` is listed as not tried); its error is a problem.
+    fn attempt(
+        &mut self,
+        device: &str,
+        what: &str,
+        problems: &mut Vec<String>,
+        action: impl FnOnce() -> Result<(), DeviceError>,
+    ) {
+        if self.spent() || self.silent.iter().any(|d| d == device) {
+            self.skipped.push(format!("{device}: {what}"));
+            return;
+        }
+        if let Err(e) = action() {
+            if matches!(e.kind, DeviceErrorKind::Timeout { .. }) {
+                self.silent.push(device.to_string());
+            }
+            problems.push(e.to_string());
+        }
     }
 }
 

@@ -27,7 +27,7 @@ pub(super) fn backup(
     );
     if let StoreTarget::Postgres(_) = db {
         // The server's own tools (the password through PGPASSWORD only).
-        let file = dir.join(format!("spinbench-{stamp}.dump"));
+        let file = unused_name(dir, &stamp, "dump");
         spinbench_store::pg_dump(db, &file)?;
         make_private(&file)?;
         let size = std::fs::metadata(&file).map_or(0, |m| m.len());
@@ -41,7 +41,7 @@ pub(super) fn backup(
     } else {
         let store =
             Store::open_read_only(db).with_context(|| format!("cannot open the store {db}"))?;
-        let file = dir.join(format!("spinbench-{stamp}.db"));
+        let file = unused_name(dir, &stamp, "db");
         store.backup_to(&file)?;
         make_private(&file)?;
         let size = std::fs::metadata(&file).map_or(0, |m| m.len());
@@ -58,14 +58,84 @@ pub(super) fn backup(
             data.join(crate::paths::RUNS_DIR),
             dir.join(crate::paths::RUNS_DIR),
         );
-        let copied = copy_new_files(&from, &to)?;
+        let (copied, in_progress) = copy_runs(&from, &to)?;
         writeln!(out, "runs' files: {copied} copied to {}", to.display())?;
+        if !in_progress.is_empty() {
+            writeln!(
+                out,
+                "runs in progress, their files not backed up (they are still being written; back up again once they end): {}",
+                in_progress.join(", ")
+            )?;
+        }
     }
     Ok(())
 }
 
+/// `DIR/spinbench-STAMP.EXT`, or with `-2`, `-3` … when a backup of the same
+/// second is there already (a backup never replaces a file).
+fn unused_name(dir: &Path, stamp: &str, ext: &str) -> std::path::PathBuf {
+    let mut file = dir.join(format!("spinbench-{stamp}.{ext}"));
+    let mut n = 2;
+    while file.exists() && n < 1000 {
+        file = dir.join(format!("spinbench-{stamp}-{n}.{ext}"));
+        n += 1;
+    }
+    file
+}
+
+/// Copy each run's directory under `from` (DATA/runs) to `to`, except runs
+/// being run now (issue 27 item 4: a run's journal grows while it runs, so
+/// a copy taken then is a torn one): a run's directory is locked by the
+/// process running it, and is copied under a shared lock of its own, so no
+/// run starts or resumes into it half-copied. Returns how many files were
+/// copied and the runs left out.
+fn copy_runs(from: &Path, to: &Path) -> Result<(usize, Vec<String>)> {
+    let (mut copied, mut in_progress) = (0, Vec::new());
+    if !from.is_dir() {
+        return Ok((0, in_progress));
+    }
+    create_private_dir(to)?;
+    let mut entries = std::fs::read_dir(from)
+        .with_context(|| format!("{}: cannot read", from.display()))?
+        .collect::<std::io::Result<Vec<_>>>()
+        .with_context(|| format!("{}: cannot read", from.display()))?;
+    entries.sort_by_key(|e| e.file_name());
+    for entry in entries {
+        let (src, dst) = (entry.path(), to.join(entry.file_name()));
+        let kind = entry.file_type()?;
+        if kind.is_dir() {
+            let dir = std::fs::File::open(&src)
+                .with_context(|| format!("{}: cannot open", src.display()))?;
+            match dir.try_lock_shared() {
+                Ok(()) => copied += copy_new_files(&src, &dst)?,
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    in_progress.push(entry.file_name().to_string_lossy().into_owned());
+                }
+                Err(std::fs::TryLockError::Error(e)) => {
+                    return Err(e).with_context(|| format!("{}: cannot lock", src.display()));
+                }
+            }
+        } else if kind.is_file() && changed(&src, &dst) {
+            std::fs::copy(&src, &dst)
+                .with_context(|| format!("{} → {}", src.display(), dst.display()))?;
+            make_private(&dst)?;
+            copied += 1;
+        }
+    }
+    Ok((copied, in_progress))
+}
+
+/// Whether `src` is not yet at `dst` as it is now (missing, another size,
+/// or changed since it was copied: a resumed run's journal grows).
+fn changed(src: &Path, dst: &Path) -> bool {
+    let (Ok(s), Ok(d)) = (std::fs::metadata(src), std::fs::metadata(dst)) else {
+        return true;
+    };
+    s.len() != d.len() || matches!((s.modified(), d.modified()), (Ok(sm), Ok(dm)) if sm > dm)
+}
+
 /// Copy every file under `from` to the same place under `to` that is not
-/// there yet (runs' files do not change once written); how many.
+/// there yet as it is now ([`changed`]); how many.
 fn copy_new_files(from: &Path, to: &Path) -> Result<usize> {
     let mut copied = 0;
     if !from.is_dir() {
@@ -80,7 +150,7 @@ fn copy_new_files(from: &Path, to: &Path) -> Result<usize> {
         let kind = entry.file_type()?;
         if kind.is_dir() {
             copied += copy_new_files(&src, &dst)?;
-        } else if kind.is_file() && !dst.exists() {
+        } else if kind.is_file() && changed(&src, &dst) {
             std::fs::copy(&src, &dst)
                 .with_context(|| format!("{} → {}", src.display(), dst.display()))?;
             make_private(&dst)?;

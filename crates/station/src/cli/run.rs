@@ -25,6 +25,27 @@ impl Source {
     }
 }
 
+/// The device sections of a station config (`[centrifuge]`, `[[fmu]]`,
+/// `[[power_supply]]`, `[power]`, which names the supplies, and
+/// `[chamber]`).
+const DEVICE_SECTIONS: [&str; 5] = ["centrifuge", "fmu", "power_supply", "power", "chamber"];
+
+/// Station config `own` with its device sections replaced by `devices`'s
+/// (those `devices` lacks are removed), everything else kept.
+fn with_devices_of(own: &str, devices: &str) -> Result<String> {
+    let mut table: toml::Table = own.parse().context("the station config")?;
+    let devices: toml::Table = devices
+        .parse()
+        .context("the virtual bench's station config")?;
+    for key in DEVICE_SECTIONS {
+        match devices.get(key) {
+            Some(v) => table.insert(key.to_string(), v.clone()),
+            None => table.remove(key),
+        };
+    }
+    toml::to_string(&table).context("the station config with the bench's devices")
+}
+
 /// `spinbench run`: the plan and (optional) station config already read.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run_plan(
@@ -58,14 +79,16 @@ pub(super) fn run_plan(
         Box<dyn spinbench_engine::Operator + '_>,
     ) = if simulate {
         let (bench, mut station) = crate::demo::start_sim(bench_choice)?;
+        let mut text = sim_station_toml(&bench);
         if let Some(source) = &station_source {
-            let own =
-                StationConfig::from_toml(&source.text).with_context(|| source.label.clone())?;
-            station.arm = own.arm;
-            station.g_local_m_s2 = own.g_local_m_s2;
-            station.station = own.station;
+            // Only the device sections are the bench's (issue 27 item 15):
+            // the rest of the station's own config (its temperature limit,
+            // Type B inputs, arm, name) stays as written.
+            StationConfig::from_toml(&source.text).with_context(|| source.label.clone())?;
+            text = with_devices_of(&source.text, &text).with_context(|| source.label.clone())?;
+            station = StationConfig::from_toml(&text)
+                .with_context(|| format!("{} with the virtual bench's devices", source.label))?;
         }
-        let text = sim_station_toml(&bench);
         sim = Some(bench);
         let bench_ref = sim.as_ref().context("virtual bench")?;
         (station, text, Box::new(SimOperator::new(bench_ref, quiet)))
@@ -86,8 +109,9 @@ pub(super) fn run_plan(
             .unwrap_or_else(|| crate::paths::default_store(data));
         let store = spinbench_store::Store::connect(&target)
             .with_context(|| format!("cannot open the store {target}"))?;
+        crate::retest::check_retest_of(&store, &plan).with_context(|| plan_source.label.clone())?;
         let list = crate::equipment::station_equipment(&store, &station)?;
-        if let Some(late) = crate::equipment::overdue(&list) {
+        if let Some(late) = crate::equipment::overdue(&list, station.equipment.require_registered) {
             match override_overdue.map(str::trim).filter(|r| !r.is_empty()) {
                 None => anyhow::bail!(
                     "{late} overdue for calibration: calibrate it and update the register \
@@ -121,7 +145,14 @@ pub(super) fn run_plan(
         dir,
         store: db,
     })?;
-    let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
+    let bench = match connect_bench(&prepared.station, Some(&prepared.dir.raw_dir())) {
+        Ok(bench) => bench,
+        Err(e) => {
+            // Nothing ran: leave no run directory behind (issue 27 item 17).
+            prepared.dir.discard();
+            return Err(e);
+        }
+    };
     let finished = execute(
         prepared,
         bench,
@@ -193,4 +224,39 @@ pub(super) fn retest(
         None,
         out,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use spinbench_engine::StationConfig;
+
+    fn devices(address: &str, extra: &str) -> String {
+        let transport = format!("transport = {{ kind = \"tcp\", address = \"{address}\" }}");
+        format!(
+            "station = \"{address}\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n\
+             [power]\ninstrument_supply = \"rails\"\n{extra}\
+             [centrifuge]\nname = \"t\"\nmax_rate_deg_s = 2400\n{transport}\ndialect = {{ kind = \"acutrol\" }}\n\
+             [[fmu]]\nname = \"f\"\n{transport}\n\
+             [[power_supply]]\nname = \"rails\"\nchannels = 2\n{transport}\n"
+        )
+    }
+
+    #[test]
+    fn the_bench_replaces_only_the_device_sections() {
+        // Issue 27 item 15: the station's own temperature limit (and name,
+        // arm, Type B inputs) stay; the devices are the bench's.
+        let own = devices("10.0.0.5:1", "[temperature]\ninstrument_max_c = 40\n")
+            .replace("radius_m = 0.8", "radius_m = 0.75");
+        let bench = devices("127.0.0.1:4000", "");
+        let merged = StationConfig::from_toml(&with_devices_of(&own, &bench).expect("merged"))
+            .expect("valid");
+        assert_eq!(merged.temperature.instrument_max_c, Some(40.0));
+        assert_eq!(merged.arm.radius_m, 0.75);
+        assert_eq!(merged.station, "10.0.0.5:1");
+        let text = with_devices_of(&own, &bench).expect("merged");
+        // The station's own address is left only in its name.
+        assert_eq!(text.matches("127.0.0.1:4000").count(), 3, "{text}");
+        assert_eq!(text.matches("10.0.0.5:1").count(), 1, "{text}");
+    }
 }

@@ -40,6 +40,31 @@ struct Entry {
 #[derive(Debug, Default)]
 pub struct LoginThrottle {
     entries: Mutex<HashMap<Key, Entry>>,
+    refusals: Mutex<RefusalBudget>,
+}
+
+/// Most refused logins written to the audit log one by one per minute;
+/// beyond, they are counted and written as one line (issue 27, item 19: a
+/// flood from many addresses wrote 120 rows a second and slowed every
+/// request).
+pub const REFUSALS_AUDITED_PER_MINUTE: u32 = 60;
+
+/// This minute's refused logins: written one by one, and counted only.
+#[derive(Debug, Default)]
+struct RefusalBudget {
+    since: Option<Instant>,
+    written: u32,
+    counted: u32,
+}
+
+/// What to write to the audit log for one refused login.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RefusalAudit {
+    /// Write this refusal's own line.
+    pub write: bool,
+    /// First write one line for this many refusals counted, not written,
+    /// in the minute before.
+    pub counted_before: u32,
 }
 
 /// A login refused before the password is checked.
@@ -121,6 +146,32 @@ impl LoginThrottle {
         locked
     }
 
+    /// A login was refused: whether its own audit line is written, and how
+    /// many refusals of the minute before were only counted.
+    pub fn refusal_audit(&self) -> RefusalAudit {
+        let mut b = self.refusals.lock().unwrap_or_else(|e| e.into_inner());
+        let now = Instant::now();
+        let mut counted_before = 0;
+        if b.since.is_none_or(|t| now - t >= WINDOW) {
+            counted_before = b.counted;
+            *b = RefusalBudget {
+                since: Some(now),
+                written: 0,
+                counted: 0,
+            };
+        }
+        let write = b.written < REFUSALS_AUDITED_PER_MINUTE;
+        if write {
+            b.written += 1;
+        } else {
+            b.counted += 1;
+        }
+        RefusalAudit {
+            write,
+            counted_before,
+        }
+    }
+
     /// A successful login clears the name's failures.
     pub fn succeeded(&self, name: &str) {
         self.entries
@@ -149,5 +200,17 @@ mod tests {
         let locked = t.check("admin", here).expect_err("locked");
         assert!(locked.retry_after_s >= 1 && locked.retry_after_s <= LOCKOUT.as_secs());
         assert!(t.check("ana", here).is_ok());
+    }
+
+    #[test]
+    fn a_flood_of_refusals_writes_a_bounded_number_of_audit_lines() {
+        let t = LoginThrottle::default();
+        let written = (0..500).filter(|_| t.refusal_audit().write).count();
+        assert_eq!(written, REFUSALS_AUDITED_PER_MINUTE as usize);
+        // The next minute starts by writing one line for the 440 counted.
+        t.refusals.lock().expect("lock").since = Some(Instant::now() - WINDOW);
+        let next = t.refusal_audit();
+        assert!(next.write);
+        assert_eq!(next.counted_before, 440);
     }
 }

@@ -137,16 +137,26 @@ pub fn serve_logged(data: &Path, sim_speed: &str, extra: &[&str], log: &Path) ->
 }
 
 fn spawn_server(data: &Path, sim_speed: &str, extra: &[&str], stderr: Stdio) -> Server {
+    spawn_serve(
+        data,
+        &["--simulate", "--sim-speed", sim_speed],
+        extra,
+        stderr,
+    )
+}
+
+/// `spinbench serve --station CONFIG` (real devices, as the config says) on
+/// a free loopback port.
+pub fn serve_station(data: &Path, station: &Path) -> Server {
+    let station = station.to_str().expect("a UTF-8 path");
+    spawn_serve(data, &["--station", station], &[], Stdio::inherit())
+}
+
+fn spawn_serve(data: &Path, mode: &[&str], extra: &[&str], stderr: Stdio) -> Server {
     let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args([
-            "serve",
-            "--simulate",
-            "--sim-speed",
-            sim_speed,
-            "--bind",
-            "127.0.0.1:0",
-            "--data",
-        ])
+        .arg("serve")
+        .args(mode)
+        .args(["--bind", "127.0.0.1:0", "--data"])
         .arg(data)
         .arg("--db")
         .arg(store_of(data))

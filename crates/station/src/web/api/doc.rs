@@ -31,6 +31,53 @@ impl Modify for SecuritySchemes {
     }
 }
 
+/// Links from the answers that name runs (`GET /api/runs`, `POST
+/// /api/runs`) to every operation that takes a run id (issue 27 item 29), so
+/// a client (and Schemathesis's stateful phase) can follow them with a run
+/// that exists, not only guess ids and meet 404. Added to the JSON rather
+/// than through utoipa's `Link`, which (5.5) writes `operation_id` where
+/// OpenAPI's Link Object has `operationId`.
+fn add_run_links(doc: &mut serde_json::Value) {
+    let mut targets: Vec<String> = Vec::new();
+    if let Some(paths) = doc["paths"].as_object() {
+        for (path, ops) in paths {
+            if !path.starts_with("/api/runs/{id}") {
+                continue;
+            }
+            for op in ops.as_object().into_iter().flat_map(|o| o.values()) {
+                if let Some(id) = op["operationId"].as_str() {
+                    targets.push(id.to_string());
+                }
+            }
+        }
+    }
+    for (method, status, expression) in [
+        ("get", "200", "$response.body#/0/id"),
+        ("post", "201", "$response.body#/run_id"),
+    ] {
+        let Some(response) = doc
+            .pointer_mut(&format!("/paths/~1api~1runs/{method}/responses/{status}"))
+            .and_then(|r| r.as_object_mut())
+        else {
+            continue;
+        };
+        let links: serde_json::Map<String, serde_json::Value> = targets
+            .iter()
+            .map(|target| {
+                (
+                    target.clone(),
+                    serde_json::json!({
+                        "operationId": target,
+                        "parameters": {"id": expression},
+                        "description": format!("{target} of a run this answer names"),
+                    }),
+                )
+            })
+            .collect();
+        response.insert("links".into(), serde_json::Value::Object(links));
+    }
+}
+
 /// The document.
 #[derive(OpenApi)]
 #[openapi(
@@ -49,7 +96,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         session::login, session::logout, session::session, session::set_language, session::catalogue,
         live::status, live::events,
         plans::plans, plans::save_plan, plans::station, plans::save_station,
-        runs::runs, runs::start_run, runs::run, runs::report, runs::exclude_level, runs::retest,
+        runs::runs, runs::start_run, runs::run, runs::report, runs::exclude_level, runs::withdraw_exclusion, runs::retest,
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::unit,
         charts::control_charts,
         equipment::equipment, equipment::set_equipment,
@@ -75,8 +122,10 @@ pub struct ApiDoc;
 pub fn json() -> &'static str {
     static JSON: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     JSON.get_or_init(|| {
-        ApiDoc::openapi()
-            .to_pretty_json()
-            .unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"))
+        let made = serde_json::to_value(ApiDoc::openapi()).and_then(|mut doc| {
+            add_run_links(&mut doc);
+            serde_json::to_string_pretty(&doc)
+        });
+        made.unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"))
     })
 }

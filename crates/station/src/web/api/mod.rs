@@ -229,6 +229,11 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
             "/api/runs/{id}/exclusions",
             post(runs::exclude_level),
         ),
+        (
+            "post",
+            "/api/runs/{id}/exclusions/withdraw",
+            post(runs::withdraw_exclusion),
+        ),
         ("post", "/api/runs/{id}/retest", post(runs::retest)),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),

@@ -116,7 +116,7 @@ pub(super) async fn station(
         (status = 400, description = "not a station config", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
         (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
-        (status = 409, description = "the virtual bench's config, or a run is active", body = ErrorBody),
+        (status = 409, description = "the virtual bench's config, a run is active, or the config file cannot be written (nothing changed)", body = ErrorBody),
         (status = 413, description = "a body over 2 MiB"),
     ))]
 pub(super) async fn save_station(
@@ -129,22 +129,55 @@ pub(super) async fn save_station(
         .map_err(|_| ApiError::bad("the station config is not UTF-8 text"))?;
     let config = spinbench_engine::StationConfig::from_toml(text)
         .map_err(|e| ApiError::bad(e.to_string()))?;
-    let Some(path) = &app.station_path else {
+    let Some(path) = app.station_path.clone() else {
         return Err(ApiError::conflict(
             "the virtual bench's station config is made from its devices; change the bench with --sim-config",
         ));
     };
-    app.runner
-        .set_station(config, text.to_string())
-        .map_err(ApiError::conflict)?;
-    std::fs::write(path, text)
-        .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
-    audit(
-        &app,
-        &session.user,
-        "save station config",
-        &path.display().to_string(),
-    )
+    if let Some(run) = app.runner.active() {
+        return Err(ApiError::conflict(format!(
+            "run {run} is active; change the station after it"
+        )));
+    }
+    // Written first, then applied, then audited (issue 27 item 7): a config
+    // that cannot be kept is not used either.
+    let text = text.to_string();
+    blocking(&app, move |app| {
+        let old = std::fs::read_to_string(&path).ok();
+        write_replacing(&path, &text).map_err(|e| {
+            ApiError::conflict(format!(
+                "{}: cannot write the station config ({e}); nothing was changed. Under the packaged service \
+                 the config in /etc/spinbench is read-only to the service: edit it there as root, then \
+                 `systemctl restart spinbench`",
+                path.display()
+            ))
+        })?;
+        if let Err(why) = app.runner.set_station(config, text) {
+            // A run started meanwhile: the file goes back to what it was.
+            if let Some(old) = old {
+                let _ = write_replacing(&path, &old);
+            }
+            return Err(ApiError::conflict(why));
+        }
+        audit_now(
+            app,
+            &session.user,
+            "save station config",
+            &path.display().to_string(),
+        )
+    })
     .await?;
     Ok(Json(Saved { saved: true }))
+}
+
+/// Replace the file at `path` with `text` whole: written beside it, then
+/// renamed over it, so a failed write leaves the old file as it was.
+fn write_replacing(path: &std::path::Path, text: &str) -> std::io::Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".saving");
+    let temporary = path.with_file_name(name);
+    std::fs::write(&temporary, text)?;
+    std::fs::rename(&temporary, path).inspect_err(|_| {
+        let _ = std::fs::remove_file(&temporary);
+    })
 }

@@ -50,6 +50,16 @@ pub(super) async fn start_run(
         plan.serials = serials;
     }
     plan.operator = session.user.clone();
+    if plan.retest_of.is_some() {
+        let checked = plan.clone();
+        blocking(&app, move |app| {
+            crate::retest::check_retest_of(&store(app), &checked).map_err(|e| match e {
+                crate::retest::RetestFromStoreError::Store(e) => ApiError::from(e),
+                e => ApiError::bad(e.to_string()),
+            })
+        })
+        .await?;
+    }
     let overridden = check_equipment(&app, &session, start.override_overdue.as_deref()).await?;
     let run_id = start_plan(&app, &plan, &session.user).await?;
     if let Some(devices) = overridden {
@@ -91,11 +101,12 @@ async fn check_equipment(
     override_reason: Option<&str>,
 ) -> ApiResult<Option<String>> {
     let station = app.runner.station().0;
+    let required = station.equipment.require_registered;
     let list = blocking(app, move |app| {
         Ok(crate::equipment::station_equipment(&store(app), &station)?)
     })
     .await?;
-    let Some(late) = crate::equipment::overdue(&list) else {
+    let Some(late) = crate::equipment::overdue(&list, required) else {
         return Ok(None);
     };
     match override_reason.map(str::trim) {
@@ -145,14 +156,15 @@ async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String>
 #[utoipa::path(post, path = "/api/runs/{id}/retest", tag = "runs",
     security(("session" = [], "csrf" = [])),
     params(("id" = String, Path, description = "the finished run")),
-    request_body(content = Option<RetestRequest>, description = "Optional; at most 2 MiB (413 beyond)."),
+    request_body(content = Option<RetestRequest>, description = "Optional. At most 2 MiB (413 beyond)."),
     responses(
         (status = 201, description = "the retest started", body = RetestStarted),
         (status = 400, description = "not a run id, or a bad body", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
         (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
         (status = 404, description = "no such run", body = ErrorBody),
-        (status = 409, description = "the run has not ended, has nothing to retest, or a run is active", body = ErrorBody),
+        (status = 409, description = "the run has not ended, has nothing to retest, was recorded by another station, or a run is active", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
         (status = 503, description = "the hardware cannot be reached", body = ErrorBody),
     ))]
 pub(super) async fn retest(
@@ -164,16 +176,28 @@ pub(super) async fn retest(
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
     let session = authorize(&app, &headers, Role::Operator, true).await?;
+    // No body, or JSON null: no options.
     let ask: RetestRequest = if body.iter().all(u8::is_ascii_whitespace) {
         RetestRequest::default()
     } else {
-        parse_json(&body)?
+        parse_json::<Option<RetestRequest>>(&body)?.unwrap_or_default()
     };
     let asked = id.clone();
-    let found = blocking(&app, move |app| {
-        Ok(retest_plan_from_store(&store(app), &asked))
+    let (found, recorded_by) = blocking(&app, move |app| {
+        let store = store(app);
+        let recorded_by = store.run(&asked).ok().flatten().map(|r| r.station);
+        Ok((retest_plan_from_store(&store, &asked), recorded_by))
     })
     .await?;
+    // The instruments go back to the centrifuge and fixtures they were
+    // measured on (issue 27 item 27): a run of another station is retested
+    // there.
+    let here = app.runner.station().0.station;
+    if let Some(there) = recorded_by.filter(|s| *s != here) {
+        return Err(ApiError::conflict(format!(
+            "run {id} was recorded by station '{there}'; this is station '{here}': retest it on '{there}' (its Fleet page entry), so its instruments are measured again on the centrifuge they were tested on"
+        )));
+    }
     let (mut plan, serials, _) = found.map_err(|e| match e {
         E::NotFound(_) => ApiError::new(StatusCode::NOT_FOUND, e.to_string()),
         E::NotEnded(..)
@@ -183,6 +207,8 @@ pub(super) async fn retest(
         // No run has such an id.
         E::Retest(RetestError::BadRunId(_)) => ApiError::not_found(e.to_string()),
         E::Plan(..) => ApiError::internal(e.to_string()),
+        // Not made by retest_plan_from_store (a plan's own retest_of only).
+        E::NotToRetest { .. } => ApiError::conflict(e.to_string()),
         E::Store(s) => ApiError::from(s),
     })?;
     plan.operator = session.user.clone();
@@ -547,11 +573,11 @@ pub(super) async fn unit(
     request_body(content = ExcludeLevel, description = "At most 2 MiB (413 beyond)."),
     responses(
         (status = 200, description = "reduced and graded again", body = Excluded),
-        (status = 400, description = "not an exclusion body, or a level the run does not have", body = ErrorBody),
+        (status = 400, description = "not an exclusion body", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
         (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
         (status = 404, description = "no such run or instrument", body = ErrorBody),
-        (status = 409, description = "the run is still going, or did not record its station config", body = ErrorBody),
+        (status = 409, description = "the run is still going or did not record its station config; the level is not the run's, is already left out, or would leave too few levels to reduce", body = ErrorBody),
         (status = 413, description = "a body over 2 MiB"),
     ))]
 pub(super) async fn exclude_level(
@@ -562,6 +588,109 @@ pub(super) async fn exclude_level(
 ) -> ApiResult<Json<Excluded>> {
     let session = authorize(&app, &headers, Role::Engineer, true).await?;
     let ask: ExcludeLevel = parse_json(&body)?;
+    check_exclusion_ask(&app, &id, &ask)?;
+    blocking(&app, move |app| {
+        let store = store(app);
+        let exclusion = spinbench_analysis::exclusion::LevelExclusion {
+            unit: Some(ask.serial.clone()),
+            mount: ask.mount,
+            g: ask.g,
+            reason: ask.reason.trim().to_string(),
+            by: session.user.clone(),
+            points_removed: 0,
+        };
+        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
+            spinbench_engine::executor::exclude_after_run(record, plan, station, exclusion)
+        })?;
+        let detail = format!(
+            "{id} {} {}:{} g ({}): k2_max {} → {} µg/g², outcome {} → {}",
+            ask.serial,
+            ask.mount,
+            ask.g,
+            ask.reason.trim(),
+            k2_shown(&before),
+            k2_shown(&after),
+            before.outcome,
+            after.outcome
+        );
+        store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
+        Ok(Json(Excluded {
+            run_id: id,
+            exclusions: json!(after.exclusions),
+            outcome: after.outcome.to_string(),
+            k2_max_ug_per_g2: after.k2_max_ug_per_g2,
+            serial: after.serial,
+        }))
+    })
+    .await
+}
+
+/// Withdraw an engineer's exclusion of a level of one instrument of a
+/// finished run (an engineer, with a reason; issue 27 item 9): the record is
+/// reduced and graded again with its other exclusions, and the audit log
+/// keeps the figures before and after.
+#[utoipa::path(post, path = "/api/runs/{id}/exclusions/withdraw", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the finished run")),
+    request_body(content = ExcludeLevel, description = "The exclusion to withdraw (serial, mount, g) and why. At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "reduced and graded again", body = Excluded),
+        (status = 400, description = "not a body", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 404, description = "no such run or instrument", body = ErrorBody),
+        (status = 409, description = "the run is still going or did not record its station config, or the level is not left out", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
+pub(super) async fn withdraw_exclusion(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> ApiResult<Json<Excluded>> {
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
+    let ask: ExcludeLevel = parse_json(&body)?;
+    check_exclusion_ask(&app, &id, &ask)?;
+    blocking(&app, move |app| {
+        let store = store(app);
+        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
+            spinbench_engine::executor::withdraw_exclusion_after_run(
+                record, plan, station, ask.mount, ask.g,
+            )
+        })?;
+        let detail = format!(
+            "{id} {} {}:{} g back in ({}): k2_max {} → {} µg/g², outcome {} → {}",
+            ask.serial,
+            ask.mount,
+            ask.g,
+            ask.reason.trim(),
+            k2_shown(&before),
+            k2_shown(&after),
+            before.outcome,
+            after.outcome
+        );
+        store.replace_result(&id, &after, &session.user, "withdraw exclusion", &detail)?;
+        Ok(Json(Excluded {
+            run_id: id,
+            exclusions: json!(after.exclusions),
+            outcome: after.outcome.to_string(),
+            k2_max_ug_per_g2: after.k2_max_ug_per_g2,
+            serial: after.serial,
+        }))
+    })
+    .await
+}
+
+/// An instrument's k2_max as the audit log shows it.
+fn k2_shown(r: &spinbench_engine::UnitRecord) -> String {
+    r.k2_max_ug_per_g2
+        .map_or("—".to_string(), |k| format!("{k:.3}"))
+}
+
+/// The checks of an exclusion's (or a withdrawal's) body that need no
+/// store: a level in g, a reason of 1 to 500 characters with no control
+/// characters, and a run that has ended.
+fn check_exclusion_ask(app: &App, id: &str, ask: &ExcludeLevel) -> ApiResult<()> {
     if !(ask.g.is_finite() && (0.0..=spinbench_engine::bounds::MAX_LEVEL_G).contains(&ask.g)) {
         return Err(ApiError::bad(format!(
             "g = {}: give one of the run's levels in g",
@@ -575,21 +704,35 @@ pub(super) async fn exclude_level(
         || ask.reason.chars().any(char::is_control)
     {
         return Err(ApiError::bad(
-            "reason: say why the level is left out (1 to 500 characters, no control characters)",
+            "reason: say why (1 to 500 characters, no control characters)",
         ));
     }
-    if app.runner.active().as_deref() == Some(id.as_str()) {
+    if app.runner.active().as_deref() == Some(id) {
         return Err(ApiError::conflict(format!(
-            "run {id} is still going; leave levels out once it has ended"
+            "run {id} is still going; change its records once it has ended"
         )));
     }
-    blocking(&app, move |app| {
-    let store = store(app);
+    Ok(())
+}
+
+/// Instrument `serial` of finished run `id` changed by `change` under the
+/// run's own plan and station config: its record before and after (a
+/// refusal of `change` is a 400).
+fn change_record(
+    store: &spinbench_store::Store,
+    id: &str,
+    serial: &str,
+    change: impl FnOnce(
+        &spinbench_engine::UnitRecord,
+        &spinbench_engine::CompiledPlan,
+        &spinbench_engine::StationConfig,
+    ) -> Result<spinbench_engine::UnitRecord, String>,
+) -> ApiResult<(spinbench_engine::UnitRecord, spinbench_engine::UnitRecord)> {
     let run = store
-        .run(&id)?
+        .run(id)?
         .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
     let context = store
-        .run_context(&id)?
+        .run_context(id)?
         .ok_or_else(|| ApiError::not_found(format!("no run '{id}'")))?;
     let station_toml = context.station_config.ok_or_else(|| {
         ApiError::conflict(format!(
@@ -604,50 +747,17 @@ pub(super) async fn exclude_level(
         .compile(&station)
         .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
     let result = store
-        .results(&id)?
+        .results(id)?
         .into_iter()
-        .find(|r| r.serial == ask.serial)
+        .find(|r| r.serial == serial)
         .ok_or_else(|| {
             ApiError::not_found(format!(
-                "run {id} ({}) has no instrument '{}'",
-                run.state, ask.serial
+                "run {id} ({}) has no instrument '{serial}'",
+                run.state
             ))
         })?;
-    let exclusion = spinbench_analysis::exclusion::LevelExclusion {
-        unit: Some(ask.serial.clone()),
-        mount: ask.mount,
-        g: ask.g,
-        reason: ask.reason.trim().to_string(),
-        by: session.user.clone(),
-        points_removed: 0,
-    };
-    let before = &result.record;
-    let after =
-        spinbench_engine::executor::exclude_after_run(before, &compiled, &station, exclusion)
-            .map_err(ApiError::bad)?;
-    let k2 = |r: &spinbench_engine::UnitRecord| {
-        r.k2_max_ug_per_g2
-            .map_or("—".to_string(), |k| format!("{k:.3}"))
-    };
-    let detail = format!(
-        "{id} {} {}:{} g ({}): k2_max {} → {} µg/g², outcome {} → {}",
-        ask.serial,
-        ask.mount,
-        ask.g,
-        ask.reason.trim(),
-        k2(before),
-        k2(&after),
-        before.outcome,
-        after.outcome
-    );
-    store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
-    Ok(Json(Excluded {
-        run_id: id,
-        exclusions: json!(after.exclusions),
-        outcome: after.outcome.to_string(),
-        k2_max_ug_per_g2: after.k2_max_ug_per_g2,
-        serial: after.serial,
-    }))
-    })
-    .await
+    // The body was well formed; the record's state refuses it (a level the
+    // run does not have, one already out or not out, too few levels left).
+    let after = change(&result.record, &compiled, &station).map_err(ApiError::conflict)?;
+    Ok((result.record, after))
 }

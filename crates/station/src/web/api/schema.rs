@@ -169,7 +169,7 @@ pub struct StartRun {
     /// An admin's reason to start although a device is overdue for
     /// calibration (in the audit log).
     #[serde(default)]
-    #[schema(max_length = 500)]
+    #[schema(max_length = 500, pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*$")]
     pub override_overdue: Option<String>,
 }
 
@@ -335,7 +335,11 @@ pub struct ExcludeLevel {
     #[schema(minimum = 0.0, maximum = 1000.0)]
     pub g: f64,
     /// Why it is left out (not blank).
-    #[schema(min_length = 1, max_length = 500, pattern = "\\S")]
+    #[schema(
+        min_length = 1,
+        max_length = 500,
+        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*[^\\s\\x00-\\x1f\\x7f-\\x9f][^\\x00-\\x1f\\x7f-\\x9f]*$"
+    )]
     pub reason: String,
 }
 
@@ -460,14 +464,14 @@ pub struct SetEquipment {
     #[schema(
         min_length = 1,
         max_length = 200,
-        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*\\S[^\\x00-\\x1f\\x7f-\\x9f]*$"
+        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*[^\\s\\x00-\\x1f\\x7f-\\x9f][^\\x00-\\x1f\\x7f-\\x9f]*$"
     )]
     pub identity: String,
     /// Certificate number (not blank, no control characters).
     #[schema(
         min_length = 1,
         max_length = 200,
-        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*\\S[^\\x00-\\x1f\\x7f-\\x9f]*$"
+        pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*[^\\s\\x00-\\x1f\\x7f-\\x9f][^\\x00-\\x1f\\x7f-\\x9f]*$"
     )]
     pub certificate: String,
     /// YYYY-MM-DD, 1970 to 2200.
@@ -585,6 +589,6 @@ pub struct FleetStation {
 pub struct RetestRequest {
     /// Start although a device is overdue for calibration (an admin), with
     /// this reason (recorded in the audit log).
-    #[schema(max_length = 500)]
+    #[schema(max_length = 500, pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*$")]
     pub override_overdue: Option<String>,
 }

@@ -86,13 +86,29 @@ pub(super) async fn login(
     let role = user.as_ref().and_then(|u| Role::parse(&u.role));
     let (true, Some(role)) = (ok, role) else {
         app.metrics.login_failures.inc();
-        audit(
-            &app,
-            &name,
-            "login refused",
-            &format!("wrong user name or password (from {})", peer.ip()),
-        )
-        .await?;
+        // A flood is counted, not written line by line (throttle docs).
+        let budget = app.logins.refusal_audit();
+        if budget.counted_before > 0 {
+            audit(
+                &app,
+                "spinbench",
+                "logins refused",
+                &format!(
+                    "{} more refused logins in the minute before were counted, not written one by one",
+                    budget.counted_before
+                ),
+            )
+            .await?;
+        }
+        if budget.write {
+            audit(
+                &app,
+                &name,
+                "login refused",
+                &format!("wrong user name or password (from {})", peer.ip()),
+            )
+            .await?;
+        }
         for what in app.logins.failed(&name, peer.ip()) {
             audit(
                 &app,

@@ -668,16 +668,20 @@ function excludeForm(r) {
   Object.assign(reason, { id: "exclude-reason", required: true, maxLength: 500, size: 40 });
   const button = document.createElement("button");
   button.type = "submit"; button.id = "exclude-button"; button.textContent = word("web.exclude.button", "Leave level out");
-  form.append(button);
-  form.addEventListener("submit", async (ev) => {
-    ev.preventDefault();
+  // The same level put back (an exclusion withdrawn, with its reason).
+  const back = document.createElement("button");
+  back.type = "button"; back.id = "withdraw-button"; back.textContent = word("web.exclude.withdraw", "Put level back");
+  form.append(button, " ", back);
+  const send = async (path, said) => {
     try {
-      const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/exclusions",
+      const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + path,
         { serial: serial.value, mount: mount.value, g: Number(g.value), reason: reason.value });
-      show(res.serial + ": " + mount.value + " " + g.value + " g left out; outcome " + res.outcome, true);
+      show(res.serial + ": " + mount.value + " " + g.value + " g " + said + "; outcome " + res.outcome, true);
       await showRun(r.id);
     } catch (e) { show(e.message); }
-  });
+  };
+  form.addEventListener("submit", (ev) => { ev.preventDefault(); send("/exclusions", "left out"); });
+  back.addEventListener("click", () => { if (form.reportValidity()) send("/exclusions/withdraw", "put back"); });
   return form;
 }
 

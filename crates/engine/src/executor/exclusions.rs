@@ -1,0 +1,159 @@
+//! A finished run's records changed by an engineer (the web UI): a level
+//! left out of one instrument's reduction, or such an exclusion withdrawn;
+//! the record reduced and graded again by the run's own plan and station
+//! config, its readings kept.
+
+use super::judge::{grade, graded_points, point_list, temperature_reasons};
+use super::*;
+use spinbench_analysis::exclusion::LevelExclusion;
+
+/// A finished instrument's record reduced again with one more level left
+/// out, by an engineer after the run (the web UI): the exclusions it
+/// already had and `exclusion` applied to its points, which stay in the
+/// record; graded again by the plan's limits. Refused, with what to do, for
+/// a record that was never graded (incomplete, or the instrument failed), a
+/// level already left out, or one with no reading to leave out.
+pub fn exclude_after_run(
+    record: &UnitRecord,
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    mut exclusion: LevelExclusion,
+) -> Result<UnitRecord, String> {
+    if record.outcome == Outcome::Incomplete || record.analysis.is_none() {
+        return Err(format!(
+            "{} was not graded ({}): there is no reduction to leave a level out of; retest it",
+            record.serial, record.outcome
+        ));
+    }
+    if exclusion.reason.trim().is_empty() {
+        return Err("a reason is required: say why the level is left out".into());
+    }
+    if record
+        .exclusions
+        .iter()
+        .any(|e| e.mount == exclusion.mount && e.g == exclusion.g)
+    {
+        return Err(format!(
+            "{} g in mounting {} of {} is already left out",
+            exclusion.g, exclusion.mount, record.serial
+        ));
+    }
+    exclusion.unit = Some(record.serial.clone());
+    let exclusions: Vec<LevelExclusion> = record
+        .exclusions
+        .iter()
+        .cloned()
+        .chain(std::iter::once(exclusion))
+        .collect();
+    let (mount, g) = (
+        exclusions[exclusions.len() - 1].mount,
+        exclusions[exclusions.len() - 1].g,
+    );
+    let after = regrade(record, plan, station, exclusions)?;
+    if after
+        .exclusions
+        .last()
+        .is_some_and(|e| e.points_removed == 0)
+    {
+        return Err(format!(
+            "{} has no reading at {g} g in mounting {mount}; give one of its levels",
+            record.serial
+        ));
+    }
+    // Issue 27 item 9: an exclusion that leaves a mounting (or the joint K2)
+    // without a fit would turn a graded instrument into an ungradable one,
+    // which nothing could undo: refused, the record stays as it was.
+    let fitted = |r: &UnitRecord| {
+        r.analysis
+            .as_ref()
+            .map_or((0, false), |a| (a.fits.len(), a.joint.is_some()))
+    };
+    let (before_fits, before_joint) = fitted(record);
+    let (after_fits, after_joint) = fitted(&after);
+    if after_fits < before_fits || (before_joint && !after_joint) {
+        return Err(format!(
+            "leaving out {g} g in mounting {mount} leaves {} too few levels to reduce (a mounting's fit or the joint K2 could no longer be made); refused, the record is unchanged. Withdraw another exclusion first, or retest the instrument",
+            record.serial
+        ));
+    }
+    Ok(after)
+}
+
+/// Withdraw an engineer's exclusion of level `g` in mounting `mount` from a
+/// finished run's record (issue 27 item 9): reduced and graded again with
+/// the other exclusions, by the run's own plan and station config.
+pub fn withdraw_exclusion_after_run(
+    record: &UnitRecord,
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    mount: Mount,
+    g: f64,
+) -> Result<UnitRecord, String> {
+    let before = record.exclusions.len();
+    let exclusions: Vec<LevelExclusion> = record
+        .exclusions
+        .iter()
+        .filter(|e| !(e.mount == mount && e.g == g))
+        .cloned()
+        .collect();
+    if exclusions.len() == before {
+        return Err(format!(
+            "{g} g in mounting {mount} of {} is not left out (its exclusions: {})",
+            record.serial,
+            if record.exclusions.is_empty() {
+                "none".to_string()
+            } else {
+                record
+                    .exclusions
+                    .iter()
+                    .map(|e| format!("{} {} g", e.mount, e.g))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        ));
+    }
+    regrade(record, plan, station, exclusions)
+}
+
+/// `record` reduced and graded again with `exclusions` (their readings
+/// counted afresh), by the run's own plan and station config.
+fn regrade(
+    record: &UnitRecord,
+    plan: &CompiledPlan,
+    station: &StationConfig,
+    exclusions: Vec<LevelExclusion>,
+) -> Result<UnitRecord, String> {
+    let mut exclusions: Vec<LevelExclusion> = exclusions
+        .into_iter()
+        .map(|e| LevelExclusion {
+            points_removed: 0,
+            ..e
+        })
+        .collect();
+    let mut units = [UnitPoints {
+        unit: record.serial.clone(),
+        run: None,
+        points: point_list(&graded_points(plan, station, &record.points)),
+    }];
+    spinbench_analysis::exclusion::apply(&mut units, &mut exclusions);
+    let [unit] = units;
+    let options = analysis_options(
+        plan,
+        station,
+        record.slot,
+        &record.radius_reading_u_ppm,
+        record.cross_axis_ug_per_g.is_some(),
+    );
+    let graded = grade(&record.serial, unit.points, options, &plan.plan.limits);
+    let mut reasons = graded.reasons;
+    reasons.extend(temperature_reasons(plan, station, &record.points));
+    Ok(UnitRecord {
+        analysis: graded.analysis,
+        k2_max_ug_per_g2: graded.k2_max_ug_per_g2,
+        outcome: graded.outcome,
+        reasons,
+        decision_rule: Some(plan.plan.limits.decision_rule),
+        exclusions,
+        ..record.clone()
+    })
+}
