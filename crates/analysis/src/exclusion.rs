@@ -4,7 +4,7 @@
 
 use crate::AnalysisError;
 use crate::points::Mount;
-use crate::unit::UnitPoints;
+use crate::points::UnitPoints;
 use serde::{Deserialize, Serialize};
 
 /// One level left out of the reduction.

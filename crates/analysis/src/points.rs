@@ -215,6 +215,27 @@ pub fn levels_of<'a>(points: impl IntoIterator<Item = &'a Point>) -> Vec<Level> 
         .collect()
 }
 
+/// The points of one unit (serial number) from one run, in the order taken.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnitPoints {
+    /// Serial number.
+    pub unit: String,
+    /// Label of the run (test) these points come from, when there are several.
+    pub run: Option<String>,
+    /// The averaged points, in the order they were taken.
+    pub points: Vec<Point>,
+}
+
+impl UnitPoints {
+    /// "unit 'SN12'" or "unit 'SN12' run '3'", for messages.
+    pub fn label(&self) -> String {
+        match &self.run {
+            Some(run) => format!("unit '{}' run '{run}'", self.unit),
+            None => format!("unit '{}'", self.unit),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -9,6 +9,7 @@
 use crate::compare::{ModelComparison, compare_models};
 use crate::figures::{self, Hysteresis, Nonlinearity};
 use crate::model::{Convention, Ieee1293Fit, ModelOrder, MountingFit, fit_ieee1293, fit_mounting};
+pub use crate::points::UnitPoints;
 use crate::points::{Mount, Point, infer_directions};
 use crate::scale_factor::{ScaleFactorModel, scale_factor_model};
 use crate::{AnalysisError, UG_PER_G};
@@ -67,27 +68,6 @@ impl std::str::FromStr for AnomalyRule {
             other => Err(format!(
                 "anomalies = '{other}': write \"flag\" or \"exclude\""
             )),
-        }
-    }
-}
-
-/// The points of one unit (serial number) from one run, in the order taken.
-#[derive(Debug, Clone, PartialEq)]
-pub struct UnitPoints {
-    /// Serial number.
-    pub unit: String,
-    /// Label of the run (test) these points come from, when there are several.
-    pub run: Option<String>,
-    /// The averaged points, in the order they were taken.
-    pub points: Vec<Point>,
-}
-
-impl UnitPoints {
-    /// "unit 'SN12'" or "unit 'SN12' run '3'", for messages.
-    pub fn label(&self) -> String {
-        match &self.run {
-            Some(run) => format!("unit '{}' run '{run}'", self.unit),
-            None => format!("unit '{}'", self.unit),
         }
     }
 }

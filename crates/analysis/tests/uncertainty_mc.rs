@@ -31,6 +31,8 @@ fn inputs() -> TypeBInputs {
         k1_tempco_ppm_per_c: 15.0,
         arm_expansion_ppm_per_c: 12.0,
         chamber_radius_expansion_ppm_per_c: None,
+        table_disturbance_ug: 0.0,
+        table_disturbance_width_g: 0.0,
     }
 }
 
@@ -235,4 +237,72 @@ fn type_b_inputs_are_refused_out_of_bounds_by_name() {
         assert!(e.contains(text_key), "{e}");
     }
     assert_eq!(inputs().validate(), Ok(()));
+}
+
+#[test]
+fn a_broad_table_disturbance_is_in_each_mountings_k2_and_cancels_from_k2() {
+    // A Lorentzian bump of the table's acceleration in |a| (3,000 µg at
+    // 45 g, 10 g wide), the same in both mountings: each mounting's k2
+    // moves, K2 does not; the bound's source covers the move and is absent
+    // from K2's budget.
+    use spinbench_analysis::uncertainty::Source;
+    let bump = |g: f64| 3_000e-6 / (1.0 + ((g - 45.0) / 10.0).powi(2));
+    let with_bump = |mount: Mount| -> Vec<Point> {
+        points(mount, &inputs(), None)
+            .into_iter()
+            .map(|p| {
+                let sign = mount.input_sign();
+                let a = p.g_nominal + bump(p.g_nominal);
+                Point {
+                    output: ieee1293_output(K, sign * a),
+                    ..p
+                }
+            })
+            .collect()
+    };
+    let b = TypeBInputs {
+        table_disturbance_ug: 3_000.0,
+        table_disturbance_width_g: 8.0,
+        ..TypeBInputs::default()
+    };
+    let (p, n) = (with_bump(Mount::P), with_bump(Mount::N));
+    let (bp, bn) = (
+        mounting_budget(&p, ModelOrder::Cubic, &b, "P").expect("P"),
+        mounting_budget(&n, ModelOrder::Cubic, &b, "N").expect("N"),
+    );
+    let k2 = |pts: &[Point]| coefficients(pts)[2];
+    let clean = coefficients(&points(Mount::P, &inputs(), None))[2];
+    let moved = k2(&p) - clean;
+    let table = bp
+        .effects
+        .iter()
+        .find(|e| e.source == Source::TableDisturbance)
+        .expect("the table's source")
+        .delta[2];
+    assert!(moved.abs() > 0.5, "the bump moves k2 by {moved}");
+    assert!(
+        moved.abs() <= table.abs() * 3f64.sqrt(),
+        "k2 moved {moved}, the bound's half-width is {}",
+        table.abs() * 3f64.sqrt()
+    );
+    let (even, odd) = joint_uncertainty(&bp, &bn, None).expect("joint");
+    let share = |u: &spinbench_analysis::uncertainty::Uncertainty| {
+        u.budget
+            .iter()
+            .find(|c| c.source == Source::TableDisturbance)
+            .map_or(0.0, |c| c.u)
+    };
+    assert!(
+        share(&even) < 0.01 * table.abs(),
+        "K2: {} of {table}",
+        share(&even)
+    );
+    assert!(share(&odd) > 0.5 * table.abs(), "odd part: {}", share(&odd));
+    // K2 itself hardly moves (second order).
+    let k2_even = 0.5 * (k2(&p) - k2(&n));
+    let clean_even = 0.5 * (clean - coefficients(&points(Mount::N, &inputs(), None))[2]);
+    assert!(
+        (k2_even - clean_even).abs() < 0.01 * moved.abs(),
+        "{k2_even} vs {clean_even}, a mounting moved {moved}"
+    );
 }

@@ -17,7 +17,6 @@
 
 use crate::centrifuge::{Centrifuge, DialectCentrifuge};
 use crate::fmu::{CounterModule, FmuDriver};
-use crate::line::IoPolicy;
 use crate::psu::{PowerSupply, ScpiPowerSupply};
 use crate::transport::{SerialSettings, SerialTransport, TcpTransport, Transport};
 use serde::Deserialize;
@@ -61,8 +60,8 @@ fn default_connect_ms() -> u64 {
 
 /// Longest connect timeout of a TCP transport [ms]: a reconnection is part
 /// of a command's retries, so it is bounded like one attempt
-/// ([`crate::line::MAX_TIMEOUT_MS`]).
-pub const MAX_CONNECT_TIMEOUT_MS: u64 = crate::line::MAX_TIMEOUT_MS;
+/// ([`MAX_TIMEOUT_MS`]).
+pub const MAX_CONNECT_TIMEOUT_MS: u64 = MAX_TIMEOUT_MS;
 
 impl TransportConfig {
     /// Check the transport's numbers; the error names the key under `section`.
@@ -435,6 +434,90 @@ pub enum ConnectError {
         /// The operating system's reason.
         error: String,
     },
+}
+
+/// Deadlines and retries of one device, as written in the station config.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IoPolicy {
+    /// Deadline of each attempt [ms] (default 500).
+    #[serde(default = "default_timeout_ms")]
+    pub timeout_ms: u64,
+    /// Further attempts after the first fails (default 2).
+    #[serde(default = "default_retries")]
+    pub retries: u32,
+}
+
+fn default_timeout_ms() -> u64 {
+    500
+}
+
+fn default_retries() -> u32 {
+    2
+}
+
+/// Longest deadline of one attempt [ms] (ten seconds).
+pub const MAX_TIMEOUT_MS: u64 = 10_000;
+/// Most retries of one command.
+pub const MAX_RETRIES: u32 = 20;
+/// Longest a device may take to fail one command, all attempts together,
+/// `timeout_ms × (retries + 1)` [ms]. A shutdown sends each device a few
+/// commands on the way to the safe state; with silent devices the whole
+/// stop must end well inside the service's stop time (the packaged unit's
+/// `TimeoutStopSec=90`, issue 27 item 2), so one command may not take
+/// longer than this.
+pub const MAX_COMMAND_MS: u64 = 10_000;
+
+impl IoPolicy {
+    /// Check the deadline and the retries against their bounds; the error
+    /// names the key under `section`.
+    pub fn validate(&self, section: &str) -> Result<(), ConfigError> {
+        if !(1..=MAX_TIMEOUT_MS).contains(&self.timeout_ms) {
+            return Err(ConfigError {
+                key: format!("{section}.io.timeout_ms"),
+                problem: format!(
+                    "{} ms is outside 1 to {MAX_TIMEOUT_MS} ms (MAX_TIMEOUT_MS)",
+                    self.timeout_ms
+                ),
+            });
+        }
+        if self.retries > MAX_RETRIES {
+            return Err(ConfigError {
+                key: format!("{section}.io.retries"),
+                problem: format!("{} is above {MAX_RETRIES} (MAX_RETRIES)", self.retries),
+            });
+        }
+        let command_ms = self.timeout_ms * (u64::from(self.retries) + 1);
+        if command_ms > MAX_COMMAND_MS {
+            return Err(ConfigError {
+                key: format!("{section}.io"),
+                problem: format!(
+                    "timeout_ms × (retries + 1) = {} × {} = {command_ms} ms is over {MAX_COMMAND_MS} ms \
+                     (MAX_COMMAND_MS): a device that stops answering would hold the station's \
+                     stop past the service's stop time; shorten the timeout or take fewer retries",
+                    self.timeout_ms,
+                    self.retries + 1
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl Default for IoPolicy {
+    fn default() -> Self {
+        IoPolicy {
+            timeout_ms: default_timeout_ms(),
+            retries: default_retries(),
+        }
+    }
+}
+
+impl IoPolicy {
+    /// The deadline of one attempt.
+    pub fn timeout(&self) -> Duration {
+        Duration::from_millis(self.timeout_ms)
+    }
 }
 
 #[cfg(test)]

@@ -4,93 +4,10 @@
 
 use crate::error::{DeviceError, DeviceErrorKind};
 use crate::transport::Transport;
-use serde::Deserialize;
 use std::io;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-/// Deadlines and retries of one device, as written in the station config.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct IoPolicy {
-    /// Deadline of each attempt [ms] (default 500).
-    #[serde(default = "default_timeout_ms")]
-    pub timeout_ms: u64,
-    /// Further attempts after the first fails (default 2).
-    #[serde(default = "default_retries")]
-    pub retries: u32,
-}
-
-fn default_timeout_ms() -> u64 {
-    500
-}
-
-fn default_retries() -> u32 {
-    2
-}
-
-/// Longest deadline of one attempt [ms] (ten seconds).
-pub const MAX_TIMEOUT_MS: u64 = 10_000;
-/// Most retries of one command.
-pub const MAX_RETRIES: u32 = 20;
-/// Longest a device may take to fail one command, all attempts together,
-/// `timeout_ms × (retries + 1)` [ms]. A shutdown sends each device a few
-/// commands on the way to the safe state; with silent devices the whole
-/// stop must end well inside the service's stop time (the packaged unit's
-/// `TimeoutStopSec=90`, issue 27 item 2), so one command may not take
-/// longer than this.
-pub const MAX_COMMAND_MS: u64 = 10_000;
-
-impl IoPolicy {
-    /// Check the deadline and the retries against their bounds; the error
-    /// names the key under `section`.
-    pub fn validate(&self, section: &str) -> Result<(), crate::config::ConfigError> {
-        if !(1..=MAX_TIMEOUT_MS).contains(&self.timeout_ms) {
-            return Err(crate::config::ConfigError {
-                key: format!("{section}.io.timeout_ms"),
-                problem: format!(
-                    "{} ms is outside 1 to {MAX_TIMEOUT_MS} ms (MAX_TIMEOUT_MS)",
-                    self.timeout_ms
-                ),
-            });
-        }
-        if self.retries > MAX_RETRIES {
-            return Err(crate::config::ConfigError {
-                key: format!("{section}.io.retries"),
-                problem: format!("{} is above {MAX_RETRIES} (MAX_RETRIES)", self.retries),
-            });
-        }
-        let command_ms = self.timeout_ms * (u64::from(self.retries) + 1);
-        if command_ms > MAX_COMMAND_MS {
-            return Err(crate::config::ConfigError {
-                key: format!("{section}.io"),
-                problem: format!(
-                    "timeout_ms × (retries + 1) = {} × {} = {command_ms} ms is over {MAX_COMMAND_MS} ms \
-                     (MAX_COMMAND_MS): a device that stops answering would hold the station's \
-                     stop past the service's stop time; shorten the timeout or take fewer retries",
-                    self.timeout_ms,
-                    self.retries + 1
-                ),
-            });
-        }
-        Ok(())
-    }
-}
-
-impl Default for IoPolicy {
-    fn default() -> Self {
-        IoPolicy {
-            timeout_ms: default_timeout_ms(),
-            retries: default_retries(),
-        }
-    }
-}
-
-impl IoPolicy {
-    /// The deadline of one attempt.
-    pub fn timeout(&self) -> Duration {
-        Duration::from_millis(self.timeout_ms)
-    }
-}
+pub use crate::config::{IoPolicy, MAX_COMMAND_MS, MAX_RETRIES, MAX_TIMEOUT_MS};
 
 /// Longest reply line accepted; a longer one is garbage.
 const MAX_LINE: usize = 4096;

@@ -112,6 +112,15 @@ pub fn person_text(text: &str) -> Result<String, String> {
     Ok(text.nfkc().collect::<String>().trim().to_string())
 }
 
+/// True for a run identifier as runs are named: 1 to 64 ASCII letters,
+/// digits, `-` or `_` (nothing a path or a query could be made of).
+pub fn is_run_id(id: &str) -> bool {
+    (1..=64).contains(&id.len())
+        && id
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

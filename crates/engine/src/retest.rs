@@ -9,14 +9,7 @@ use crate::record::{Outcome, ReasonCode, UnitRecord};
 /// The reasons that flag an instrument for a retest whatever its outcome.
 pub const FLAGS: [ReasonCode; 2] = [ReasonCode::TemperatureUnsettled, ReasonCode::K2Inconclusive];
 
-/// True for a run identifier as runs are named: 1 to 64 ASCII letters,
-/// digits, `-` or `_` (nothing a path or a query could be made of).
-pub fn is_run_id(id: &str) -> bool {
-    (1..=64).contains(&id.len())
-        && id
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
-}
+pub use crate::bounds::is_run_id;
 
 /// Whether an instrument's record calls for a retest: failed,
 /// inconclusive, incomplete, or flagged by one of [`FLAGS`].

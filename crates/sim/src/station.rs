@@ -75,7 +75,30 @@ fn uncertainty_toml(c: &crate::config::SimConfig) -> String {
         p.k1_temp_coeff_ppm_per_c,
         t.arm_expansion_ppm_per_c,
         chamber_radius_line(c),
-    )
+    ) + &table_disturbance_lines(c)
+}
+
+/// The table's characterization as `[uncertainty]` lines: the broad
+/// structural disturbances of its acceleration (half-width 4 g or more; a
+/// sharper one shows as a level off the curve) bounded by the sum of their
+/// heights, with the narrowest one's half-width; nothing for a table without
+/// them. A real station takes these from its centrifuge's acceptance test.
+fn table_disturbance_lines(c: &crate::config::SimConfig) -> String {
+    let broad: Vec<_> = c
+        .centrifuge
+        .disturbances
+        .iter()
+        .filter(|d| d.width_g >= 4.0)
+        .collect();
+    if broad.is_empty() {
+        return String::new();
+    }
+    let height: f64 = broad.iter().map(|d| d.amplitude_ug.abs()).sum();
+    let width = broad
+        .iter()
+        .map(|d| d.width_g)
+        .fold(f64::INFINITY, f64::min);
+    format!("table_disturbance_ug = {height}\ntable_disturbance_width_g = {width}\n")
 }
 
 /// The chamber's share of the radius as a bound on its expansion, a line of

@@ -3,7 +3,8 @@
 //! the record reduced and graded again by the run's own plan and station
 //! config, its readings kept.
 
-use super::judge::{grade, graded_points, point_list, temperature_reasons};
+use super::grade::grade;
+use super::judge::{graded_points, point_list, temperature_reasons};
 use super::*;
 use spinbench_analysis::exclusion::LevelExclusion;
 

@@ -23,6 +23,7 @@
 mod dwell;
 mod exclusions;
 mod fanout;
+mod grade;
 mod judge;
 mod ports;
 mod resume;
@@ -34,7 +35,8 @@ mod steps;
 
 pub use crate::bench::Bench;
 pub use exclusions::{exclude_after_run, withdraw_exclusion_after_run};
-pub use judge::{Graded, analysis_options, grade};
+pub use grade::{Graded, grade};
+pub use judge::analysis_options;
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
 pub use steps::{label, wording};

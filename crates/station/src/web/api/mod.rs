@@ -30,6 +30,8 @@ mod assets;
 mod charts;
 pub mod doc;
 mod equipment;
+mod exclusions;
+mod history;
 mod live;
 mod plans;
 mod runs;
@@ -220,26 +222,30 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("put", "/api/plans/{name}", put(plans::save_plan)),
         ("get", "/api/station", get(plans::station)),
         ("put", "/api/station", put(plans::save_station)),
-        ("get", "/api/runs", get(runs::runs)),
+        ("get", "/api/runs", get(history::runs)),
         ("post", "/api/runs", post(runs::start_run)),
-        ("get", "/api/runs/{id}", get(runs::run)),
-        ("get", "/api/runs/{id}/report/{format}", get(runs::report)),
+        ("get", "/api/runs/{id}", get(history::run)),
+        (
+            "get",
+            "/api/runs/{id}/report/{format}",
+            get(history::report),
+        ),
         (
             "post",
             "/api/runs/{id}/exclusions",
-            post(runs::exclude_level),
+            post(exclusions::exclude_level),
         ),
         (
             "post",
             "/api/runs/{id}/exclusions/withdraw",
-            post(runs::withdraw_exclusion),
+            post(exclusions::withdraw_exclusion),
         ),
         ("post", "/api/runs/{id}/retest", post(runs::retest)),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),
         ("post", "/api/run/resume", post(runs::resume)),
         ("post", "/api/run/abort", post(runs::abort)),
-        ("get", "/api/units/{serial}", get(runs::unit)),
+        ("get", "/api/units/{serial}", get(history::unit)),
         ("get", "/api/control-charts", get(charts::control_charts)),
         ("get", "/api/equipment", get(equipment::equipment)),
         (

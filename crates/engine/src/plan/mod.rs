@@ -1,0 +1,493 @@
+//! Test plans (TOML) and their compilation into a list of steps: a plan is
+//! data, and one executor ([`crate::executor`]) runs any list of steps.
+//!
+//! ```toml
+//! name = "batch 47"
+//! range_g = 70            # levels 0, 1, 5, 10, … 70 (method.md §3.3) unless `levels` is given
+//! passes = ["P", "N"]     # mountings, in order (a serial "P:SN1" or "N:SN1" fixes its slot's mounting)
+//! [serials]
+//! 1 = "SN2601"            # slot number (1-based: module 1 slots 1–6, module 2 slots 7–12, …)
+//! [dwell]
+//! seconds = 10
+//! [limits]
+//! k2_max_ug_per_g2 = 20
+//! ```
+
+mod compile;
+#[cfg(test)]
+mod tests;
+mod validate;
+
+use crate::config::StationConfig;
+use serde::{Deserialize, Serialize};
+use spinbench_analysis::{Direction, ModelOrder, Mount, centrifuge, points};
+use std::collections::BTreeMap;
+
+/// The plan as written.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TestPlan {
+    /// Name of the test.
+    #[serde(default = "default_name")]
+    pub name: String,
+    /// Operator's name, recorded with the run.
+    #[serde(default)]
+    pub operator: String,
+    /// Serial number per slot (1-based); `P:` or `N:` fixes the slot's mounting.
+    pub serials: BTreeMap<String, String>,
+    /// Range m [g] (default 70).
+    #[serde(default = "default_range")]
+    pub range_g: f64,
+    /// Explicit levels [g], ascending from 0 (default: 0, 1, 5, then every 5 g to m).
+    #[serde(default)]
+    pub levels: Option<Vec<f64>>,
+    /// Visit the levels up and then back down (default true).
+    #[serde(default = "default_true")]
+    pub up_down: bool,
+    /// Mountings to run, in order (default: as the serials' prefixes say, else P).
+    #[serde(default)]
+    pub passes: Vec<Mount>,
+    /// Chamber temperatures at which the range test runs [°C] (absent: the
+    /// room, no chamber). Each pass visits them in turn, soaked as `[soak]`
+    /// says, in the order [`crate::soak::visiting_order`] gives.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub temperatures_c: Vec<f64>,
+    /// When a chamber temperature counts as reached.
+    #[serde(default, skip_serializing_if = "crate::soak::SoakConfig::is_default")]
+    pub soak: crate::soak::SoakConfig,
+    /// Tumble positions: 2 (IA up, IA down; method.md (5)) or 4 (also the
+    /// two with gravity along the cross axis that is vertical on the arm, as
+    /// on the arm and inverted, which measure the cross-axis sensitivity and
+    /// take it out of the radius). Default 2.
+    #[serde(default = "default_tumble_positions")]
+    pub tumble_positions: u8,
+    /// Warm-up after power-on [s] (default 60).
+    #[serde(default = "default_warmup")]
+    pub warmup_s: f64,
+    /// Model order (default 3).
+    #[serde(default = "default_order")]
+    pub order: u8,
+    /// How long to average at each level.
+    #[serde(default)]
+    pub dwell: DwellConfig,
+    /// When the speed and the outputs count as stable.
+    #[serde(default)]
+    pub stability: StabilityConfig,
+    /// Pass/fail limits.
+    #[serde(default)]
+    pub limits: Limits,
+    /// Levels an engineer leaves out of the reduction, each with a reason
+    /// (recorded in every record it touches, and in the reports).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub exclusions: Vec<PlanExclusion>,
+    /// What the reduction does with a level it finds off the curve:
+    /// `"flag"` (the default: kept, named, its misfit in the budget as model
+    /// inadequacy) or `"exclude"` (left out automatically, named in the
+    /// record and the report, the change in the budget);
+    /// [`spinbench_analysis::AnomalyRule`].
+    #[serde(default, skip_serializing_if = "is_default_rule")]
+    pub anomalies: spinbench_analysis::AnomalyRule,
+    /// The run this one retests (its failed, inconclusive and flagged
+    /// instruments, [`crate::retest`]); absent for a first test.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub retest_of: Option<String>,
+}
+
+/// A level left out of the reduction by the plan.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanExclusion {
+    /// Only this serial number (absent: every instrument).
+    #[serde(default)]
+    pub serial: Option<String>,
+    /// The mounting.
+    pub mount: Mount,
+    /// The level [g], one of the plan's levels.
+    pub g: f64,
+    /// Why (required).
+    pub reason: String,
+}
+
+fn is_default_rule(rule: &spinbench_analysis::AnomalyRule) -> bool {
+    *rule == spinbench_analysis::AnomalyRule::default()
+}
+
+fn default_name() -> String {
+    "centrifuge test".into()
+}
+
+fn default_range() -> f64 {
+    70.0
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn default_warmup() -> f64 {
+    60.0
+}
+
+fn default_tumble_positions() -> u8 {
+    2
+}
+
+fn default_order() -> u8 {
+    3
+}
+
+/// Averaging at each level: n one-second values, or adaptive between bounds.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DwellConfig {
+    /// One-second values per point (default 10; the published station's n).
+    pub seconds: u32,
+    /// Adaptive dwell: stop once every instrument's standard error of the
+    /// mean is at most this [µg] (None = fixed dwell).
+    pub sem_target_ug: Option<f64>,
+    /// Fewest values of an adaptive dwell.
+    pub min_seconds: u32,
+    /// Most values of an adaptive dwell.
+    pub max_seconds: u32,
+}
+
+impl Default for DwellConfig {
+    fn default() -> Self {
+        DwellConfig {
+            seconds: 10,
+            sem_target_ug: None,
+            min_seconds: 5,
+            max_seconds: 30,
+        }
+    }
+}
+
+/// Stability criteria (method.md §3.3: data only at stable speed).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct StabilityConfig {
+    /// Rate within this of the demand [ppm] counts as on speed.
+    pub rate_tolerance_ppm: f64,
+    /// Seconds the rate must stay on speed before data are taken.
+    pub hold_s: u32,
+    /// Largest acceptable drift of an output over the hold [µg/s] (a slope
+    /// test; the slope must also be significant, at a 1 % chance per look
+    /// over all the instruments that noise alone stops the settling).
+    pub drift_limit_ug_per_s: f64,
+    /// Longest wait for stability at a level before the run faults [s].
+    pub max_settle_s: u32,
+    /// Restarts of a point after rate excursions before the run faults.
+    pub max_restarts: u32,
+    /// An instrument whose 1-s values scatter more than this is failed as noisy [µg].
+    pub noise_limit_ug: f64,
+    /// Largest change of an instrument's temperature during a point's
+    /// averaging [°C]: a point over it is measured again (up to
+    /// `max_restarts`), then kept and flagged. Absent: not checked.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature_change_max_c: Option<f64>,
+}
+
+impl Default for StabilityConfig {
+    fn default() -> Self {
+        StabilityConfig {
+            rate_tolerance_ppm: 20.0,
+            hold_s: 5,
+            drift_limit_ug_per_s: 3.0,
+            max_settle_s: 180,
+            max_restarts: 5,
+            noise_limit_ug: 300.0,
+            temperature_change_max_c: None,
+        }
+    }
+}
+
+/// Pass/fail limits, one per figure; a figure without a limit is reported only.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Limits {
+    /// |k2| of the worse mounting must not exceed this [µg/g²].
+    pub k2_max_ug_per_g2: f64,
+    /// Scale-factor nonlinearity from the best straight line [ppm FS].
+    pub nonlinearity_max_ppm_fs: Option<f64>,
+    /// |Scale-factor asymmetry| between P and N [ppm].
+    pub asymmetry_max_ppm: Option<f64>,
+    /// |Hysteresis| [µg].
+    pub hysteresis_max_ug: Option<f64>,
+    /// Above this fraction of a limit the result is marginal.
+    pub marginal_fraction: f64,
+    /// How a value with an uncertainty is judged against its limit.
+    pub decision_rule: DecisionRule,
+}
+
+/// How a value with an uncertainty is judged against its limit (method.md §6).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum DecisionRule {
+    /// Guarded acceptance (ISO 14253-1, ILAC-G8): pass only when
+    /// |value| + U95 ≤ limit, fail only when |value| − U95 > limit,
+    /// otherwise inconclusive (retest advised).
+    #[default]
+    Guarded,
+    /// Simple acceptance: the value alone against the limit (the published
+    /// method's), said so in every record and report.
+    Simple,
+}
+
+/// A value judged against its limit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Within the limit (guarded: with its whole interval).
+    Pass,
+    /// Passes, but within the marginal band of the limit.
+    Marginal,
+    /// The interval straddles the limit (guarded only).
+    Inconclusive,
+    /// Beyond the limit (guarded: with its whole interval).
+    Fail,
+}
+
+impl DecisionRule {
+    /// Its serde name: `guarded` or `simple`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DecisionRule::Guarded => "guarded",
+            DecisionRule::Simple => "simple",
+        }
+    }
+
+    /// Judge |value| against `limit`, with its expanded uncertainty `u95`
+    /// when known; above `marginal_fraction`·limit a pass is marginal.
+    /// Guarded without an uncertainty cannot decide: inconclusive. A value
+    /// or limit that is not a number is never a pass (inconclusive).
+    pub fn decide(
+        self,
+        value: f64,
+        u95: Option<f64>,
+        limit: f64,
+        marginal_fraction: f64,
+    ) -> Verdict {
+        if !(value.is_finite() && limit.is_finite()) {
+            return Verdict::Inconclusive;
+        }
+        let v = value.abs();
+        let (low, high) = match (self, u95) {
+            (DecisionRule::Simple, _) => (v, v),
+            (DecisionRule::Guarded, Some(u)) if u.is_finite() && u >= 0.0 => (v - u, v + u),
+            (DecisionRule::Guarded, _) => return Verdict::Inconclusive,
+        };
+        if low > limit {
+            Verdict::Fail
+        } else if high > limit {
+            Verdict::Inconclusive
+        } else if high > marginal_fraction * limit {
+            Verdict::Marginal
+        } else {
+            Verdict::Pass
+        }
+    }
+
+    /// Judge the larger |value| of several (one per mounting, k2_max) against
+    /// `limit`: the limit is on the maximum, so under the guarded rule the
+    /// result passes only when every value passes with its own U95, fails
+    /// when any fails with its own, and is otherwise inconclusive — the
+    /// worst of the values' verdicts. Returns it with the index of the value
+    /// that decided it. No values: inconclusive.
+    pub fn decide_all(
+        self,
+        values: &[(f64, Option<f64>)],
+        limit: f64,
+        marginal_fraction: f64,
+    ) -> (Verdict, Option<usize>) {
+        let rank = |v: Verdict| match v {
+            Verdict::Pass => 0,
+            Verdict::Marginal => 1,
+            Verdict::Inconclusive => 2,
+            Verdict::Fail => 3,
+        };
+        let mut worst: Option<(Verdict, usize, f64)> = None;
+        for (i, &(value, u95)) in values.iter().enumerate() {
+            let verdict = self.decide(value, u95, limit, marginal_fraction);
+            let better = match worst {
+                None => true,
+                Some((w, _, wv)) => {
+                    rank(verdict) > rank(w) || (rank(verdict) == rank(w) && value.abs() > wv)
+                }
+            };
+            if better {
+                worst = Some((verdict, i, value.abs()));
+            }
+        }
+        match worst {
+            Some((verdict, i, _)) => (verdict, Some(i)),
+            None => (Verdict::Inconclusive, None),
+        }
+    }
+
+    /// How reports name the rule.
+    pub fn describe(self) -> &'static str {
+        match self {
+            DecisionRule::Guarded => {
+                "guarded acceptance (ISO 14253-1, ILAC-G8): pass only when |value| + U95 is within the limit, fail only when |value| − U95 is beyond it, otherwise inconclusive (retest)"
+            }
+            DecisionRule::Simple => {
+                "simple acceptance: the value alone against the limit, its uncertainty not considered"
+            }
+        }
+    }
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            k2_max_ug_per_g2: 20.0,
+            nonlinearity_max_ppm_fs: None,
+            asymmetry_max_ppm: None,
+            hysteresis_max_ug: None,
+            marginal_fraction: 0.9,
+            decision_rule: DecisionRule::Guarded,
+        }
+    }
+}
+
+/// A plan that cannot run on this station; names the key and what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("test plan: {key}: {problem}")]
+pub struct PlanError {
+    /// The key.
+    pub key: String,
+    /// What is wrong.
+    pub problem: String,
+}
+
+/// The instrument mounting an operator is asked for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Fixture {
+    /// On the bench, input axis up.
+    Up,
+    /// On the bench, input axis down.
+    Down,
+    /// On the arm, mounting P or N.
+    Arm(Mount),
+    /// On the bench, input axis horizontal, with gravity along the cross
+    /// axis that is vertical on the arm: as on the arm, or inverted.
+    Crosswise {
+        /// As on the arm (else upside down).
+        as_on_arm: bool,
+    },
+}
+
+/// One step of a compiled plan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Step {
+    /// Switch the supplies and relays on, start streaming.
+    PowerOn,
+    /// Check each instrument draws current and its resonators are in range.
+    CheckAlive,
+    /// Wait for the instruments to warm up.
+    WarmUp {
+        /// Seconds of station time.
+        seconds: f64,
+    },
+    /// Ask the operator to mount the instruments (per slot; `None` = leave).
+    Mount {
+        /// Requested fixture per slot.
+        fixtures: Vec<Option<Fixture>>,
+    },
+    /// Record the 1 g outputs with the input axis up or down (method.md (5)).
+    Tumble {
+        /// Up (+1 g) or down (−1 g).
+        up: bool,
+    },
+    /// Bring the chamber to a temperature and wait until it and the
+    /// instruments have soaked (`[soak]`).
+    Soak {
+        /// Chamber setpoint [°C].
+        setpoint_c: f64,
+    },
+    /// Record the output with the input axis horizontal and gravity along
+    /// the cross axis that is vertical on the arm (four-position tumble).
+    CrossTumble {
+        /// As on the arm (else inverted).
+        as_on_arm: bool,
+    },
+    /// Spin to 1 g at R0 and find each instrument's radius (method.md (6)–(8)).
+    Radius {
+        /// Pass number.
+        pass: usize,
+    },
+    /// Take one averaged point at a level.
+    Level {
+        /// Pass number.
+        pass: usize,
+        /// Nominal level [g] at the drawing radius.
+        g_nominal: f64,
+        /// Ascending or descending.
+        direction: Direction,
+    },
+    /// Controlled stop of the centrifuge.
+    Stop,
+}
+
+/// A compiled plan: the steps, and per pass the mounting of each slot.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CompiledPlan {
+    /// The plan as written.
+    pub plan: TestPlan,
+    /// Serial number per slot (without the mounting prefix); `None` = empty slot.
+    pub serials: Vec<Option<String>>,
+    /// Per pass, the mounting of each slot (`None` = not measured in that pass).
+    pub passes: Vec<Vec<Option<Mount>>>,
+    /// The steps, in order.
+    pub steps: Vec<Step>,
+    /// Model order.
+    #[serde(skip)]
+    pub order: ModelOrder,
+}
+
+impl Default for TestPlan {
+    /// The defaults of a plan file (no serials yet): 0–70 g, the published
+    /// levels up and down, mounting P, 60 s warm-up, order 3, 10-s dwell.
+    fn default() -> Self {
+        TestPlan {
+            name: default_name(),
+            operator: String::new(),
+            serials: BTreeMap::new(),
+            range_g: default_range(),
+            levels: None,
+            up_down: true,
+            passes: Vec::new(),
+            tumble_positions: default_tumble_positions(),
+            temperatures_c: Vec::new(),
+            soak: crate::soak::SoakConfig::default(),
+            warmup_s: default_warmup(),
+            order: default_order(),
+            dwell: DwellConfig::default(),
+            stability: StabilityConfig::default(),
+            limits: Limits::default(),
+            exclusions: Vec::new(),
+            anomalies: Default::default(),
+            retest_of: None,
+        }
+    }
+}
+
+impl TestPlan {
+    /// Parse TOML text.
+    /// Parse TOML text and check every number against its bound
+    /// ([`TestPlan::validate`]).
+    pub fn from_toml(text: &str) -> Result<TestPlan, PlanError> {
+        let plan: TestPlan = toml::from_str(text).map_err(|e| PlanError {
+            key: "(file)".into(),
+            problem: e.to_string(),
+        })?;
+        plan.validate()?;
+        Ok(plan)
+    }
+
+    /// The ascending level table [g].
+    pub fn level_table(&self) -> Vec<f64> {
+        self.levels
+            .clone()
+            .unwrap_or_else(|| points::published_levels(self.range_g))
+    }
+}

@@ -1,0 +1,27 @@
+//! A run's summary as CSV.
+
+use super::*;
+use crate::*;
+
+/// The summary table as CSV (full precision: `{:?}` reads back to the same number).
+pub fn summary_csv(report: &RunReport) -> String {
+    let mut out = SUMMARY_HEADERS.join(",");
+    out.push('\n');
+    for row in summary(report) {
+        let mut cells = vec![
+            csv_field(&row.serial),
+            row.slot.to_string(),
+            row.mount.clone(),
+        ];
+        cells.extend(
+            numbers(&row)
+                .iter()
+                .map(|v| v.map_or(String::new(), |v| format!("{v:?}"))),
+        );
+        cells.push(row.outcome.clone());
+        cells.push(csv_field(&row.reasons));
+        out.push_str(&cells.join(","));
+        out.push('\n');
+    }
+    out
+}

@@ -1,0 +1,92 @@
+//! One run's report: its records gathered from the store (here), the
+//! summary rows and point cells every format shares (`summary`), and each
+//! format (`csv`, `html`, `xlsx`; the PDF is `crate::pdf`).
+
+mod csv;
+mod html;
+mod summary;
+mod xlsx;
+
+pub use csv::summary_csv;
+pub use html::{html, html_in};
+pub(crate) use summary::{POINT_HEADERS, SUMMARY_DECIMALS, meta_rows_in, numbers, point_cells};
+pub use summary::{SUMMARY_HEADERS, SummaryRow, summary, summary_in};
+pub(crate) use xlsx::xlsx_in;
+
+use crate::*;
+use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store};
+
+/// One instrument of a run.
+#[derive(Debug, Clone)]
+pub struct UnitReport {
+    /// The stored result row, with the whole record as the engine wrote it.
+    pub result: ResultRow,
+    /// The instrument's points, in the order taken.
+    pub points: Vec<PointRow>,
+}
+
+impl UnitReport {
+    /// The instrument's record.
+    pub fn record(&self) -> &spinbench_engine::UnitRecord {
+        &self.result.record
+    }
+
+    /// Its reasons in one line, then any level left out (who, why), so a
+    /// result that was reduced without some readings says so wherever it is shown.
+    pub fn reasons_text(&self) -> String {
+        self.reasons_text_in(Lang::En)
+    }
+
+    /// [`UnitReport::reasons_text`] in `lang` (`lang::reason`, `lang::exclusion`).
+    pub fn reasons_text_in(&self, lang: Lang) -> String {
+        let r = &self.result.record;
+        let separator = if lang == Lang::En { "; " } else { "；" };
+        r.reasons
+            .iter()
+            .map(|reason| lang::reason(lang, reason))
+            .chain(r.exclusions.iter().map(|e| lang::exclusion(lang, e)))
+            .collect::<Vec<_>>()
+            .join(separator)
+    }
+}
+
+/// Everything a run's report shows.
+#[derive(Debug, Clone)]
+pub struct RunReport {
+    /// The run.
+    pub run: RunRow,
+    /// Station config, devices, plan, operator actions.
+    pub context: RunContext,
+    /// Every instrument, in slot order.
+    pub units: Vec<UnitReport>,
+    /// The runs that retest this one (`spinbench retest`), oldest first.
+    pub retested_by: Vec<String>,
+}
+
+/// Read a run's report data from the store.
+pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
+    let run = store
+        .run(run_id)?
+        .ok_or_else(|| ReportError::NoRun(run_id.to_string()))?;
+    let context = store.run_context(run_id)?.unwrap_or_default();
+    let points = store.points(run_id)?;
+    let mut units = Vec::new();
+    for result in store.results(run_id)? {
+        let own = points
+            .iter()
+            .filter(|p| p.slot == result.slot)
+            .cloned()
+            .collect();
+        units.push(UnitReport {
+            result,
+            points: own,
+        });
+    }
+    let retested_by = store.retests_of(run_id)?;
+    Ok(RunReport {
+        run,
+        context,
+        units,
+        retested_by,
+    })
+}

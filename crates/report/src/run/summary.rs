@@ -1,0 +1,234 @@
+//! The rows and cells every format of a run's report shares: one summary
+//! row per instrument-mounting, the points' cells, the run's meta rows.
+
+use super::*;
+use crate::*;
+
+/// One row of the summary table.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SummaryRow {
+    /// Serial number.
+    pub serial: String,
+    /// Slot (1-based).
+    pub slot: i64,
+    /// P or N.
+    pub mount: String,
+    /// Radius found [m].
+    pub radius_m: Option<f64>,
+    /// Drawing radius R0 [m].
+    pub drawing_radius_m: Option<f64>,
+    /// k0 [g].
+    pub k0_g: Option<f64>,
+    /// k1 [Hz/g].
+    pub k1_hz_per_g: Option<f64>,
+    /// k2 [µg/g²].
+    pub k2_ug_per_g2: Option<f64>,
+    /// Half-width of k2's 95 % interval from the fit alone (Type A) [µg/g²].
+    pub k2_ci95_half_ug_per_g2: Option<f64>,
+    /// k2's expanded uncertainty at 95 % from its GUM budget (Type A and B),
+    /// the one the guarded decision uses [µg/g²].
+    pub k2_u95_ug_per_g2: Option<f64>,
+    /// k3 [µg/g³].
+    pub k3_ug_per_g3: Option<f64>,
+    /// k2_max of the instrument [µg/g²].
+    pub k2_max_ug_per_g2: Option<f64>,
+    /// Scale-factor nonlinearity: the largest residual of (11) [ppm].
+    pub sf_nonlinearity_ppm: Option<f64>,
+    /// Asymmetry [ppm].
+    pub asymmetry_ppm: Option<f64>,
+    /// Hysteresis [µg].
+    pub hysteresis_ug: Option<f64>,
+    /// pass, marginal or fail.
+    pub outcome: String,
+    /// Why, when not a plain pass.
+    pub reasons: String,
+}
+
+/// The summary rows: one per instrument and mounting measured.
+pub fn summary(report: &RunReport) -> Vec<SummaryRow> {
+    summary_in(report, Lang::En)
+}
+
+/// The summary rows with their reasons in `lang`.
+pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
+    let mut rows = Vec::new();
+    for u in &report.units {
+        let r = u.record();
+        let analysis = r.analysis.as_ref();
+        let fits: Vec<Option<(&spinbench_analysis::Mount, &spinbench_analysis::MountingFit)>> =
+            match analysis.map(|a| &a.fits) {
+                Some(fits) if !fits.is_empty() => fits.iter().map(Some).collect(),
+                _ => vec![None],
+            };
+        for entry in fits {
+            let mount = entry.map(|(m, _)| *m);
+            let fit = entry.map(|(_, f)| &f.fit);
+            rows.push(SummaryRow {
+                serial: u.result.serial.clone(),
+                slot: u.result.slot + 1,
+                mount: mount.map(|m| m.to_string()).unwrap_or_default(),
+                radius_m: mount.and_then(|m| r.radius_m.get(&m).copied()),
+                drawing_radius_m: Some(r.drawing_radius_m),
+                k0_g: fit.map(|f| f.k0_g),
+                k1_hz_per_g: fit.map(|f| f.k1),
+                k2_ug_per_g2: fit.and_then(|f| f.k2_ug_per_g2),
+                k2_ci95_half_ug_per_g2: fit
+                    .and_then(|f| f.ci95.k2_ug_per_g2)
+                    .map(|[a, b]| (b - a) / 2.0),
+                k2_u95_ug_per_g2: entry
+                    .and_then(|(_, f)| f.uncertainty.as_ref())
+                    .and_then(|u| u.k2_ug_per_g2.as_ref())
+                    .map(|u| u.u95),
+                k3_ug_per_g3: fit.and_then(|f| f.k3_ug_per_g3),
+                k2_max_ug_per_g2: u.result.k2_max_ug_per_g2,
+                sf_nonlinearity_ppm: analysis
+                    .and_then(|a| a.scale_factor.as_ref())
+                    .map(|s| s.residual_max_ppm),
+                asymmetry_ppm: analysis.and_then(|a| a.figures.asymmetry_ppm),
+                hysteresis_ug: analysis.and_then(|a| a.figures.hysteresis_ug),
+                outcome: u.result.outcome.to_string(),
+                reasons: u.reasons_text_in(lang),
+            });
+        }
+    }
+    rows
+}
+
+/// The summary table's columns, with units.
+pub const SUMMARY_HEADERS: [&str; 16] = [
+    "serial",
+    "slot",
+    "mount",
+    "radius [m]",
+    "R0 [m]",
+    "k0 [g]",
+    "k1 [Hz/g]",
+    "k2 [µg/g²]",
+    "k2 ±95% [µg/g²]",
+    "k3 [µg/g³]",
+    "k2_max [µg/g²]",
+    "SF nonlinearity [ppm]",
+    "asymmetry [ppm]",
+    "hysteresis [µg]",
+    "outcome",
+    "reasons",
+];
+
+/// Decimals shown for the summary's numbers (HTML and PDF), in [`numbers`] order.
+pub(crate) const SUMMARY_DECIMALS: [usize; 11] = [6, 3, 6, 6, 3, 3, 3, 3, 1, 1, 1];
+
+/// The point table's columns (HTML and PDF).
+pub(crate) const POINT_HEADERS: [&str; 10] = [
+    "step",
+    "mount",
+    "level [g]",
+    "direction",
+    "applied [g]",
+    "rate [deg/s]",
+    "output [Hz]",
+    "σ [Hz]",
+    "n",
+    "T [°C]",
+];
+
+/// One row of the point table, as shown.
+pub(crate) fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
+    let direction = lang::tr_or(
+        lang,
+        &format!("arg.direction.{}", p.direction),
+        &p.direction,
+    );
+    [
+        p.step.to_string(),
+        p.mount.clone(),
+        p.g_nominal.to_string(),
+        direction,
+        format!("{:.6}", p.g_applied),
+        format!("{:.4}", p.rate_deg_s),
+        format!("{:.6}", p.output_hz),
+        format!("{:.6}", p.std_hz),
+        p.n.to_string(),
+        p.temperature_c
+            .map_or("—".to_string(), |t| format!("{t:.2}")),
+    ]
+}
+
+/// The run's header block: (label — the catalogue's `meta.` key — and its
+/// value, dates as `lang` writes them).
+pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
+    let run = &report.run;
+    let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
+    let mut rows = vec![("station", run.station.clone())];
+    if let Some(original) = &run.retest_of {
+        rows.push((
+            "retest of",
+            rust_i18n::t!("report.retest_of", run = original, locale = lang.code()).into_owned(),
+        ));
+    }
+    if !report.retested_by.is_empty() {
+        let runs: Vec<String> = report
+            .retested_by
+            .iter()
+            .map(|id| rust_i18n::t!("report.run", run = id, locale = lang.code()).into_owned())
+            .collect();
+        rows.push(("retested by", runs.join(&tr(lang, "report.list_separator"))));
+    }
+    rows.extend([
+        (
+            "operator",
+            plan["operator"].as_str().unwrap_or("").to_string(),
+        ),
+        ("started", lang::date_time(lang, run.started_at)),
+        (
+            "state",
+            match (lang, &run.reason) {
+                // English: the state and the reason as recorded.
+                (Lang::En, Some(r)) => format!("{}: {r}", run.state),
+                (Lang::En, None) => run.state.clone(),
+                (_, Some(r)) => format!(
+                    "{}：{}",
+                    lang::state(lang, &run.state),
+                    run.reason_wording
+                        .as_ref()
+                        .and_then(|w| lang::say(lang, w))
+                        .unwrap_or_else(|| r.clone())
+                ),
+                (_, None) => lang::state(lang, &run.state),
+            },
+        ),
+        ("plan", plan["name"].as_str().unwrap_or("").to_string()),
+        (
+            "decision rule",
+            // Plans made before the rule was recorded were judged by value alone.
+            match serde_json::from_value::<spinbench_engine::plan::DecisionRule>(
+                plan["limits"]["decision_rule"].clone(),
+            ) {
+                Ok(rule) => lang::decision_rule(lang, rule),
+                Err(_) => lang::decision_rule(lang, spinbench_engine::plan::DecisionRule::Simple),
+            },
+        ),
+        (
+            "software",
+            format!("spinbench {}", report.context.software_version),
+        ),
+    ]);
+    rows
+}
+
+pub(crate) fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
+    [
+        row.radius_m,
+        row.drawing_radius_m,
+        row.k0_g,
+        row.k1_hz_per_g,
+        row.k2_ug_per_g2,
+        // The ±95 % shown is the one the decision uses: the GUM U95 where
+        // there is a budget, else the fit's interval.
+        row.k2_u95_ug_per_g2.or(row.k2_ci95_half_ug_per_g2),
+        row.k3_ug_per_g3,
+        row.k2_max_ug_per_g2,
+        row.sf_nonlinearity_ppm,
+        row.asymmetry_ppm,
+        row.hysteresis_ug,
+    ]
+}

@@ -1,0 +1,447 @@
+//! The command line, parsed in one place: every command and option with
+//! its help and its value parser (the dispatch is in `mod.rs`).
+
+use super::*;
+
+/// spinbench: automatic centrifuge test station for vibrating-beam accelerometers.
+#[derive(Debug, Parser)]
+#[command(name = "spinbench", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Reduce the averaged points of a centrifuge test (CSV or XLSX) to the
+    /// model coefficients with uncertainties, per unit and mounting.
+    ///
+    /// FILE has a header row and the columns unit,mount,g_nominal,g_applied,output
+    /// (mount is P or N; an empty g_applied equals g_nominal). Optional
+    /// columns: direction (up/down) and run (a label for repeated tests).
+    Analyze {
+        /// The points file (.csv, or a spreadsheet: .xlsx, .xls, .ods).
+        file: PathBuf,
+        /// Print one JSON document instead of tables.
+        #[arg(long)]
+        json: bool,
+        /// Model order: 1 (k0, k1), 2 (+k2) or 3 (+k3, the published station's model).
+        #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=3))]
+        order: u8,
+        /// Spreadsheet sheet to read (default: the first).
+        #[arg(long)]
+        sheet: Option<String>,
+        /// Leave a level out of the fits: MOUNT:LEVEL (every unit, e.g. P:40)
+        /// or UNIT:MOUNT:LEVEL; repeatable; needs --reason. The exclusion,
+        /// its reason and who made it are printed with the results.
+        #[arg(long = "exclude-level", value_name = "[UNIT:]MOUNT:LEVEL")]
+        exclude_level: Vec<String>,
+        /// Why the levels are excluded (required with --exclude-level).
+        #[arg(long)]
+        reason: Option<String>,
+        /// Type B inputs of the GUM budget for legacy data: a TOML file with
+        /// the keys of a station config's [uncertainty] section (radius_ppm,
+        /// rate_accuracy_ppm, rate_resolution_deg_s with arm_radius_m,
+        /// g_local_ppm, timebase_ppm, arm_stretch_u_ug_per_g2,
+        /// temperature_rise_c_at_100g, k0_tempco_ug_per_c,
+        /// k1_tempco_ppm_per_c, arm_expansion_ppm_per_c). Without it the
+        /// budget is Type A only, and says so.
+        #[arg(long = "type-b", value_name = "FILE")]
+        type_b: Option<PathBuf>,
+        /// What to do with a level found off the curve: flag (keep it, name
+        /// it, its misfit in the budget as model inadequacy) or exclude
+        /// (leave it out, say so, the change in the budget).
+        #[arg(long, default_value = "flag")]
+        anomalies: spinbench_analysis::AnomalyRule,
+        /// Who makes the --exclude-level exclusions (recorded with them;
+        /// default: the logged-in user).
+        #[arg(long, value_name = "NAME")]
+        by: Option<String>,
+    },
+    /// The main job, with no hardware: a complete simulated station (virtual
+    /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
+    /// to end in virtual time and compares what it measured with the truth.
+    Demo {
+        /// Seed of the virtual bench (same seed and realism, same results).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// How real the virtual bench is: ideal, typical (the error sources
+        /// of precision centrifuge testing) or harsh (typical with drift, a
+        /// dead and a noisy instrument and line faults).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// Bench configuration (TOML) to start from (its keys over its realism preset).
+        #[arg(long, value_name = "FILE")]
+        sim_config: Option<PathBuf>,
+        /// Tumble positions: 2 (IA up and down, the published method) or 4
+        /// (also the two cross-axis positions, which take gravity across the
+        /// axis out of each radius).
+        #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u8).range(2..=4))]
+        tumble_positions: u8,
+        /// Run the range test at these chamber temperatures [°C], e.g.
+        /// `--temperatures=-20,25,60`: the bench's instruments sit in a
+        /// temperature chamber, and the JSON gains each instrument's
+        /// temperature coefficients beside the bench's truth.
+        #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+        temperatures: Vec<f64>,
+        /// The levels of the range test [g], e.g. `--levels=0,2,8,14,…,66`
+        /// (ascending from 0, at least 6; default 0, 1, 5, then every 5 g to 70).
+        #[arg(long, value_delimiter = ',')]
+        levels: Vec<f64>,
+        /// What the reduction does with a level found off the curve: flag or exclude
+        /// (the plan key `anomalies`).
+        #[arg(long, default_value = "flag")]
+        anomalies: spinbench_analysis::AnomalyRule,
+        /// Print one JSON document instead of tables.
+        #[arg(long)]
+        json: bool,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Run a test plan on a station (or, with --simulate, on the virtual bench).
+    Run {
+        /// The test plan (TOML).
+        plan: PathBuf,
+        /// The station config (TOML); with --simulate its device sections are replaced by the bench's.
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run against the virtual bench in this process (real pseudo-terminals).
+        #[arg(long)]
+        simulate: bool,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// With --simulate: a bench config (TOML) whose keys go over the
+        /// realism preset's (as `spinbench sim --config`).
+        #[arg(long, value_name = "BENCH_TOML", requires = "simulate")]
+        bench: Option<PathBuf>,
+        /// Continue the run in this directory from its journal.
+        #[arg(long, value_name = "RUN_DIR")]
+        resume: Option<PathBuf>,
+        /// Start although a device is overdue for calibration, with the
+        /// reason (recorded in the audit log).
+        #[arg(long, value_name = "REASON")]
+        override_overdue: Option<String>,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// Print only faults and the results.
+        #[arg(long)]
+        quiet: bool,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…);
+        /// default DATA/spinbench.db (with --resume, the run's own).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Test again the failed, inconclusive, incomplete and flagged
+    /// instruments of a finished run: same serials, slots and plan, the new
+    /// run linked to RUN in the store and both reports.
+    Retest {
+        /// The run to retest (its identifier, as `spinbench runs list` shows).
+        run: String,
+        /// The station config (TOML); default: the one RUN used. With
+        /// --simulate its device sections are replaced by the bench's.
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Run against the virtual bench in this process (real pseudo-terminals).
+        #[arg(long)]
+        simulate: bool,
+        /// Seed of the virtual bench.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// Print only faults and the results.
+        #[arg(long)]
+        quiet: bool,
+        /// The store RUN is in, where the retest is written too: an SQLite
+        /// file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// List the runs in the store, or show one run's results.
+    Runs {
+        /// `list` or `show`.
+        #[command(subcommand)]
+        action: RunsAction,
+    },
+    /// Every run of one instrument (by serial number), with the repeatability of its scale factor.
+    Unit {
+        /// Serial number.
+        serial: String,
+        /// The store (default: spinbench-data/spinbench.db).
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Export a run's points (the input format of `spinbench analyze`) and results.
+    Export {
+        /// Run identifier.
+        run: String,
+        /// Format: csv (points), xlsx (points and results sheets) or parquet (points).
+        #[arg(long, default_value = "csv")]
+        format: String,
+        /// Write to this file instead of standard output (an existing file
+        /// only with --force; never the store or a run's own files).
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// Replace an existing --out file.
+        #[arg(long)]
+        force: bool,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Write a run's report: PDF, HTML (self-contained, plots inline), XLSX and/or CSV.
+    Report {
+        /// Run identifier.
+        run: String,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
+    },
+    /// Write the batch report of many runs: distributions of k2 and the
+    /// scale-factor figures, outliers, repeatability of serials tested more than once.
+    BatchReport {
+        /// Run identifiers (default: every run in the store).
+        runs: Vec<String>,
+        /// The control charts' baseline period: their limits come from the
+        /// first this many runs (1 to 100,000).
+        #[arg(long, default_value_t = spinbench_report::control::DEFAULT_BASELINE_RUNS as u32,
+              value_parser = clap::value_parser!(u32).range(1..=100_000))]
+        baseline_runs: u32,
+        /// Formats, directory and store.
+        #[command(flatten)]
+        output: ReportOutput,
+    },
+    /// Replay a run's raw counter-module bytes through the decoder and show
+    /// that they give the one-second values and points the store holds.
+    Replay {
+        /// Run identifier (a directory under DATA/runs) or a run directory.
+        run: String,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Start a virtual bench (simulated centrifuge, instruments, counter
+    /// modules and supplies) behind real pseudo-terminals, and print the
+    /// device sections of a station config that reach it. Runs until
+    /// interrupted (Ctrl-C).
+    Sim {
+        /// Bench configuration (TOML); every key has a default.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Time: 1 = real time, N = N× faster, 0 = virtual time in lockstep with the station.
+        #[arg(long)]
+        speed: Option<f64>,
+        /// How real the bench is (ideal, typical, harsh); replaces the config's `realism`.
+        #[arg(long)]
+        realism: Option<spinbench_sim::Realism>,
+        /// Put the centrifuge controller and the supplies on TCP (loopback).
+        #[arg(long)]
+        tcp: bool,
+        /// Write the instruments' true coefficients and radii to this JSON file.
+        #[arg(long)]
+        truth: Option<PathBuf>,
+        /// Stop after this many seconds of wall-clock time (default: run until interrupted).
+        #[arg(long = "for", value_name = "SECONDS")]
+        run_for: Option<f64>,
+    },
+    /// Serve the station's web UI and HTTP API (loopback by default): status,
+    /// live curves, run control and prompts, new runs, history and reports.
+    Serve {
+        /// Where and how to serve.
+        #[command(flatten)]
+        args: crate::web::ServeArgs,
+    },
+    /// Manage the web UI's users (the first admin is made here).
+    User {
+        /// What to do.
+        #[command(subcommand)]
+        action: UserAction,
+    },
+    /// Back the store up into DIR while the station may run: an SQLite
+    /// store through SQLite's online backup API, checked; a PostgreSQL
+    /// store through pg_dump (custom format), checked by pg_restore --list;
+    /// with --data, the runs' files too (raw captures, reports).
+    Backup {
+        /// Where the backup goes (created if missing).
+        dir: PathBuf,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+        /// Also copy this data directory's runs (DATA/runs).
+        #[arg(long)]
+        data: Option<PathBuf>,
+    },
+    /// Is the station ready to run? Checks the station config, every port
+    /// and device (opened, identified, answering in time), the store, the
+    /// clock and the free disk, and says what to fix. Nothing moves.
+    Doctor {
+        /// Station config (TOML).
+        #[arg(long)]
+        station: Option<PathBuf>,
+        /// Check the virtual bench instead of hardware.
+        #[arg(long)]
+        simulate: bool,
+        /// Where runs are kept (its free disk is checked).
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store (default DATA/spinbench.db).
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+    },
+    /// Restore a backup made by `spinbench backup` into a store file that
+    /// does not exist yet (move the old one aside first).
+    Restore {
+        /// The backup file.
+        backup: PathBuf,
+        /// The store file to create, or a PostgreSQL URL of an empty
+        /// database (a `.dump` from a PostgreSQL backup).
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// The equipment register: each device's calibration certificate and
+    /// due date (a run does not start while one is overdue).
+    Equipment {
+        /// What to do.
+        #[command(subcommand)]
+        action: EquipmentAction,
+    },
+}
+
+/// Actions of `spinbench equipment`.
+#[derive(Debug, Subcommand)]
+pub enum EquipmentAction {
+    /// Every device in the register with its status today.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Add or replace a device's entry (recorded in the audit log).
+    Set {
+        /// Its role in a run: centrifuge, fmu 1, fmu 2 …, instrument supply, module supply.
+        role: String,
+        /// What it is (model and serial number).
+        #[arg(long)]
+        identity: String,
+        /// The calibration certificate's number.
+        #[arg(long)]
+        certificate: String,
+        /// Calibrated on (YYYY-MM-DD).
+        #[arg(long)]
+        calibrated: String,
+        /// Due on (YYYY-MM-DD).
+        #[arg(long)]
+        due: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}
+
+/// Actions of `spinbench user`.
+#[derive(Debug, Subcommand)]
+pub enum UserAction {
+    /// Add a user; the password is read from standard input (one line) or
+    /// from the environment variable SPINBENCH_PASSWORD.
+    Add {
+        /// Login name.
+        name: String,
+        /// operator, engineer or admin.
+        #[arg(long, default_value = "operator")]
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// List the users.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Change a user's role; their sessions end on every server.
+    Role {
+        /// Login name.
+        name: String,
+        /// operator, engineer or admin.
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Change a user's password (read as for `add`); their sessions end on every server.
+    Passwd {
+        /// Login name.
+        name: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Remove a user; their sessions end on every server.
+    Remove {
+        /// Login name.
+        name: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}
+
+/// Where reports go, in which formats, from which store.
+#[derive(Debug, clap::Args)]
+pub struct ReportOutput {
+    /// pdf, html, xlsx or csv; repeat or comma-separate for several (default: all four).
+    #[arg(long, value_delimiter = ',')]
+    pub(super) format: Vec<String>,
+    /// Directory for the files (default: the current directory).
+    #[arg(long, default_value = ".")]
+    pub(super) out: PathBuf,
+    /// The reports' language: en or zh-CN (the CSV's headers stay machine names).
+    #[arg(long, default_value = "en", value_parser = parse_lang)]
+    pub(super) lang: spinbench_report::Lang,
+    /// The store.
+    #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+    pub(super) db: StoreTarget,
+}
+
+/// `--lang`: a language the station speaks.
+pub(super) fn parse_lang(text: &str) -> Result<spinbench_report::Lang, String> {
+    spinbench_report::Lang::parse(text).ok_or_else(|| format!("'{text}': en or zh-CN"))
+}
+
+/// Actions of `spinbench runs`.
+#[derive(Debug, Subcommand)]
+pub enum RunsAction {
+    /// Every run, newest first.
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// One run's per-instrument results.
+    Show {
+        /// Run identifier.
+        run: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}

@@ -1,0 +1,207 @@
+//! A finished run's records changed by an engineer: a level of one
+//! instrument left out of its reduction, or such an exclusion withdrawn;
+//! reduced and graded again by the run's own plan and station config, with
+//! the figures before and after in the audit log.
+
+use super::schema::{ErrorBody, ExcludeLevel, Excluded};
+use super::*;
+
+/// Leave a level of one instrument of a finished run out of its reduction
+/// (an engineer, with a reason): the record is reduced and graded again by
+/// the run's own plan and station config, its exclusions list who, why and
+/// how many readings, and the audit log keeps the figures before and after.
+/// The readings themselves stay.
+#[utoipa::path(post, path = "/api/runs/{id}/exclusions", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the finished run")),
+    request_body(content = ExcludeLevel, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "reduced and graded again", body = Excluded),
+        (status = 400, description = "not an exclusion body", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 404, description = "no such run or instrument", body = ErrorBody),
+        (status = 409, description = "the run is still going or did not record its station config; the level is not the run's, is already left out, or would leave too few levels to reduce", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
+pub(super) async fn exclude_level(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> ApiResult<Json<Excluded>> {
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
+    let ask: ExcludeLevel = parse_json(&body)?;
+    check_exclusion_ask(&app, &id, &ask)?;
+    blocking(&app, move |app| {
+        let store = store(app);
+        let exclusion = spinbench_analysis::exclusion::LevelExclusion {
+            unit: Some(ask.serial.clone()),
+            mount: ask.mount,
+            g: ask.g,
+            reason: ask.reason.trim().to_string(),
+            by: session.user.clone(),
+            points_removed: 0,
+        };
+        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
+            spinbench_engine::executor::exclude_after_run(record, plan, station, exclusion)
+        })?;
+        let detail = format!(
+            "{id} {} {}:{} g ({}): k2_max {} → {} µg/g², outcome {} → {}",
+            ask.serial,
+            ask.mount,
+            ask.g,
+            ask.reason.trim(),
+            k2_shown(&before),
+            k2_shown(&after),
+            before.outcome,
+            after.outcome
+        );
+        store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
+        Ok(Json(Excluded {
+            run_id: id,
+            exclusions: json!(after.exclusions),
+            outcome: after.outcome.to_string(),
+            k2_max_ug_per_g2: after.k2_max_ug_per_g2,
+            serial: after.serial,
+        }))
+    })
+    .await
+}
+
+/// Withdraw an engineer's exclusion of a level of one instrument of a
+/// finished run (an engineer, with a reason; issue 27 item 9): the record is
+/// reduced and graded again with its other exclusions, and the audit log
+/// keeps the figures before and after.
+#[utoipa::path(post, path = "/api/runs/{id}/exclusions/withdraw", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the finished run")),
+    request_body(content = ExcludeLevel, description = "The exclusion to withdraw (serial, mount, g) and why. At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "reduced and graded again", body = Excluded),
+        (status = 400, description = "not a body", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an engineer", body = ErrorBody),
+        (status = 404, description = "no such run or instrument", body = ErrorBody),
+        (status = 409, description = "the run is still going or did not record its station config, or the level is not left out", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
+pub(super) async fn withdraw_exclusion(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: Bytes,
+) -> ApiResult<Json<Excluded>> {
+    let session = authorize(&app, &headers, Role::Engineer, true).await?;
+    let ask: ExcludeLevel = parse_json(&body)?;
+    check_exclusion_ask(&app, &id, &ask)?;
+    blocking(&app, move |app| {
+        let store = store(app);
+        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
+            spinbench_engine::executor::withdraw_exclusion_after_run(
+                record, plan, station, ask.mount, ask.g,
+            )
+        })?;
+        let detail = format!(
+            "{id} {} {}:{} g back in ({}): k2_max {} → {} µg/g², outcome {} → {}",
+            ask.serial,
+            ask.mount,
+            ask.g,
+            ask.reason.trim(),
+            k2_shown(&before),
+            k2_shown(&after),
+            before.outcome,
+            after.outcome
+        );
+        store.replace_result(&id, &after, &session.user, "withdraw exclusion", &detail)?;
+        Ok(Json(Excluded {
+            run_id: id,
+            exclusions: json!(after.exclusions),
+            outcome: after.outcome.to_string(),
+            k2_max_ug_per_g2: after.k2_max_ug_per_g2,
+            serial: after.serial,
+        }))
+    })
+    .await
+}
+
+/// An instrument's k2_max as the audit log shows it.
+fn k2_shown(r: &spinbench_engine::UnitRecord) -> String {
+    r.k2_max_ug_per_g2
+        .map_or("—".to_string(), |k| format!("{k:.3}"))
+}
+
+/// The checks of an exclusion's (or a withdrawal's) body that need no
+/// store: a level in g, a reason of 1 to 500 characters with no control
+/// characters, and a run that has ended.
+fn check_exclusion_ask(app: &App, id: &str, ask: &ExcludeLevel) -> ApiResult<()> {
+    if !(ask.g.is_finite() && (0.0..=spinbench_engine::bounds::MAX_LEVEL_G).contains(&ask.g)) {
+        return Err(ApiError::bad(format!(
+            "g = {}: give one of the run's levels in g",
+            ask.g
+        )));
+    }
+    // Characters, not bytes (200 Chinese characters are 600 bytes); no
+    // control characters into the record and the audit log.
+    if ask.reason.trim().is_empty()
+        || ask.reason.chars().count() > 500
+        || ask.reason.chars().any(char::is_control)
+    {
+        return Err(ApiError::bad(
+            "reason: say why (1 to 500 characters, no control characters)",
+        ));
+    }
+    if app.runner.active().as_deref() == Some(id) {
+        return Err(ApiError::conflict(format!(
+            "run {id} is still going; change its records once it has ended"
+        )));
+    }
+    Ok(())
+}
+
+/// Instrument `serial` of finished run `id` changed by `change` under the
+/// run's own plan and station config: its record before and after (a
+/// refusal of `change` is a 400).
+fn change_record(
+    store: &spinbench_store::Store,
+    id: &str,
+    serial: &str,
+    change: impl FnOnce(
+        &spinbench_engine::UnitRecord,
+        &spinbench_engine::CompiledPlan,
+        &spinbench_engine::StationConfig,
+    ) -> Result<spinbench_engine::UnitRecord, String>,
+) -> ApiResult<(spinbench_engine::UnitRecord, spinbench_engine::UnitRecord)> {
+    let run = store
+        .run(id)?
+        .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
+    let context = store
+        .run_context(id)?
+        .ok_or_else(|| ApiError::not_found(format!("no run '{id}'")))?;
+    let station_toml = context.station_config.ok_or_else(|| {
+        ApiError::conflict(format!(
+            "run {id} did not record its station config, so it cannot be reduced again here; use `spinbench analyze --exclude-level`"
+        ))
+    })?;
+    let station = spinbench_engine::StationConfig::from_toml(&station_toml)
+        .map_err(|e| ApiError::internal(format!("run {id}'s station config: {e}")))?;
+    let plan: TestPlan = serde_json::from_str(&context.plan_json)
+        .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
+    let compiled = plan
+        .compile(&station)
+        .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
+    let result = store
+        .results(id)?
+        .into_iter()
+        .find(|r| r.serial == serial)
+        .ok_or_else(|| {
+            ApiError::not_found(format!(
+                "run {id} ({}) has no instrument '{serial}'",
+                run.state
+            ))
+        })?;
+    // The body was well formed; the record's state refuses it (a level the
+    // run does not have, one already out or not out, too few levels left).
+    let after = change(&result.record, &compiled, &station).map_err(ApiError::conflict)?;
+    Ok((result.record, after))
+}

@@ -1,0 +1,218 @@
+//! The runs' history: every run of the fleet or one station, one run's
+//! results with its links, its reports, every test of one serial number.
+
+use super::schema::{ErrorBody, ResultRow, RunDetail, RunEntry, UnitHistory, UnitTest};
+use super::*;
+
+/// Which station's runs (`GET /api/runs`).
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct StationFilter {
+    /// Only this station's runs (its id; every station's without it).
+    #[param(max_length = 64)]
+    station: Option<String>,
+}
+
+/// Every run of the fleet (or of one station), newest first.
+#[utoipa::path(get, path = "/api/runs", tag = "runs",
+    security(("session" = [])),
+    params(StationFilter),
+    responses(
+        (status = 200, description = "the runs", body = Vec<RunEntry>),
+        (status = 400, description = "a bad query string", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
+pub(super) async fn runs(
+    State(app): State<App>,
+    headers: HeaderMap,
+    q: Result<Query<StationFilter>, QueryRejection>,
+) -> ApiResult<Json<Vec<RunEntry>>> {
+    authorize(&app, &headers, Role::Operator, false).await?;
+    let Query(q) = q.map_err(query_error)?;
+    let runs = blocking(&app, |app| Ok(store(app).runs()?)).await?;
+    Ok(Json(
+        runs.iter()
+            .filter(|r| q.station.as_ref().is_none_or(|s| &r.station == s))
+            .map(RunEntry::from)
+            .collect(),
+    ))
+}
+
+/// One run: its results (reasons in the user's language), links and reports.
+#[utoipa::path(get, path = "/api/runs/{id}", tag = "runs",
+    security(("session" = [])),
+    params(("id" = String, Path, description = "the run")),
+    responses(
+        (status = 200, description = "the run", body = RunDetail),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no such run", body = ErrorBody),
+    ))]
+pub(super) async fn run(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> ApiResult<Json<RunDetail>> {
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
+    // The results' reasons in the user's language (the records keep codes).
+    let lang = super::session::language_of(&app, &headers, Some(&session)).await;
+    let asked = id.clone();
+    let report = blocking(&app, move |app| {
+        Ok(spinbench_report::gather(&store(app), &asked))
+    })
+    .await?
+    .map_err(|e| match e {
+        spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
+        other => ApiError::internal(other.to_string()),
+    })?;
+    let rows: Vec<ResultRow> = spinbench_report::summary_in(&report, lang)
+        .into_iter()
+        .map(|r| ResultRow {
+            serial: r.serial,
+            slot: r.slot,
+            mount: r.mount,
+            radius_m: r.radius_m,
+            drawing_radius_m: r.drawing_radius_m,
+            k0_g: r.k0_g,
+            k1_hz_per_g: r.k1_hz_per_g,
+            k2_ug_per_g2: r.k2_ug_per_g2,
+            k2_ci95_half_ug_per_g2: r.k2_ci95_half_ug_per_g2,
+            k2_u95_ug_per_g2: r.k2_u95_ug_per_g2,
+            k3_ug_per_g3: r.k3_ug_per_g3,
+            k2_max_ug_per_g2: r.k2_max_ug_per_g2,
+            sf_nonlinearity_ppm: r.sf_nonlinearity_ppm,
+            asymmetry_ppm: r.asymmetry_ppm,
+            hysteresis_ug: r.hysteresis_ug,
+            outcome: r.outcome,
+            reasons: r.reasons,
+        })
+        .collect();
+    let run = &report.run;
+    let to_retest: Vec<String> = report
+        .units
+        .iter()
+        .filter(|u| spinbench_engine::retest::needs_retest(u.record()))
+        .map(|u| u.result.serial.clone())
+        .collect();
+    Ok(Json(RunDetail {
+        run: RunEntry::from(run),
+        retested_by: report.retested_by.clone(),
+        to_retest,
+        results: rows,
+        reports: ReportFormat::ALL
+            .iter()
+            .map(|f| format!("/api/runs/{}/report/{}", run.id, f.ext()))
+            .collect(),
+    }))
+}
+
+#[derive(Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub(super) struct ReportQuery {
+    /// `en` or `zh-CN` (default: the user's language, else the browser's).
+    #[param(value_type = Option<super::schema::LanguageTag>)]
+    lang: Option<String>,
+}
+
+/// A run's report as a file.
+#[utoipa::path(get, path = "/api/runs/{id}/report/{format}", tag = "runs",
+    security(("session" = [])),
+    params(
+        ("id" = String, Path, description = "the run"),
+        ("format" = super::schema::ReportFormatName, Path, description = "the file's format"),
+        ReportQuery,
+    ),
+    responses(
+        (status = 200, description = "the report", content(
+            (Vec<u8> = "application/pdf"),
+            (String = "text/html; charset=utf-8"),
+            (Vec<u8> = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"),
+            (String = "text/csv; charset=utf-8"),
+        )),
+        (status = 400, description = "an unknown format or language", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no such run", body = ErrorBody),
+    ))]
+pub(super) async fn report(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path((id, format)): Path<(String, String)>,
+    q: Result<Query<ReportQuery>, QueryRejection>,
+) -> ApiResult<Response> {
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
+    let Query(q) = q.map_err(query_error)?;
+    let format = ReportFormat::parse(&format).ok_or_else(|| {
+        ApiError::bad(format!(
+            "report format '{format}': use pdf, html, xlsx or csv"
+        ))
+    })?;
+    let lang = match q.lang.as_deref() {
+        Some(tag) => spinbench_report::Lang::parse(tag).ok_or_else(|| {
+            ApiError::bad(format!(
+                "lang '{}': en or zh-CN",
+                tag.chars().take(40).collect::<String>()
+            ))
+        })?,
+        None => super::session::language_of(&app, &headers, Some(&session)).await,
+    };
+    let db = app.db.clone();
+    let run_id = id.clone();
+    // A 96-instrument PDF takes a moment: off the async workers, on its own connection.
+    let bytes = tokio::task::spawn_blocking(move || {
+        let store = spinbench_store::Store::connect(&db)?;
+        let report = spinbench_report::gather(&store, &run_id)?;
+        spinbench_report::render_in(&report, format, lang)
+    })
+    .await
+    .map_err(|e| ApiError::internal(e.to_string()))?
+    .map_err(|e| match e {
+        spinbench_report::ReportError::NoRun(_) => ApiError::not_found(e.to_string()),
+        other => ApiError::internal(other.to_string()),
+    })?;
+    Ok((
+        [
+            (header::CONTENT_TYPE, format.mime().to_string()),
+            (
+                header::CONTENT_DISPOSITION,
+                format!("attachment; filename=\"report-{id}.{}\"", format.ext()),
+            ),
+        ],
+        bytes,
+    )
+        .into_response())
+}
+
+/// Every test of one serial number.
+#[utoipa::path(get, path = "/api/units/{serial}", tag = "runs",
+    security(("session" = [])),
+    params(("serial" = String, Path, description = "the serial number")),
+    responses(
+        (status = 200, description = "its tests", body = UnitHistory),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 404, description = "no run holds it", body = ErrorBody),
+    ))]
+pub(super) async fn unit(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(serial): Path<String>,
+) -> ApiResult<Json<UnitHistory>> {
+    authorize(&app, &headers, Role::Operator, false).await?;
+    let asked = serial.clone();
+    let history = blocking(&app, move |app| Ok(store(app).unit_history(&asked)?)).await?;
+    if history.is_empty() {
+        return Err(ApiError::not_found(format!(
+            "no run holds serial '{serial}'"
+        )));
+    }
+    Ok(Json(UnitHistory {
+        serial,
+        tests: history
+            .iter()
+            .map(|h| UnitTest {
+                run_id: h.run_id.clone(),
+                slot: h.slot + 1,
+                outcome: h.outcome.to_string(),
+                k2_max_ug_per_g2: h.k2_max_ug_per_g2,
+            })
+            .collect(),
+    }))
+}
