@@ -176,6 +176,15 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(b
     assert_eq!(page.status, 200);
     assert!(String::from_utf8_lossy(&page.body).contains("<canvas id=\"curves\""));
     assert_eq!(anon.send("GET", "/app.js", None).status, 200);
+    // The page's ES modules (issue 28): each served as JavaScript; no other file.
+    let module = anon.send("GET", "/js/core.js", None);
+    assert_eq!(module.status, 200);
+    assert!(
+        module.content_type.starts_with("text/javascript"),
+        "{}",
+        module.content_type
+    );
+    assert_eq!(anon.send("GET", "/js/secret.js", None).status, 404);
     // The web UI's words, open to everyone (the login page needs them).
     let words = anon.get_json("/api/i18n/zh-CN", 200);
     assert_eq!(words["words"]["web.nav.history"], "历史");

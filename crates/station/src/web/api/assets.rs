@@ -26,12 +26,38 @@ pub(super) async fn page() -> Response {
     )
 }
 
-/// The web UI's script.
+/// The web UI's entry module (it routes between the pages).
 pub(super) async fn script() -> Response {
     asset(
         "text/javascript; charset=utf-8",
         include_str!("../assets/app.js"),
     )
+}
+
+/// The web UI's other modules (`GET /js/{module}`): one per page, and the
+/// shared ones; ES modules the browser loads as they are (no build step).
+const MODULES: [(&str, &str); 10] = [
+    ("core.js", include_str!("../assets/js/core.js")),
+    ("i18n.js", include_str!("../assets/js/i18n.js")),
+    ("live.js", include_str!("../assets/js/live.js")),
+    ("charts.js", include_str!("../assets/js/charts.js")),
+    ("new_run.js", include_str!("../assets/js/new_run.js")),
+    ("history.js", include_str!("../assets/js/history.js")),
+    (
+        "control_charts.js",
+        include_str!("../assets/js/control_charts.js"),
+    ),
+    ("fleet.js", include_str!("../assets/js/fleet.js")),
+    ("equipment.js", include_str!("../assets/js/equipment.js")),
+    ("users.js", include_str!("../assets/js/users.js")),
+];
+
+/// `GET /js/{module}`: one of [`MODULES`], else 404.
+pub(super) async fn module(Path(name): Path<String>) -> Response {
+    match MODULES.iter().find(|(n, _)| *n == name) {
+        Some((_, body)) => asset("text/javascript; charset=utf-8", body),
+        None => (StatusCode::NOT_FOUND, "no such module").into_response(),
+    }
 }
 
 /// The web UI's style sheet.

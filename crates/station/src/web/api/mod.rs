@@ -203,6 +203,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
     vec![
         ("get", "/", get(assets::page)),
         ("get", "/app.js", get(assets::script)),
+        ("get", "/js/{module}", get(assets::module)),
         ("get", "/app.css", get(assets::style)),
         ("get", "/cjk.ttf", get(assets::font)),
         ("get", "/api/openapi.json", get(assets::openapi)),

@@ -1,0 +1,31 @@
+// The Fleet page: every station on this store.
+import { $, api, show, state } from "./core.js";
+import { fmtTime } from "./history.js";
+import { stateWord, word } from "./i18n.js";
+
+// The equipment register: every device with its calibration status;
+// engineers and admins keep it (each change in the audit log).
+// The fleet: every station on this store, refreshed every 3 s while shown.
+export let fleetTimer = null;
+
+export async function loadFleet() {
+  clearTimeout(fleetTimer);
+  if ((location.hash || "#status") !== "#fleet" || !state.session) return;
+  try {
+    const list = await api("GET", "/api/fleet");
+    const body = $("fleet-table").tBodies[0];
+    body.textContent = "";
+    for (const st of list) {
+      const tr = body.insertRow();
+      tr.dataset.station = st.station;
+      tr.dataset.state = st.state;
+      const what = st.state === "offline" ? word("web.fleet.offline", "offline") : stateWord(st.state);
+      const progress = st.steps_total ? st.steps_done + " / " + st.steps_total : "—";
+      const fpy = st.first_pass_yield === null || st.first_pass_yield === undefined ? "—"
+        : (100 * st.first_pass_yield).toFixed(0) + " % (" + st.passed_today + "/" + st.tested_today + ")";
+      [st.station + (st.this_station ? " *" : ""), what, st.run_id || "—", progress, fpy, fmtTime(st.last_seen)]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 1) td.className = "fleet " + st.state; });
+    }
+  } catch (e) { show(e.message); }
+  fleetTimer = setTimeout(loadFleet, 3000);
+}

@@ -1,0 +1,159 @@
+// The History page: the runs, one run's results, its exclusions, links,
+// retest and reports, and one serial's tests.
+import { $, api, show, state } from "./core.js";
+import { fill, stateWord, word } from "./i18n.js";
+
+export function fmtTime(t) { return new Date(t * 1000).toISOString().replace("T", " ").slice(0, 16) + " UTC"; }
+
+// Fill a station selector from the fleet, keeping its choice; `all` adds
+// "every station" first, else this server's station is the default.
+export async function fillStations(id, all) {
+  const select = $(id);
+  const chosen = select.value;
+  const fleet = await api("GET", "/api/fleet");
+  select.textContent = "";
+  if (all) select.add(new Option(word("web.option.every_station", "every station"), ""));
+  for (const st of fleet) select.add(new Option(st.station, st.station));
+  const mine = fleet.find((st) => st.this_station);
+  select.value = chosen || (all ? "" : (mine ? mine.station : ""));
+}
+
+export async function loadHistory() {
+  try {
+    await fillStations("history-station", true);
+    const station = $("history-station").value;
+    const runs = await api("GET", "/api/runs" + (station ? "?station=" + encodeURIComponent(station) : ""));
+    const body = $("runs-table").tBodies[0];
+    body.textContent = "";
+    for (const r of runs) {
+      const tr = body.insertRow();
+      const a = document.createElement("a");
+      a.href = "#history"; a.textContent = r.id;
+      a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
+      tr.insertCell().appendChild(a);
+      [r.station, fmtTime(r.started_at), stateWord(r.state) + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (" + word("web.history.retest_of", "retest of") + " " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
+    }
+  } catch (e) { show(e.message); }
+}
+
+export async function showRun(id) {
+  try {
+    const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
+    const box = $("run-detail");
+    box.textContent = "";
+    const h = document.createElement("h3"); h.textContent = word("web.run.title", "Run") + " " + r.id + " — " + stateWord(r.state); box.appendChild(h);
+    showLinks(box, r);
+    showReports(box, r.id);
+    const t = document.createElement("table");
+    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "k2_max", "outcome", "reasons"];
+    t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = word("web.head." + x, x); return th; }));
+    const f = (v, d) => v === null ? "—" : Number(v).toFixed(d);
+    for (const u of r.results) {
+      const tr = t.insertRow();
+      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), word("web.outcome." + u.outcome, u.outcome), u.reasons]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
+    }
+    box.appendChild(t);
+    if (state.session && state.session.role !== "operator" && r.results.length) box.appendChild(excludeForm(r));
+  } catch (e) { show(e.message); }
+}
+
+// An engineer leaves a level of one instrument out of a finished run's
+// reduction, with a reason; the server reduces and grades it again and
+// keeps who, why and the figures before and after in the audit log.
+export function excludeForm(r) {
+  const form = document.createElement("form");
+  form.id = "exclude-form";
+  const field = (label, el) => { const l = document.createElement("label"); l.append(label + " ", el); form.append(l, " "); return el; };
+  const serial = field(word("web.exclude.serial", "Leave out: serial"), document.createElement("select"));
+  serial.id = "exclude-serial";
+  for (const s of [...new Set(r.results.map((u) => u.serial))]) serial.add(new Option(s, s));
+  const mount = field(word("web.exclude.mount", "mounting"), document.createElement("select"));
+  mount.id = "exclude-mount";
+  for (const m of ["P", "N"]) mount.add(new Option(m, m));
+  const g = field(word("web.exclude.level", "level [g]"), document.createElement("input"));
+  Object.assign(g, { id: "exclude-g", type: "number", min: "0", step: "any", required: true });
+  const reason = field(word("web.exclude.reason", "reason"), document.createElement("input"));
+  Object.assign(reason, { id: "exclude-reason", required: true, maxLength: 500, size: 40 });
+  const button = document.createElement("button");
+  button.type = "submit"; button.id = "exclude-button"; button.textContent = word("web.exclude.button", "Leave level out");
+  // The same level put back (an exclusion withdrawn, with its reason).
+  const back = document.createElement("button");
+  back.type = "button"; back.id = "withdraw-button"; back.textContent = word("web.exclude.withdraw", "Put level back");
+  form.append(button, " ", back);
+  const send = async (path, said) => {
+    try {
+      const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + path,
+        { serial: serial.value, mount: mount.value, g: Number(g.value), reason: reason.value });
+      show(res.serial + ": " + mount.value + " " + g.value + " g " + said + "; outcome " + res.outcome, true);
+      await showRun(r.id);
+    } catch (e) { show(e.message); }
+  };
+  form.addEventListener("submit", (ev) => { ev.preventDefault(); send("/exclusions", "left out"); });
+  back.addEventListener("click", () => { if (form.reportValidity()) send("/exclusions/withdraw", "put back"); });
+  return form;
+}
+
+// A retest's link to the run it retests, and the runs that retest this
+// one; the Retest button when the run has ended with instruments to retest.
+export function showLinks(box, r) {
+  const runLink = (id) => {
+    const a = document.createElement("a");
+    a.href = "#history"; a.textContent = id; a.className = "run-link";
+    a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(id); });
+    return a;
+  };
+  if (r.retest_of) {
+    const p = document.createElement("p"); p.id = "retest-of";
+    p.append(word("web.history.retest_of_run", "Retest of run") + " ", runLink(r.retest_of));
+    box.appendChild(p);
+  }
+  if (r.retested_by && r.retested_by.length) {
+    const p = document.createElement("p"); p.id = "retested-by";
+    p.append(word("web.history.retested_by_run", "Retested by run") + " ");
+    r.retested_by.forEach((id, i) => { if (i) p.append(", "); p.append(runLink(id)); });
+    box.appendChild(p);
+  }
+  if (r.state !== "running" && r.to_retest && r.to_retest.length) {
+    const b = document.createElement("button");
+    b.id = "retest-button"; b.type = "button";
+    b.textContent = fill("web.retest.button", "Retest " + r.to_retest.length + " instrument(s): " + r.to_retest.join(", "), { n: r.to_retest.length, serials: r.to_retest.join(", ") });
+    b.addEventListener("click", async () => {
+      try {
+        const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/retest");
+        show(fill("web.retest.started", "retest " + res.run_id + " started: " + res.serials.join(", "), { run: res.run_id, serials: res.serials.join(", ") }), true);
+        location.hash = "#run";
+      } catch (e) { show(e.message); }
+    });
+    box.appendChild(b);
+  }
+}
+
+export function showReports(box, id) {
+  const p = document.createElement("p");
+  p.className = "reports";
+  p.append(word("web.report", "Report") + ": ");
+  for (const f of ["pdf", "html", "xlsx", "csv"]) {
+    const a = document.createElement("a");
+    a.href = "/api/runs/" + encodeURIComponent(id) + "/report/" + f;
+    a.id = "report-" + f; a.textContent = f.toUpperCase(); a.download = "report-" + id + "." + f;
+    p.append(a, " ");
+  }
+  box.appendChild(p);
+}
+
+export async function findUnit(ev) {
+  ev.preventDefault();
+  const box = $("unit-result");
+  box.textContent = "";
+  try {
+    const r = await api("GET", "/api/units/" + encodeURIComponent($("unit-serial").value.trim()));
+    const ul = document.createElement("ul");
+    for (const t of r.tests) {
+      const li = document.createElement("li");
+      li.textContent = t.run_id + " slot " + t.slot + ": " + t.outcome + ", k2_max " + (t.k2_max_ug_per_g2 === null ? "—" : t.k2_max_ug_per_g2.toFixed(3)) + " µg/g²";
+      ul.appendChild(li);
+    }
+    box.appendChild(ul);
+  } catch (e) { show(e.message); }
+}

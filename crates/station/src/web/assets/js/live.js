@@ -1,0 +1,183 @@
+// The Run page's live side: the event stream, the board, the prompt, the
+// alarm banner, the status refresh, and the operator's actions.
+import { $, api, KEEP_S, show, state } from "./core.js";
+import { showReports } from "./history.js";
+import { bannerText, etaText, fill, progressText, say, stateWord, stepText, word } from "./i18n.js";
+
+export function connect() {
+  if (state.events) return;
+  // EventSource reconnects by itself and sends Last-Event-ID: the server replays what was missed.
+  const es = new EventSource("/api/events");
+  state.events = es;
+  const on = (name, f) => es.addEventListener(name, (m) => { try { f(JSON.parse(m.data)); } catch (e) { console.error(e); } });
+  on("run_started", (e) => {
+    state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
+    state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
+    $("event-log").textContent = ""; $("alarm").hidden = true;
+    log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }));
+    $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
+  });
+  on("values", (e) => {
+    if (state.history.length !== e.outputs_hz.length) state.history = e.outputs_hz.map(() => []);
+    e.outputs_hz.forEach((v, i) => { if (v !== null) push(state.history[i], [e.time_s, v]); });
+    state.temperatures = e.temperatures_c || [];
+    push(state.rate, [e.time_s, e.rate_deg_s]);
+    state.lastTime = e.time_s;
+    state.values += 1;
+    $("curves").dataset.values = String(state.values);
+    state.dirty = true;
+  });
+  on("state_changed", (e) => setRunState(e.state));
+  on("step_started", (e) => {
+    $("progress").textContent = stepText(e.index, e.of, e.label, e.wording);
+    $("run-progress").max = e.of; $("run-progress").value = e.index;
+    // A level's start, marked on the curves (its label, e.g. "5 g Up (pass 1)").
+    const level = /^(-?[0-9.]+ g)/.exec(e.label);
+    if (level) { state.marks.push([state.lastTime, level[1]]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
+    log(say(e.wording, e.label));
+  });
+  on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + progressText(e.phase, e.done, e.of); });
+  on("prompt", (e) => {
+    const text = promptText(e.fixtures, e.text);
+    $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text);
+  });
+  on("prompt_answered", () => { $("prompt").hidden = true; });
+  on("notice", (e) => { const m = say(e.wording, e.message); show(m); alarm(bannerText("notice", m), false); log(bannerText("notice", m)); });
+  on("fault", (e) => { const m = say(e.wording, e.reason); state.fault = m; show(bannerText("fault", m)); alarm(bannerText("fault", m), true); log(bannerText("fault", m)); });
+  on("unit_failed", (e) => {
+    const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
+      { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
+    alarm(m, false); log(m);
+  });
+  on("run_finished", (e) => {
+    const why = e.reason ? (state.fault && e.state === "faulted" ? state.fault : e.reason) : "";
+    setRunState(stateWord(e.state) + (why ? ": " + why : ""));
+    log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""));
+    if (e.state === "completed") $("run-progress").value = $("run-progress").max;
+    $("prompt").hidden = true;
+    if (state.runId) showReports($("run-reports"), state.runId);
+    refreshStatus();
+  });
+  on("health", () => refreshStatus());
+}
+
+// The run's event log, newest first (at most 200 lines).
+export function log(text) {
+  const li = document.createElement("li");
+  li.textContent = new Date().toISOString().slice(11, 19) + "  " + text;
+  const list = $("event-log");
+  list.insertBefore(li, list.firstChild);
+  while (list.children.length > 200) list.removeChild(list.lastChild);
+}
+
+// A reason of an outcome ({code, args}) as a wording the page can fill
+// (web.say.reason.<code>, or .<variant> when it has one).
+export function reasonWording(code, args) {
+  const variant = args && args.variant;
+  return { key: "reason." + code + (variant ? "." + variant : ""), args: args || {} };
+}
+
+// The operator's prompt from the fixtures it asks for, in the page's
+// language; the engine's text when a fixture has no word.
+export function promptText(fixtures, text) {
+  const name = (f) => {
+    if (f === "Up" || f === "Down") return "tumble_" + f.toLowerCase();
+    if (f && f.Arm) return "arm_" + f.Arm.toLowerCase();
+    if (f && f.Crosswise) return f.Crosswise.as_on_arm ? "crosswise_as_on_arm" : "crosswise_inverted";
+    return null;
+  };
+  const held = (fixtures || []).map((f, i) => [i, f ? name(f) : null]).filter(([, n]) => n !== null);
+  if (!held.length || held.some(([, n]) => !state.words["web.arg.fixture." + n])) return text;
+  const kinds = new Set(held.map(([, n]) => n));
+  if (kinds.size === 1) return fill("web.say.prompt.mount_all", text, { fixture: held[0][1] });
+  const list = held.map(([i, n]) => fill("web.say.prompt.mount_slot", "", { slot: i + 1, fixture: n })).join(word("web.list_separator", "; "));
+  return fill("web.say.prompt.mount_list", text, { list });
+}
+
+// The alarm banner: a fault (red, stays) or a notice (amber).
+export function alarm(text, fault) {
+  const a = $("alarm");
+  a.textContent = text; a.className = fault ? "fault" : "notice"; a.hidden = false;
+}
+
+// The board: every slot's serial, mounting, latest output, state, points,
+// k2 and K2 with U95 once fitted, outcome (issue 16, part 1).
+export function renderBoard(board) {
+  const body = $("board").tBodies[0];
+  body.textContent = "";
+  const pm = (v) => v === null || v === undefined ? "—" : v[0].toFixed(3) + (v[1] === null ? "" : " ± " + v[1].toFixed(3));
+  for (const s of board || []) {
+    const tr = body.insertRow();
+    tr.dataset.slot = s.slot;
+    const k2 = (s.k2_ug_per_g2 || []).map((k) => k[0] + " " + pm([k[1], k[2]])).join(", ") || "—";
+    [s.slot, s.serial, s.mount || "—", s.output_hz === null ? "—" : s.output_hz.toFixed(4), s.temperature_c === null ? "—" : s.temperature_c.toFixed(2),
+      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + say(s.reason_code ? reasonWording(s.reason_code, s.reason_args) : null, s.reason) : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—"]
+      .forEach((v, k) => {
+        const td = tr.insertCell(); td.textContent = v;
+        if (k === 5) td.className = "phase " + s.phase;
+        if (k === 9 && s.outcome) td.className = s.outcome;
+      });
+  }
+}
+
+export function push(list, item) {
+  list.push(item);
+  const cut = item[0] - KEEP_S;
+  while (list.length && list[0][0] < cut) list.shift();
+}
+
+export function setRunState(text) { $("run-state").textContent = text; $("st-state").textContent = text; }
+
+export async function refreshStatus() {
+  if (!state.session) return;
+  let s;
+  try { s = await api("GET", "/api/status"); } catch (_) { return; }
+  state.status = s;
+  const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
+  $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (" + word("web.status.virtual", "virtual bench") + ")" : "");
+  $("st-run").textContent = s.run_id || word("web.status.none", "none");
+  $("st-state").textContent = stateWord(s.state || "idle");
+  $("st-rate").textContent = fill("web.status.rate", fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")",
+    { rate: fix(s.rate_deg_s, 3), demand: fix(s.demand_deg_s, 3) });
+  $("st-g").textContent = fix(s.g_at_r0, 4) + " g";
+  $("st-stable").textContent = s.on_speed === null || s.on_speed === undefined ? "—" : (s.on_speed ? word("web.status.stable", "stable") : word("web.status.not_stable", "not stable"));
+  $("st-interlocks").textContent = s.interlocks_closed === null || s.interlocks_closed === undefined ? "—" : (s.interlocks_closed ? word("web.status.closed", "closed") : word("web.status.open", "OPEN"));
+  $("st-supply").textContent = (s.supply || []).map((o, i) => fill("web.status.output", "out " + (i + 1), { n: i + 1 }) + ": " + o[0].toFixed(2) + " V " + o[1].toFixed(3) + " A").join("; ") || "—";
+  const body = $("st-modules").tBodies[0];
+  body.textContent = "";
+  (s.modules || []).forEach((m, i) => {
+    const tr = body.insertRow();
+    [i + 1, m.frames, m.bad_crc, m.bad_tail, m.lost_ticks, m.reconnects].forEach((v) => { tr.insertCell().textContent = v; });
+  });
+  $("st-notices").textContent = "";
+  (s.notices || []).forEach((n, i) => { const li = document.createElement("li"); li.textContent = say((s.notice_wordings || [])[i], n); $("st-notices").appendChild(li); });
+  if (s.run_id) { $("run-id").textContent = s.run_id; state.runId = s.run_id; }
+  // The controls that apply now, and only those.
+  const st = s.state || "";
+  $("pause-button").hidden = !(s.active && (st === "running" || st === "prompting"));
+  $("resume-button").hidden = !(s.active && st === "paused");
+  $("abort-button").hidden = !s.active;
+  renderBoard(s.board);
+  if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
+  $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
+    : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
+  const why = s.reason ? say(s.reason_wording, s.reason) : "";
+  if (why && (st === "faulted" || st === "aborted")) alarm(bannerText(st === "faulted" ? "fault" : "aborted", why), st === "faulted");
+  if (s.state) $("run-state").textContent = stateWord(s.state);
+  // A status fetched before an answer arrived still shows the old prompt: wait for the next.
+  if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
+  else if (s.active && !s.prompt) $("prompt").hidden = true;
+  const eta = s.active && s.eta_s ? word("web.comma", ", ") + etaText(s.eta_s) : "";
+  if (s.step) $("progress").textContent = stepText(s.step[0], s.step[1], s.step[2], s.step_wording)
+    + (s.active && s.progress ? progressText(s.progress[0], s.progress[1], s.progress[2]) : "") + eta;
+}
+
+export async function answer(proceed) {
+  state.answeredAt = Date.now();
+  $("prompt").hidden = true;
+  try { await api("POST", "/api/run/prompt", { proceed }); show(""); } catch (e) { show(e.message); }
+}
+
+export async function control(what) {
+  try { await api("POST", "/api/run/" + what); show(what + ": done", true); } catch (e) { show(e.message); }
+}
