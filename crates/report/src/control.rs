@@ -13,6 +13,22 @@ use spinbench_analysis::control::{ControlLimits, Violation, western_electric};
 use spinbench_engine::Outcome;
 use std::collections::BTreeMap;
 
+/// Baseline points from which a chart's limits count as settled (the usual
+/// 20–25 of an individuals chart); below, they are said to be provisional
+/// (issue 31 item 3).
+pub const SETTLED_BASELINE_POINTS: usize = 20;
+
+/// "limits from n = 24", or "provisional limits (n = 6)" on a short
+/// baseline, in `lang`.
+pub fn limits_caption(chart: &ControlChart, lang: crate::Lang) -> String {
+    let key = if chart.baseline < SETTLED_BASELINE_POINTS {
+        "chart.provisional_limits"
+    } else {
+        "chart.limits_from"
+    };
+    rust_i18n::t!(key, n = chart.baseline, locale = lang.code()).into_owned()
+}
+
 /// The baseline period when none is chosen: the first this many runs.
 pub const DEFAULT_BASELINE_RUNS: usize = 10;
 
@@ -351,7 +367,8 @@ pub fn shown(c: &ControlReport) -> impl Iterator<Item = &ControlChart> {
 
 /// Draw a control chart on any plotters backend: the points in order, the
 /// centre, ±1σ̂, ±2σ̂ and the ±3σ̂ limits, the baseline's end, and every
-/// point that broke a rule in red.
+/// point that broke a rule in red. The caption gives the baseline's n, and
+/// calls the limits provisional below [`SETTLED_BASELINE_POINTS`].
 pub(crate) fn draw_control_chart<DB: DrawingBackend>(
     chart: &ControlChart,
     root: &DrawingArea<DB, Shift>,
@@ -377,7 +394,12 @@ pub(crate) fn draw_control_chart<DB: DrawingBackend>(
     let decimals = (-(span / 5.0).log10()).ceil().clamp(0.0, 9.0) as usize;
     let mut c = ChartBuilder::on(root)
         .caption(
-            format!("{} [{}]", chart.quantity, chart.unit),
+            format!(
+                "{} [{}] — {}",
+                chart.quantity,
+                chart.unit,
+                limits_caption(chart, lang)
+            ),
             ("sans-serif", 15),
         )
         .margin(8)
@@ -601,6 +623,24 @@ mod tests {
         );
         let svg = control_chart_svg(chart, crate::Lang::En).expect("svg");
         assert!(svg.contains("<svg") && svg.contains("radius slot 2 P"));
+        // Issue 31 item 3: ten baseline points are provisional limits, said
+        // with n; twenty-five are settled, n still shown.
+        assert!(svg.contains("provisional limits (n = 10)"), "{svg}");
+        let zh = control_chart_svg(chart, crate::Lang::ZhCn).expect("svg");
+        assert!(zh.contains("临时控制限（n = 10）"), "{zh}");
+        let long = ControlChart::new(
+            "k2".into(),
+            "µg/g²",
+            None,
+            chart.points.iter().cycle().take(30).cloned().collect(),
+            25,
+            None,
+        );
+        let settled = control_chart_svg(&long, crate::Lang::En).expect("svg");
+        assert!(
+            settled.contains("limits from n = 25") && !settled.contains("provisional"),
+            "{settled}"
+        );
         assert!(
             flag_rows(&c, crate::Lang::En)
                 .iter()
