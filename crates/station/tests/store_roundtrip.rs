@@ -509,6 +509,9 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
         String::from_utf8_lossy(&out.stderr)
     );
     let text = String::from_utf8(out.stdout).expect("utf-8 text");
+    // Issue 31 item 2: nothing a signer reads is cut short.
+    let cut: Vec<&str> = text.lines().filter(|l| l.contains('…')).collect();
+    assert!(cut.is_empty(), "cut lines in the PDF: {cut:#?}");
     // Its metadata (issue 16, part 7): title, author, producer, dated today.
     let info = Command::new("pdfinfo")
         .arg(&pdf)

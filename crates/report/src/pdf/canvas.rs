@@ -76,21 +76,42 @@ impl Canvas {
         self.width(text, size_pt) / PT_PER_MM
     }
 
-    /// `text` cut to `max_mm` wide, with an ellipsis when cut.
-    pub(super) fn fit(&self, text: &str, size_pt: f32, max_mm: f32) -> String {
-        if self.width_mm(text, size_pt) <= max_mm {
-            return text.to_string();
-        }
-        let mut out = String::new();
-        for c in text.chars() {
-            out.push(c);
-            if self.width_mm(&out, size_pt) + self.width_mm("…", size_pt) > max_mm {
-                out.pop();
-                break;
+    /// `text` in lines at most `max_mm` wide, broken at spaces (within a
+    /// word too long for a line, and in Chinese text, between characters):
+    /// nothing a signer must read is cut (issue 31 item 2). Every line after
+    /// the first is indented by two spaces.
+    pub(super) fn wrap(&self, text: &str, size_pt: f32, max_mm: f32) -> Vec<String> {
+        let mut lines = Vec::new();
+        let mut line = String::new();
+        let fits = |s: &str| self.width_mm(s, size_pt) <= max_mm;
+        for word in text.split(' ') {
+            let candidate = if line.is_empty() {
+                word.to_string()
+            } else {
+                format!("{line} {word}")
+            };
+            if fits(&candidate) {
+                line = candidate;
+                continue;
+            }
+            if !line.trim().is_empty() {
+                lines.push(std::mem::take(&mut line));
+                line = "  ".to_string();
+            }
+            // The word alone: character by character where it is too long.
+            for c in word.chars() {
+                line.push(c);
+                if !fits(&line) && line.trim().chars().count() > 1 {
+                    line.pop();
+                    lines.push(std::mem::take(&mut line));
+                    line = format!("  {c}");
+                }
             }
         }
-        out.push('…');
-        out
+        if !line.trim().is_empty() {
+            lines.push(line);
+        }
+        lines
     }
 
     /// Text with its baseline starting at (`x_pt`, `y_pt`), turned
@@ -293,7 +314,14 @@ impl Canvas {
         y_mm = header(self, x0, top);
         let last_y = PAGE_H_MM - MARGIN_MM - FOOTER_MM;
         for row in rows {
-            if y_mm + line_mm > last_y {
+            // The last column wraps (its reasons), never cut (issue 31 item 2).
+            let last_lines = row
+                .get(n.saturating_sub(1))
+                .filter(|_| n > 0 && row.len() >= n)
+                .map(|cell| self.wrap(cell, size_pt, widths[n - 1]))
+                .unwrap_or_default();
+            let row_mm = line_mm * last_lines.len().max(1) as f32;
+            if y_mm + row_mm > last_y {
                 block += 1;
                 if block == across {
                     self.new_page();
@@ -304,11 +332,6 @@ impl Canvas {
             }
             let mut x = x0;
             for (c, cell) in row.iter().enumerate().take(n) {
-                let text = if c + 1 == n {
-                    self.fit(cell, size_pt, widths[c])
-                } else {
-                    cell.clone()
-                };
                 let color = match cell.as_str() {
                     "fail" => (0.7, 0.0, 0.0),
                     "marginal" => (0.65, 0.4, 0.0),
@@ -316,6 +339,14 @@ impl Canvas {
                     "pass" => (0.0, 0.4, 0.0),
                     _ => BLACK,
                 };
+                if c + 1 == n && !numeric[c] {
+                    for (k, text) in last_lines.iter().enumerate() {
+                        let y = y_mm + line_mm * (0.8 + k as f32);
+                        self.text_colored(x, y, size_pt, text, Align::Left, color);
+                    }
+                    continue;
+                }
+                let text = cell.clone();
                 if numeric[c] {
                     self.text_colored(
                         x + widths[c],
@@ -330,7 +361,7 @@ impl Canvas {
                 }
                 x += widths[c] + pad_mm;
             }
-            y_mm += line_mm;
+            y_mm += row_mm;
         }
         y_mm
     }

@@ -244,18 +244,23 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
             crate::fmt(fit.k3_ug_per_g3, 3),
             crate::fmt(Some(fit.residual_rms_ug), 2),
         );
-        c.text(MARGIN_MM, y, 8.5, &line, Align::Left);
-        y += 4.2;
+        for text in c.wrap(&line, 8.5, PAGE_W_MM - 2.0 * MARGIN_MM) {
+            c.text(MARGIN_MM, y, 8.5, &text, Align::Left);
+            y += 4.2;
+        }
     }
+    // Wrapped, never cut: a signer reads every figure (issue 31 item 2).
     for line in crate::diagnostic_lines_in(u, lang) {
-        let text = c.fit(&line, 8.0, PAGE_W_MM - 2.0 * MARGIN_MM);
-        c.text(MARGIN_MM, y, 8.0, &text, Align::Left);
-        y += 4.0;
+        for text in c.wrap(&line, 8.0, PAGE_W_MM - 2.0 * MARGIN_MM) {
+            c.text(MARGIN_MM, y, 8.0, &text, Align::Left);
+            y += 4.0;
+        }
     }
     if !u.record().reasons.is_empty() {
-        let text = c.fit(&u.reasons_text_in(lang), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM);
-        c.text_colored(MARGIN_MM, y, 8.5, &text, Align::Left, (0.7, 0.0, 0.0));
-        y += 4.2;
+        for text in c.wrap(&u.reasons_text_in(lang), 8.5, PAGE_W_MM - 2.0 * MARGIN_MM) {
+            c.text_colored(MARGIN_MM, y, 8.5, &text, Align::Left, (0.7, 0.0, 0.0));
+            y += 4.2;
+        }
     }
     y += 1.0;
     let gap = 4.0;
