@@ -447,9 +447,9 @@ pub fn anomaly_rule_effect(with: [f64; 4], without: [f64; 4]) -> Effect {
 /// the smallest to the largest level, with half-widths w, 1.5·w and 2·w;
 /// per coefficient the bump that moves it most, with its sign (both
 /// mountings at the same levels meet the same bump, so the sign lets it
-/// cancel from K2), over √3 (rectangular). The fit is linear in the applied
-/// acceleration's small changes, so one sensitivity per bump is exact to
-/// first order.
+/// cancel from K2), over √3 (rectangular). The coefficients' sensitivity to
+/// each point's applied acceleration is found once; a bump's effect is then
+/// their sum weighted by its heights (first order, as every Type B term).
 fn table_disturbance_effect(
     points: &[Point],
     order: ModelOrder,
@@ -467,31 +467,35 @@ fn table_disturbance_effect(
     if !(lo.is_finite() && hi > lo) {
         return Ok([0.0; 4]);
     }
-    // At most a few hundred centres (MAX level 1000 g / 1 g is bounded by the plan).
+    // ∂coefficient/∂|a_i| per µg, each point's |a| moved alone.
+    let step_ug = 100.0;
+    let mut per_point = Vec::with_capacity(points.len());
+    for i in 0..points.len() {
+        let at = |h: f64| {
+            let mut ps = points.to_vec();
+            let sign = if ps[i].g_applied < 0.0 { -1.0 } else { 1.0 };
+            ps[i].g_applied += sign * h * 1e-6;
+            coefficients(&ps, order, what)
+        };
+        let (plus, minus) = (at(step_ug)?, at(-step_ug)?);
+        per_point.push(std::array::from_fn::<f64, 4, _>(|j| {
+            (plus[j] - minus[j]) / (2.0 * step_ug)
+        }));
+    }
+    // At most a thousand centres (a level is at most MAX_LEVEL_G).
     let centres = (hi - lo).ceil().min(1_000.0) as usize;
     let mut worst = [0.0_f64; 4];
     for k in 0..=centres {
         let centre = lo + k as f64;
         for w in [width, 1.5 * width, 2.0 * width] {
-            let d = sensitivity(
-                points,
-                order,
-                1.0,
-                |p, h| {
-                    let x = (p.g_magnitude() - centre) / w;
-                    Point {
-                        // More |a| in either mounting (a is stored as |a|).
-                        g_applied: p.g_applied
-                            + if p.g_applied < 0.0 { -1.0 } else { 1.0 }
-                                * h
-                                * 1e-6
-                                * inputs.table_disturbance_ug
-                                / (1.0 + x * x),
-                        ..*p
-                    }
-                },
-                what,
-            )?;
+            let mut d = [0.0; 4];
+            for (p, s) in points.iter().zip(&per_point) {
+                let x = (p.g_magnitude() - centre) / w;
+                let height = inputs.table_disturbance_ug / (1.0 + x * x);
+                for j in 0..4 {
+                    d[j] += s[j] * height;
+                }
+            }
             for j in 0..4 {
                 if d[j].abs() > worst[j].abs() {
                     worst[j] = d[j];

@@ -30,43 +30,7 @@ pub(super) async fn exclude_level(
     Path(id): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<Excluded>> {
-    let session = authorize(&app, &headers, Role::Engineer, true).await?;
-    let ask: ExcludeLevel = parse_json(&body)?;
-    check_exclusion_ask(&app, &id, &ask)?;
-    blocking(&app, move |app| {
-        let store = store(app);
-        let exclusion = spinbench_analysis::exclusion::LevelExclusion {
-            unit: Some(ask.serial.clone()),
-            mount: ask.mount,
-            g: ask.g,
-            reason: ask.reason.trim().to_string(),
-            by: session.user.clone(),
-            points_removed: 0,
-        };
-        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
-            spinbench_engine::executor::exclude_after_run(record, plan, station, exclusion)
-        })?;
-        let detail = format!(
-            "{id} {} {}:{} g ({}): k2_max {} → {} µg/g², outcome {} → {}",
-            ask.serial,
-            ask.mount,
-            ask.g,
-            ask.reason.trim(),
-            k2_shown(&before),
-            k2_shown(&after),
-            before.outcome,
-            after.outcome
-        );
-        store.replace_result(&id, &after, &session.user, "exclude level", &detail)?;
-        Ok(Json(Excluded {
-            run_id: id,
-            exclusions: json!(after.exclusions),
-            outcome: after.outcome.to_string(),
-            k2_max_ug_per_g2: after.k2_max_ug_per_g2,
-            serial: after.serial,
-        }))
-    })
-    .await
+    change_level(app, headers, id, body, LevelChange::Exclude).await
 }
 
 /// Withdraw an engineer's exclusion of a level of one instrument of a
@@ -92,18 +56,65 @@ pub(super) async fn withdraw_exclusion(
     Path(id): Path<String>,
     body: Bytes,
 ) -> ApiResult<Json<Excluded>> {
+    change_level(app, headers, id, body, LevelChange::Withdraw).await
+}
+
+/// What an engineer does to a level of a finished run.
+#[derive(Debug, Clone, Copy)]
+enum LevelChange {
+    /// Leave it out.
+    Exclude,
+    /// Put it back (withdraw its exclusion).
+    Withdraw,
+}
+
+/// Both routes: the body checked, the record changed by the run's own plan
+/// and station config, stored with its audit entry (figures before and
+/// after), and answered.
+async fn change_level(
+    app: App,
+    headers: HeaderMap,
+    id: String,
+    body: Bytes,
+    change: LevelChange,
+) -> ApiResult<Json<Excluded>> {
     let session = authorize(&app, &headers, Role::Engineer, true).await?;
     let ask: ExcludeLevel = parse_json(&body)?;
     check_exclusion_ask(&app, &id, &ask)?;
     blocking(&app, move |app| {
         let store = store(app);
-        let (before, after) = change_record(&store, &id, &ask.serial, |record, plan, station| {
-            spinbench_engine::executor::withdraw_exclusion_after_run(
-                record, plan, station, ask.mount, ask.g,
-            )
-        })?;
+        let (before, after) =
+            change_record(
+                &store,
+                &id,
+                &ask.serial,
+                |record, plan, station| match change {
+                    LevelChange::Exclude => spinbench_engine::executor::exclude_after_run(
+                        record,
+                        plan,
+                        station,
+                        spinbench_analysis::exclusion::LevelExclusion {
+                            unit: Some(ask.serial.clone()),
+                            mount: ask.mount,
+                            g: ask.g,
+                            reason: ask.reason.trim().to_string(),
+                            by: session.user.clone(),
+                            points_removed: 0,
+                        },
+                    ),
+                    LevelChange::Withdraw => {
+                        spinbench_engine::executor::withdraw_exclusion_after_run(
+                            record, plan, station, ask.mount, ask.g,
+                        )
+                    }
+                },
+            )?;
+        let (action, back) = match change {
+            LevelChange::Exclude => ("exclude level", ""),
+            LevelChange::Withdraw => ("withdraw exclusion", " back in"),
+        };
         let detail = format!(
-            "{id} {} {}:{} g back in ({}): k2_max {} → {} µg/g², outcome {} → {}",
+            "{id} {} {}:{} g{back} ({}): k2_max {} → {} µg/g², outcome {} → {}",
             ask.serial,
             ask.mount,
             ask.g,
@@ -113,7 +124,7 @@ pub(super) async fn withdraw_exclusion(
             before.outcome,
             after.outcome
         );
-        store.replace_result(&id, &after, &session.user, "withdraw exclusion", &detail)?;
+        store.replace_result(&id, &after, &session.user, action, &detail)?;
         Ok(Json(Excluded {
             run_id: id,
             exclusions: json!(after.exclusions),
