@@ -545,6 +545,7 @@ mod tests {
             points: 0,
             retest_of: None,
             reason_wording: None,
+            seq: Some(i as i64 + 1),
         }
     }
 

@@ -193,7 +193,7 @@ impl ReportFormat {
 }
 
 /// Write the run's report in each format into `dir` (created if needed);
-/// returns the files written (`report-<run>.<ext>`).
+/// returns the files written (`<report_file_stem>.<ext>`).
 pub fn write_reports(
     store: &Store,
     run_id: &str,
@@ -212,9 +212,21 @@ pub fn write_reports_in(
     lang: Lang,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let report = gather(store, run_id)?;
-    write_files(dir, &format!("report-{run_id}"), formats, |f| {
+    write_files(dir, &report_file_stem(&report.run), formats, |f| {
         render_in(&report, f, lang)
     })
+}
+
+/// A run report's file name without its extension: `report-`, the run's
+/// label as a file-name part, then its id
+/// (`report-2026-11-24_station-1_7-run-1795561294-193cfe02a89e`), so the
+/// files sort by day and are found by either; `report-<id>` for a run
+/// stored before labels were given.
+pub fn report_file_stem(run: &spinbench_store::RunRow) -> String {
+    match run.label_file_part() {
+        Some(label) => format!("report-{label}-{}", run.id),
+        None => format!("report-{}", run.id),
+    }
 }
 
 /// Write the batch report of `run_ids` (every run when empty) in each

@@ -116,7 +116,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
             out.to_str().expect("utf-8"),
         ]);
         assert!(ok, "{err}");
-        std::fs::read_to_string(out.join(format!("report-{id}.html"))).expect("html")
+        std::fs::read_to_string(common::report_file(&out, id, "html")).expect("html")
     };
     let original = html(&first);
     assert!(original.contains("retested by") && original.contains(&retest.id));
@@ -138,7 +138,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     ]);
     assert!(ok, "{err}");
     let zh_html =
-        std::fs::read_to_string(zh.join(format!("report-{}.html", retest.id))).expect("html");
+        std::fs::read_to_string(common::report_file(&zh, &retest.id, "html")).expect("html");
     assert!(zh_html.contains("复测自") && zh_html.contains("汇总") && zh_html.contains("不合格"));
     // The reasons and the lines under the figures are worded in Chinese
     // from the records' codes and values, not copied in English.
@@ -148,7 +148,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     assert!(!zh_html.contains("both mountings (method.md") && !zh_html.contains("lack of fit"));
     assert!(html(&retest.id).contains("above the limit 25 µg/g²"));
     let pdf_text = Command::new("pdftotext")
-        .arg(zh.join(format!("report-{}.pdf", retest.id)))
+        .arg(common::report_file(&zh, &retest.id, "pdf"))
         .arg("-")
         .output()
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");

@@ -428,7 +428,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     assert_eq!(stored.len(), 6, "3 instruments × 2 mountings");
 
     // CSV: full precision, so equal.
-    let csv = std::fs::read_to_string(run_dir.join(format!("report-{run_id}.csv"))).expect("csv");
+    let csv = std::fs::read_to_string(common::report_file(run_dir, run_id, "csv")).expect("csv");
     let mut rows = csv.lines();
     let header: Vec<&str> = rows.next().expect("header").split(',').collect();
     let k2_col = header
@@ -446,7 +446,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     }
 
     // XLSX read back with calamine: numbers are numbers, equal to the store's.
-    let mut book = open_workbook_auto(run_dir.join(format!("report-{run_id}.xlsx"))).expect("xlsx");
+    let mut book = open_workbook_auto(common::report_file(run_dir, run_id, "xlsx")).expect("xlsx");
     assert!(
         book.sheet_names().len() >= 2 + 3,
         "results, points and one sheet per instrument"
@@ -472,8 +472,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     assert_eq!(seen, 6);
 
     // HTML: a parseable document whose summary rows carry the stored k2 (3 decimals).
-    let html =
-        std::fs::read_to_string(run_dir.join(format!("report-{run_id}.html"))).expect("html");
+    let html = std::fs::read_to_string(common::report_file(run_dir, run_id, "html")).expect("html");
     assert!(html.starts_with("<!DOCTYPE html>") && html.trim_end().ends_with("</html>"));
     assert_eq!(html.matches("<svg").count(), html.matches("</svg>").count());
     assert!(html.matches("<svg").count() >= 6, "plots inline");
@@ -496,7 +495,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     // scripts/test): a cover with the summary, then a page (or more) per
     // instrument; the Chinese text is real text, and every stored k2 is in
     // its summary row (3 decimals).
-    let pdf = run_dir.join(format!("report-{run_id}.pdf"));
+    let pdf = common::report_file(run_dir, run_id, "pdf");
     let out = Command::new("pdftotext")
         .args(["-layout"])
         .arg(&pdf)

@@ -469,6 +469,127 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
         "Chinese after a reload",
         "return document.getElementById('nav-history').textContent === '历史'",
     );
+
+    // Issue 31 item 1: the fault's banner stays, a reload brings it back,
+    // until someone acknowledges it; then it is gone for good, and the audit
+    // log says who did.
+    b.wait_for(
+        10,
+        "the fault banner after the reload, with its acknowledge button",
+        "const a = document.getElementById('alarm'); return !a.hidden && a.className === 'fault' \
+         && a.textContent.startsWith('故障：') && document.getElementById('ack-button').textContent === '确认'",
+    );
+    b.click("#ack-button");
+    b.wait_for(
+        10,
+        "the banner acknowledged",
+        "return document.getElementById('alarm').hidden",
+    );
+    b.go(&server.base);
+    b.wait_for(
+        10,
+        "the page again",
+        "return document.getElementById('nav-history').textContent === '历史'",
+    );
+    // Two status refreshes (every 2 s) bring back nothing.
+    std::thread::sleep(Duration::from_secs(5));
+    assert_eq!(
+        b.script("return document.getElementById('alarm').hidden"),
+        Value::Bool(true),
+        "an acknowledged fault stays acknowledged"
+    );
+    let store = spinbench_store::Store::connect(&spinbench_store::StoreTarget::parse(
+        web::store_of(dir.path()).to_str().expect("utf-8"),
+    ))
+    .expect("the store");
+    let audit = store.audit_log(50).expect("audit log");
+    assert!(
+        audit.iter().any(|a| a.who == "op"
+            && a.action == "acknowledge fault"
+            && a.detail.contains("interlock")),
+        "{audit:?}"
+    );
+}
+
+/// Issue 31 item 1: a notice the station handled (a point measured again)
+/// is amber, never in the red error line, and gone once the run completes:
+/// the run's outcome takes its place, on every page.
+#[test]
+fn a_handled_notice_is_no_alarm_once_the_run_completes_in_the_browser() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    web::add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    // Every point's temperature moves more than this: each is measured
+    // again once (a notice), then taken and flagged.
+    let plan = plan().replace(
+        "stability = { hold_s = 3 }",
+        "stability = { hold_s = 3, max_restarts = 1, temperature_change_max_c = 0.0001 }",
+    );
+    assert!(plan.contains("temperature_change_max_c"), "{plan}");
+    std::fs::write(dir.path().join("plans").join("browser.toml"), plan).expect("plan");
+    let server = web::serve(dir.path(), "10");
+    let b = Browser::start();
+    log_in(&b, &server.base, "op", "op-password");
+    b.click("#nav-new");
+    b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
+    b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
+    b.click("#start-button");
+    let until = Instant::now() + Duration::from_secs(240);
+    let mut amber = 0;
+    loop {
+        let seen = b.script(
+            "const a = document.getElementById('alarm'), m = document.getElementById('message'); \
+             return [document.getElementById('run-state').textContent, !a.hidden && a.className === 'notice', \
+                     !m.hidden && m.textContent.includes('again')]",
+        );
+        let state = seen[0].as_str().unwrap_or_default().to_string();
+        assert!(
+            Instant::now() < until,
+            "the run did not complete in time: {state}"
+        );
+        assert_eq!(
+            seen[2],
+            Value::Bool(false),
+            "a handled notice in the red error line"
+        );
+        amber += usize::from(seen[1] == Value::Bool(true));
+        if state.starts_with("completed") {
+            break;
+        }
+        assert!(
+            !state.starts_with("faulted") && !state.starts_with("aborted"),
+            "{state}"
+        );
+        if b.script("return !document.getElementById('prompt').hidden") == Value::Bool(true) {
+            b.click("#prompt-done");
+        }
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    assert!(
+        amber > 0,
+        "the notices were shown, amber, while the run went on"
+    );
+    assert!(
+        b.script("return document.getElementById('event-log').textContent")
+            .as_str()
+            .is_some_and(|t| t.contains("measuring the point again")),
+        "the event log keeps the notices"
+    );
+    // The outcome replaces the notice, and stays so as the status refreshes
+    // and on the other pages.
+    b.wait_for(
+        10,
+        "the run's outcome in the banner",
+        "const a = document.getElementById('alarm'); return !a.hidden && a.className === 'done' && a.textContent === 'Run completed'",
+    );
+    std::thread::sleep(Duration::from_secs(5));
+    b.click("#nav-history");
+    b.wait_for(
+        10,
+        "the History page with no alarm",
+        "const a = document.getElementById('alarm'); return !document.getElementById('history').hidden \
+         && a.className === 'done' && !document.getElementById('message').textContent.includes('again')",
+    );
 }
 
 #[test]

@@ -18,6 +18,7 @@
 //! | `sink` | [`StoreSink`]: the engine's events written as they happen |
 //! | `csv` | points as CSV, text cells guarded against formula injection |
 //! | `users` | the web UI's users and the audit log |
+//! | `label` | runs' readable labels (`2026-11-24 · station 1 · #7`), typed labels resolved |
 //! | [`testing`] | fresh PostgreSQL databases for tests |
 
 mod backup;
@@ -26,6 +27,7 @@ mod csv;
 pub mod db;
 pub mod equipment;
 pub mod fleet;
+mod label;
 mod queries;
 mod schema;
 mod sink;
@@ -33,6 +35,7 @@ pub mod testing;
 mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
+pub use label::{LABEL_SEPARATOR, TypedLabel, label_file_part, parse_label, run_label};
 pub use queries::{PointRow, ResultRow, RunContext, RunRow, UnitRow, ValueRow};
 pub use schema::{MIGRATIONS, Migration};
 pub use sink::StoreSink;

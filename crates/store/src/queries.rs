@@ -24,6 +24,8 @@ pub struct RunRow {
     pub retest_of: Option<String>,
     /// `reason` as a key and values, when the fault that ended it had one.
     pub reason_wording: Option<spinbench_engine::event::Wording>,
+    /// Its number among its station's runs of its day (the label's `#7`).
+    pub seq: Option<i64>,
 }
 
 /// One instrument's result in one run.
@@ -138,7 +140,7 @@ impl Store {
                 "SELECT r.id, r.station, r.state, r.reason, r.started_at,
                         (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
                         (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id),
-                        r.retest_of, r.reason_wording
+                        r.retest_of, r.reason_wording, r.seq
                  FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC"
             ),
             params,
@@ -157,6 +159,7 @@ impl Store {
                 reason_wording: r
                     .opt_text(8)
                     .and_then(|json| serde_json::from_str(&json).ok()),
+                seq: r.opt_text(9).and_then(|s| s.parse().ok()),
             })
             .collect())
     }

@@ -234,7 +234,22 @@ pub const MIGRATIONS: &[Migration] = &[
     ALTER TABLE stations ADD COLUMN address TEXT;
     CREATE INDEX runs_station ON runs (station, started_at);",
     },
+    Migration {
+        what: "each run's sequence number on its station that day, for its readable label",
+        sqlite: MIGRATION_RUN_SEQ,
+        postgres: MIGRATION_RUN_SEQ_PG,
+    },
 ];
+
+/// The runs stored before labels were given are numbered as they started.
+const MIGRATION_RUN_SEQ: &str = "ALTER TABLE runs ADD COLUMN seq INTEGER;
+    UPDATE runs SET seq = (SELECT COUNT(*) FROM runs r2
+        WHERE r2.station = runs.station AND r2.started_at / 86400 = runs.started_at / 86400
+          AND (r2.started_at < runs.started_at OR (r2.started_at = runs.started_at AND r2.id <= runs.id)));";
+const MIGRATION_RUN_SEQ_PG: &str = "ALTER TABLE runs ADD COLUMN seq BIGINT;
+    UPDATE runs SET seq = (SELECT COUNT(*) FROM runs r2
+        WHERE r2.station = runs.station AND r2.started_at / 86400 = runs.started_at / 86400
+          AND (r2.started_at < runs.started_at OR (r2.started_at = runs.started_at AND r2.id <= runs.id)));";
 
 const MIGRATION_1_SQLITE: &str = "CREATE TABLE runs (
         id TEXT PRIMARY KEY,

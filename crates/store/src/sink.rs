@@ -79,10 +79,18 @@ impl StoreSink {
                             &[run_id.into()],
                         )?;
                     } else {
+                        // The label's number: one more than the station's runs of today.
+                        let day_start = now.div_euclid(86_400) * 86_400;
+                        let seq = 1 + db
+                            .query_one(
+                                "SELECT COUNT(*) FROM runs WHERE station = $1 AND started_at >= $2 AND started_at < $3",
+                                &[station.into(), day_start.into(), (day_start + 86_400).into()],
+                            )?
+                            .map_or(0, |r| r.int(0));
                         db.execute(
                             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
-                               station_config, retest_of)
-                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8)",
+                               station_config, retest_of, seq)
+                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8, $9)",
                             &[
                                 run_id.into(),
                                 station.into(),
@@ -92,6 +100,7 @@ impl StoreSink {
                                 (1 + i64::from(*resumed)).into(),
                                 (!station_config.is_empty()).then(|| station_config.clone()).into(),
                                 plan.plan.retest_of.clone().into(),
+                                seq.into(),
                             ],
                         )?;
                     }

@@ -158,7 +158,11 @@ pub(crate) fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
 pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
     let run = &report.run;
     let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
-    let mut rows = vec![("station", run.station.clone())];
+    let mut rows = Vec::new();
+    if run.seq.is_some() {
+        rows.push(("label", run.label()));
+    }
+    rows.push(("station", run.station.clone()));
     if let Some(original) = &run.retest_of {
         rows.push((
             "retest of",

@@ -10,16 +10,26 @@ use std::path::PathBuf;
 /// `spinbench runs list`.
 pub(super) fn runs_list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     let store = open_store(db)?;
+    let runs = store.runs()?;
+    // The label column as wide as its longest (a station's name sets it).
+    let width = runs
+        .iter()
+        .map(|r| r.label().chars().count())
+        .max()
+        .unwrap_or(0)
+        .max("label".len());
     writeln!(
         out,
-        "{:<28} {:<10} {:>6} {:>7}  station",
-        "run", "state", "units", "points"
+        "{:<width$}  {:<28} {:<10} {:>6} {:>7}",
+        "label", "run", "state", "units", "points"
     )?;
-    for r in store.runs()? {
+    for r in runs {
+        let label = r.label();
+        let pad = width.saturating_sub(label.chars().count());
         writeln!(
             out,
-            "{:<28} {:<10} {:>6} {:>7}  {}",
-            r.id, r.state, r.units, r.points, r.station
+            "{label}{:pad$}  {:<28} {:<10} {:>6} {:>7}",
+            "", r.id, r.state, r.units, r.points
         )?;
     }
     Ok(())
@@ -28,12 +38,14 @@ pub(super) fn runs_list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
 /// `spinbench runs show RUN`.
 pub(super) fn runs_show(run: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     let store = open_store(db)?;
+    let run = &store.resolve_run(run)?;
     let Some(r) = store.run(run)? else {
         anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
     };
     writeln!(
         out,
-        "run {} — {} — {}{}",
+        "run {} ({}) — {} — {}{}",
+        r.label(),
         r.id,
         r.station,
         r.state,
@@ -109,9 +121,7 @@ pub(super) fn export(
         crate::export::check_out_path(f, db, force)?;
     }
     let store = open_store(db)?;
-    if store.run(run)?.is_none() {
-        anyhow::bail!("{db}: no run '{run}' (see `spinbench runs list`)");
-    }
+    let run = &store.resolve_run(run)?;
     match (file, format) {
         (Some(f), _) => crate::export::export_run(&store, run, format, &f)?,
         (None, crate::export::ExportFormat::Csv) => write!(out, "{}", store.points_csv(run)?)?,

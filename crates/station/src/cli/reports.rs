@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 /// `spinbench report RUN`.
 pub(super) fn report(run: &str, o: &ReportOutput, out: &mut dyn Write) -> Result<()> {
     let store = open_store(&o.db)?;
+    let run = &store.resolve_run(run)?;
     let files = spinbench_report::write_reports_in(
         &store,
         run,
@@ -30,9 +31,13 @@ pub(super) fn batch_report(
     out: &mut dyn Write,
 ) -> Result<()> {
     let store = open_store(&o.db)?;
+    let runs = runs
+        .iter()
+        .map(|r| store.resolve_run(r))
+        .collect::<Result<Vec<_>, _>>()?;
     let files = spinbench_report::write_batch_reports(
         &store,
-        runs,
+        &runs,
         baseline_runs,
         &report_formats(&o.format)?,
         &o.out,

@@ -190,10 +190,13 @@ pub(super) fn retest(
     let target = db
         .clone()
         .unwrap_or_else(|| crate::paths::default_store(data));
-    let (plan, serials, station_config) = {
+    let (run_id, (plan, serials, station_config)) = {
         let store = spinbench_store::Store::open_read_only(&target)
             .with_context(|| format!("cannot open the store {target} to find run {run_id}"))?;
-        crate::retest::retest_plan_from_store(&store, run_id)?
+        // A run id or a label (`2026-11-24 · station 1 · #7`).
+        let run_id = store.id_of_label(run_id)?;
+        let retest = crate::retest::retest_plan_from_store(&store, &run_id)?;
+        (run_id, retest)
     };
     writeln!(
         out,

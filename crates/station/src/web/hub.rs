@@ -88,6 +88,20 @@ pub struct StatusSnapshot {
     /// Every slot's live state (the board, issue 16 part 1).
     #[schema(value_type = Vec<Object>)]
     pub board: Vec<spinbench_engine::board::SlotState>,
+    /// A fault stopped the run (`reason` says which); its banner stays
+    /// until someone acknowledges it (issue 31 item 1).
+    pub fault: bool,
+    /// Who acknowledged the fault and when, once someone has (audited).
+    pub fault_acknowledged: Option<Acknowledgement>,
+}
+
+/// Who acknowledged a fault, and when.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Acknowledgement {
+    /// The user.
+    pub by: String,
+    /// Unix time [s].
+    pub at: i64,
 }
 
 struct HubState {
@@ -185,6 +199,26 @@ impl Hub {
             }
         }
         status
+    }
+
+    /// Acknowledge the fault that stopped the station's run, as `by`:
+    /// its banner goes; the run id and the fault's reason, for the audit
+    /// log. An error when no fault waits for acknowledgement.
+    pub fn acknowledge_fault(&self, by: &str) -> Result<(String, String), String> {
+        let mut state = self.lock();
+        let s = &mut state.status;
+        match (&s.run_id, s.fault, &s.fault_acknowledged) {
+            (Some(run_id), true, None) => {
+                let found = (run_id.clone(), s.reason.clone().unwrap_or_default());
+                s.fault_acknowledged = Some(Acknowledgement {
+                    by: by.to_string(),
+                    at: spinbench_store::now_s(),
+                });
+                Ok(found)
+            }
+            (_, true, Some(a)) => Err(format!("the fault was acknowledged by {} already", a.by)),
+            _ => Err("no fault waits for acknowledgement".into()),
+        }
     }
 
     /// Publish a message of the server's own (not from the engine), e.g. a
@@ -310,6 +344,8 @@ impl Hub {
             Event::Fault { reason, wording } => {
                 s.reason = Some(reason.clone());
                 s.reason_wording = wording.clone();
+                s.fault = true;
+                s.fault_acknowledged = None;
             }
             Event::RunFinished {
                 state: st,

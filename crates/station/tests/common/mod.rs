@@ -33,3 +33,20 @@ stability = {{ hold_s = 3 }}
 "#
     )
 }
+
+/// The run report `dir` holds for run `id` in format `ext`
+/// (`report-<label>-<id>.<ext>`: issue 31 item 4).
+#[allow(dead_code)] // not every test file reads reports
+pub fn report_file(dir: &std::path::Path, id: &str, ext: &str) -> std::path::PathBuf {
+    let tail = format!("{id}.{ext}");
+    std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("report-") && n.ends_with(&tail))
+        })
+        .unwrap_or_else(|| panic!("no report-…{tail} in {}", dir.display()))
+}

@@ -157,10 +157,11 @@ pub(super) async fn report(
     let db = app.db.clone();
     let run_id = id.clone();
     // A 96-instrument PDF takes a moment: off the async workers, on its own connection.
-    let bytes = tokio::task::spawn_blocking(move || {
+    let (stem, bytes) = tokio::task::spawn_blocking(move || {
         let store = spinbench_store::Store::connect(&db)?;
         let report = spinbench_report::gather(&store, &run_id)?;
-        spinbench_report::render_in(&report, format, lang)
+        let stem = spinbench_report::report_file_stem(&report.run);
+        spinbench_report::render_in(&report, format, lang).map(|bytes| (stem, bytes))
     })
     .await
     .map_err(|e| ApiError::internal(e.to_string()))?
@@ -173,7 +174,7 @@ pub(super) async fn report(
             (header::CONTENT_TYPE, format.mime().to_string()),
             (
                 header::CONTENT_DISPOSITION,
-                format!("attachment; filename=\"report-{id}.{}\"", format.ext()),
+                format!("attachment; filename=\"{stem}.{}\"", format.ext()),
             ),
         ],
         bytes,

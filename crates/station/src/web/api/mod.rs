@@ -246,6 +246,11 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("post", "/api/run/pause", post(runs::pause)),
         ("post", "/api/run/resume", post(runs::resume)),
         ("post", "/api/run/abort", post(runs::abort)),
+        (
+            "post",
+            "/api/run/acknowledge",
+            post(runs::acknowledge_fault),
+        ),
         ("get", "/api/units/{serial}", get(history::unit)),
         ("get", "/api/control-charts", get(charts::control_charts)),
         ("get", "/api/equipment", get(equipment::equipment)),

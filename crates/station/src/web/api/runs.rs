@@ -346,3 +346,33 @@ pub(super) async fn abort(
     })
     .await
 }
+
+/// Acknowledge the fault that stopped the station's run: its banner goes,
+/// and who acknowledged it, and when, goes into the audit log.
+#[utoipa::path(post, path = "/api/run/acknowledge", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    responses(
+        (status = 200, description = "acknowledged", body = RunId),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 409, description = "no fault waits for acknowledgement", body = ErrorBody),
+    ))]
+pub(super) async fn acknowledge_fault(
+    State(app): State<App>,
+    headers: HeaderMap,
+    _body: Bytes,
+) -> ApiResult<Json<RunId>> {
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
+    let (run_id, reason) = app
+        .hub
+        .acknowledge_fault(&session.user)
+        .map_err(ApiError::conflict)?;
+    audit(
+        &app,
+        &session.user,
+        "acknowledge fault",
+        &format!("{run_id}: {reason}"),
+    )
+    .await?;
+    Ok(Json(RunId { run_id }))
+}

@@ -203,6 +203,9 @@ pub struct PromptAnswer {
 pub struct RunEntry {
     /// Run identifier.
     pub id: String,
+    /// Its readable label, `2026-11-24 · station 1 · #7` (the id for a run
+    /// stored before labels were given).
+    pub label: String,
     /// Station name.
     pub station: String,
     /// `running`, `completed`, `faulted`, `aborted`, …
@@ -223,6 +226,7 @@ impl From<&spinbench_store::RunRow> for RunEntry {
     fn from(r: &spinbench_store::RunRow) -> RunEntry {
         RunEntry {
             id: r.id.clone(),
+            label: r.label(),
             station: r.station.clone(),
             state: r.state.clone(),
             reason: r.reason.clone(),

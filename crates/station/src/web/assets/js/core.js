@@ -13,6 +13,7 @@ export const state = {
   dirty: false,
   events: null,
   runId: null,
+  runNames: {},       // run id → "label (id)", once the store has it
   answeredAt: 0,      // when the operator last answered a prompt (ms)
   marks: [],          // [[t, label], ...]: when each level began
   words: {},          // the catalogue's web words in the chosen language

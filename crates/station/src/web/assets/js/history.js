@@ -28,12 +28,23 @@ export async function loadHistory() {
     for (const r of runs) {
       const tr = body.insertRow();
       const a = document.createElement("a");
-      a.href = "#history"; a.textContent = r.id;
+      a.href = "#history"; a.textContent = r.label || r.id;
+      // The label is how people name the run; the id stays beside it.
+      if (r.label && r.label !== r.id) { a.title = r.id; }
       a.addEventListener("click", (ev) => { ev.preventDefault(); showRun(r.id); });
-      tr.insertCell().appendChild(a);
+      const cell = tr.insertCell();
+      cell.appendChild(a);
+      if (r.label && r.label !== r.id) {
+        const small = document.createElement("small"); small.className = "run-id"; small.textContent = " " + r.id; cell.appendChild(small);
+      }
       [r.station, fmtTime(r.started_at), stateWord(r.state) + (r.reason ? ": " + r.reason : "") + (r.retest_of ? " (" + word("web.history.retest_of", "retest of") + " " + r.retest_of + ")" : ""), r.units, r.points].forEach((v) => { tr.insertCell().textContent = v; });
     }
   } catch (e) { show(e.message); }
+}
+
+/** "2026-11-24 · station 1 · #7 (run-…)": the label beside the id (the id alone for a run stored before labels). */
+export function runName(r) {
+  return r.label && r.label !== r.id ? r.label + " (" + r.id + ")" : r.id;
 }
 
 export async function showRun(id) {
@@ -41,7 +52,7 @@ export async function showRun(id) {
     const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
     const box = $("run-detail");
     box.textContent = "";
-    const h = document.createElement("h3"); h.textContent = word("web.run.title", "Run") + " " + r.id + " — " + stateWord(r.state); box.appendChild(h);
+    const h = document.createElement("h3"); h.textContent = word("web.run.title", "Run") + " " + runName(r) + " — " + stateWord(r.state); box.appendChild(h);
     showLinks(box, r);
     showReports(box, r.id);
     const t = document.createElement("table");
@@ -136,7 +147,7 @@ export function showReports(box, id) {
   for (const f of ["pdf", "html", "xlsx", "csv"]) {
     const a = document.createElement("a");
     a.href = "/api/runs/" + encodeURIComponent(id) + "/report/" + f;
-    a.id = "report-" + f; a.textContent = f.toUpperCase(); a.download = "report-" + id + "." + f;
+    a.id = "report-" + f; a.textContent = f.toUpperCase(); a.download = ""; // the server names the file: report-<label>-<id>.<ext>
     p.append(a, " ");
   }
   box.appendChild(p);

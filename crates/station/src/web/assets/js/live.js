@@ -1,7 +1,7 @@
 // The Run page's live side: the event stream, the board, the prompt, the
 // alarm banner, the status refresh, and the operator's actions.
 import { $, api, KEEP_S, show, state } from "./core.js";
-import { showReports } from "./history.js";
+import { runName, showReports } from "./history.js";
 import { bannerText, etaText, fill, progressText, say, stateWord, stepText, word } from "./i18n.js";
 
 export function connect() {
@@ -16,6 +16,7 @@ export function connect() {
     $("event-log").textContent = ""; $("alarm").hidden = true;
     log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }));
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
+    nameRun(e.run_id);
   });
   on("values", (e) => {
     if (state.history.length !== e.outputs_hz.length) state.history = e.outputs_hz.map(() => []);
@@ -35,6 +36,8 @@ export function connect() {
     const level = /^(-?[0-9.]+ g)/.exec(e.label);
     if (level) { state.marks.push([state.lastTime, level[1]]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
     log(say(e.wording, e.label));
+    // The station has gone on: the notice it handled is over.
+    if ($("alarm").className === "notice") clearAlarm();
   });
   on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + progressText(e.phase, e.done, e.of); });
   on("prompt", (e) => {
@@ -42,18 +45,23 @@ export function connect() {
     $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text);
   });
   on("prompt_answered", () => { $("prompt").hidden = true; });
-  on("notice", (e) => { const m = say(e.wording, e.message); show(m); alarm(bannerText("notice", m), false); log(bannerText("notice", m)); });
-  on("fault", (e) => { const m = say(e.wording, e.reason); state.fault = m; show(bannerText("fault", m)); alarm(bannerText("fault", m), true); log(bannerText("fault", m)); });
+  // A notice the station handled (a reading taken again) is no alarm: amber, gone at the next step.
+  on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(bannerText("notice", m)); });
+  // A fault is: red, on every page, until someone acknowledges it.
+  on("fault", (e) => { const m = say(e.wording, e.reason); state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m)); });
   on("unit_failed", (e) => {
     const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
       { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
-    alarm(m, false); log(m);
+    alarm(m, "left-out"); log(m);
   });
   on("run_finished", (e) => {
     const why = e.reason ? (state.fault && e.state === "faulted" ? state.fault : e.reason) : "";
     setRunState(stateWord(e.state) + (why ? ": " + why : ""));
     log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""));
     if (e.state === "completed") $("run-progress").value = $("run-progress").max;
+    // The run's outcome replaces the notices; a fault's banner stays until acknowledged.
+    if (e.state === "completed") alarm(word("web.banner.completed", "Run completed"), "done");
+    else if (e.state === "aborted") alarm(bannerText("aborted", why), "aborted");
     $("prompt").hidden = true;
     if (state.runId) showReports($("run-reports"), state.runId);
     refreshStatus();
@@ -94,10 +102,35 @@ export function promptText(fixtures, text) {
   return fill("web.say.prompt.mount_list", text, { list });
 }
 
-// The alarm banner: a fault (red, stays) or a notice (amber).
-export function alarm(text, fault) {
+// The banner above every page (issue 31 item 1), by `kind`: "fault" (red,
+// stays until someone acknowledges it: who and when go into the audit
+// log), "notice" (amber, a reading the station took again: gone at the
+// next step), "left-out" (amber, a slot left out: until the run ends),
+// "aborted" (amber) and "done" (green, the run's outcome, which replaces
+// any notice). A fault's banner is not replaced by anything but another fault.
+export function alarm(text, kind) {
   const a = $("alarm");
-  a.textContent = text; a.className = fault ? "fault" : "notice"; a.hidden = false;
+  if (a.className === "fault" && !a.hidden && kind !== "fault") return;
+  a.textContent = text; a.className = kind; a.hidden = false;
+  if (kind === "fault") {
+    const b = document.createElement("button");
+    b.type = "button"; b.id = "ack-button"; b.textContent = word("web.banner.acknowledge", "Acknowledge");
+    b.addEventListener("click", acknowledgeFault);
+    a.append(" ", b);
+  }
+}
+
+export function clearAlarm() {
+  const a = $("alarm");
+  a.hidden = true; a.className = ""; a.textContent = "";
+}
+
+async function acknowledgeFault() {
+  try {
+    await api("POST", "/api/run/acknowledge");
+    clearAlarm();
+    refreshStatus();
+  } catch (e) { show(e.message); }
 }
 
 // The board: every slot's serial, mounting, latest output, state, points,
@@ -128,6 +161,17 @@ export function push(list, item) {
 
 export function setRunState(text) { $("run-state").textContent = text; $("st-state").textContent = text; }
 
+/** Show the run's label beside its id in the Run page's heading, once the store has it. */
+async function nameRun(id) {
+  if (state.runNames[id]) { $("run-id").textContent = state.runNames[id]; return; }
+  $("run-id").textContent = id;
+  try {
+    const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
+    state.runNames[id] = runName(r);
+    if (state.runId === id) $("run-id").textContent = runName(r);
+  } catch (_) { /* not stored yet: the next status refresh asks again */ }
+}
+
 export async function refreshStatus() {
   if (!state.session) return;
   let s;
@@ -151,7 +195,7 @@ export async function refreshStatus() {
   });
   $("st-notices").textContent = "";
   (s.notices || []).forEach((n, i) => { const li = document.createElement("li"); li.textContent = say((s.notice_wordings || [])[i], n); $("st-notices").appendChild(li); });
-  if (s.run_id) { $("run-id").textContent = s.run_id; state.runId = s.run_id; }
+  if (s.run_id) { state.runId = s.run_id; nameRun(s.run_id); }
   // The controls that apply now, and only those.
   const st = s.state || "";
   $("pause-button").hidden = !(s.active && (st === "running" || st === "prompting"));
@@ -162,7 +206,10 @@ export async function refreshStatus() {
   $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
     : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
   const why = s.reason ? say(s.reason_wording, s.reason) : "";
-  if (why && (st === "faulted" || st === "aborted")) alarm(bannerText(st === "faulted" ? "fault" : "aborted", why), st === "faulted");
+  if (s.fault && !s.fault_acknowledged && why) alarm(bannerText("fault", why), "fault");
+  else if (s.fault && s.fault_acknowledged && $("alarm").className === "fault") clearAlarm();
+  else if (why && st === "aborted") alarm(bannerText("aborted", why), "aborted");
+  else if (st === "completed" && !s.active && ["notice", "left-out"].includes($("alarm").className)) alarm(word("web.banner.completed", "Run completed"), "done");
   if (s.state) $("run-state").textContent = stateWord(s.state);
   // A status fetched before an answer arrived still shows the old prompt: wait for the next.
   if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
