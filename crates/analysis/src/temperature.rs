@@ -16,7 +16,14 @@
 //! reference temperature (corrected by k1 for the small difference of the
 //! applied accelerations) is fitted with a cubic in the signed input;
 //! its intercept, slope and (per mounting) square term have the standard
-//! uncertainties of Δk0, Δk1 and ΔK2, each temperature's share 1/√2 of it.
+//! uncertainties of Δk0, Δk1 and ΔK2, and each temperature carries the
+//! whole of its difference's (not a share 1/√2, as if the two temperatures'
+//! errors were independent): what the pairs see moves with the temperature
+//! (an activity dip is reached at another acceleration as the resonators
+//! warm, issue 25), so the errors of the temperatures on either side of the
+//! reference have opposite signs and add in the slope instead of averaging
+//! out. With the share 1/√2 the coefficients' U95 held the truth for
+//! 77–80 % of the typical bench's instruments (issue 30 item 6).
 //! (The full fits' standard errors, which hold the repeated table errors,
 //! overstated the slopes' by 50 times on the typical bench.)
 //!
@@ -85,7 +92,7 @@ pub struct AtTemperature {
 }
 
 /// The standard uncertainties of one temperature's figures that differ
-/// from another's (one temperature's share).
+/// from another's (each temperature carries the whole difference's).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PairedUncertainty {
     /// Of k0 [g].
@@ -201,7 +208,7 @@ fn cubic_errors(pairs: &[(f64, f64)]) -> Option<[f64; 3]> {
 }
 
 /// What differs between the figures at `other` and at `reference` (module
-/// docs), one temperature's share (1/√2 of the difference's); `None` when
+/// docs), the whole of the difference's for each temperature; `None` when
 /// too few levels pair. `k1_hz_per_g` converts outputs to g.
 pub fn paired_uncertainty(
     reference: &[Point],
@@ -219,7 +226,8 @@ pub fn paired_uncertainty(
         (Some(p), Some(n)) => Some(0.5 * p[2].hypot(n[2]) / k1 * 1e6),
         _ => None,
     };
-    let share = std::f64::consts::FRAC_1_SQRT_2;
+    // Each temperature carries the difference's whole uncertainty (module docs).
+    let share = 1.0;
     Some(PairedUncertainty {
         k0_g: all[0] / k1 * share,
         k1_hz_per_g: all[1] * share,
@@ -565,15 +573,15 @@ mod tests {
             let reference = points_at(&mut rng, 5.0, noise_hz);
             let other = points_at(&mut rng, 5.3, noise_hz);
             let u = paired_uncertainty(&reference, &other, 100.0).expect("paired");
-            // Each temperature's share of Δk0, as the noise alone gives it
-            // (a cubic through 28 differences of variance 2σ²): ≈ σ/√28/√2 … σ/√2.
+            // Δk0's uncertainty, as the noise alone gives it (a cubic
+            // through 28 differences of variance 2σ²): ≈ σ/√14 … σ.
             assert!(u.k0_g * 100.0 < noise_hz, "{} g", u.k0_g);
             assert!(u.k2_ug_per_g2.is_some(), "both mountings paired");
             ratios.push(u.k0_g * 100.0 / noise_hz);
         }
         // Stable over draws, and blind to the repeated misfit 50× the noise.
         let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
-        assert!((0.1..0.5).contains(&mean), "{mean}");
+        assert!((0.15..0.7).contains(&mean), "{mean}");
         // Without k1 the outputs cannot be put in g.
         let p = points_at(&mut rng, 5.0, noise_hz);
         assert!(paired_uncertainty(&p, &p, 0.0).is_none());
@@ -581,6 +589,34 @@ mod tests {
         let mut moved = points_at(&mut rng, 5.0, noise_hz);
         moved.iter_mut().for_each(|p| p.g_nominal += 0.5);
         assert!(paired_uncertainty(&p, &moved, 100.0).is_none());
+    }
+
+    #[test]
+    fn each_temperature_carries_the_whole_of_its_differences_uncertainty() {
+        // Issue 30 item 6: not a share 1/√2 of it. What the pairs see moves
+        // with the temperature (a dip reached elsewhere as the resonators
+        // warm), so the errors on either side of the reference add in the
+        // slope: with the share the coefficients' U95 held the truth for
+        // 78–85 % of the typical bench's instruments over 12 seeds; with
+        // the whole, 94–98 % (scripts/coverage 12 typical --temperatures=-20,25,60).
+        use rand::SeedableRng;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        let reference = points_at(&mut rng, 5.0, 1e-3);
+        let other = points_at(&mut rng, 5.4, 1e-3);
+        let u = paired_uncertainty(&reference, &other, 100.0).expect("paired");
+        let whole = cubic_errors(&pairs(&reference, &other, 100.0, None)).expect("cubic");
+        assert!(
+            (u.k0_g - whole[0] / 100.0).abs() <= 1e-12 * whole[0].abs(),
+            "{u:?} {whole:?}"
+        );
+        assert!(
+            (u.k1_hz_per_g - whole[1]).abs() <= 1e-12 * whole[1].abs(),
+            "{u:?} {whole:?}"
+        );
+        let per_mount =
+            |m| cubic_errors(&pairs(&reference, &other, 100.0, Some(m))).expect("cubic");
+        let k2 = 0.5 * per_mount(Mount::P)[2].hypot(per_mount(Mount::N)[2]) / 100.0 * 1e6;
+        assert!((u.k2_ug_per_g2.expect("K2") - k2).abs() <= 1e-9 * k2);
     }
 
     #[test]
