@@ -37,8 +37,13 @@
 //!
 //! ```text
 //! u²_JK(k) = Σ_levels (1 − h_ℓ)·(k₍₋ℓ₎ − k)²
-//! u²(model inadequacy) = max(0, u²_JK − u²(repeatability)),  ν = L − p
+//! u²(model inadequacy) = max(0, u²_JK − u²(repeatability) − u²(table)),  ν = L − p
 //! ```
+//!
+//! (u(table) the table-disturbance Type B source, when the station states
+//! one: a broad bump of the table moves the levels' readings too, so the
+//! jackknife sees it, and counting it there and as its own source would
+//! count it twice.)
 //!
 //! with h_ℓ the leverage of level ℓ's mean. This is the leverage-adjusted
 //! (CR2, HC2) form: since k₍₋ℓ₎ − k = Pℓ·rℓ/(1 − hℓ), it is Σ Pℓ²·rℓ²/(1 − hℓ),

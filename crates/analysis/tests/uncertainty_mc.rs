@@ -306,3 +306,49 @@ fn a_broad_table_disturbance_is_in_each_mountings_k2_and_cancels_from_k2() {
         "{k2_even} vs {clean_even}, a mounting moved {moved}"
     );
 }
+
+#[test]
+fn a_table_disturbance_the_jackknife_sees_is_not_counted_twice() {
+    // The table's bump moves the levels' readings, so the jackknife over
+    // levels sees it among their scatter; with the bump's own Type B source
+    // in the budget the model inadequacy is only what the jackknife finds
+    // beyond the repeatability and that source (u_MI² = max(0, u_JK² −
+    // u_rep² − u_table²)), never both in full.
+    use spinbench_analysis::uncertainty::Source;
+    let mut rng = ChaCha8Rng::seed_from_u64(25);
+    let noise = Normal::new(0.0, 30e-6 * K[1]).expect("normal");
+    let bump = |g: f64| 3_000e-6 / (1.0 + ((g - 45.0) / 3.0).powi(2));
+    let p: Vec<Point> = points(Mount::P, &inputs(), None)
+        .into_iter()
+        .map(|q| Point {
+            output: ieee1293_output(K, q.g_nominal + bump(q.g_nominal)) + noise.sample(&mut rng),
+            ..q
+        })
+        .collect();
+    let with = TypeBInputs {
+        table_disturbance_ug: 3_000.0,
+        table_disturbance_width_g: 3.0,
+        ..TypeBInputs::default()
+    };
+    let part = |b: &spinbench_analysis::uncertainty::MountingBudget, s: Source| {
+        b.effects
+            .iter()
+            .find(|e| e.source == s)
+            .map_or(0.0, |e| e.delta[2])
+    };
+    let alone = mounting_budget(&p, ModelOrder::Cubic, &TypeBInputs::default(), "P").expect("P");
+    let both = mounting_budget(&p, ModelOrder::Cubic, &with, "P").expect("P");
+    let (inadequacy_alone, table) = (
+        part(&alone, Source::ModelInadequacy),
+        part(&both, Source::TableDisturbance),
+    );
+    assert!(inadequacy_alone > 0.0, "the jackknife sees the bump");
+    assert!(table.abs() > 0.0, "the table's source is in the budget");
+    let expected = (inadequacy_alone.powi(2) - table.powi(2)).max(0.0).sqrt();
+    let got = part(&both, Source::ModelInadequacy);
+    assert!(
+        (got - expected).abs() <= 1e-9 * inadequacy_alone,
+        "model inadequacy {got} with the table's source {table}, {expected} expected (alone {inadequacy_alone})"
+    );
+    assert!(got < inadequacy_alone, "{got} vs {inadequacy_alone}");
+}

@@ -147,6 +147,14 @@ pub fn mounting_budget(
         fit.std_error.k2_ug_per_g2,
         fit.std_error.k3_ug_per_g3,
     ];
+    // The table's disturbance (a Type B source below) moves the levels'
+    // readings too: the jackknife sees it among the levels' scatter, so the
+    // model inadequacy is what it finds beyond the repeatability and this.
+    let table = if inputs.table_disturbance_ug > 0.0 {
+        Some(table_disturbance_effect(points, order, inputs, what)?)
+    } else {
+        None
+    };
     match variance {
         Some(v) => {
             let g = crate::inadequacy::coefficient_sensitivities(
@@ -167,7 +175,8 @@ pub fn mounting_budget(
                 let full = coefficients(points, order, what)?;
                 let jk = crate::inadequacy::jackknife_variance(full, &without, &leverage);
                 let inadequacy: [f64; 4] = std::array::from_fn(|j| {
-                    crate::inadequacy::inadequacy_beyond(jk[j], repeatability[j])
+                    let known = table.map_or(0.0, |t| t[j]);
+                    crate::inadequacy::inadequacy_beyond(jk[j], repeatability[j].hypot(known))
                 });
                 if inadequacy.iter().any(|u| *u > 0.0) {
                     effects.push(Effect {
@@ -319,10 +328,10 @@ pub fn mounting_budget(
         });
     }
 
-    if inputs.table_disturbance_ug > 0.0 {
+    if let Some(delta) = table {
         effects.push(Effect {
             source: Source::TableDisturbance,
-            delta: table_disturbance_effect(points, order, inputs, what)?,
+            delta,
             dof: None,
         });
     }
