@@ -26,6 +26,9 @@
 //! * [`compare`] — polynomial and non-polynomial model families side by side;
 //! * [`exclusion`] — an engineer's exclusion of a level, with its reason,
 //!   applied before the fits and reported beside them;
+//! * [`design`] — the station's model learned from its runs, a plan's
+//!   predicted K2 U95 and centrifuge time, and the plan that reaches a
+//!   target in the least time;
 //! * [`unit`] — all of the above for one instrument, and [`unit::analyze_dataset`]
 //!   for a batch.
 //!
@@ -37,6 +40,7 @@
 pub mod centrifuge;
 pub mod compare;
 pub mod control;
+pub mod design;
 pub mod diagnostics;
 mod error;
 pub mod exclusion;

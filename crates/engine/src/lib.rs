@@ -10,6 +10,8 @@
 //!   records, an explicit table of run states;
 //! * [`event`] — the typed event stream the CLI, journal, store and UI subscribe to;
 //! * [`journal`] — the append-only, flushed journal, and reading it back for resume;
+//! * [`planning`] — a plan's prediction against what its run achieved, and
+//!   the readings of past runs the station's model learns from;
 //! * [`record`] — per-instrument records with an outcome;
 
 pub mod abort;
@@ -21,6 +23,7 @@ pub mod event;
 pub mod executor;
 pub mod journal;
 pub mod plan;
+pub mod planning;
 pub mod record;
 pub mod retest;
 pub mod soak;

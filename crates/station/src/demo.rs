@@ -162,6 +162,8 @@ pub struct DemoPlanChoice {
     pub temperatures_c: Vec<f64>,
     /// The levels (none: the published levels to 70 g); the plan checks them.
     pub levels_g: Option<Vec<f64>>,
+    /// Design the levels for this K2 U95 [µg/g²] (`levels = "auto"`).
+    pub target_k2_u95: Option<f64>,
     /// What the reduction does with a level found off the curve.
     pub anomalies: spinbench_analysis::AnomalyRule,
 }
@@ -262,9 +264,14 @@ pub fn demo(
     plan.anomalies = plan_choice.anomalies;
     if let Some(levels) = plan_choice.levels_g {
         plan.range_g = levels.iter().copied().fold(0.0, f64::max);
-        plan.levels = Some(levels);
+        plan.levels = Some(spinbench_engine::plan::LevelTable::List(levels));
     }
-    let plan_levels = plan.level_table();
+    if let Some(target) = plan_choice.target_k2_u95 {
+        plan.levels = Some(spinbench_engine::plan::LevelTable::Auto(
+            spinbench_engine::plan::AutoLevels::Auto,
+        ));
+        plan.target_k2_u95_ug_per_g2 = Some(target);
+    }
     let plan_order = spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default();
     let arm_radius_m = sim.with_world(|w| w.config().centrifuge.arm_radius_m);
     if !json {
@@ -286,6 +293,10 @@ pub fn demo(
         dir: RunDir::create(data_dir)?,
         store: db.cloned(),
     })?;
+    // The plan as it runs (designed when `auto`): its levels and the way
+    // down, as its fits see them, and its prediction.
+    let levels = prepared.plan.level_sequence();
+    let prediction = prepared.plan.prediction.clone();
     let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
     let operator = Box::new(SimOperator::new(&sim, json));
     let abort = AbortFlag::new();
@@ -298,8 +309,7 @@ pub fn demo(
         RunControl::abort_only(abort),
     )?;
     let truth = sim.with_world(|w| w.truth());
-    // The demo plan's levels, up and down, as its fits see them.
-    let levels = spinbench_analysis::points::up_down(&plan_levels);
+    let achieved = spinbench_engine::planning::achieved(&finished.summary.records);
     let perfect = |slot: usize, mount: Mount| {
         sim.with_world(|w| w.perfect_fit_k2(slot, mount, &levels, plan_order))
     };
@@ -320,6 +330,8 @@ pub fn demo(
                 "realism": realism,
                 "virtual_duration_s": finished.summary.duration_s,
                 "wall_duration_s": wall_s,
+                "prediction": prediction,
+                "achieved": achieved,
             },
             "units": units,
         });
@@ -327,6 +339,9 @@ pub fn demo(
         writeln!(out)?;
     } else {
         render_demo(out, &finished, &units, wall_s)?;
+        if let Some(p) = &prediction {
+            writeln!(out, "{}", prediction_line(p, &achieved))?;
+        }
     }
     if finished.summary.state != RunState::Completed {
         bail!(
@@ -425,4 +440,23 @@ fn render_demo(
             .map_or_else(|| ".".into(), |p| p.display().to_string())
     )?;
     Ok(())
+}
+
+/// The plan's prediction beside what the run achieved, one line.
+pub fn prediction_line(
+    p: &spinbench_engine::plan::PlanPrediction,
+    a: &spinbench_engine::planning::Achieved,
+) -> String {
+    let shown =
+        |v: Option<f64>, digits: usize| v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"));
+    format!(
+        "Plan: predicted K2 U95 {:.3} µg/g² (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; model from {} run(s).",
+        p.k2_u95_ug_per_g2,
+        shown(a.k2_u95_ug_per_g2, 3),
+        p.centrifuge_time_s,
+        shown(a.centrifuge_time_s, 0),
+        shown(p.published_k2_u95_ug_per_g2, 3),
+        shown(p.published_centrifuge_time_s, 0),
+        p.model_runs
+    )
 }

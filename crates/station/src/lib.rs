@@ -26,6 +26,7 @@ pub mod replay;
 pub mod retest;
 pub mod run_setup;
 pub mod signals;
+pub mod station_model;
 pub mod station_run;
 pub mod terminal;
 pub mod users;

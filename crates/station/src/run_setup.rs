@@ -232,6 +232,26 @@ pub fn prepare(setup: Setup) -> Result<Prepared, PrepareError> {
         dir,
         store,
     } = setup;
+    let store = store.unwrap_or_else(|| dir.default_store());
+    // A new run's plan carries its prediction from the station's model of
+    // its own runs; `levels = "auto"` is designed here, before anything moves.
+    let designing = plan.is_auto();
+    let plan = if dir.new {
+        let learned = crate::station_model::learn(
+            &store,
+            &station.station,
+            crate::station_model::DEFAULT_MODEL_RUNS,
+        );
+        match plan.designed(&learned.model) {
+            Ok(p) => p,
+            Err(e) => {
+                dir.discard();
+                return Err(e.into());
+            }
+        }
+    } else {
+        plan
+    };
     let compiled = match plan.compile(&station) {
         Ok(c) => c,
         Err(e) => {
@@ -248,15 +268,15 @@ pub fn prepare(setup: Setup) -> Result<Prepared, PrepareError> {
     };
     write(STATION_FILE, &station_toml)?;
     if !resume {
+        // A designed plan is written as designed (its levels, dwell and prediction).
         let text = match plan_text {
-            Some(t) => t,
-            None => toml::to_string(&plan)
+            Some(t) if !designing => t,
+            _ => toml::to_string(&plan)
                 .context("cannot write the plan as TOML")
                 .map_err(PrepareError::Files)?,
         };
         write(PLAN_FILE, &text)?;
     }
-    let store = store.unwrap_or_else(|| dir.default_store());
     Ok(Prepared {
         dir,
         station,
@@ -301,6 +321,21 @@ pub fn plan_differences(run: &TestPlan, given: &TestPlan) -> Vec<String> {
             _ => {}
         }
     }
+    // The prediction is the station's, written when the run started; a
+    // plan given as `levels = "auto"` is the run's when the rest agrees
+    // (the run's plan holds what was designed).
+    let (mut run, mut given) = (run.clone(), given.clone());
+    run.prediction = None;
+    given.prediction = None;
+    if given.is_auto() {
+        for plan in [&mut run, &mut given] {
+            plan.levels = None;
+            plan.down_levels = None;
+            plan.up_down = true;
+            plan.dwell = Default::default();
+        }
+    }
+    let (run, given) = (&run, &given);
     let mut out = Vec::new();
     match (toml::Value::try_from(run), toml::Value::try_from(given)) {
         (Ok(a), Ok(b)) => walk("", &a, &b, &mut out),

@@ -74,6 +74,18 @@ impl TestPlan {
             key: "order".into(),
             problem: format!("{} is not 1, 2 or 3", self.order),
         })?;
+        if self.is_auto() {
+            return err(
+                "levels",
+                "\"auto\" is designed when a run starts on a station (spinbench run, or spinbench plan design to see the design first)".into(),
+            );
+        }
+        if self.target_k2_u95_ug_per_g2.is_some() && self.prediction.is_none() {
+            return err(
+                "target_k2_u95_ug_per_g2",
+                "a target is for levels = \"auto\"; leave it out with explicit levels".into(),
+            );
+        }
         let levels = self.level_table();
         if levels.first() != Some(&0.0) {
             return err("levels", "the levels must start at 0 g".into());
@@ -289,13 +301,27 @@ impl TestPlan {
             }
         }
 
-        // The steps.
-        let sequence = if self.up_down {
-            points::up_down(&levels)
-        } else {
-            levels.clone()
-        };
         let top = levels.last().copied().unwrap_or(0.0);
+        if let Some(down) = &self.down_levels {
+            if !self.up_down {
+                return err(
+                    "down_levels",
+                    "down_levels needs up_down = true (the way down)".into(),
+                );
+            }
+            if let Some(g) = down.iter().find(|g| !levels.contains(g) || **g >= top) {
+                return err(
+                    "down_levels",
+                    format!("{g} g is not one of the plan's levels below the top {top} g"),
+                );
+            }
+            if (1..down.len()).any(|i| down[..i].contains(&down[i])) {
+                return err("down_levels", "a level is listed twice".into());
+            }
+        }
+
+        // The steps.
+        let sequence = self.level_sequence();
         let all = |f: Fixture| {
             serials
                 .iter()

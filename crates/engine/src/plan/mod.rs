@@ -4,6 +4,8 @@
 //! ```toml
 //! name = "batch 47"
 //! range_g = 70            # levels 0, 1, 5, 10, … 70 (method.md §3.3) unless `levels` is given
+//! # levels = "auto"       # or designed by the station for a K2 U95 target:
+//! # target_k2_u95_ug_per_g2 = 4.5
 //! passes = ["P", "N"]     # mountings, in order (a serial "P:SN1" or "N:SN1" fixes its slot's mounting)
 //! [serials]
 //! 1 = "SN2601"            # slot number (1-based: module 1 slots 1–6, module 2 slots 7–12, …)
@@ -38,12 +40,27 @@ pub struct TestPlan {
     /// Range m [g] (default 70).
     #[serde(default = "default_range")]
     pub range_g: f64,
-    /// Explicit levels [g], ascending from 0 (default: 0, 1, 5, then every 5 g to m).
-    #[serde(default)]
-    pub levels: Option<Vec<f64>>,
+    /// Explicit levels [g], ascending from 0 (default: 0, 1, 5, then every
+    /// 5 g to m), or `"auto"`: the station designs them, with the dwell and
+    /// the readings on the way down, for `target_k2_u95_ug_per_g2`
+    /// ([`TestPlan::designed`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub levels: Option<LevelTable>,
     /// Visit the levels up and then back down (default true).
     #[serde(default = "default_true")]
     pub up_down: bool,
+    /// The levels read again on the way down [g], a subset of the levels
+    /// below the top (absent: every one, when `up_down`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub down_levels: Option<Vec<f64>>,
+    /// The K2 U95 a designed plan (`levels = "auto"`) is to reach [µg/g²].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_k2_u95_ug_per_g2: Option<f64>,
+    /// The plan's predicted K2 U95 and centrifuge time, from the station's
+    /// model of its own runs, written by the station when the run starts
+    /// ([`TestPlan::with_prediction`]); the reports set the achieved beside it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub prediction: Option<PlanPrediction>,
     /// Mountings to run, in order (default: as the serials' prefixes say, else P).
     #[serde(default)]
     pub passes: Vec<Mount>,
@@ -91,6 +108,46 @@ pub struct TestPlan {
     /// instruments, [`crate::retest`]); absent for a first test.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub retest_of: Option<String>,
+}
+
+/// The `levels` key: a list, or `"auto"` (designed by the station).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum LevelTable {
+    /// Explicit levels [g], ascending from 0.
+    List(Vec<f64>),
+    /// `"auto"`: designed for the plan's `target_k2_u95_ug_per_g2`.
+    Auto(AutoLevels),
+}
+
+/// The word `auto` of `levels = "auto"`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AutoLevels {
+    /// Designed by the station.
+    Auto,
+}
+
+/// A plan's prediction, and how it was made.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlanPrediction {
+    /// Predicted K2 U95 of the median instrument [µg/g²].
+    pub k2_u95_ug_per_g2: f64,
+    /// Predicted centrifuge time of the level steps, every pass [s].
+    pub centrifuge_time_s: f64,
+    /// The published plan's on the same model, for comparison (none when
+    /// the published levels to the range are too few to fit).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub published_k2_u95_ug_per_g2: Option<f64>,
+    /// The published plan's centrifuge time [s].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub published_centrifuge_time_s: Option<f64>,
+    /// The target, when the plan was designed [µg/g²].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_k2_u95_ug_per_g2: Option<f64>,
+    /// Runs the station's model was learned from (0: the defaults of a station with no history).
+    pub model_runs: usize,
 }
 
 /// A level left out of the reduction by the plan.
@@ -455,6 +512,9 @@ impl Default for TestPlan {
             range_g: default_range(),
             levels: None,
             up_down: true,
+            down_levels: None,
+            target_k2_u95_ug_per_g2: None,
+            prediction: None,
             passes: Vec::new(),
             tumble_positions: default_tumble_positions(),
             temperatures_c: Vec::new(),
@@ -484,10 +544,126 @@ impl TestPlan {
         Ok(plan)
     }
 
-    /// The ascending level table [g].
+    /// The ascending level table [g] (the published one for `"auto"`,
+    /// which [`TestPlan::designed`] replaces before the plan compiles).
     pub fn level_table(&self) -> Vec<f64> {
-        self.levels
-            .clone()
-            .unwrap_or_else(|| points::published_levels(self.range_g))
+        match &self.levels {
+            Some(LevelTable::List(l)) => l.clone(),
+            _ => points::published_levels(self.range_g),
+        }
+    }
+
+    /// Whether the levels are still to be designed (`levels = "auto"`).
+    pub fn is_auto(&self) -> bool {
+        matches!(self.levels, Some(LevelTable::Auto(_)))
+    }
+
+    /// The order in which each pass visits the levels: up, then down
+    /// through `down_levels` (every level when absent), or up only.
+    pub fn level_sequence(&self) -> Vec<f64> {
+        let levels = self.level_table();
+        if !self.up_down {
+            return levels;
+        }
+        match &self.down_levels {
+            None => points::up_down(&levels),
+            Some(down) => {
+                let mut down = down.clone();
+                down.sort_by(|a, b| b.total_cmp(a));
+                levels.into_iter().chain(down).collect()
+            }
+        }
+    }
+
+    /// The plan as the prediction sees it.
+    pub fn candidate(&self) -> spinbench_analysis::design::Candidate {
+        let levels = self.level_table();
+        let top = levels.last().copied().unwrap_or(0.0);
+        let down = if !self.up_down {
+            Vec::new()
+        } else {
+            self.down_levels
+                .clone()
+                .unwrap_or_else(|| levels.iter().copied().filter(|g| *g < top).collect())
+        };
+        spinbench_analysis::design::Candidate {
+            levels_g: levels,
+            down_levels_g: down,
+            dwell_s: self.dwell.seconds,
+            passes: self.passes.len().max(1),
+        }
+    }
+
+    /// The plan with its prediction from the station's `model`; with
+    /// `levels = "auto"` first designed (the levels, the readings on the
+    /// way down and a fixed dwell of least predicted time for
+    /// `target_k2_u95_ug_per_g2`; every level read on the way down when
+    /// the plan limits the hysteresis). A target the station cannot reach
+    /// is refused, saying what it can reach, before anything moves.
+    pub fn designed(
+        &self,
+        model: &spinbench_analysis::design::StationModel,
+    ) -> Result<TestPlan, PlanError> {
+        use spinbench_analysis::design;
+        let err = |key: &str, problem: String| PlanError {
+            key: key.into(),
+            problem,
+        };
+        self.validate()?;
+        let mut plan = self.clone();
+        if self.is_auto() {
+            if self.order != 3 {
+                return Err(err(
+                    "levels",
+                    format!(
+                        "\"auto\" designs for K2 of the cubic model (order = 3), not order {}",
+                        self.order
+                    ),
+                ));
+            }
+            let target = self.target_k2_u95_ug_per_g2.ok_or_else(|| {
+                err(
+                    "levels",
+                    "\"auto\" needs target_k2_u95_ug_per_g2, the K2 U95 to reach [µg/g²]".into(),
+                )
+            })?;
+            let hysteresis = self.limits.hysteresis_max_ug.is_some();
+            let found = design::design(
+                model,
+                target,
+                self.range_g,
+                self.passes.len().max(1),
+                hysteresis,
+            )
+            .map_err(|e| err("levels", e.to_string()))?
+            .map_err(|e| err("target_k2_u95_ug_per_g2", e.to_string()))?;
+            plan.levels = Some(LevelTable::List(found.plan.levels_g.clone()));
+            plan.up_down = true;
+            plan.down_levels = Some(found.plan.down_levels_g.clone());
+            plan.dwell.seconds = found.plan.dwell_s;
+            plan.dwell.sem_target_ug = None;
+        }
+        // A plan the prediction cannot fit (too few levels, a model below
+        // the cubic) runs without one; its compilation says what is wrong.
+        let published = design::predict(
+            model,
+            &design::Candidate::published(
+                &points::published_levels(self.range_g),
+                self.passes.len().max(1),
+            ),
+        )
+        .ok();
+        plan.prediction = design::predict(model, &plan.candidate())
+            .ok()
+            .filter(|_| self.order == 3)
+            .map(|predicted| PlanPrediction {
+                k2_u95_ug_per_g2: predicted.k2_u95_ug_per_g2,
+                centrifuge_time_s: predicted.centrifuge_time_s,
+                published_k2_u95_ug_per_g2: published.map(|p| p.k2_u95_ug_per_g2),
+                published_centrifuge_time_s: published.map(|p| p.centrifuge_time_s),
+                target_k2_u95_ug_per_g2: self.target_k2_u95_ug_per_g2,
+                model_runs: model.runs,
+            });
+        Ok(plan)
     }
 }

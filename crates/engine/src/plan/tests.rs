@@ -281,3 +281,113 @@ fn look_alike_serials_are_one_serial_and_invisible_characters_are_refused() {
         Some("A7")
     );
 }
+
+#[test]
+fn levels_auto_are_designed_for_the_target_before_the_plan_compiles() {
+    use spinbench_analysis::design::StationModel;
+    let st = station(1);
+    let text = "levels = \"auto\"\ntarget_k2_u95_ug_per_g2 = 5\npasses = [\"P\", \"N\"]\n[serials]\n1 = \"A\"";
+    let plan = TestPlan::from_toml(text).expect("plan");
+    assert!(plan.is_auto());
+    // Not designed yet: refused, saying where it is designed.
+    let e = plan.compile(&st).expect_err("auto");
+    assert_eq!(e.key, "levels");
+    assert!(e.problem.contains("designed when a run starts"), "{e}");
+    let designed = plan.designed(&StationModel::default()).expect("designed");
+    assert!(!designed.is_auto());
+    let p = designed.prediction.clone().expect("prediction");
+    assert!(p.k2_u95_ug_per_g2 <= 5.0, "{p:?}");
+    assert!(
+        p.centrifuge_time_s < p.published_centrifuge_time_s.expect("published"),
+        "{p:?}"
+    );
+    assert_eq!(p.target_k2_u95_ug_per_g2, Some(5.0));
+    let down = designed.down_levels.clone().expect("down levels");
+    let c = designed.compile(&st).expect("compiles as designed");
+    let steps = c
+        .steps
+        .iter()
+        .filter(|s| matches!(s, Step::Level { .. }))
+        .count();
+    assert_eq!(steps, 2 * (designed.level_table().len() + down.len()));
+    // The designed plan reads back as itself (plan.toml of the run).
+    let again = TestPlan::from_toml(&toml::to_string(&designed).expect("toml")).expect("reads");
+    assert_eq!(again, designed);
+    // No target: refused, naming the key.
+    let e = TestPlan::from_toml("levels = \"auto\"\n[serials]\n1 = \"A\"")
+        .expect("plan")
+        .designed(&StationModel::default())
+        .expect_err("no target");
+    assert!(e.problem.contains("target_k2_u95_ug_per_g2"), "{e}");
+    // A target no plan reaches: refused before anything moves, with the smallest reachable.
+    let e = TestPlan::from_toml(
+        "levels = \"auto\"\ntarget_k2_u95_ug_per_g2 = 0.001\n[serials]\n1 = \"A\"",
+    )
+    .expect("plan")
+    .designed(&StationModel::default())
+    .expect_err("unreachable");
+    assert_eq!(e.key, "target_k2_u95_ug_per_g2");
+    assert!(e.problem.contains("the smallest predicted is"), "{e}");
+    // A target is for auto levels only; a hostile one is refused by the bounds.
+    let e = TestPlan::from_toml("target_k2_u95_ug_per_g2 = 3\n[serials]\n1 = \"A\"")
+        .expect("plan")
+        .compile(&st)
+        .expect_err("target without auto");
+    assert_eq!(e.key, "target_k2_u95_ug_per_g2");
+    for bad in ["-1", "0", "nan", "inf", "1e300"] {
+        let e = TestPlan::from_toml(&format!(
+            "levels = \"auto\"\ntarget_k2_u95_ug_per_g2 = {bad}\n[serials]\n1 = \"A\""
+        ))
+        .expect_err(bad);
+        assert_eq!(e.key, "target_k2_u95_ug_per_g2", "{bad}");
+    }
+    assert!(TestPlan::from_toml("levels = \"manual\"\n[serials]\n1 = \"A\"").is_err());
+}
+
+#[test]
+fn down_levels_choose_the_readings_on_the_way_down() {
+    let st = station(1);
+    let compile = |extra: &str| {
+        TestPlan::from_toml(&format!(
+            "levels = [0, 10, 20, 30, 40, 50]\n{extra}\n[serials]\n1 = \"A\""
+        ))
+        .expect("plan")
+        .compile(&st)
+    };
+    let c = compile("down_levels = [0, 30]").expect("compile");
+    let visits: Vec<(f64, Direction)> = c
+        .steps
+        .iter()
+        .filter_map(|s| match s {
+            Step::Level {
+                g_nominal,
+                direction,
+                ..
+            } => Some((*g_nominal, *direction)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(
+        visits,
+        vec![
+            (0.0, Direction::Up),
+            (10.0, Direction::Up),
+            (20.0, Direction::Up),
+            (30.0, Direction::Up),
+            (40.0, Direction::Up),
+            (50.0, Direction::Up),
+            (30.0, Direction::Down),
+            (0.0, Direction::Down),
+        ]
+    );
+    for (bad, why) in [
+        ("down_levels = [25]", "not one of the plan's levels"),
+        ("down_levels = [50]", "below the top"),
+        ("down_levels = [10, 10]", "listed twice"),
+        ("down_levels = [10]\nup_down = false", "needs up_down"),
+    ] {
+        let e = compile(bad).expect_err(bad);
+        assert_eq!(e.key, "down_levels", "{bad}");
+        assert!(e.problem.contains(why), "{bad}: {e}");
+    }
+}

@@ -44,7 +44,23 @@ impl TestPlan {
             }
         }
         check_positive(self.range_g, MAX_LEVEL_G, "g", "MAX_LEVEL_G").map_err(at("range_g"))?;
-        if let Some(levels) = &self.levels {
+        if let Some(t) = self.target_k2_u95_ug_per_g2 {
+            check_positive(t, MAX_FIGURE_LIMIT, "µg/g²", "MAX_FIGURE_LIMIT")
+                .map_err(at("target_k2_u95_ug_per_g2"))?;
+        }
+        if let Some(down) = &self.down_levels {
+            if down.len() > MAX_LEVELS {
+                return Err(at("down_levels")(format!(
+                    "{} levels; at most {MAX_LEVELS} (MAX_LEVELS)",
+                    down.len()
+                )));
+            }
+            for (i, g) in down.iter().enumerate() {
+                check(*g, 0.0..=MAX_LEVEL_G, "g", "MAX_LEVEL_G")
+                    .map_err(at(&format!("down_levels[{i}]")))?;
+            }
+        }
+        if let Some(LevelTable::List(levels)) = &self.levels {
             if levels.len() > MAX_LEVELS {
                 return Err(at("levels")(format!(
                     "{} levels; at most {MAX_LEVELS} (MAX_LEVELS)",

@@ -216,6 +216,29 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
             format!("spinbench {}", report.context.software_version),
         ),
     ]);
+    if let Ok(p) =
+        serde_json::from_value::<spinbench_engine::plan::PlanPrediction>(plan["prediction"].clone())
+    {
+        let a = spinbench_engine::planning::achieved(report.units.iter().map(|u| u.record()));
+        let shown = |v: Option<f64>, digits: usize| {
+            v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"))
+        };
+        rows.push((
+            "prediction",
+            rust_i18n::t!(
+                "report.prediction",
+                u95 = format!("{:.3}", p.k2_u95_ug_per_g2),
+                achieved_u95 = shown(a.k2_u95_ug_per_g2, 3),
+                time = format!("{:.0}", p.centrifuge_time_s),
+                achieved_time = shown(a.centrifuge_time_s, 0),
+                published_u95 = shown(p.published_k2_u95_ug_per_g2, 3),
+                published_time = shown(p.published_centrifuge_time_s, 0),
+                runs = p.model_runs,
+                locale = lang.code()
+            )
+            .into_owned(),
+        ));
+    }
     rows
 }
 

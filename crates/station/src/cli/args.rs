@@ -90,6 +90,11 @@ pub enum Command {
         /// (ascending from 0, at least 6; default 0, 1, 5, then every 5 g to 70).
         #[arg(long, value_delimiter = ',')]
         levels: Vec<f64>,
+        /// Design the levels, the readings on the way down and the dwell for
+        /// this K2 U95 [µg/g²] from the station's model of its own runs in
+        /// the store (the plan's `levels = "auto"`).
+        #[arg(long, value_name = "UG_PER_G2", conflicts_with = "levels")]
+        target_k2_u95: Option<f64>,
         /// What the reduction does with a level found off the curve: flag or exclude
         /// (the plan key `anomalies`).
         #[arg(long, default_value = "flag")]
@@ -103,6 +108,12 @@ pub enum Command {
         /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
         #[arg(long, value_parser = parse_store)]
         db: Option<StoreTarget>,
+    },
+    /// Test plans: design one for a K2 uncertainty target.
+    Plan {
+        /// What to do.
+        #[command(subcommand)]
+        action: PlanAction,
     },
     /// Run a test plan on a station (or, with --simulate, on the virtual bench).
     Run {
@@ -443,5 +454,41 @@ pub enum RunsAction {
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
+    },
+}
+
+/// `spinbench plan …`.
+#[derive(Debug, Subcommand)]
+pub enum PlanAction {
+    /// Design the plan of least centrifuge time whose predicted K2 U95 meets
+    /// a target, from the station's model of its own completed runs in the
+    /// store (the defaults of a station with no history), and print it
+    /// beside the published plan's prediction. Nothing moves.
+    Design {
+        /// The K2 U95 to reach [µg/g²] (default: the plan's
+        /// target_k2_u95_ug_per_g2).
+        #[arg(long, value_name = "UG_PER_G2")]
+        target_k2_u95: Option<f64>,
+        /// A plan (TOML) whose range, mountings and hysteresis limit the
+        /// design keeps (default: ±70 g, mountings P and N).
+        #[arg(long, value_name = "PLAN_TOML")]
+        plan: Option<PathBuf>,
+        /// The station config (TOML) whose runs the model learns from
+        /// (default: the station of the newest completed run in the store).
+        #[arg(long, value_name = "STATION_TOML")]
+        station: Option<PathBuf>,
+        /// How many of its newest completed runs the model learns from.
+        #[arg(long, default_value_t = crate::station_model::DEFAULT_MODEL_RUNS as u64,
+              value_parser = clap::value_parser!(u64).range(1..=crate::station_model::MAX_MODEL_RUNS as u64))]
+        runs: u64,
+        /// Where runs are kept.
+        #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
+        data: PathBuf,
+        /// The store: an SQLite file or a PostgreSQL server (postgres://…); default DATA/spinbench.db.
+        #[arg(long, value_parser = parse_store)]
+        db: Option<StoreTarget>,
+        /// Print one JSON document instead of text.
+        #[arg(long)]
+        json: bool,
     },
 }

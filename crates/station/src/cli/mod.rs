@@ -5,6 +5,7 @@
 //! |---|---|
 //! | this | `analyze`, `demo`, `serve` (their work lives in [`crate::points_file`], [`crate::demo`], [`crate::web`]) |
 //! | `run` | `run` |
+//! | `plan_design` | `plan design` |
 //! | `records` | `runs list`, `runs show`, `unit`, `export` |
 //! | `reports` | `report`, `batch-report`, `replay` |
 //! | `sim` | `sim` |
@@ -12,7 +13,7 @@
 
 mod args;
 
-pub use args::{Cli, Command, EquipmentAction, ReportOutput, RunsAction, UserAction};
+pub use args::{Cli, Command, EquipmentAction, PlanAction, ReportOutput, RunsAction, UserAction};
 
 use crate::paths::parse_store;
 use crate::points_file::read_points_file;
@@ -28,6 +29,7 @@ use std::path::{Path, PathBuf};
 
 mod backup;
 mod equipment;
+mod plan_design;
 mod records;
 mod reports;
 mod run;
@@ -178,6 +180,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             tumble_positions,
             temperatures,
             levels,
+            target_k2_u95,
             anomalies,
             json,
             data,
@@ -195,6 +198,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                     tumble_positions,
                     temperatures_c: temperatures,
                     levels_g: (!levels.is_empty()).then_some(levels),
+                    target_k2_u95,
                     anomalies,
                 },
                 json,
@@ -311,6 +315,31 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             }
             UserAction::Passwd { name, db } => user::change(&name, None, true, &db, out),
             UserAction::Remove { name, db } => user::remove(&name, &db, out),
+        },
+        Command::Plan { action } => match action {
+            PlanAction::Design {
+                target_k2_u95,
+                plan,
+                station,
+                runs,
+                data,
+                db,
+                json,
+            } => {
+                let db =
+                    db.unwrap_or_else(|| StoreTarget::File(data.join(crate::run_setup::DB_FILE)));
+                plan_design::design(
+                    plan_design::DesignArgs {
+                        target_k2_u95,
+                        plan: plan.as_deref(),
+                        station: station.as_deref(),
+                        runs: runs as usize,
+                        db: &db,
+                        json,
+                    },
+                    out,
+                )
+            }
         },
         Command::Sim {
             config,

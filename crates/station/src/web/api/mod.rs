@@ -221,6 +221,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/api/events", get(live::events)),
         ("get", "/api/plans", get(plans::plans)),
         ("put", "/api/plans/{name}", put(plans::save_plan)),
+        ("post", "/api/plans/{name}/design", post(plans::design_plan)),
         ("get", "/api/station", get(plans::station)),
         ("put", "/api/station", put(plans::save_station)),
         ("get", "/api/runs", get(history::runs)),

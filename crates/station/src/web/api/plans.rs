@@ -1,7 +1,9 @@
 //! Test plans and the station config, read by everyone, saved by engineers
 //! after being checked against the station.
 
-use super::schema::{ErrorBody, PlanEntry, PlanSaved, PlansReply, Saved, StationReply};
+use super::schema::{
+    DesignReply, DesignRequest, ErrorBody, PlanEntry, PlanSaved, PlansReply, Saved, StationReply,
+};
 use super::*;
 
 pub(super) fn plan_name_ok(name: &str) -> bool {
@@ -77,13 +79,86 @@ pub(super) async fn save_plan(
     let text =
         std::str::from_utf8(&body).map_err(|_| ApiError::bad("the plan is not UTF-8 text"))?;
     let plan = TestPlan::from_toml(text).map_err(|e| ApiError::bad(e.to_string()))?;
-    plan.compile(&app.runner.station().0)
+    // A plan whose levels are designed when it runs is checked as designed
+    // on the defaults (nothing is learned to save a plan).
+    let checked = plan
+        .designed(&spinbench_analysis::design::StationModel::default())
+        .map_err(|e| ApiError::bad(format!("the plan cannot run on this station: {e}")))?;
+    checked
+        .compile(&app.runner.station().0)
         .map_err(|e| ApiError::bad(format!("the plan cannot run on this station: {e}")))?;
     let path = app.plans_dir.join(format!("{name}.toml"));
     std::fs::write(&path, text)
         .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
     audit(&app, &session.user, "save plan", &name).await?;
     Ok(Json(PlanSaved { name, saved: true }))
+}
+
+/// Design a plan's levels, readings on the way down and dwell for a K2
+/// U95 target from the station's model of its own runs, with its
+/// prediction beside the published plan's. Nothing moves.
+#[utoipa::path(post, path = "/api/plans/{name}/design", tag = "plans",
+    security(("session" = [], "csrf" = [])),
+    params(("name" = String, Path, description = "1 to 64 letters, digits, `-` or `_`", pattern = "^[A-Za-z0-9_-]{1,64}$")),
+    request_body(content = DesignRequest, description = "At most 2 MiB (413 beyond)."),
+    responses(
+        (status = 200, description = "the design", body = DesignReply),
+        (status = 400, description = "a bad body or plan, or a target this station cannot reach (the smallest it can is named)", body = ErrorBody),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 404, description = "no such plan", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
+    ))]
+pub(super) async fn design_plan(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(name): Path<String>,
+    body: Bytes,
+) -> ApiResult<Json<DesignReply>> {
+    authorize(&app, &headers, Role::Operator, true).await?;
+    if !plan_name_ok(&name) {
+        return Err(ApiError::bad(format!(
+            "plan name '{}': 1 to 64 letters, digits, - or _",
+            spinbench_engine::bounds::shown(&name)
+        )));
+    }
+    let ask: DesignRequest = parse_json(&body)?;
+    let path = app.plans_dir.join(format!("{name}.toml"));
+    let text = std::fs::read_to_string(&path)
+        .map_err(|_| ApiError::not_found(format!("no plan named '{name}' (GET /api/plans)")))?;
+    let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
+    plan.levels = Some(spinbench_engine::plan::LevelTable::Auto(
+        spinbench_engine::plan::AutoLevels::Auto,
+    ));
+    plan.target_k2_u95_ug_per_g2 = Some(ask.target_k2_u95_ug_per_g2);
+    plan.prediction = None;
+    plan.validate().map_err(|e| ApiError::bad(e.to_string()))?;
+    let station = app.runner.station().0.station;
+    let learned = blocking(&app, move |app| {
+        Ok(crate::station_model::learn_from(
+            &store(app),
+            &station,
+            crate::station_model::DEFAULT_MODEL_RUNS,
+        ))
+    })
+    .await?;
+    let designed = plan
+        .designed(&learned.model)
+        .map_err(|e| ApiError::bad(e.to_string()))?;
+    let p = designed
+        .prediction
+        .clone()
+        .ok_or_else(|| ApiError::internal("the design gave no prediction"))?;
+    Ok(Json(DesignReply {
+        levels_g: designed.level_table(),
+        down_levels_g: designed.down_levels.clone().unwrap_or_default(),
+        dwell_s: designed.dwell.seconds,
+        k2_u95_ug_per_g2: p.k2_u95_ug_per_g2,
+        centrifuge_time_s: p.centrifuge_time_s,
+        published_k2_u95_ug_per_g2: p.published_k2_u95_ug_per_g2,
+        published_centrifuge_time_s: p.published_centrifuge_time_s,
+        model_source: learned.source,
+    }))
 }
 
 /// The station config in use.

@@ -171,6 +171,42 @@ pub struct StartRun {
     #[serde(default)]
     #[schema(max_length = 500, pattern = "^[^\\x00-\\x1f\\x7f-\\x9f]*$")]
     pub override_overdue: Option<String>,
+    /// Design the plan's levels, readings on the way down and dwell for
+    /// this K2 U95 [µg/g²] when the run starts (`levels = "auto"`), from
+    /// the station's model of its own runs (`POST /api/plans/{name}/design`
+    /// shows the design first).
+    #[serde(default)]
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
+    pub target_k2_u95_ug_per_g2: Option<f64>,
+}
+
+/// `POST /api/plans/{name}/design`.
+#[derive(Debug, Deserialize, ToSchema)]
+pub struct DesignRequest {
+    /// The K2 U95 to reach [µg/g²].
+    #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
+    pub target_k2_u95_ug_per_g2: f64,
+}
+
+/// A designed plan and its prediction beside the published plan's.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DesignReply {
+    /// The levels [g].
+    pub levels_g: Vec<f64>,
+    /// The levels read again on the way down [g].
+    pub down_levels_g: Vec<f64>,
+    /// One-second values per reading.
+    pub dwell_s: u32,
+    /// Predicted K2 U95 of the median instrument [µg/g²].
+    pub k2_u95_ug_per_g2: f64,
+    /// Predicted centrifuge time of the level steps [s].
+    pub centrifuge_time_s: f64,
+    /// The published plan's predicted K2 U95 [µg/g²] (none when its levels to the range are too few).
+    pub published_k2_u95_ug_per_g2: Option<f64>,
+    /// The published plan's predicted centrifuge time [s].
+    pub published_centrifuge_time_s: Option<f64>,
+    /// Where the station's model came from.
+    pub model_source: String,
 }
 
 /// A run started, answered, paused, resumed or aborted.

@@ -12,7 +12,7 @@ import { loadFleet } from "./js/fleet.js";
 import { findUnit, loadHistory } from "./js/history.js";
 import { chooseLanguage, setLanguage, word } from "./js/i18n.js";
 import { answer, connect, control, refreshStatus } from "./js/live.js";
-import { fillSerials, loadPlans, savePlan, saveStation, startRun } from "./js/new_run.js";
+import { fillSerials, loadPlans, predict, savePlan, saveStation, startRun } from "./js/new_run.js";
 import { addUser, loadUsers } from "./js/users.js";
 
 function route() {
@@ -40,6 +40,7 @@ async function start() {
   $("login-form").addEventListener("submit", login);
   $("logout-button").addEventListener("click", logout);
   $("new-form").addEventListener("submit", startRun);
+  $("design-button").addEventListener("click", predict);
   $("charts-form").addEventListener("submit", (ev) => { ev.preventDefault(); loadCharts(); });
   $("history-station").addEventListener("change", loadHistory);
   $("lang-select").addEventListener("change", chooseLanguage);

@@ -114,6 +114,35 @@ export function scanned(i) {
   if (next) next.focus();
 }
 
+// The K2 U95 target of the form, or null when empty; an error for one that is not a positive number.
+function target() {
+  const v = $("target-k2-u95").value.trim();
+  if (!v) return { value: null };
+  const x = Number(v);
+  return Number.isFinite(x) && x > 0 ? { value: x } : { error: "'" + v + "' is not a positive K2 U95 in µg/g²" };
+}
+
+// Show the design for the target (POST /api/plans/{name}/design): nothing moves.
+export async function predict(ev) {
+  if (ev) ev.preventDefault();
+  const t = target();
+  const box = $("design-result");
+  if (t.error) { show(t.error); return; }
+  if (t.value === null) { box.hidden = true; return; }
+  try {
+    const d = await api("POST", "/api/plans/" + encodeURIComponent($("plan-select").value) + "/design", { target_k2_u95_ug_per_g2: t.value });
+    const vars = {
+      levels: d.levels_g.length, down: d.down_levels_g.length, dwell: d.dwell_s,
+      u95: d.k2_u95_ug_per_g2.toFixed(3), time: d.centrifuge_time_s.toFixed(0),
+      published_u95: d.published_k2_u95_ug_per_g2 == null ? "—" : d.published_k2_u95_ug_per_g2.toFixed(3),
+      published_time: d.published_centrifuge_time_s == null ? "—" : d.published_centrifuge_time_s.toFixed(0),
+      source: d.model_source,
+    };
+    box.textContent = fill("web.msg.design", "designed: " + vars.levels + " levels, " + vars.down + " read again on the way down, " + vars.dwell + " s dwell — predicted K2 U95 " + vars.u95 + " µg/g² in " + vars.time + " s of centrifuge time; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (" + vars.source + ")", vars);
+    box.hidden = false;
+  } catch (e) { box.hidden = true; show(e.message); }
+}
+
 export async function startRun(ev) {
   ev.preventDefault();
   const serials = {};
@@ -131,6 +160,9 @@ export async function startRun(ev) {
   if (!Object.keys(serials).length) { show(word("web.serial.none", "enter at least one serial number")); return; }
   try {
     const request = { plan: $("plan-select").value, serials };
+    const t = target();
+    if (t.error) { show(t.error); return; }
+    if (t.value !== null) request.target_k2_u95_ug_per_g2 = t.value;
     const reason = $("override-reason").value.trim();
     if (reason && state.session.role === "admin") request.override_overdue = reason;
     const r = await api("POST", "/api/runs", request);
