@@ -408,6 +408,55 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     assert_eq!(r.status, 400);
     assert_eq!(op.send("POST", "/api/runs", Some("{")).status, 400);
 
+    // The planner (issue 29): a design for a target, nothing moved.
+    let design = |op: &mut Client, plan: &str, target: f64| {
+        op.send(
+            "POST",
+            &format!("/api/plans/{plan}/design"),
+            Some(&json!({"target_k2_u95_ug_per_g2": target}).to_string()),
+        )
+    };
+    let r = design(&mut op, "api", 1000.0);
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let d = r.json();
+    assert!(
+        d["levels_g"].as_array().is_some_and(|l| l.len() >= 6),
+        "{d}"
+    );
+    assert!(
+        d["k2_u95_ug_per_g2"].as_f64().is_some_and(|u| u <= 1000.0),
+        "{d}"
+    );
+    assert!(
+        d["model_source"]
+            .as_str()
+            .is_some_and(|s| s.contains("no history")),
+        "{d}"
+    );
+    let r = design(&mut op, "api", 1e-4);
+    assert_eq!(r.status, 400);
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("cannot be reached")),
+        "{:?}",
+        r.json()
+    );
+    assert_eq!(design(&mut op, "nope", 1.0).status, 404);
+    assert_eq!(design(&mut op, "api", -1.0).status, 400);
+    let r = op.send(
+        "POST",
+        "/api/runs",
+        Some(&json!({"plan": "api", "serials": {}, "target_k2_u95_ug_per_g2": 1e-4}).to_string()),
+    );
+    assert_eq!(
+        r.status,
+        400,
+        "an unreachable target starts nothing: {:?}",
+        r.json()
+    );
+    assert!(op.get_json("/api/status", 200)["active"].is_null());
+
     // Start; a second start is refused while it runs.
     let r = op.send(
         "POST",
@@ -442,6 +491,14 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     assert!(prompts >= 3, "tumble up, tumble down, remount: {prompts}");
     let s = op.get_json("/api/status", 200);
     assert_eq!(s["state"], "completed", "{s}");
+    // The plan's prediction beside what the run achieved.
+    assert!(s["prediction"]["k2_u95_ug_per_g2"].is_number(), "{s}");
+    assert!(
+        s["achieved"]["centrifuge_time_s"]
+            .as_f64()
+            .is_some_and(|t| t > 0.0),
+        "{s}"
+    );
     assert_eq!(
         op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#))
             .status,

@@ -62,6 +62,16 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         Value::Bool(true),
         "an operator does not get the plan editor"
     );
+    // The planner (issue 29): a K2 U95 target, and the prediction shown
+    // before anything moves; the field is left empty for this run.
+    b.type_into("#target-k2-u95", "1000");
+    b.click("#design-button");
+    b.wait_for(
+        20,
+        "the design's prediction beside the published plan's",
+        "const r = document.getElementById('design-result'); return !r.hidden && r.textContent.includes('predicted K2 U95') && r.textContent.includes('the published plan')",
+    );
+    b.type_into("#target-k2-u95", "");
     // A barcode scanner (keyboard wedge) types a serial and Enter: the focus
     // moves to the next slot; a duplicate is refused as it is scanned, the
     // slot cleared and kept for the next scan.
@@ -199,6 +209,12 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     assert!(
         board_at_level.is_some(),
         "the board showed slot 2 at a level in mounting N"
+    );
+    // Finished: the plan's prediction beside what the run achieved (issue 29).
+    b.wait_for(
+        10,
+        "the prediction and the achievement",
+        "const p = document.getElementById('run-prediction'); return !p.hidden && p.textContent.includes('predicted') && /achieved;/.test(p.textContent) && /\\d+ s achieved/.test(p.textContent)",
     );
     // Finished: the board says done, all points, k2 with U95 and the outcome.
     b.wait_for(

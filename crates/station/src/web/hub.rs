@@ -93,6 +93,13 @@ pub struct StatusSnapshot {
     pub fault: bool,
     /// Who acknowledged the fault and when, once someone has (audited).
     pub fault_acknowledged: Option<Acknowledgement>,
+    /// The run's plan's predicted K2 U95 and centrifuge time (issue 29).
+    #[schema(value_type = Option<Object>)]
+    pub prediction: Option<spinbench_engine::plan::PlanPrediction>,
+    /// What the run achieved, once it ended: the median K2 U95 and the
+    /// centrifuge time of its level steps.
+    #[schema(value_type = Option<Object>)]
+    pub achieved: Option<spinbench_engine::planning::Achieved>,
 }
 
 /// Who acknowledged a fault, and when.
@@ -112,6 +119,8 @@ struct HubState {
     started: Option<std::time::Instant>,
     board: spinbench_engine::board::SlotBoard,
     clock: super::eta::StepClock,
+    /// The run's records so far, for what it achieved.
+    records: Vec<spinbench_engine::UnitRecord>,
 }
 
 /// The hub; share it in an `Arc`.
@@ -138,6 +147,7 @@ impl Hub {
                 started: None,
                 board: spinbench_engine::board::SlotBoard::new(),
                 clock: super::eta::StepClock::default(),
+                records: Vec::new(),
             }),
             tx,
             closing: tokio::sync::watch::channel(false).0,
@@ -278,8 +288,10 @@ impl Hub {
                 state.next_seq = keep_seq;
                 state.started = Some(std::time::Instant::now());
                 state.clock.run_started(&plan.steps);
+                state.records.clear();
                 *s = StatusSnapshot {
                     run_id: Some(run_id.clone()),
+                    prediction: plan.plan.prediction.clone(),
                     state: Some("running".into()),
                     slots: plan.serials.len(),
                     serials: plan.serials.clone(),
@@ -344,8 +356,14 @@ impl Hub {
             Event::Fault { reason, wording } => {
                 s.reason = Some(reason.clone());
                 s.reason_wording = wording.clone();
-                s.fault = true;
-                s.fault_acknowledged = None;
+                // An abort someone asked for ends the run safely: its banner
+                // says so (aborted), it is no fault to acknowledge; a stop
+                // not confirmed after it still is.
+                let asked = wording.as_ref().is_some_and(|w| w.key == "fault.aborted");
+                if !asked {
+                    s.fault = true;
+                    s.fault_acknowledged = None;
+                }
             }
             Event::RunFinished {
                 state: st,
@@ -359,7 +377,9 @@ impl Hub {
                 s.reason_wording = wording.clone();
                 s.prompt = None;
                 s.eta_s = None;
+                s.achieved = Some(spinbench_engine::planning::achieved(&state.records));
             }
+            Event::UnitResult { record } => state.records.push((**record).clone()),
             _ => {}
         }
     }

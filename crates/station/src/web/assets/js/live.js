@@ -47,8 +47,13 @@ export function connect() {
   on("prompt_answered", () => { $("prompt").hidden = true; });
   // A notice the station handled (a reading taken again) is no alarm: amber, gone at the next step.
   on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(bannerText("notice", m)); });
-  // A fault is: red, on every page, until someone acknowledges it.
-  on("fault", (e) => { const m = say(e.wording, e.reason); state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m)); });
+  // A fault is: red, on every page, until someone acknowledges it. An
+  // abort someone asked for is no fault: its banner says aborted.
+  on("fault", (e) => {
+    const m = say(e.wording, e.reason);
+    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(bannerText("aborted", m)); return; }
+    state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m));
+  });
   on("unit_failed", (e) => {
     const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
       { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
@@ -202,6 +207,7 @@ export async function refreshStatus() {
   $("resume-button").hidden = !(s.active && st === "paused");
   $("abort-button").hidden = !s.active;
   renderBoard(s.board);
+  renderPrediction(s.prediction, s.achieved);
   if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
   $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
     : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
@@ -217,6 +223,22 @@ export async function refreshStatus() {
   const eta = s.active && s.eta_s ? word("web.comma", ", ") + etaText(s.eta_s) : "";
   if (s.step) $("progress").textContent = stepText(s.step[0], s.step[1], s.step[2], s.step_wording)
     + (s.active && s.progress ? progressText(s.progress[0], s.progress[1], s.progress[2]) : "") + eta;
+}
+
+// The plan's prediction, and once the run ended what it achieved (issue 29).
+export function renderPrediction(p, a) {
+  const box = $("run-prediction");
+  if (!p) { box.hidden = true; return; }
+  const f = (v, d) => (v === null || v === undefined ? "—" : Number(v).toFixed(d));
+  const vars = {
+    u95: f(p.k2_u95_ug_per_g2, 3), time: f(p.centrifuge_time_s, 0),
+    achieved_u95: f(a && a.k2_u95_ug_per_g2, 3), achieved_time: f(a && a.centrifuge_time_s, 0),
+    published_u95: f(p.published_k2_u95_ug_per_g2, 3), published_time: f(p.published_centrifuge_time_s, 0),
+    runs: p.model_runs,
+  };
+  box.textContent = fill("web.run.prediction",
+    "plan prediction: K2 U95 " + vars.u95 + " µg/g² predicted, " + vars.achieved_u95 + " achieved (median); centrifuge time " + vars.time + " s predicted, " + vars.achieved_time + " s achieved; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (model from " + vars.runs + " run(s))", vars);
+  box.hidden = false;
 }
 
 export async function answer(proceed) {
