@@ -450,13 +450,17 @@ pub fn prediction_line(
     let shown =
         |v: Option<f64>, digits: usize| v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"));
     format!(
-        "Plan: predicted K2 U95 {:.3} µg/g² (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; model from {} run(s).",
+        "Plan: predicted K2 U95 {:.3} µg/g² (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; {}.",
         p.k2_u95_ug_per_g2,
         shown(a.k2_u95_ug_per_g2, 3),
         p.centrifuge_time_s,
         shown(a.centrifuge_time_s, 0),
         shown(p.published_k2_u95_ug_per_g2, 3),
         shown(p.published_centrifuge_time_s, 0),
-        p.model_runs
+        if p.model_runs == 0 {
+            "the station's model: the defaults of a station with no history (the typical bench's); it learns from each run".to_string()
+        } else {
+            format!("the station's model learned from {} run(s)", p.model_runs)
+        }
     )
 }
