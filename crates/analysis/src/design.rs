@@ -5,13 +5,18 @@
 //!
 //! **The station's model** ([`StationModel`], learned by
 //! [`StationModel::learn`] from the readings of past runs):
-//! * each instrument's noise, in µg: white σ_w (the scatter of a dwell's
-//!   one-second values, the Allan deviation at 1 s), a flicker floor σ_f and
-//!   a random walk q [µg²/s]. The last two come from the readings of one
-//!   level on the way up and on the way down against their time apart,
-//!   `E[d²] = 2·σ_w²/n + 2·σ_f² + q·Δt`, a least-squares line in Δt (a
-//!   level's hysteresis, which the reduction's pure error also holds, lands
-//!   in σ_f);
+//! * each instrument's noise, in µg: flicker σ_f and random walk q
+//!   [µg²/s] from the Allan deviation of its one-second values at rest
+//!   ([`allan_deviation`], fitted as `σ_A²(τ) = σ_w²/τ + σ_f² + q·τ/3` by
+//!   [`fit_allan`]), and white σ_w at the levels, the scatter of the
+//!   dwells' one-second values (it grows with the acceleration; the fit's
+//!   σ_w at rest is kept beside it); without values at rest, q from the
+//!   pairs below;
+//! * the level floor σ_h [µg]: what the readings of one level on the way up
+//!   and on the way down differ by beyond that noise (a level's hysteresis,
+//!   the table's repeatability — the reduction's pure error holds it too),
+//!   from `E[d²] = 2·σ_w²/n + 2·(σ_f² + σ_h²) + q·Δt`, a least-squares line
+//!   in their time apart Δt;
 //! * the table's settle time per level step, `s0 + s1·|Δg|` [s], from the
 //!   time between one reading's start and the next one's less the dwell;
 //! * the between-level scatter τ of K2's half-difference series (the model
@@ -28,8 +33,8 @@
 //!
 //! ```text
 //! var(K2) = Σ_ℓ G_ℓ²·(τ² + v_ℓ),   v_ℓ = ¼·σ_r²·(1/m_ℓ,P + 1/m_ℓ,N)
-//! σ_r² = σ_w²/n + σ_f² + q·T/6     (one reading; T the pass's time: a random
-//!                                   walk's variance about its mean over T)
+//! σ_r² = σ_w²/n + σ_f² + σ_h² + q·T/6   (one reading; T the pass's time: a
+//!                                        random walk's variance about its mean over T)
 //! U95 = t₀.₉₇₅(ν)·√var(K2),   ν = L − p (the model inadequacy's, as in the budget)
 //! ```
 //!
@@ -69,12 +74,23 @@ const PARAMETERS: usize = 4;
 /// The noise of one instrument's one-second values [µg].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct NoiseModel {
-    /// White noise: the Allan deviation at 1 s [µg].
+    /// White noise at the levels: the scatter of the dwells' one-second
+    /// values (the Allan deviation at 1 s of a white noise) [µg].
     pub white_ug: f64,
-    /// Flicker floor (with the levels' hysteresis) [µg].
+    /// White noise at rest, from the Allan fit [µg].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub white_at_rest_ug: Option<f64>,
+    /// Flicker: the Allan deviation's floor [µg].
     pub flicker_ug: f64,
     /// Random walk: variance growth [µg²/s].
     pub random_walk_ug2_per_s: f64,
+    /// What a level's readings up and down differ by beyond the noise
+    /// (hysteresis, the table's repeatability) [µg].
+    #[serde(default)]
+    pub level_floor_ug: f64,
+    /// Instrument-runs whose values at rest gave the Allan fit (0: none).
+    #[serde(default)]
+    pub at_rest_series: usize,
 }
 
 /// The station's model (module docs).
@@ -107,8 +123,11 @@ impl Default for StationModel {
         StationModel {
             noise: NoiseModel {
                 white_ug: 80.0,
-                flicker_ug: 250.0,
+                white_at_rest_ug: None,
+                flicker_ug: 0.0,
                 random_walk_ug2_per_s: 0.0,
+                level_floor_ug: 250.0,
+                at_rest_series: 0,
             },
             settle_s: 12.0,
             settle_s_per_g: 0.0,
@@ -210,6 +229,7 @@ pub fn predict(model: &StationModel, plan: &Candidate) -> Result<Prediction, Ana
     let noise = &model.noise;
     let reading_var = noise.white_ug.powi(2) / f64::from(plan.dwell_s)
         + noise.flicker_ug.powi(2)
+        + noise.level_floor_ug.powi(2)
         + noise.random_walk_ug2_per_s * time_s / 6.0;
     let design = lsq::polynomial_design(levels, PARAMETERS - 1);
     let op = lsq::solution_operator(&design, "plan design")?;
@@ -363,8 +383,10 @@ pub fn design(
 
 impl StationModel {
     /// Learn the model from past runs: per run, per instrument, its
-    /// readings (module docs). `None` when nothing could be learned.
-    pub fn learn(runs: &[Vec<Vec<Reading>>]) -> Option<StationModel> {
+    /// readings, and the instruments' one-second values at rest [µg], one
+    /// series per instrument-run (module docs). `None` when nothing could
+    /// be learned.
+    pub fn learn(runs: &[Vec<Vec<Reading>>], at_rest_ug: &[Vec<f64>]) -> Option<StationModel> {
         let mut whites = Vec::new();
         let mut pairs: Vec<(f64, f64)> = Vec::new(); // (Δt, d² − 2σ_w²/n)
         let mut steps: Vec<(f64, f64)> = Vec::new(); // (|Δg|, settle)
@@ -416,22 +438,55 @@ impl StationModel {
             return None;
         }
         let defaults = StationModel::default();
-        let (flicker_ug, random_walk) = line(&pairs).map_or(
+        // The Allan fits of the series at rest: the medians of their terms.
+        let fits: Vec<AllanFit> = at_rest_ug
+            .iter()
+            .filter_map(|series| fit_allan(&allan_deviation(series)))
+            .collect();
+        let term = |f: fn(&AllanFit) -> f64| {
+            let mut v: Vec<f64> = fits.iter().map(f).collect();
+            median(&mut v)
+        };
+        let allan = (!fits.is_empty()).then(|| {
             (
-                defaults.noise.flicker_ug,
+                term(|f| f.white_ug).unwrap_or(0.0),
+                term(|f| f.flicker_ug).unwrap_or(0.0),
+                term(|f| f.random_walk_ug2_per_s).unwrap_or(0.0),
+            )
+        });
+        // The pairs' floor beyond the noise, and their random walk.
+        let (pair_floor2, pair_walk) = line(&pairs).map_or(
+            (
+                defaults.noise.level_floor_ug.powi(2),
                 defaults.noise.random_walk_ug2_per_s,
             ),
-            |(a, b)| ((a.max(0.0) / 2.0).sqrt(), b.max(0.0)),
+            |(a, b)| (a.max(0.0) / 2.0, b.max(0.0)),
         );
         let (settle_s, settle_s_per_g) = line(&steps)
             .map_or((defaults.settle_s, defaults.settle_s_per_g), |(a, b)| {
                 (a.max(0.0), b.max(0.0))
             });
         Some(StationModel {
-            noise: NoiseModel {
-                white_ug: median(&mut whites).unwrap_or(defaults.noise.white_ug),
-                flicker_ug,
-                random_walk_ug2_per_s: random_walk,
+            noise: match allan {
+                // White noise as the levels see it (it grows with the
+                // acceleration: the dwells' scatter), else at rest; flicker
+                // and random walk need the long series at rest.
+                Some((white_at_rest_ug, flicker_ug, random_walk_ug2_per_s)) => NoiseModel {
+                    white_ug: median(&mut whites).unwrap_or(white_at_rest_ug),
+                    white_at_rest_ug: Some(white_at_rest_ug),
+                    flicker_ug,
+                    random_walk_ug2_per_s,
+                    level_floor_ug: (pair_floor2 - flicker_ug.powi(2)).max(0.0).sqrt(),
+                    at_rest_series: fits.len(),
+                },
+                None => NoiseModel {
+                    white_ug: median(&mut whites).unwrap_or(defaults.noise.white_ug),
+                    white_at_rest_ug: None,
+                    flicker_ug: 0.0,
+                    random_walk_ug2_per_s: pair_walk,
+                    level_floor_ug: pair_floor2.sqrt(),
+                    at_rest_series: 0,
+                },
             },
             settle_s,
             settle_s_per_g,
@@ -445,6 +500,95 @@ impl StationModel {
 
 fn one() -> f64 {
     1.0
+}
+
+/// The overlapping Allan deviation of one-second values [µg] at τ = 1, 2,
+/// 4, … s up to a quarter of the series: (τ [s], σ_A(τ) [µg]).
+pub fn allan_deviation(values_ug: &[f64]) -> Vec<(f64, f64)> {
+    let n = values_ug.len();
+    if values_ug.iter().any(|v| !v.is_finite()) {
+        return Vec::new();
+    }
+    let mut sum = vec![0.0; n + 1];
+    for (i, v) in values_ug.iter().enumerate() {
+        sum[i + 1] = sum[i] + v;
+    }
+    let mut out = Vec::new();
+    let mut m = 1usize;
+    while 4 * m <= n {
+        let mean = |k: usize| (sum[k + m] - sum[k]) / m as f64;
+        let count = n - 2 * m + 1;
+        let var = (0..count)
+            .map(|k| (mean(k + m) - mean(k)).powi(2))
+            .sum::<f64>()
+            / (2.0 * count as f64);
+        out.push((m as f64, var.sqrt()));
+        m *= 2;
+    }
+    out
+}
+
+/// The terms of an Allan fit [µg, µg, µg²/s].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AllanFit {
+    /// White: σ_A at 1 s of its term.
+    pub white_ug: f64,
+    /// Flicker floor.
+    pub flicker_ug: f64,
+    /// Random walk.
+    pub random_walk_ug2_per_s: f64,
+}
+
+/// Fit `σ_A²(τ) = w²/τ + f² + q·τ/3` to an Allan deviation (relative
+/// least squares, every term ≥ 0: the best of the fits of each subset of
+/// terms whose coefficients are all non-negative). `None` with fewer than
+/// three points.
+pub fn fit_allan(adev: &[(f64, f64)]) -> Option<AllanFit> {
+    let points: Vec<(f64, f64)> = adev
+        .iter()
+        .filter(|(t, s)| *t > 0.0 && s.is_finite() && *s > 0.0)
+        .map(|(t, s)| (*t, s * s))
+        .collect();
+    if points.len() < 3 {
+        return None;
+    }
+    let basis = |j: usize, tau: f64| match j {
+        0 => 1.0 / tau,
+        1 => 1.0,
+        _ => tau / 3.0,
+    };
+    let mut best: Option<([f64; 3], f64)> = None;
+    for mask in 1u8..8 {
+        let terms: Vec<usize> = (0..3).filter(|j| mask & (1 << j) != 0).collect();
+        // Rows scaled by 1/σ² (relative residuals).
+        let design = nalgebra::DMatrix::from_fn(points.len(), terms.len(), |i, c| {
+            basis(terms[c], points[i].0) / points[i].1
+        });
+        let y = vec![1.0; points.len()];
+        let Ok(fit) = lsq::solve(&design, &y, "Allan fit") else {
+            continue;
+        };
+        if fit
+            .coefficients
+            .iter()
+            .any(|c| !(c.is_finite() && *c >= 0.0))
+        {
+            continue;
+        }
+        let mut coef = [0.0; 3];
+        for (c, &j) in terms.iter().enumerate() {
+            coef[j] = fit.coefficients[c];
+        }
+        if best.as_ref().is_none_or(|(_, rss)| fit.stats.rss < *rss) {
+            best = Some((coef, fit.stats.rss));
+        }
+    }
+    let (c, _) = best?;
+    Some(AllanFit {
+        white_ug: c[0].sqrt(),
+        flicker_ug: c[1].sqrt(),
+        random_walk_ug2_per_s: c[2],
+    })
 }
 
 /// The median of the finite values; `None` without one.

@@ -48,15 +48,17 @@ pub fn readings(record: &UnitRecord) -> Vec<Reading> {
         .collect()
 }
 
-/// The station's model from past runs (each its plan and records), with
-/// its calibration: the median ratio of each run's achieved K2 U95 to its
-/// plan's prediction on the model learned (analysis::design).
-pub fn learn(runs: &[(TestPlan, Vec<UnitRecord>)]) -> Option<StationModel> {
+/// The station's model from past runs (each its plan and records) and
+/// the instruments' one-second values at rest [µg] (one series per
+/// instrument-run, [`at_rest_ug`]), with its calibration: the median ratio
+/// of each run's achieved K2 U95 to its plan's prediction on the model
+/// learned (analysis::design).
+pub fn learn(runs: &[(TestPlan, Vec<UnitRecord>)], at_rest: &[Vec<f64>]) -> Option<StationModel> {
     let readings: Vec<Vec<Vec<Reading>>> = runs
         .iter()
         .map(|(_, records)| records.iter().map(readings).collect())
         .collect();
-    let mut model = StationModel::learn(&readings)?;
+    let mut model = StationModel::learn(&readings, at_rest)?;
     let mut ratios: Vec<f64> = runs
         .iter()
         .filter_map(|(plan, records)| {
@@ -115,3 +117,55 @@ pub fn achieved<'a>(records: impl IntoIterator<Item = &'a UnitRecord>) -> Achiev
         centrifuge_time_s: time,
     }
 }
+
+/// One instrument's one-second values at rest [µg]: of its outputs [Hz]
+/// `values` (time [s], rate [deg/s], output), those with the table at rest
+/// (|rate| below [`AT_REST_DEG_S`]) in the longest run of consecutive
+/// seconds without a step ([`AT_REST_STEP_UG`]), over its mounting P fit's
+/// |k1| (else N's). Empty without a fit.
+pub fn at_rest_ug(record: &UnitRecord, values: &[(f64, f64, Option<f64>)]) -> Vec<f64> {
+    let Some(k1) = record.analysis.as_ref().and_then(|a| {
+        a.fits
+            .get(&Mount::P)
+            .or_else(|| a.fits.get(&Mount::N))
+            .map(|f| f.fit.k1.abs())
+    }) else {
+        return Vec::new();
+    };
+    if !(k1.is_finite() && k1 > 0.0) {
+        return Vec::new();
+    }
+    let (mut best, mut current): (Vec<f64>, Vec<f64>) = (Vec::new(), Vec::new());
+    let mut last_t = f64::NEG_INFINITY;
+    for &(t, rate, output) in values {
+        match output {
+            Some(hz) if rate.abs() < AT_REST_DEG_S && hz.is_finite() => {
+                let ug = hz / k1 * UG_PER_G;
+                // A gap in time, or a step (the instrument turned over for
+                // the tumble, remounted): a new segment.
+                let continues = t - last_t <= 1.5
+                    && current
+                        .last()
+                        .is_some_and(|prev| (ug - prev).abs() <= AT_REST_STEP_UG);
+                if !continues {
+                    current.clear();
+                }
+                current.push(ug);
+            }
+            _ => current.clear(),
+        }
+        last_t = t;
+        if current.len() > best.len() {
+            best = current.clone();
+        }
+    }
+    best
+}
+
+/// The table counts as at rest below this rate [deg/s] (0.1 deg/s on a
+/// 1 m arm is 3 µg).
+pub const AT_REST_DEG_S: f64 = 0.1;
+
+/// A change between two seconds at rest larger than this [µg] is a step
+/// (a position of the tumble, a remount), not noise: it starts a new segment.
+pub const AT_REST_STEP_UG: f64 = 10_000.0;

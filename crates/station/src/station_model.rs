@@ -50,6 +50,7 @@ pub fn learn_from(store: &Store, station: &str, runs: usize) -> Learned {
         Err(e) => return defaults(format!("the runs cannot be listed ({e})")),
     };
     let mut records = Vec::new();
+    let mut at_rest = Vec::new();
     for run in listed
         .iter()
         .filter(|r| r.station == station && r.state == "completed")
@@ -60,13 +61,25 @@ pub fn learn_from(store: &Store, station: &str, runs: usize) -> Learned {
                 serde_json::from_str::<spinbench_engine::TestPlan>(&c.plan_json).ok()
             });
         if let (Some(plan), Ok(results)) = (plan, store.results(&run.id)) {
-            records.push((
-                plan,
-                results.into_iter().map(|r| r.record).collect::<Vec<_>>(),
-            ));
+            let records_of_run: Vec<_> = results.into_iter().map(|r| r.record).collect();
+            // The one-second values at rest, per instrument (its noise's Allan deviation).
+            if let Ok(values) = store.values(&run.id) {
+                for record in &records_of_run {
+                    let own: Vec<(f64, f64, Option<f64>)> = values
+                        .iter()
+                        .filter(|v| v.slot == record.slot as i64)
+                        .map(|v| (v.t_s, v.rate_deg_s, v.output_hz))
+                        .collect();
+                    let series = spinbench_engine::planning::at_rest_ug(record, &own);
+                    if !series.is_empty() {
+                        at_rest.push(series);
+                    }
+                }
+            }
+            records.push((plan, records_of_run));
         }
     }
-    match spinbench_engine::planning::learn(&records) {
+    match spinbench_engine::planning::learn(&records, &at_rest) {
         Some(model) if model.runs > 0 => Learned {
             source: format!(
                 "learned from {} completed run(s) of station '{station}' ({} instrument-runs; achieved over predicted {:.2})",

@@ -7,8 +7,11 @@ fn model() -> StationModel {
     StationModel {
         noise: NoiseModel {
             white_ug: 50.0,
+            white_at_rest_ug: None,
             flicker_ug: 0.0,
             random_walk_ug2_per_s: 0.0,
+            level_floor_ug: 0.0,
+            at_rest_series: 0,
         },
         settle_s: 10.0,
         settle_s_per_g: 0.5,
@@ -162,7 +165,7 @@ fn the_model_is_learned_from_the_readings_of_past_runs() {
         }
         runs.push(units);
     }
-    let m = StationModel::learn(&runs).expect("learned");
+    let m = StationModel::learn(&runs, &[]).expect("learned");
     assert_eq!((m.runs, m.instruments), (4, 48));
     assert!((m.noise.white_ug - 50.0).abs() < 1.0, "{m:?}");
     assert!(
@@ -170,6 +173,59 @@ fn the_model_is_learned_from_the_readings_of_past_runs() {
         "{m:?}"
     );
     assert!((m.between_level_ug / 500.0 - 1.0).abs() < 0.25, "{m:?}");
-    assert!(m.noise.flicker_ug < 30.0, "{m:?}");
-    assert!(StationModel::learn(&[]).is_none());
+    assert!(m.noise.level_floor_ug < 30.0, "{m:?}");
+    assert!(StationModel::learn(&[], &[]).is_none());
+}
+
+#[test]
+fn the_noise_at_rest_is_read_from_its_allan_deviation() {
+    // White noise of 40 µg at 1 s plus a random walk of 4 µg²/s, 4,000 s
+    // at rest: the fit gives both back; white noise alone gives no walk.
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let white = Normal::new(0.0, 40.0).expect("normal");
+    let step = Normal::new(0.0, 2.0).expect("normal");
+    let mut walk = 0.0;
+    let series: Vec<f64> = (0..4000)
+        .map(|_| {
+            walk += step.sample(&mut rng);
+            walk + white.sample(&mut rng)
+        })
+        .collect();
+    let adev = allan_deviation(&series);
+    assert_eq!(adev.first().map(|p| p.0), Some(1.0));
+    assert_eq!(
+        adev.last().map(|p| p.0),
+        Some(512.0),
+        "τ up to a quarter of the series"
+    );
+    let fit = fit_allan(&adev).expect("fit");
+    assert!((fit.white_ug / 40.0 - 1.0).abs() < 0.15, "{fit:?}");
+    assert!(
+        (fit.random_walk_ug2_per_s / 4.0 - 1.0).abs() < 0.5,
+        "{fit:?}"
+    );
+    let quiet: Vec<f64> = (0..4000).map(|_| white.sample(&mut rng)).collect();
+    let fit = fit_allan(&allan_deviation(&quiet)).expect("fit");
+    assert!((fit.white_ug / 40.0 - 1.0).abs() < 0.1, "{fit:?}");
+    assert!(fit.random_walk_ug2_per_s < 0.05, "{fit:?}");
+    // Too short, or not a number: nothing.
+    assert!(fit_allan(&allan_deviation(&quiet[..8])).is_none());
+    assert!(allan_deviation(&[1.0, f64::NAN, 2.0, 3.0]).is_empty());
+    // The model takes its noise from the values at rest when it has them.
+    let reading = Reading {
+        mount: Mount::P,
+        g: 0.0,
+        down: false,
+        output_g: 0.0,
+        std_ug: 500.0,
+        n: 10,
+        time_s: [0.0, 9.0],
+    };
+    let m = StationModel::learn(&[vec![vec![reading]]], &[series]).expect("model");
+    assert_eq!(m.noise.at_rest_series, 1);
+    let at_rest = m.noise.white_at_rest_ug.expect("white at rest");
+    assert!((at_rest / 40.0 - 1.0).abs() < 0.15, "{m:?}");
+    // The levels' white noise is the dwells' scatter.
+    assert_eq!(m.noise.white_ug, 500.0);
+    assert!(m.noise.random_walk_ug2_per_s > 1.0, "{m:?}");
 }

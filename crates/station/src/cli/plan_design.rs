@@ -92,10 +92,22 @@ pub fn design(args: DesignArgs, out: &mut dyn Write) -> Result<()> {
     writeln!(out, "station '{station}': model {}", learned.source)?;
     writeln!(
         out,
-        "  noise (median instrument): white {:.1} µg at 1 s, flicker floor {:.1} µg, random walk {:.3} µg²/s\n  table: settle {:.1} s + {:.2} s/g per level step\n  between-level scatter of K2's half-difference (model inadequacy): {:.0} µg",
+        "  noise (median instrument; {}): white {:.1} µg at 1 s at the levels ({} at rest), flicker {:.1} µg, random walk {:.3} µg²/s; a level's readings up and down differ beyond it by {:.1} µg\n  table: settle {:.1} s + {:.2} s/g per level step\n  between-level scatter of K2's half-difference (model inadequacy): {:.0} µg",
+        if m.noise.at_rest_series > 0 {
+            format!(
+                "Allan deviation of {} instrument-runs' one-second values at rest",
+                m.noise.at_rest_series
+            )
+        } else {
+            "no values at rest: the dwells' scatter".to_string()
+        },
         m.noise.white_ug,
+        m.noise
+            .white_at_rest_ug
+            .map_or_else(|| "—".to_string(), |w| format!("{w:.1} µg")),
         m.noise.flicker_ug,
         m.noise.random_walk_ug2_per_s,
+        m.noise.level_floor_ug,
         m.settle_s,
         m.settle_s_per_g,
         m.between_level_ug
