@@ -1,0 +1,98 @@
+use super::*;
+use crate::model::ieee1293_output;
+use crate::points::infer_directions;
+
+/// Perfect data with a large k2; the descent runs 10 ppm faster (20 ppm more g).
+fn faster_descent(mount: Mount) -> UnitPoints {
+    let k = [0.01, 100.0, 300e-6, 0.5e-6];
+    let levels = [0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0];
+    let up = levels.iter().map(|&g| (g, 1.0));
+    let down = levels.iter().rev().skip(1).map(|&g| (g, 1.000_02));
+    let sign = mount.input_sign();
+    let mut points: Vec<Point> = up
+        .chain(down)
+        .map(|(g, scale)| Point {
+            mount,
+            g_nominal: g,
+            g_applied: sign * g * scale,
+            output: ieee1293_output(k, sign * g * scale),
+            direction: None,
+        })
+        .collect();
+    infer_directions(&mut points);
+    UnitPoints {
+        unit: "H".into(),
+        run: None,
+        points,
+    }
+}
+
+#[test]
+fn a_faster_descent_on_perfect_data_is_no_hysteresis() {
+    for mount in [Mount::P, Mount::N] {
+        let a = analyze_unit(&faster_descent(mount), AnalysisOptions::default()).expect("reduced");
+        let h = a.figures.hysteresis_ug.expect("hysteresis");
+        // With k1 alone this read 2·k2·a·Δa ≈ −59 µg at 70 g.
+        assert!(h.abs() < 0.1, "{mount}: {h} µg");
+    }
+}
+
+#[test]
+fn one_unit_that_cannot_be_reduced_holds_back_no_other() {
+    let good = faster_descent(Mount::P);
+    let bad = UnitPoints {
+        unit: "ONE-LEVEL".into(),
+        run: None,
+        points: good.points[..1].to_vec(),
+    };
+    let d = analyze_dataset(&[bad, good], AnalysisOptions::default());
+    assert_eq!(d.units.len(), 1);
+    assert_eq!(d.units[0].unit, "H");
+    assert_eq!(d.failed.len(), 1);
+    assert_eq!(d.failed[0].unit, "ONE-LEVEL");
+    assert!(d.failed[0].error.contains("level"), "{}", d.failed[0].error);
+}
+
+#[test]
+fn a_mounting_that_cannot_be_fitted_leaves_the_other_standing() {
+    let mut input = faster_descent(Mount::P);
+    let n = faster_descent(Mount::N);
+    // Two N readings: too few levels for a cubic.
+    input.points.extend(n.points.iter().take(2).copied());
+    let a = analyze_unit(&input, AnalysisOptions::default()).expect("P still reduced");
+    assert!(a.fits.contains_key(&Mount::P) && !a.fits.contains_key(&Mount::N));
+    assert!(
+        a.notes.iter().any(|n| n.contains("mounting N not reduced")),
+        "{:?}",
+        a.notes
+    );
+}
+
+#[test]
+fn the_budget_and_the_diagnostics_share_one_pure_error() {
+    let mut input = faster_descent(Mount::P);
+    for (i, p) in input.points.iter_mut().enumerate() {
+        p.output += 1e-3 * ((i * 7919) % 13) as f64;
+    }
+    let a = analyze_unit(&input, AnalysisOptions::default()).expect("reduced");
+    let fit = &a.fits[&Mount::P];
+    let dof_pe = fit
+        .diagnostics
+        .as_ref()
+        .and_then(|d| d.lack_of_fit.as_ref())
+        .map(|l| l.dof[1]);
+    let budget = fit
+        .uncertainty
+        .as_ref()
+        .and_then(|u| u.k2_ug_per_g2.as_ref())
+        .expect("budget");
+    let repeat = budget
+        .budget
+        .iter()
+        .find(|c| c.source == crate::uncertainty::Source::Repeatability)
+        .expect("repeatability");
+    assert!(repeat.u > 0.0);
+    // No drift term: the dof is the replicates' own (levels with two readings).
+    assert_eq!(dof_pe, Some(7));
+    assert_eq!(budget.dof_eff.map(|d| d.round() as usize), Some(7));
+}
