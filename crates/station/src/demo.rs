@@ -267,10 +267,7 @@ pub fn demo(
         plan.levels = Some(spinbench_engine::plan::LevelTable::List(levels));
     }
     if let Some(target) = plan_choice.target_k2_u95 {
-        plan.levels = Some(spinbench_engine::plan::LevelTable::Auto(
-            spinbench_engine::plan::AutoLevels::Auto,
-        ));
-        plan.target_k2_u95_ug_per_g2 = Some(target);
+        plan.set_target(target)?;
     }
     let plan_order = spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default();
     let arm_radius_m = sim.with_world(|w| w.config().centrifuge.arm_radius_m);

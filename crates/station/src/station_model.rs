@@ -64,13 +64,20 @@ pub fn learn_from(store: &Store, station: &str, runs: usize) -> Learned {
             let records_of_run: Vec<_> = results.into_iter().map(|r| r.record).collect();
             // The one-second values at rest, per instrument (its noise's Allan deviation).
             if let Ok(values) = store.values(&run.id) {
+                // The run's values by slot, once (they come by time, then slot).
+                let mut by_slot: std::collections::BTreeMap<i64, Vec<(f64, f64, Option<f64>)>> =
+                    Default::default();
+                for v in values {
+                    by_slot
+                        .entry(v.slot)
+                        .or_default()
+                        .push((v.t_s, v.rate_deg_s, v.output_hz));
+                }
                 for record in &records_of_run {
-                    let own: Vec<(f64, f64, Option<f64>)> = values
-                        .iter()
-                        .filter(|v| v.slot == record.slot as i64)
-                        .map(|v| (v.t_s, v.rate_deg_s, v.output_hz))
-                        .collect();
-                    let series = spinbench_engine::planning::at_rest_ug(record, &own);
+                    let own = by_slot
+                        .get(&(record.slot as i64))
+                        .map_or(&[][..], Vec::as_slice);
+                    let series = spinbench_engine::planning::at_rest_ug(record, own);
                     if !series.is_empty() {
                         at_rest.push(series);
                     }

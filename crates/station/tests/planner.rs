@@ -43,7 +43,7 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
         "{doc}"
     );
     // Two runs on the typical virtual bench: the model learns from them.
-    for _ in 0..2 {
+    let run_plan = |plan: &std::path::Path| {
         let (ok, said, err) = spinbench(&[
             "run",
             "--simulate",
@@ -52,9 +52,12 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
             "--quiet",
             "--data",
             data_s,
-            short.to_str().expect("utf-8"),
+            plan.to_str().expect("utf-8"),
         ]);
         assert!(ok, "{said}{err}");
+    };
+    for _ in 0..2 {
+        run_plan(&short);
     }
     let (ok, said, err) = design("1000");
     assert!(ok, "{said}{err}");
@@ -110,17 +113,7 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
     let auto = dir.path().join("auto.toml");
     let text = format!("levels = \"auto\"\ntarget_k2_u95_ug_per_g2 = {published}\n{to_30}");
     std::fs::write(&auto, text).expect("plan");
-    let (ok, said, err) = spinbench(&[
-        "run",
-        "--simulate",
-        "--realism",
-        "typical",
-        "--quiet",
-        "--data",
-        data_s,
-        auto.to_str().expect("utf-8"),
-    ]);
-    assert!(ok, "{said}{err}");
+    run_plan(&auto);
     let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::File(
         data.join("spinbench.db"),
     ))

@@ -553,6 +553,17 @@ impl TestPlan {
         }
     }
 
+    /// Ask for the levels to be designed for `target` [µg/g²] (`levels =
+    /// "auto"` with `target_k2_u95_ug_per_g2`, any earlier prediction
+    /// dropped): the command line's `--target-k2-u95` and the web's target
+    /// field, checked against the plan's bounds.
+    pub fn set_target(&mut self, target_k2_u95_ug_per_g2: f64) -> Result<(), PlanError> {
+        self.levels = Some(LevelTable::Auto(AutoLevels::Auto));
+        self.target_k2_u95_ug_per_g2 = Some(target_k2_u95_ug_per_g2);
+        self.prediction = None;
+        self.validate()
+    }
+
     /// Whether the levels are still to be designed (`levels = "auto"`).
     pub fn is_auto(&self) -> bool {
         matches!(self.levels, Some(LevelTable::Auto(_)))

@@ -4,7 +4,7 @@
 //! prediction. Nothing moves.
 
 use anyhow::{Context, Result, bail};
-use spinbench_engine::plan::{LevelTable, TestPlan};
+use spinbench_engine::plan::TestPlan;
 use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::Path;
@@ -59,14 +59,10 @@ pub fn design(args: DesignArgs, out: &mut dyn Write) -> Result<()> {
             ..TestPlan::default()
         },
     };
-    if let Some(t) = args.target_k2_u95 {
-        plan.target_k2_u95_ug_per_g2 = Some(t);
-    }
-    if plan.target_k2_u95_ug_per_g2.is_none() {
+    let Some(target) = args.target_k2_u95.or(plan.target_k2_u95_ug_per_g2) else {
         bail!("no target: give --target-k2-u95 (µg/g²), or a --plan with target_k2_u95_ug_per_g2");
-    }
-    plan.levels = Some(LevelTable::Auto(spinbench_engine::plan::AutoLevels::Auto));
-    plan.prediction = None;
+    };
+    plan.set_target(target)?;
     let station = station_name(&args)?;
     let learned = crate::station_model::learn(args.db, &station, args.runs);
     let designed = plan.designed(&learned.model)?;

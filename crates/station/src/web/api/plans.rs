@@ -127,12 +127,8 @@ pub(super) async fn design_plan(
     let text = std::fs::read_to_string(&path)
         .map_err(|_| ApiError::not_found(format!("no plan named '{name}' (GET /api/plans)")))?;
     let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
-    plan.levels = Some(spinbench_engine::plan::LevelTable::Auto(
-        spinbench_engine::plan::AutoLevels::Auto,
-    ));
-    plan.target_k2_u95_ug_per_g2 = Some(ask.target_k2_u95_ug_per_g2);
-    plan.prediction = None;
-    plan.validate().map_err(|e| ApiError::bad(e.to_string()))?;
+    plan.set_target(ask.target_k2_u95_ug_per_g2)
+        .map_err(|e| ApiError::bad(e.to_string()))?;
     let station = app.runner.station().0.station;
     let learned = blocking(&app, move |app| {
         Ok(crate::station_model::learn_from(

@@ -49,12 +49,8 @@ pub(super) async fn start_run(
     }
     plan.operator = session.user.clone();
     if let Some(target) = start.target_k2_u95_ug_per_g2 {
-        plan.levels = Some(spinbench_engine::plan::LevelTable::Auto(
-            spinbench_engine::plan::AutoLevels::Auto,
-        ));
-        plan.target_k2_u95_ug_per_g2 = Some(target);
-        plan.prediction = None;
-        plan.validate().map_err(|e| ApiError::bad(e.to_string()))?;
+        plan.set_target(target)
+            .map_err(|e| ApiError::bad(e.to_string()))?;
     }
     if plan.retest_of.is_some() {
         let checked = plan.clone();
