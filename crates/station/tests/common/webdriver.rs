@@ -167,7 +167,18 @@ impl Browser {
             if self.script(script) == Value::Bool(true) {
                 return;
             }
-            assert!(Instant::now() < until, "waited {seconds} s for {what}");
+            if Instant::now() >= until {
+                // What the page showed, so a failure on CI can be read
+                // without its screenshots.
+                let shown = self.script(
+                    "return [...document.querySelectorAll('section:not([hidden]), #alarm, #message')]\
+                     .map((e) => '[' + e.id + '] ' + e.innerText).join('\\n').slice(0, 4000)",
+                );
+                panic!(
+                    "waited {seconds} s for {what}; the page showed:\n{}",
+                    shown.as_str().unwrap_or_default()
+                );
+            }
             std::thread::sleep(Duration::from_millis(100));
         }
     }

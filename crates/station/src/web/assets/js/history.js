@@ -47,9 +47,18 @@ export function runName(r) {
   return r.label && r.label !== r.id ? r.label + " (" + r.id + ")" : r.id;
 }
 
+// The run the History page shows; a run still recorded as running is read
+// again every 2 s while it is shown, so its end (stored a moment after the
+// board says so) and its retest offer appear without a reload.
+let shownRun = null;
+
 export async function showRun(id) {
+  shownRun = id;
   try {
     const r = await api("GET", "/api/runs/" + encodeURIComponent(id));
+    if (r.state === "running") {
+      setTimeout(() => { if (shownRun === id && !$("history").hidden) showRun(id); }, 2000);
+    }
     const box = $("run-detail");
     box.textContent = "";
     const h = document.createElement("h3"); h.textContent = word("web.run.title", "Run") + " " + runName(r) + " — " + stateWord(r.state); box.appendChild(h);
