@@ -58,7 +58,9 @@ use crate::lsq;
 use crate::model::student_t_975;
 use crate::points::Mount;
 use crate::{AnalysisError, UG_PER_G};
+pub use allan::{AllanFit, allan_deviation, fit_allan};
 use serde::{Deserialize, Serialize};
+pub use spread::{MIN_SPREAD_INSTRUMENTS, RUN_RANGE_PROBABILITY, run_median_range};
 
 /// Fewest levels from 0 to the range (method.md §3.3).
 pub const MIN_LEVELS: usize = 6;
@@ -104,6 +106,12 @@ pub struct StationModel {
     pub settle_s_per_g: f64,
     /// Between-level scatter τ of K2's half-difference series [µg] (median).
     pub between_level_ug: f64,
+    /// The instruments' τ [µg] at 0, 10, … 100 % of their distribution
+    /// (learned from at least [`MIN_SPREAD_INSTRUMENTS`] instrument-runs;
+    /// none for the defaults): what a run's median K2 U95 may come out at
+    /// ([`run_median_range`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub between_level_deciles_ug: Option<[f64; 11]>,
     /// Achieved over predicted K2 U95, the median over the runs learned
     /// from (each run's plan predicted again on this model): the budget
     /// reads a sparse anomaly through its jackknife over levels, not as the
@@ -132,6 +140,7 @@ impl Default for StationModel {
             settle_s: 12.0,
             settle_s_per_g: 0.0,
             between_level_ug: 600.0,
+            between_level_deciles_ug: None,
             calibration: 1.0,
             runs: 0,
             instruments: 0,
@@ -202,59 +211,84 @@ pub struct Prediction {
 
 /// Predict a plan's K2 U95 and centrifuge time with `model` (module docs).
 pub fn predict(model: &StationModel, plan: &Candidate) -> Result<Prediction, AnalysisError> {
-    let levels = &plan.levels_g;
-    if levels.len() < PARAMETERS + 1 || plan.dwell_s == 0 {
-        return Err(AnalysisError::InvalidInput(format!(
-            "a plan of {} levels and a {} s dwell cannot be predicted: at least {} levels and 1 s",
-            levels.len(),
-            plan.dwell_s,
-            PARAMETERS + 1
-        )));
-    }
-    let sequence = plan.sequence();
-    let mut time_s = 0.0;
-    for (i, g) in sequence.iter().enumerate() {
-        let step = if i == 0 {
-            0.0
-        } else {
-            (g - sequence[i - 1]).abs()
-        };
-        let settle = if i == 0 {
-            0.0
-        } else {
-            model.settle_s + model.settle_s_per_g * step
-        };
-        time_s += settle + f64::from(plan.dwell_s);
-    }
-    let noise = &model.noise;
-    let reading_var = noise.white_ug.powi(2) / f64::from(plan.dwell_s)
-        + noise.flicker_ug.powi(2)
-        + noise.level_floor_ug.powi(2)
-        + noise.random_walk_ug2_per_s * time_s / 6.0;
-    let design = lsq::polynomial_design(levels, PARAMETERS - 1);
-    let op = lsq::solution_operator(&design, "plan design")?;
-    let tau2 = model.between_level_ug.powi(2);
-    let mut var = 0.0;
-    for (l, g) in levels.iter().enumerate() {
-        let m = if plan.down_levels_g.contains(g) {
-            2.0
+    let terms = K2Terms::of(model, plan)?;
+    Ok(Prediction {
+        k2_u95_ug_per_g2: terms.u95(model.between_level_ug),
+        centrifuge_time_s: terms.pass_time_s * plan.passes as f64,
+    })
+}
+
+/// A plan's K2 variance as a function of the between-level τ (module
+/// docs): `var(K2) = τ²·Σ G_ℓ² + Σ G_ℓ²·v_ℓ`.
+struct K2Terms {
+    /// Σ G_ℓ² [1/g⁴].
+    sensitivity2: f64,
+    /// Σ G_ℓ²·v_ℓ [µg²/g⁴].
+    readings_var: f64,
+    /// t₀.₉₇₅(L − p) times the model's calibration.
+    factor: f64,
+    /// Centrifuge time of one pass [s].
+    pass_time_s: f64,
+}
+
+impl K2Terms {
+    fn of(model: &StationModel, plan: &Candidate) -> Result<K2Terms, AnalysisError> {
+        let levels = &plan.levels_g;
+        if levels.len() < PARAMETERS + 1 || plan.dwell_s == 0 {
+            return Err(AnalysisError::InvalidInput(format!(
+                "a plan of {} levels and a {} s dwell cannot be predicted: at least {} levels and 1 s",
+                levels.len(),
+                plan.dwell_s,
+                PARAMETERS + 1
+            )));
+        }
+        let sequence = plan.sequence();
+        let mut time_s = 0.0;
+        for (i, g) in sequence.iter().enumerate() {
+            let settle = if i == 0 {
+                0.0
+            } else {
+                model.settle_s + model.settle_s_per_g * (g - sequence[i - 1]).abs()
+            };
+            time_s += settle + f64::from(plan.dwell_s);
+        }
+        let noise = &model.noise;
+        let reading_var = noise.white_ug.powi(2) / f64::from(plan.dwell_s)
+            + noise.flicker_ug.powi(2)
+            + noise.level_floor_ug.powi(2)
+            + noise.random_walk_ug2_per_s * time_s / 6.0;
+        let design = lsq::polynomial_design(levels, PARAMETERS - 1);
+        let op = lsq::solution_operator(&design, "plan design")?;
+        let (mut sensitivity2, mut readings_var) = (0.0, 0.0);
+        for (l, g) in levels.iter().enumerate() {
+            let m = if plan.down_levels_g.contains(g) {
+                2.0
+            } else {
+                1.0
+            };
+            // The series is in µg against g: its quadratic coefficient is K2 in µg/g².
+            let g2 = op[(2, l)].powi(2);
+            sensitivity2 += g2;
+            readings_var += g2 * 0.25 * reading_var * (2.0 / m);
+        }
+        let t = student_t_975(levels.len() - PARAMETERS).unwrap_or(1.96);
+        let calibration = if model.calibration.is_finite() && model.calibration > 0.0 {
+            model.calibration
         } else {
             1.0
         };
-        let v = 0.25 * reading_var * (2.0 / m);
-        var += op[(2, l)].powi(2) * (tau2 + v);
+        Ok(K2Terms {
+            sensitivity2,
+            readings_var,
+            factor: calibration * t,
+            pass_time_s: time_s,
+        })
     }
-    // The series is in µg against g: its quadratic coefficient is K2 in µg/g².
-    let t = student_t_975(levels.len() - PARAMETERS).unwrap_or(1.96);
-    let calibration = if model.calibration.is_finite() && model.calibration > 0.0 {
-        model.calibration
-    } else {
-        1.0
-    };
-    Ok(Prediction {
-        k2_u95_ug_per_g2: calibration * t * var.sqrt(),
-        centrifuge_time_s: time_s * plan.passes as f64,
-    })
+
+    /// K2 U95 of an instrument whose between-level scatter is `tau_ug` [µg/g²].
+    fn u95(&self, tau_ug: f64) -> f64 {
+        self.factor * (tau_ug.powi(2) * self.sensitivity2 + self.readings_var).sqrt()
+    }
 }
 
 /// A designed plan with its prediction.
@@ -490,6 +524,7 @@ impl StationModel {
             },
             settle_s,
             settle_s_per_g,
+            between_level_deciles_ug: spread::deciles(&taus),
             between_level_ug: median(&mut taus).unwrap_or(defaults.between_level_ug),
             calibration: 1.0,
             runs: runs.len(),
@@ -500,95 +535,6 @@ impl StationModel {
 
 fn one() -> f64 {
     1.0
-}
-
-/// The overlapping Allan deviation of one-second values [µg] at τ = 1, 2,
-/// 4, … s up to a quarter of the series: (τ [s], σ_A(τ) [µg]).
-pub fn allan_deviation(values_ug: &[f64]) -> Vec<(f64, f64)> {
-    let n = values_ug.len();
-    if values_ug.iter().any(|v| !v.is_finite()) {
-        return Vec::new();
-    }
-    let mut sum = vec![0.0; n + 1];
-    for (i, v) in values_ug.iter().enumerate() {
-        sum[i + 1] = sum[i] + v;
-    }
-    let mut out = Vec::new();
-    let mut m = 1usize;
-    while 4 * m <= n {
-        let mean = |k: usize| (sum[k + m] - sum[k]) / m as f64;
-        let count = n - 2 * m + 1;
-        let var = (0..count)
-            .map(|k| (mean(k + m) - mean(k)).powi(2))
-            .sum::<f64>()
-            / (2.0 * count as f64);
-        out.push((m as f64, var.sqrt()));
-        m *= 2;
-    }
-    out
-}
-
-/// The terms of an Allan fit [µg, µg, µg²/s].
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct AllanFit {
-    /// White: σ_A at 1 s of its term.
-    pub white_ug: f64,
-    /// Flicker floor.
-    pub flicker_ug: f64,
-    /// Random walk.
-    pub random_walk_ug2_per_s: f64,
-}
-
-/// Fit `σ_A²(τ) = w²/τ + f² + q·τ/3` to an Allan deviation (relative
-/// least squares, every term ≥ 0: the best of the fits of each subset of
-/// terms whose coefficients are all non-negative). `None` with fewer than
-/// three points.
-pub fn fit_allan(adev: &[(f64, f64)]) -> Option<AllanFit> {
-    let points: Vec<(f64, f64)> = adev
-        .iter()
-        .filter(|(t, s)| *t > 0.0 && s.is_finite() && *s > 0.0)
-        .map(|(t, s)| (*t, s * s))
-        .collect();
-    if points.len() < 3 {
-        return None;
-    }
-    let basis = |j: usize, tau: f64| match j {
-        0 => 1.0 / tau,
-        1 => 1.0,
-        _ => tau / 3.0,
-    };
-    let mut best: Option<([f64; 3], f64)> = None;
-    for mask in 1u8..8 {
-        let terms: Vec<usize> = (0..3).filter(|j| mask & (1 << j) != 0).collect();
-        // Rows scaled by 1/σ² (relative residuals).
-        let design = nalgebra::DMatrix::from_fn(points.len(), terms.len(), |i, c| {
-            basis(terms[c], points[i].0) / points[i].1
-        });
-        let y = vec![1.0; points.len()];
-        let Ok(fit) = lsq::solve(&design, &y, "Allan fit") else {
-            continue;
-        };
-        if fit
-            .coefficients
-            .iter()
-            .any(|c| !(c.is_finite() && *c >= 0.0))
-        {
-            continue;
-        }
-        let mut coef = [0.0; 3];
-        for (c, &j) in terms.iter().enumerate() {
-            coef[j] = fit.coefficients[c];
-        }
-        if best.as_ref().is_none_or(|(_, rss)| fit.stats.rss < *rss) {
-            best = Some((coef, fit.stats.rss));
-        }
-    }
-    let (c, _) = best?;
-    Some(AllanFit {
-        white_ug: c[0].sqrt(),
-        flicker_ug: c[1].sqrt(),
-        random_walk_ug2_per_s: c[2],
-    })
 }
 
 /// The median of the finite values; `None` without one.
@@ -682,5 +628,7 @@ fn between_level_ug(unit: &[Reading]) -> Option<f64> {
     Some(tau2.sqrt() * UG_PER_G)
 }
 
+mod allan;
+mod spread;
 #[cfg(test)]
 mod tests;

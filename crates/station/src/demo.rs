@@ -446,8 +446,16 @@ pub fn prediction_line(
 ) -> String {
     let shown =
         |v: Option<f64>, digits: usize| v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"));
+    let range = p
+        .k2_u95_run_range_ug_per_g2
+        .map_or_else(String::new, |[low, high]| {
+            format!(
+                " (the run's median with {:.0} % probability in {low:.3}–{high:.3})",
+                100.0 * spinbench_analysis::design::RUN_RANGE_PROBABILITY
+            )
+        });
     format!(
-        "Plan: predicted K2 U95 {:.3} µg/g² (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; {}.",
+        "Plan: predicted K2 U95 {:.3} µg/g²{range} (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; {}.",
         p.k2_u95_ug_per_g2,
         shown(a.k2_u95_ug_per_g2, 3),
         p.centrifuge_time_s,

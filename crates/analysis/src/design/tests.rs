@@ -16,6 +16,7 @@ fn model() -> StationModel {
         settle_s: 10.0,
         settle_s_per_g: 0.5,
         between_level_ug: 1_000.0,
+        between_level_deciles_ug: None,
         calibration: 1.0,
         runs: 0,
         instruments: 0,

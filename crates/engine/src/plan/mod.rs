@@ -16,6 +16,7 @@
 //! ```
 
 mod compile;
+mod designed;
 #[cfg(test)]
 mod tests;
 mod validate;
@@ -146,6 +147,11 @@ pub struct PlanPrediction {
     /// The target, when the plan was designed [µg/g²].
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_k2_u95_ug_per_g2: Option<f64>,
+    /// The range the run's median K2 U95 falls in with probability
+    /// [`spinbench_analysis::design::RUN_RANGE_PROBABILITY`] (its
+    /// instruments' anomalies differ; none without a learned spread) [µg/g²].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k2_u95_run_range_ug_per_g2: Option<[f64; 2]>,
     /// Runs the station's model was learned from (0: the defaults of a station with no history).
     pub model_runs: usize,
 }
@@ -551,130 +557,5 @@ impl TestPlan {
             Some(LevelTable::List(l)) => l.clone(),
             _ => points::published_levels(self.range_g),
         }
-    }
-
-    /// Ask for the levels to be designed for `target` [µg/g²] (`levels =
-    /// "auto"` with `target_k2_u95_ug_per_g2`, any earlier prediction
-    /// dropped): the command line's `--target-k2-u95` and the web's target
-    /// field, checked against the plan's bounds.
-    pub fn set_target(&mut self, target_k2_u95_ug_per_g2: f64) -> Result<(), PlanError> {
-        self.levels = Some(LevelTable::Auto(AutoLevels::Auto));
-        self.target_k2_u95_ug_per_g2 = Some(target_k2_u95_ug_per_g2);
-        self.prediction = None;
-        self.validate()
-    }
-
-    /// Whether the levels are still to be designed (`levels = "auto"`).
-    pub fn is_auto(&self) -> bool {
-        matches!(self.levels, Some(LevelTable::Auto(_)))
-    }
-
-    /// The order in which each pass visits the levels: up, then down
-    /// through `down_levels` (every level when absent), or up only.
-    pub fn level_sequence(&self) -> Vec<f64> {
-        let levels = self.level_table();
-        if !self.up_down {
-            return levels;
-        }
-        match &self.down_levels {
-            None => points::up_down(&levels),
-            Some(down) => {
-                let mut down = down.clone();
-                down.sort_by(|a, b| b.total_cmp(a));
-                levels.into_iter().chain(down).collect()
-            }
-        }
-    }
-
-    /// The plan as the prediction sees it.
-    pub fn candidate(&self) -> spinbench_analysis::design::Candidate {
-        let levels = self.level_table();
-        let top = levels.last().copied().unwrap_or(0.0);
-        let down = if !self.up_down {
-            Vec::new()
-        } else {
-            self.down_levels
-                .clone()
-                .unwrap_or_else(|| levels.iter().copied().filter(|g| *g < top).collect())
-        };
-        spinbench_analysis::design::Candidate {
-            levels_g: levels,
-            down_levels_g: down,
-            dwell_s: self.dwell.seconds,
-            passes: self.passes.len().max(1),
-        }
-    }
-
-    /// The plan with its prediction from the station's `model`; with
-    /// `levels = "auto"` first designed (the levels, the readings on the
-    /// way down and a fixed dwell of least predicted time for
-    /// `target_k2_u95_ug_per_g2`; every level read on the way down when
-    /// the plan limits the hysteresis). A target the station cannot reach
-    /// is refused, saying what it can reach, before anything moves.
-    pub fn designed(
-        &self,
-        model: &spinbench_analysis::design::StationModel,
-    ) -> Result<TestPlan, PlanError> {
-        use spinbench_analysis::design;
-        let err = |key: &str, problem: String| PlanError {
-            key: key.into(),
-            problem,
-        };
-        self.validate()?;
-        let mut plan = self.clone();
-        if self.is_auto() {
-            if self.order != 3 {
-                return Err(err(
-                    "levels",
-                    format!(
-                        "\"auto\" designs for K2 of the cubic model (order = 3), not order {}",
-                        self.order
-                    ),
-                ));
-            }
-            let target = self.target_k2_u95_ug_per_g2.ok_or_else(|| {
-                err(
-                    "levels",
-                    "\"auto\" needs target_k2_u95_ug_per_g2, the K2 U95 to reach [µg/g²]".into(),
-                )
-            })?;
-            let hysteresis = self.limits.hysteresis_max_ug.is_some();
-            let found = design::design(
-                model,
-                target,
-                self.range_g,
-                self.passes.len().max(1),
-                hysteresis,
-            )
-            .map_err(|e| err("levels", e.to_string()))?
-            .map_err(|e| err("target_k2_u95_ug_per_g2", e.to_string()))?;
-            plan.levels = Some(LevelTable::List(found.plan.levels_g.clone()));
-            plan.up_down = true;
-            plan.down_levels = Some(found.plan.down_levels_g.clone());
-            plan.dwell.seconds = found.plan.dwell_s;
-            plan.dwell.sem_target_ug = None;
-        }
-        // A plan the prediction cannot fit (too few levels, a model below
-        // the cubic) runs without one; its compilation says what is wrong.
-        let published = design::predict(
-            model,
-            &design::Candidate::published(
-                &points::published_levels(self.range_g),
-                self.passes.len().max(1),
-            ),
-        )
-        .ok();
-        plan.prediction = design::predict(model, &plan.candidate())
-            .ok()
-            .filter(|_| self.order == 3)
-            .map(|predicted| PlanPrediction {
-                k2_u95_ug_per_g2: predicted.k2_u95_ug_per_g2,
-                centrifuge_time_s: predicted.centrifuge_time_s,
-                published_k2_u95_ug_per_g2: published.map(|p| p.k2_u95_ug_per_g2),
-                published_centrifuge_time_s: published.map(|p| p.centrifuge_time_s),
-                target_k2_u95_ug_per_g2: self.target_k2_u95_ug_per_g2,
-                model_runs: model.runs,
-            });
-        Ok(plan)
     }
 }

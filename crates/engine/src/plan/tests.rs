@@ -391,3 +391,52 @@ fn down_levels_choose_the_readings_on_the_way_down() {
         assert!(e.problem.contains(why), "{bad}: {e}");
     }
 }
+
+#[test]
+fn a_prediction_gives_the_range_of_a_runs_median_for_its_number_of_instruments() {
+    use spinbench_analysis::design::StationModel;
+    // A station that learned from 10 runs of 12 instruments, their τ spread
+    // from 0 to 2,000 µg.
+    let model = StationModel {
+        between_level_deciles_ug: Some(std::array::from_fn(|i| 200.0 * i as f64)),
+        between_level_ug: 1_000.0,
+        runs: 10,
+        instruments: 120,
+        ..StationModel::default()
+    };
+    let range_of = |serials: usize| {
+        let mut text = String::from("passes = [\"P\", \"N\"]\n[serials]\n");
+        for s in 1..=serials {
+            text.push_str(&format!("{s} = \"S{s}\"\n"));
+        }
+        let p = TestPlan::from_toml(&text)
+            .expect("plan")
+            .designed(&model)
+            .expect("predicted")
+            .prediction
+            .expect("prediction");
+        let [low, high] = p
+            .k2_u95_run_range_ug_per_g2
+            .expect("a learned spread gives a range");
+        assert!(
+            low < p.k2_u95_ug_per_g2 && p.k2_u95_ug_per_g2 < high,
+            "{p:?}"
+        );
+        high - low
+    };
+    let (one, twelve, unnamed) = (range_of(1), range_of(12), range_of(0));
+    assert!(
+        twelve < one,
+        "12 instruments' median scatters less than one: {twelve} vs {one}"
+    );
+    // No serials: a run the size of the station's past runs (12).
+    assert!((unnamed - twelve).abs() < 1e-9, "{unnamed} vs {twelve}");
+    // The defaults (no history) give no range.
+    let p = TestPlan::from_toml("[serials]\n1 = \"A\"")
+        .expect("plan")
+        .designed(&StationModel::default())
+        .expect("predicted")
+        .prediction
+        .expect("prediction");
+    assert_eq!(p.k2_u95_run_range_ug_per_g2, None);
+}

@@ -223,6 +223,17 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
         let shown = |v: Option<f64>, digits: usize| {
             v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"))
         };
+        let range = p
+            .k2_u95_run_range_ug_per_g2
+            .map_or_else(String::new, |[low, high]| {
+                rust_i18n::t!(
+                    "report.prediction_range",
+                    low = format!("{low:.3}"),
+                    high = format!("{high:.3}"),
+                    locale = lang.code()
+                )
+                .into_owned()
+            });
         rows.push((
             "prediction",
             rust_i18n::t!(
@@ -236,7 +247,8 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
                 runs = p.model_runs,
                 locale = lang.code()
             )
-            .into_owned(),
+            .into_owned()
+                + &range,
         ));
     }
     rows

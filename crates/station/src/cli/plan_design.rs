@@ -129,6 +129,15 @@ pub fn design(args: DesignArgs, out: &mut dyn Write) -> Result<()> {
         "{:<22} {:>12.3} µg/g² {:>18.0} s",
         "designed plan", prediction.k2_u95_ug_per_g2, prediction.centrifuge_time_s
     )?;
+    if let Some([low, high]) = prediction.k2_u95_run_range_ug_per_g2 {
+        writeln!(
+            out,
+            "{:<22} {:>12} µg/g²   a run's median K2 U95 with {:.0} % probability (its instruments' anomalies differ)",
+            "",
+            format!("{low:.3}–{high:.3}"),
+            100.0 * spinbench_analysis::design::RUN_RANGE_PROBABILITY,
+        )?;
+    }
     match (
         prediction.published_k2_u95_ug_per_g2,
         prediction.published_centrifuge_time_s,

@@ -150,6 +150,7 @@ pub(super) async fn design_plan(
         down_levels_g: designed.down_levels.clone().unwrap_or_default(),
         dwell_s: designed.dwell.seconds,
         k2_u95_ug_per_g2: p.k2_u95_ug_per_g2,
+        k2_u95_run_range_ug_per_g2: p.k2_u95_run_range_ug_per_g2,
         centrifuge_time_s: p.centrifuge_time_s,
         published_k2_u95_ug_per_g2: p.published_k2_u95_ug_per_g2,
         published_centrifuge_time_s: p.published_centrifuge_time_s,

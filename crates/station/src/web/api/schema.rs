@@ -199,6 +199,9 @@ pub struct DesignReply {
     pub dwell_s: u32,
     /// Predicted K2 U95 of the median instrument [µg/g²].
     pub k2_u95_ug_per_g2: f64,
+    /// The range a run's median K2 U95 falls in with 80 % probability
+    /// [µg/g²] (none before the station has learned its instruments' spread).
+    pub k2_u95_run_range_ug_per_g2: Option<[f64; 2]>,
     /// Predicted centrifuge time of the level steps [s].
     pub centrifuge_time_s: f64,
     /// The published plan's predicted K2 U95 [µg/g²] (none when its levels to the range are too few).

@@ -225,6 +225,14 @@ export async function refreshStatus() {
     + (s.active && s.progress ? progressText(s.progress[0], s.progress[1], s.progress[2]) : "") + eta;
 }
 
+// Where a run's median K2 U95 falls with 80 % probability ("" before the
+// station has learned its instruments' spread).
+export function predictionRange(range) {
+  if (!range) return "";
+  const vars = { low: Number(range[0]).toFixed(3), high: Number(range[1]).toFixed(3) };
+  return fill("web.run.prediction_range", "; the run's median K2 U95 with 80 % probability in " + vars.low + "–" + vars.high + " µg/g² (its instruments' anomalies differ)", vars);
+}
+
 // The plan's prediction, and once the run ended what it achieved (issue 29).
 export function renderPrediction(p, a) {
   const box = $("run-prediction");
@@ -237,7 +245,8 @@ export function renderPrediction(p, a) {
     runs: p.model_runs,
   };
   box.textContent = fill("web.run.prediction",
-    "plan prediction: K2 U95 " + vars.u95 + " µg/g² predicted, " + vars.achieved_u95 + " achieved (median); centrifuge time " + vars.time + " s predicted, " + vars.achieved_time + " s achieved; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (model from " + vars.runs + " run(s))", vars);
+    "plan prediction: K2 U95 " + vars.u95 + " µg/g² predicted, " + vars.achieved_u95 + " achieved (median); centrifuge time " + vars.time + " s predicted, " + vars.achieved_time + " s achieved; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (model from " + vars.runs + " run(s))", vars)
+    + predictionRange(p.k2_u95_run_range_ug_per_g2);
   box.hidden = false;
 }
 
