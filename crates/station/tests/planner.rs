@@ -32,10 +32,14 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
             "--json",
         ])
     };
+    // A design that must succeed, as its JSON document.
+    let designed = |target: &str| {
+        let (ok, said, err) = design(target);
+        assert!(ok, "{said}{err}");
+        serde_json::from_str::<Value>(&said).expect("json")
+    };
     // No history: the defaults, said so.
-    let (ok, said, err) = design("1000");
-    assert!(ok, "{said}{err}");
-    let doc: Value = serde_json::from_str(&said).expect("json");
+    let doc = designed("1000");
     assert!(
         doc["model_source"]
             .as_str()
@@ -59,9 +63,7 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
     for _ in 0..2 {
         run_plan(&short);
     }
-    let (ok, said, err) = design("1000");
-    assert!(ok, "{said}{err}");
-    let doc: Value = serde_json::from_str(&said).expect("json");
+    let doc = designed("1000");
     assert!(
         doc["model_source"]
             .as_str()
@@ -77,9 +79,7 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
     let published_time = doc["prediction"]["published_centrifuge_time_s"]
         .as_f64()
         .expect("time");
-    let (ok, said, err) = design(&format!("{published}"));
-    assert!(ok, "{said}{err}");
-    let doc: Value = serde_json::from_str(&said).expect("json");
+    let doc = designed(&format!("{published}"));
     let p = &doc["prediction"];
     assert!(
         p["k2_u95_ug_per_g2"].as_f64().expect("u95") <= published * (1.0 + 1e-12),
