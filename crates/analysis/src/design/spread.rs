@@ -136,12 +136,14 @@ mod tests {
     #[test]
     fn a_run_median_range_brackets_the_median_instrument_and_narrows_with_more_instruments() {
         let taus: Vec<f64> = (0..40).map(|i| 50.0 * i as f64).collect();
-        let mut model = StationModel::default();
-        model.between_level_deciles_ug = deciles(&taus);
-        let d = model.between_level_deciles_ug.expect("40 instruments");
+        let d = deciles(&taus).expect("40 instruments");
         assert_eq!((d[0], d[10]), (0.0, 1950.0));
         assert!((d[5] - 975.0).abs() < 1e-9);
-        model.between_level_ug = d[5];
+        let model = StationModel {
+            between_level_deciles_ug: Some(d),
+            between_level_ug: d[5],
+            ..StationModel::default()
+        };
         let plan = Candidate::published(&[0.0, 1.0, 5.0, 10.0, 20.0, 30.0, 40.0, 50.0], 2);
         let point = super::super::predict(&model, &plan)
             .expect("predict")
