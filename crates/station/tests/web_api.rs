@@ -444,6 +444,19 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     );
     assert_eq!(design(&mut op, "nope", 1.0).status, 404);
     assert_eq!(design(&mut op, "api", -1.0).status, 400);
+    // The form's serials size the run the range is for; a bad slot is
+    // refused as a start refuses it.
+    let with_serials = |op: &mut Client, serials: Value| {
+        op.send(
+            "POST",
+            "/api/plans/api/design",
+            Some(&json!({"target_k2_u95_ug_per_g2": 1000.0, "serials": serials}).to_string()),
+        )
+    };
+    let r = with_serials(&mut op, json!({"1": "D-1", "2": "D-2", "3": " "}));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    assert_eq!(r.json()["instruments"], json!(2), "{:?}", r.json());
+    assert_eq!(with_serials(&mut op, json!({"99": "D-99"})).status, 400);
     let r = op.send(
         "POST",
         "/api/runs",

@@ -127,9 +127,20 @@ pub(super) async fn design_plan(
     let text = std::fs::read_to_string(&path)
         .map_err(|_| ApiError::not_found(format!("no plan named '{name}' (GET /api/plans)")))?;
     let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
+    // The form's serials, as a start takes them (checked by the plan's validation).
+    let serials: std::collections::BTreeMap<String, String> = ask
+        .serials
+        .into_iter()
+        .filter(|(_, s)| !s.trim().is_empty())
+        .collect();
+    let typed = !serials.is_empty();
+    if typed {
+        plan.serials = serials;
+    }
     plan.set_target(ask.target_k2_u95_ug_per_g2)
         .map_err(|e| ApiError::bad(e.to_string()))?;
-    let station = app.runner.station().0.station;
+    let config = app.runner.station().0;
+    let station = config.station.clone();
     let learned = blocking(&app, move |app| {
         Ok(crate::station_model::learn_from(
             &store(app),
@@ -141,6 +152,13 @@ pub(super) async fn design_plan(
     let designed = plan
         .designed(&learned.model)
         .map_err(|e| ApiError::bad(e.to_string()))?;
+    // With the form's serials, what a start would refuse (a slot this
+    // station has not, a level beyond its rate) is refused here too.
+    if typed {
+        designed
+            .compile(&config)
+            .map_err(|e| ApiError::bad(e.to_string()))?;
+    }
     let p = designed
         .prediction
         .clone()
@@ -151,6 +169,7 @@ pub(super) async fn design_plan(
         dwell_s: designed.dwell.seconds,
         k2_u95_ug_per_g2: p.k2_u95_ug_per_g2,
         k2_u95_run_range_ug_per_g2: p.k2_u95_run_range_ug_per_g2,
+        instruments: designed.serials.len(),
         centrifuge_time_s: p.centrifuge_time_s,
         published_k2_u95_ug_per_g2: p.published_k2_u95_ug_per_g2,
         published_centrifuge_time_s: p.published_centrifuge_time_s,

@@ -186,6 +186,10 @@ pub struct DesignRequest {
     /// The K2 U95 to reach [µg/g²].
     #[schema(exclusive_minimum = 0.0, maximum = 1e6)]
     pub target_k2_u95_ug_per_g2: f64,
+    /// The serials by slot the run will test (`"1": "SN-1"`; the plan's
+    /// when empty): their number sizes the range of the run's median U95.
+    #[serde(default)]
+    pub serials: BTreeMap<String, String>,
 }
 
 /// A designed plan and its prediction beside the published plan's.
@@ -202,6 +206,9 @@ pub struct DesignReply {
     /// The range a run's median K2 U95 falls in with 80 % probability
     /// [µg/g²] (none before the station has learned its instruments' spread).
     pub k2_u95_run_range_ug_per_g2: Option<[f64; 2]>,
+    /// The instruments the range is for (the request's serials, else the
+    /// plan's; 0: as many as the station's past runs had).
+    pub instruments: usize,
     /// Predicted centrifuge time of the level steps [s].
     pub centrifuge_time_s: f64,
     /// The published plan's predicted K2 U95 [µg/g²] (none when its levels to the range are too few).

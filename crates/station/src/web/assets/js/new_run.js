@@ -2,6 +2,7 @@
 // scanner types them) and the start.
 import { $, api, show, state } from "./core.js";
 import { fill, word } from "./i18n.js";
+import { predictionRange } from "./live.js";
 
 export let plans = [];
 
@@ -130,7 +131,13 @@ export async function predict(ev) {
   if (t.error) { show(t.error); return; }
   if (t.value === null) { box.hidden = true; return; }
   try {
-    const d = await api("POST", "/api/plans/" + encodeURIComponent($("plan-select").value) + "/design", { target_k2_u95_ug_per_g2: t.value });
+    // The serials typed so far size the range of the run's median.
+    const serials = {};
+    for (let i = 1; i <= state.slots; i++) {
+      const v = $("serial-" + i).value.trim();
+      if (v) serials[String(i)] = v;
+    }
+    const d = await api("POST", "/api/plans/" + encodeURIComponent($("plan-select").value) + "/design", { target_k2_u95_ug_per_g2: t.value, serials });
     const vars = {
       levels: d.levels_g.length, down: d.down_levels_g.length, dwell: d.dwell_s,
       u95: d.k2_u95_ug_per_g2.toFixed(3), time: d.centrifuge_time_s.toFixed(0),
@@ -138,7 +145,8 @@ export async function predict(ev) {
       published_time: d.published_centrifuge_time_s == null ? "—" : d.published_centrifuge_time_s.toFixed(0),
       source: d.model_source,
     };
-    box.textContent = fill("web.msg.design", "designed: " + vars.levels + " levels, " + vars.down + " read again on the way down, " + vars.dwell + " s dwell — predicted K2 U95 " + vars.u95 + " µg/g² in " + vars.time + " s of centrifuge time; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (" + vars.source + ")", vars);
+    box.textContent = fill("web.msg.design", "designed: " + vars.levels + " levels, " + vars.down + " read again on the way down, " + vars.dwell + " s dwell — predicted K2 U95 " + vars.u95 + " µg/g² in " + vars.time + " s of centrifuge time; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (" + vars.source + ")", vars)
+      + predictionRange(d.k2_u95_run_range_ug_per_g2);
     box.hidden = false;
   } catch (e) { box.hidden = true; show(e.message); }
 }
