@@ -90,6 +90,12 @@ impl Browser {
     }
 
     fn call(&self, method: &str, path: &str, body: Value) -> Value {
+        self.try_call(method, path, body)
+            .unwrap_or_else(|e| panic!("webdriver {method} {path}: {e}"))
+    }
+
+    /// As [`Browser::call`], the driver's error given back.
+    fn try_call(&self, method: &str, path: &str, body: Value) -> Result<Value, Value> {
         let url = format!("{}/session/{}{}", self.base, self.session, path);
         let mut response = match method {
             "GET" => self.agent.get(&url).call(),
@@ -98,9 +104,9 @@ impl Browser {
         .expect("webdriver answers");
         let reply: Value = response.body_mut().read_json().expect("json");
         if reply["value"]["error"].is_string() {
-            panic!("webdriver {method} {path}: {}", reply["value"]);
+            return Err(reply["value"].clone());
         }
-        reply["value"].clone()
+        Ok(reply["value"].clone())
     }
 
     /// Open `url`.
@@ -139,9 +145,21 @@ impl Browser {
     }
 
     /// Click the element `css`.
+    /// The page may draw the element again between finding and clicking it
+    /// (a table refilled by a refresh): a stale element is found again,
+    /// for at most 5 s.
     pub fn click(&self, css: &str) {
-        let id = self.element(css);
-        self.call("POST", &format!("/element/{id}/click"), json!({}));
+        let until = Instant::now() + Duration::from_secs(5);
+        loop {
+            let id = self.element(css);
+            match self.try_call("POST", &format!("/element/{id}/click"), json!({})) {
+                Ok(_) => return,
+                Err(e) if e["error"] == "stale element reference" && Instant::now() < until => {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => panic!("webdriver click {css}: {e}"),
+            }
+        }
     }
 
     /// Accept the page's open `confirm()` (or `alert()`) dialog.
