@@ -14,6 +14,29 @@ pub(super) fn plan_name_ok(name: &str) -> bool {
             .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
 }
 
+/// The station's plan `name` as a start or a design reads it, the form's
+/// `serials` (blank ones dropped) replacing its own when any is given; with
+/// whether they did.
+pub(super) fn plan_with_serials(
+    app: &App,
+    name: &str,
+    serials: BTreeMap<String, String>,
+) -> ApiResult<(TestPlan, bool)> {
+    let path = app.plans_dir.join(format!("{name}.toml"));
+    let text = std::fs::read_to_string(&path)
+        .map_err(|_| ApiError::not_found(format!("no plan named '{name}' (GET /api/plans)")))?;
+    let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
+    let typed: BTreeMap<String, String> = serials
+        .into_iter()
+        .filter(|(_, s)| !s.trim().is_empty())
+        .collect();
+    let given = !typed.is_empty();
+    if given {
+        plan.serials = typed;
+    }
+    Ok((plan, given))
+}
+
 /// Every plan of the station, with its text and whether it reads.
 #[utoipa::path(get, path = "/api/plans", tag = "plans",
     security(("session" = [])),
@@ -123,20 +146,8 @@ pub(super) async fn design_plan(
         )));
     }
     let ask: DesignRequest = parse_json(&body)?;
-    let path = app.plans_dir.join(format!("{name}.toml"));
-    let text = std::fs::read_to_string(&path)
-        .map_err(|_| ApiError::not_found(format!("no plan named '{name}' (GET /api/plans)")))?;
-    let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
-    // The form's serials, as a start takes them (checked by the plan's validation).
-    let serials: std::collections::BTreeMap<String, String> = ask
-        .serials
-        .into_iter()
-        .filter(|(_, s)| !s.trim().is_empty())
-        .collect();
-    let typed = !serials.is_empty();
-    if typed {
-        plan.serials = serials;
-    }
+    // The form's serials, as a start takes them.
+    let (mut plan, typed) = plan_with_serials(&app, &name, ask.serials)?;
     plan.set_target(ask.target_k2_u95_ug_per_g2)
         .map_err(|e| ApiError::bad(e.to_string()))?;
     let config = app.runner.station().0;

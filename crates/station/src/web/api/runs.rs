@@ -2,7 +2,7 @@
 //! resume, abort. The history is in `history`, changes to a finished run's
 //! records in `exclusions`.
 
-use super::plans::plan_name_ok;
+use super::plans::{plan_name_ok, plan_with_serials};
 use super::schema::{ErrorBody, PromptAnswer, RetestRequest, RetestStarted, RunId, StartRun};
 use super::*;
 use spinbench_engine::event::Wording;
@@ -34,19 +34,7 @@ pub(super) async fn start_run(
             spinbench_engine::bounds::shown(&start.plan)
         )));
     }
-    let path = app.plans_dir.join(format!("{}.toml", start.plan));
-    let text = std::fs::read_to_string(&path).map_err(|_| {
-        ApiError::not_found(format!("no plan named '{}' (GET /api/plans)", start.plan))
-    })?;
-    let mut plan = TestPlan::from_toml(&text).map_err(|e| ApiError::bad(e.to_string()))?;
-    let serials: BTreeMap<String, String> = start
-        .serials
-        .into_iter()
-        .filter(|(_, s)| !s.trim().is_empty())
-        .collect();
-    if !serials.is_empty() {
-        plan.serials = serials;
-    }
+    let (mut plan, _) = plan_with_serials(&app, &start.plan, start.serials)?;
     plan.operator = session.user.clone();
     if let Some(target) = start.target_k2_u95_ug_per_g2 {
         plan.set_target(target)
