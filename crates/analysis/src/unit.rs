@@ -153,6 +153,31 @@ pub fn analyze_unit(
     input: &UnitPoints,
     options: AnalysisOptions,
 ) -> Result<UnitAnalysis, AnalysisError> {
+    analyze_unit_with(input, options, None)
+}
+
+/// Reduce one unit's points with the centrifuge's signature learned from
+/// its run's instruments ([`crate::table_signature`]): each point's applied
+/// acceleration corrected by it, the correction's uncertainty in the
+/// budget (the table-signature source), and the stated table-disturbance
+/// bound cut to what the signature could have missed. `None`: as
+/// [`analyze_unit`].
+pub fn analyze_unit_with(
+    input: &UnitPoints,
+    options: AnalysisOptions,
+    table: Option<&crate::table_signature::TableSignature>,
+) -> Result<UnitAnalysis, AnalysisError> {
+    let corrected;
+    let input = match table {
+        Some(t) => {
+            corrected = UnitPoints {
+                points: t.correct(&input.unit, &input.points),
+                ..input.clone()
+            };
+            &corrected
+        }
+        None => input,
+    };
     let label = input.label();
     if input.points.is_empty() {
         return Err(AnalysisError::InvalidInput(format!(
@@ -200,9 +225,14 @@ pub fn analyze_unit(
                 Excluded::TooFew(why) => notes.push(why),
             }
         }
+        let signature_effect = match table {
+            Some(t) => t.correction_effect(&input.unit, points, options.order, &what)?,
+            None => None,
+        };
         match crate::uncertainty::mounting_budget(points, options.order, &options.type_b, &what) {
             Ok(mut budget) => {
                 budget.effects.extend(anomaly_effect);
+                budget.effects.extend(signature_effect);
                 fit.uncertainty = Some(budget.uncertainties());
                 budgets.insert(mount, budget);
             }
@@ -413,20 +443,33 @@ fn paired_inadequacy(
     label: &str,
 ) -> Option<crate::uncertainty::PairedInadequacy> {
     use crate::uncertainty::Source;
-    let series = |m: Mount| {
-        let points = by_mount.get(&m)?;
+    // Each mounting's residuals from its fit: the one pure error of the
+    // reduction (crate::inadequacy::pure_error), as the per-mounting budget's.
+    let residuals = |m: Mount| -> Option<Vec<f64>> {
         let fit = fits.get(&m)?;
+        (fit.fit.residuals.len() == by_mount.get(&m)?.len())
+            .then(|| fit.fit.residuals.iter().map(|r| r.residual).collect())
+    };
+    let (rp, rn) = (residuals(Mount::P)?, residuals(Mount::N)?);
+    fn series<'a>(
+        points: &'a [Point],
+        residuals: &'a [f64],
+        fit: &MountingFit,
+    ) -> Option<crate::inadequacy::MountingSeries<'a>> {
         let levels = crate::inadequacy::levels(points);
-        let outputs: Vec<f64> = points.iter().map(|p| p.output).collect();
-        let (ss, dof_pe) = crate::inadequacy::pure_error(&levels, &outputs);
+        let (ss, dof_pe) = crate::inadequacy::pure_error(&levels, residuals);
         (dof_pe > 0).then(|| crate::inadequacy::MountingSeries {
             points,
+            residuals,
             k1: fit.fit.k1,
             sigma2: ss / dof_pe as f64,
             dof_pe,
         })
-    };
-    let (p, n) = (series(Mount::P)?, series(Mount::N)?);
+    }
+    let (p, n) = (
+        series(by_mount.get(&Mount::P)?, &rp, fits.get(&Mount::P)?)?,
+        series(by_mount.get(&Mount::N)?, &rn, fits.get(&Mount::N)?)?,
+    );
     let degree = usize::from(order.degree());
     let what = format!("{label} both mountings");
     let shared: Vec<f64> = crate::inadequacy::levels(p.points)
@@ -438,16 +481,17 @@ fn paired_inadequacy(
         return None;
     }
     // k2 of both mountings with level g left out of both.
-    let k2_without = |points: &[Point], g: f64| {
+    let k2_without_all = |points: &[Point], gs: &[f64]| {
         let kept: Vec<Point> = points
             .iter()
-            .filter(|q| q.g_nominal.abs() != g)
+            .filter(|q| !gs.contains(&q.g_nominal.abs()))
             .copied()
             .collect();
         crate::model::fit_ieee1293(&kept, order, crate::model::Convention::PerMounting, &what)
             .ok()
             .and_then(|f| f.k2_ug_per_g2)
     };
+    let k2_without = |points: &[Point], g: f64| k2_without_all(points, &[g]);
     let mut without: Vec<[f64; 2]> = Vec::new();
     for &g in &shared {
         let (kp, kn) = (k2_without(p.points, g)?, k2_without(n.points, g)?);
@@ -476,11 +520,35 @@ fn paired_inadequacy(
         fits.get(&Mount::P)?.fit.k2_ug_per_g2?,
         fits.get(&Mount::N)?.fit.k2_ug_per_g2?,
     );
-    let jk = crate::inadequacy::jackknife_variance(
-        [0.5 * (kp - kn), 0.5 * (kp + kn)],
-        &without,
-        &leverage,
-    );
+    let full = [0.5 * (kp - kn), 0.5 * (kp + kn)];
+    let mut jk = crate::inadequacy::jackknife_variance(full, &without, &leverage);
+    // A misfit of one mounting spread over neighbouring levels (a
+    // resonance's wings): blocks of adjacent shared levels too, when the
+    // half-difference's level residuals are serially correlated.
+    let misfit_at = |series: &crate::inadequacy::MountingSeries, g: f64| {
+        let members: Vec<f64> = series
+            .points
+            .iter()
+            .zip(series.residuals)
+            .filter(|(q, _)| q.g_nominal.abs() == g)
+            .map(|(_, r)| *r / series.k1)
+            .collect();
+        members.iter().sum::<f64>() / members.len().max(1) as f64
+    };
+    let half_difference: Vec<f64> = shared
+        .iter()
+        .map(|&g| 0.5 * (misfit_at(&p, g) - misfit_at(&n, g)))
+        .collect();
+    if crate::inadequacy::neighbours_correlated(&half_difference) {
+        let b = crate::inadequacy::NEIGHBOUR_BLOCK;
+        let mut blocks: Vec<[f64; 2]> = Vec::new();
+        for w in shared.windows(b) {
+            let (bp, bn) = (k2_without_all(p.points, w)?, k2_without_all(n.points, w)?);
+            blocks.push([0.5 * (bp - bn), 0.5 * (bp + bn)]);
+        }
+        let jb = crate::inadequacy::block_jackknife(full, &blocks, &leverage, b);
+        jk = [jk[0].max(jb[0]), jk[1].max(jb[1])];
+    }
     let repeat = |m: Mount| {
         budgets
             .get(&m)
@@ -548,6 +616,20 @@ pub struct DatasetAnalysis {
     /// Levels an engineer excluded, with the reason and who (applied before the fits).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub exclusions: Vec<crate::exclusion::LevelExclusion>,
+    /// The centrifuge's signature learned from each run's instruments (a
+    /// run of at least [`crate::table_signature::MIN_INSTRUMENTS`]), which
+    /// corrected its units' points as the station does.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub table_signatures: Vec<RunSignature>,
+}
+
+/// The centrifuge's signature of one run of a dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunSignature {
+    /// The run label (`None`: the file's units have none).
+    pub run: Option<String>,
+    /// The signature.
+    pub signature: crate::table_signature::TableSignature,
 }
 
 /// A unit of a batch that could not be reduced.
@@ -568,8 +650,23 @@ pub struct UnitFailure {
 pub fn analyze_dataset(inputs: &[UnitPoints], options: AnalysisOptions) -> DatasetAnalysis {
     let mut units = Vec::with_capacity(inputs.len());
     let mut failed = Vec::new();
+    // The centrifuge's signature of each run (the units that share a run
+    // label), learned from its instruments as the station does in a run.
+    let mut by_run: BTreeMap<Option<String>, Vec<UnitPoints>> = BTreeMap::new();
     for input in inputs {
-        match analyze_unit(input, options) {
+        by_run
+            .entry(input.run.clone())
+            .or_default()
+            .push(input.clone());
+    }
+    let signatures: BTreeMap<Option<String>, crate::table_signature::TableSignature> = by_run
+        .into_iter()
+        .filter_map(|(run, group)| {
+            crate::table_signature::estimate(&group, options.order).map(|t| (run, t))
+        })
+        .collect();
+    for input in inputs {
+        match analyze_unit_with(input, options, signatures.get(&input.run)) {
             Ok(u) => units.push(u),
             Err(e) => failed.push(UnitFailure {
                 unit: input.unit.clone(),
@@ -597,6 +694,10 @@ pub fn analyze_dataset(inputs: &[UnitPoints], options: AnalysisOptions) -> Datas
         units,
         failed,
         exclusions: Vec::new(),
+        table_signatures: signatures
+            .into_iter()
+            .map(|(run, signature)| RunSignature { run, signature })
+            .collect(),
     }
 }
 

@@ -295,6 +295,16 @@ pub struct UnitRecord {
     /// before the rule was recorded: those compared the value alone).
     #[serde(default)]
     pub decision_rule: Option<crate::plan::DecisionRule>,
+    /// What the k2 verdict judged: the quantity (K2 or k2_max), its limit
+    /// and the rule (`None` in records made before it was recorded: those
+    /// judged k2_max).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub decision: Option<crate::plan::Decision>,
+    /// The centrifuge's signature learned from the run's instruments that
+    /// corrected its points' applied acceleration (`None`: none learned,
+    /// or a record made before the station learned its centrifuge).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub table_signature: Option<spinbench_analysis::table_signature::TableSignature>,
     /// Its figures at each chamber temperature of the plan (absent without temperatures).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub at_temperatures: Vec<spinbench_analysis::temperature::AtTemperature>,

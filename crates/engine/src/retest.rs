@@ -88,6 +88,8 @@ mod tests {
             outcome,
             reasons,
             decision_rule: None,
+            decision: None,
+            table_signature: None,
             at_temperatures: Vec::new(),
             temperature_coefficients: None,
             exclusions: Vec::new(),

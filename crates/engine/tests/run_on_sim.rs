@@ -27,6 +27,7 @@ fn small_plan() -> TestPlan {
         warmup_s = 0
         dwell = { seconds = 3 }
         stability = { hold_s = 3 }
+        limits = { decide_on = "k2_max" }
         [serials]
         1 = "A1"
         2 = "A2"

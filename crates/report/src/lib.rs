@@ -14,6 +14,7 @@ pub mod lang;
 mod pdf;
 mod plots;
 mod run;
+pub mod signature;
 mod text;
 
 pub use batch::{

@@ -74,6 +74,9 @@ pub struct DemoUnit {
     pub k2_max_ug_per_g2: Option<f64>,
     /// Pass, marginal, inconclusive, fail or incomplete.
     pub outcome: Outcome,
+    /// What the k2 verdict judged: the quantity, its limit and the rule.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decision: Option<spinbench_engine::plan::Decision>,
 }
 
 /// The bench's true temperature coefficients of one instrument.
@@ -147,6 +150,7 @@ pub fn compare_with_truth(
                 true_k1_hz_per_g: sign * t.vba.k1_hz_per_g,
                 k2_max_ug_per_g2: r.k2_max_ug_per_g2,
                 outcome: r.outcome,
+                decision: r.decision,
             });
         }
     }
@@ -294,6 +298,7 @@ pub fn demo(
     // down, as its fits see them, and its prediction.
     let levels = prepared.plan.level_sequence();
     let prediction = prepared.plan.prediction.clone();
+    let decision_warning = prepared.plan.decision_warning();
     let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
     let operator = Box::new(SimOperator::new(&sim, json));
     let abort = AbortFlag::new();
@@ -328,6 +333,7 @@ pub fn demo(
                 "virtual_duration_s": finished.summary.duration_s,
                 "wall_duration_s": wall_s,
                 "prediction": prediction,
+                "decision_warning": decision_warning,
                 "achieved": achieved,
             },
             "units": units,
@@ -338,6 +344,9 @@ pub fn demo(
         render_demo(out, &finished, &units, wall_s)?;
         if let Some(p) = &prediction {
             writeln!(out, "{}", prediction_line(p, &achieved))?;
+            if let Some(w) = &decision_warning {
+                writeln!(out, "Warning: {w}.")?;
+            }
         }
     }
     if finished.summary.state != RunState::Completed {
@@ -366,7 +375,7 @@ fn render_demo(
     )?;
     writeln!(
         out,
-        "{:<7} {:>4} {:>5} | {:>10} {:>10} {:>9} | {:>22} {:>9} {:>6} | {:>8} {:>9}",
+        "{:<7} {:>4} {:>5} | {:>10} {:>10} {:>9} | {:>22} {:>9} {:>6} | {:>8} {:>18} {:>8} {:>12}",
         "serial",
         "slot",
         "mount",
@@ -377,6 +386,8 @@ fn render_demo(
         "true k2",
         "in CI",
         "k2_max",
+        "K2 ± U95 [µg/g²]",
+        "true K2",
         "outcome"
     )?;
     let (mut covered, mut total) = (0, 0);
@@ -395,7 +406,7 @@ fn render_demo(
         }
         writeln!(
             out,
-            "{:<7} {:>4} {:>5} | {:>10} {:>10.3} {:>+9.3} | {:>22} {:>+9.3} {:>6} | {:>8} {:>9}",
+            "{:<7} {:>4} {:>5} | {:>10} {:>10.3} {:>+9.3} | {:>22} {:>+9.3} {:>6} | {:>8} {:>18} {:>+8.3} {:>12}",
             u.serial,
             u.slot,
             u.mount.to_string(),
@@ -406,7 +417,13 @@ fn render_demo(
             u.true_k2_ug_per_g2,
             inside.map_or("—", |i| if i { "yes" } else { "NO" }),
             u.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
-            format!("{:?}", u.outcome).to_lowercase(),
+            match (u.k2_even_ug_per_g2, u.k2_even_u95) {
+                (Some(k), Some(u)) => format!("{k:+.3} ± {u:.3}"),
+                (Some(k), None) => format!("{k:+.3}"),
+                _ => "—".into(),
+            },
+            u.true_instrument_k2_ug_per_g2,
+            u.outcome.as_str(),
         )?;
     }
     let radius_err: Vec<f64> = units
@@ -425,6 +442,7 @@ fn render_demo(
         mean(&radius_err),
         mean(&r0_err)
     )?;
+    writeln!(out, "{}", verdict_line(units))?;
     writeln!(
         out,
         "\nResults: {}/results.json (per-instrument records), journal.jsonl (every event), truth.json (the simulator's truth);\n\
@@ -437,6 +455,38 @@ fn render_demo(
             .map_or_else(|| ".".into(), |p| p.display().to_string())
     )?;
     Ok(())
+}
+
+/// How many instruments got each outcome, and what was judged: one line.
+pub fn verdict_line(units: &[DemoUnit]) -> String {
+    let mut seen = std::collections::BTreeSet::new();
+    let mut counts: std::collections::BTreeMap<&'static str, usize> = Default::default();
+    let mut decision = None;
+    for u in units {
+        if seen.insert(u.slot) {
+            *counts.entry(u.outcome.as_str()).or_default() += 1;
+            decision = decision.or(u.decision);
+        }
+    }
+    let tally = Outcome::ALL
+        .iter()
+        .filter_map(|o| {
+            counts
+                .get(o.as_str())
+                .map(|n| format!("{n} {}", o.as_str()))
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    match decision {
+        Some(d) => format!(
+            "Verdicts of {} instruments on {} against {} µg/g² ({} rule): {tally}.",
+            seen.len(),
+            d.measurand.name(),
+            d.limit_ug_per_g2,
+            d.rule.name()
+        ),
+        None => format!("Verdicts of {} instruments: {tally}.", seen.len()),
+    }
 }
 
 /// The plan's prediction beside what the run achieved, one line.

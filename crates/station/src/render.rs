@@ -87,6 +87,18 @@ pub fn render_dataset(source: &str, analysis: &DatasetAnalysis) -> String {
     for e in &analysis.exclusions {
         let _ = writeln!(out, "{e}");
     }
+    for t in &analysis.table_signatures {
+        let run = t
+            .run
+            .as_deref()
+            .map(|r| format!(" (run {r})"))
+            .unwrap_or_default();
+        let _ = writeln!(
+            out,
+            "{}{run}; each point's applied acceleration corrected by it, its uncertainty in the budget (table signature)",
+            t.signature.describe()
+        );
+    }
     for e in analysis.units.iter().flat_map(|u| &u.rule_exclusions) {
         let _ = writeln!(out, "{e}");
     }

@@ -163,78 +163,90 @@ fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
         24,
         "no instrument faulted on the typical bench"
     );
-    // Every interval holds what a perfect per-mounting fit would return, and
-    // the per-mounting truth is the instrument's K2 plus the centrifuge's part.
+    // The per-mounting U95 holds what a perfect per-mounting fit would
+    // return (the table's resonance corrected by the signature the run
+    // learned, its broad error's unseen part in the Type B bound: 91.8 % of
+    // 576 mountings over 24 seeds, scripts/coverage), and the per-mounting
+    // truth is the instrument's K2 plus the centrifuge's part.
+    let mut held = 0;
     for u in units {
-        let ci = u["k2_ci95"].as_array().expect("interval");
-        let (lo, hi) = (ci[0].as_f64().expect("lo"), ci[1].as_f64().expect("hi"));
+        let k2 = u["k2_ug_per_g2"].as_f64().expect("k2");
+        let u95 = u["k2_U95"].as_f64().expect("U95");
         let truth = u["true_mounting_k2_ug_per_g2"].as_f64().expect("truth");
-        assert!(lo <= truth && truth <= hi, "{u}");
+        held += usize::from((k2 - truth).abs() <= u95);
         let sign = if u["mount"] == "P" { 1.0 } else { -1.0 };
         let own = u["true_instrument_k2_ug_per_g2"].as_f64().expect("K2");
         assert_eq!(u["true_k2_ug_per_g2"].as_f64(), Some(sign * own));
     }
+    assert!(held >= 20, "per-mounting U95 held the truth in {held}/24");
     // The published signature (method.md §5): a cubic leaves thousands of µg
     // (published ≈ 4,700 µg), far above the up/down disagreement, with one
-    // level off the curve in every instrument.
+    // level off the curve in every instrument: the table's resonance, which
+    // `analyze` on the run's exported points learns from its twelve
+    // instruments as the run did (docs/method.md §6) and takes out.
     let analysis = analyze_run(&doc, dir.path());
-    let (mut residual, mut up_down, mut worst_levels) = (Vec::new(), Vec::new(), Vec::new());
+    let signature = &analysis["table_signatures"][0]["signature"];
+    assert_eq!(signature["instruments"].as_u64(), Some(12), "{signature}");
+    let levels = signature["levels"].as_array().expect("signature levels");
+    let seen: Vec<f64> = levels
+        .iter()
+        .map(|l| l["residual_ug"].as_f64().expect("residual"))
+        .collect();
+    let rms = (seen.iter().map(|x| x * x).sum::<f64>() / seen.len() as f64).sqrt();
+    assert!(
+        (4_700.0 / 2.0..=4_700.0 * 2.0).contains(&rms),
+        "the mountings' median cubic residual RMS {rms:.0} µg, published about 4,700 µg"
+    );
+    let spikes = signature["correction"]["spikes"]
+        .as_array()
+        .expect("spikes");
+    assert_eq!(spikes.len(), 1, "one resonance: {signature}");
+    let disturbed = spikes[0]["g"].as_f64().expect("level");
+    assert_eq!(disturbed, 40.0, "the typical table's resonance is at 40 g");
+    assert!(
+        spikes[0]["height_ug"].as_f64().is_some_and(|h| h > 5_000.0),
+        "{signature}"
+    );
+    let mut up_down = Vec::new();
+    let (mut fits, mut still_flagged) = (0, 0);
     for unit in analysis["units"].as_array().expect("units") {
         for fit in unit["fits"].as_object().expect("fits").values() {
-            residual.push(fit["residual_rms_ug"].as_f64().expect("rms"));
             let k1 = fit["k1"].as_f64().expect("k1").abs();
             let mut by_level: std::collections::BTreeMap<String, [Option<f64>; 2]> =
                 Default::default();
-            let mut worst = (0.0_f64, 0.0);
             for r in fit["residuals"].as_array().expect("residuals") {
                 let g = r["g_nominal"].as_f64().expect("g");
                 let e = by_level.entry(format!("{g}")).or_default();
                 let k = usize::from(r["direction"] == "down");
                 e[k] = r["output"].as_f64();
-                let res = r["residual_ug"].as_f64().expect("residual").abs();
-                if res > worst.0 {
-                    worst = (res, g);
-                }
             }
             let d: Vec<f64> = by_level
                 .values()
                 .filter_map(|[u, d]| Some((u.as_ref()? - d.as_ref()?) / k1 * 1e6))
                 .collect();
             up_down.push((d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt());
-            worst_levels.push(worst);
+            // With the table taken out, the resonance is off the curve only
+            // where an instrument's coupling to it (its place on the arm,
+            // ±20 %) or its own anomaly there differs from the median.
+            let d = &fit["diagnostics"];
+            let flagged: Vec<f64> = d["outlier_levels"]
+                .as_array()
+                .map(|o| o.iter().filter_map(|l| l["g"].as_f64()).collect())
+                .unwrap_or_default();
+            fits += 1;
+            still_flagged += usize::from(flagged.contains(&disturbed));
         }
     }
-    let (rms, agreement) = (median(residual), median(up_down));
     assert!(
-        (4_700.0 / 2.0..=4_700.0 * 2.0).contains(&rms),
-        "cubic residual RMS {rms:.0} µg, published about 4,700 µg"
+        2 * still_flagged < fits,
+        "the resonance still off the curve in {still_flagged} of {fits} fits"
     );
+    let agreement = median(up_down);
     assert!(
         rms >= 10.0 * agreement,
         "residual {rms:.0} µg, up/down {agreement:.0} µg"
     );
-    let disturbed = worst_levels[0].1;
-    for (size, level) in &worst_levels {
-        assert_eq!(*level, disturbed, "one disturbed level in every fit");
-        assert!(
-            *size > 5_000.0,
-            "the disturbed level is off by {size:.0} µg only"
-        );
-    }
-    // The station's diagnostics flag it, in the JSON and in the report
-    // (ringed on the residual plot), and the report names its decision rule.
-    for unit in analysis["units"].as_array().expect("units") {
-        for fit in unit["fits"].as_object().expect("fits").values() {
-            let d = &fit["diagnostics"];
-            assert_eq!(d["outlier_levels"][0]["g"].as_f64(), Some(disturbed), "{d}");
-            assert!(
-                d["lack_of_fit"]["p_value"]
-                    .as_f64()
-                    .is_some_and(|p| p < 0.001),
-                "{d}"
-            );
-        }
-    }
+    // The report shows the signature and names its decision rule.
     let run_dir = Path::new(doc["run"]["dir"].as_str().expect("dir"));
     let html = std::fs::read_dir(run_dir)
         .expect("run dir")
@@ -243,13 +255,12 @@ fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
         .map(|e| std::fs::read_to_string(e.path()).expect("report"))
         .expect("an HTML report");
     assert!(
-        html.contains(&format!("outlier level(s): {disturbed} g")),
-        "no outlier line"
+        html.contains("The centrifuge&#39;s signature")
+            || html.contains("The centrifuge's signature"),
+        "no signature section"
     );
-    assert!(
-        html.contains("\noutlier level\n"),
-        "no ring on the residual plot"
-    );
+    assert!(html.contains("µg @ 40 g"), "the resonance is not named");
+    assert!(html.contains("centrifuge signature"), "no signature plot");
     assert!(
         html.contains("guarded acceptance"),
         "the decision rule is not named"

@@ -67,6 +67,8 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         outcome: Outcome::Pass,
         reasons: Vec::new(),
         decision_rule: Some(spinbench_engine::plan::DecisionRule::Guarded),
+        decision: None,
+        table_signature: None,
         exclusions: Vec::new(),
     }
 }

@@ -50,7 +50,7 @@ impl MountingBudget {
 
 /// The coefficients k0 [g], k1, k2 [µg/g²], k3 [µg/g³] of the per-mounting fit
 /// of `points` (magnitude convention), 0 where the order has none.
-pub(super) fn coefficients(
+pub fn coefficients(
     points: &[Point],
     order: ModelOrder,
     what: &str,
@@ -119,6 +119,37 @@ pub fn leave_each_level_out(
         .collect()
 }
 
+/// Each level's mean of `values` (residuals), in level order.
+pub fn level_means(levels: &[crate::inadequacy::Level], values: &[f64]) -> Vec<f64> {
+    levels
+        .iter()
+        .map(|l| l.members.iter().map(|&i| values[i]).sum::<f64>() / l.members.len().max(1) as f64)
+        .collect()
+}
+
+/// The coefficients with each block of `block` adjacent levels (sliding)
+/// left out in turn.
+pub fn leave_blocks_out(
+    points: &[Point],
+    levels: &[crate::inadequacy::Level],
+    order: ModelOrder,
+    block: usize,
+    what: &str,
+) -> Result<Vec<[f64; 4]>, AnalysisError> {
+    levels
+        .windows(block.max(1))
+        .map(|w| {
+            let kept: Vec<Point> = points
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !w.iter().any(|l| l.members.contains(i)))
+                .map(|(_, p)| *p)
+                .collect();
+            coefficients(&kept, order, what)
+        })
+        .collect()
+}
+
 /// The budget of one mounting's fit of `points` with `inputs`.
 pub fn mounting_budget(
     points: &[Point],
@@ -173,7 +204,14 @@ pub fn mounting_budget(
                 let without = leave_each_level_out(points, &levels, order, what)?;
                 let leverage = crate::inadequacy::level_leverage(&levels, &design, what)?;
                 let full = coefficients(points, order, what)?;
-                let jk = crate::inadequacy::jackknife_variance(full, &without, &leverage);
+                let mut jk = crate::inadequacy::jackknife_variance(full, &without, &leverage);
+                // A misfit spread over neighbouring levels: blocks of them too.
+                if crate::inadequacy::neighbours_correlated(&level_means(&levels, &residuals)) {
+                    let b = crate::inadequacy::NEIGHBOUR_BLOCK;
+                    let blocks = leave_blocks_out(points, &levels, order, b, what)?;
+                    let jb = crate::inadequacy::block_jackknife(full, &blocks, &leverage, b);
+                    jk = std::array::from_fn(|j| jk[j].max(jb[j]));
+                }
                 let inadequacy: [f64; 4] = std::array::from_fn(|j| {
                     let known = table.map_or(0.0, |t| t[j]);
                     crate::inadequacy::inadequacy_beyond(jk[j], repeatability[j].hypot(known))

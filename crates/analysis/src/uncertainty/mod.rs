@@ -51,7 +51,7 @@ mod tests;
 
 pub use budget::{
     Effect, LACK_OF_FIT_ALPHA, MountingBudget, PairedInadequacy, anomaly_rule_effect,
-    joint_uncertainty, leave_each_level_out, mounting_budget,
+    coefficients as coefficients_of, joint_uncertainty, leave_each_level_out, mounting_budget,
 };
 
 use crate::AnalysisError;
@@ -274,6 +274,9 @@ pub enum Source {
     /// The table's slowly varying structural disturbance of the applied
     /// acceleration (both mountings alike: it cancels from K2).
     TableDisturbance,
+    /// Type A: the correction by the centrifuge's signature learned from
+    /// the instruments (the jackknife over them; both mountings alike).
+    TableSignature,
 }
 
 impl Source {
@@ -290,6 +293,7 @@ impl Source {
                 | Source::TemperatureBias
                 | Source::TemperatureScale
                 | Source::TableDisturbance
+                | Source::TableSignature
         )
     }
 
@@ -297,7 +301,10 @@ impl Source {
     pub fn is_type_a(self) -> bool {
         matches!(
             self,
-            Source::Repeatability | Source::ModelInadequacy | Source::FitScatter
+            Source::Repeatability
+                | Source::ModelInadequacy
+                | Source::FitScatter
+                | Source::TableSignature
         )
     }
 }
@@ -320,6 +327,7 @@ impl fmt::Display for Source {
             Source::TemperatureBias => "temperature (bias)",
             Source::TemperatureScale => "temperature (scale, arm)",
             Source::TableDisturbance => "table disturbance",
+            Source::TableSignature => "table signature (A)",
         })
     }
 }

@@ -96,3 +96,77 @@ fn the_budget_and_the_diagnostics_share_one_pure_error() {
     assert_eq!(dof_pe, Some(7));
     assert_eq!(budget.dof_eff.map(|d| d.round() as usize), Some(7));
 }
+
+/// Both mountings of one instrument through the published levels, up and
+/// down, the descent's applied acceleration `descent_ppm` higher (the
+/// rate is read, not set exactly), white noise `noise_ug`, and
+/// `dip_ug` at `dip_g` in mounting P only (the instrument's own anomaly).
+fn both_mountings(
+    seed: u64,
+    descent_ppm: f64,
+    noise_ug: f64,
+    dip_g: f64,
+    dip_ug: f64,
+) -> UnitPoints {
+    use rand::SeedableRng;
+    use rand_distr::{Distribution, Normal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, noise_ug * 1e-6).expect("normal");
+    let k = [0.02, 100.0, 12e-6, 0.3e-6];
+    let levels = crate::points::published_levels(70.0);
+    let mut points = Vec::new();
+    for mount in [Mount::P, Mount::N] {
+        let sign = mount.input_sign();
+        let up = levels.iter().map(|&g| (g, 1.0));
+        let down = levels.iter().rev().map(|&g| (g, 1.0 + descent_ppm * 1e-6));
+        for (g, scale) in up.chain(down) {
+            let a = g * scale;
+            let dip = if mount == Mount::P && g == dip_g {
+                dip_ug * 1e-6
+            } else {
+                0.0
+            };
+            points.push(Point {
+                mount,
+                g_nominal: g,
+                g_applied: a,
+                output: ieee1293_output(k, sign * (a + dip + noise.sample(&mut rng))),
+                direction: None,
+            });
+        }
+    }
+    UnitPoints {
+        unit: "PAIRED".into(),
+        run: None,
+        points,
+    }
+}
+
+#[test]
+fn k2s_misfit_test_takes_the_pure_error_of_the_residuals_not_of_the_outputs() {
+    use crate::uncertainty::Source;
+    // The descent 30 ppm higher parts the up and down outputs of 70 g by
+    // 2,100 µg; their residuals agree to the noise. An instrument's own
+    // 2,000 µg dip at 30 g in P must reach K2's budget as model inadequacy.
+    let (mut carried, trials) = (0usize, 20u64);
+    for seed in 0..trials {
+        let a = analyze_unit(
+            &both_mountings(seed, 30.0, 10.0, 30.0, 2_000.0),
+            AnalysisOptions::default(),
+        )
+        .expect("reduced");
+        let joint = a.joint.expect("both mountings");
+        let budget = joint.uncertainty.expect("budgets");
+        carried += usize::from(
+            budget
+                .k2_even_ug_per_g2
+                .budget
+                .iter()
+                .any(|c| c.source == Source::ModelInadequacy),
+        );
+    }
+    assert!(
+        carried as u64 >= trials - 1,
+        "K2's inadequacy carried in {carried}/{trials}"
+    );
+}

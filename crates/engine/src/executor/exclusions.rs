@@ -145,7 +145,13 @@ fn regrade(
         &record.radius_reading_u_ppm,
         record.cross_axis_ug_per_g.is_some(),
     );
-    let graded = grade(&record.serial, unit.points, options, &plan.plan.limits);
+    let graded = grade(
+        &record.serial,
+        unit.points,
+        options,
+        &plan.plan.limits,
+        record.table_signature.as_ref(),
+    );
     let mut reasons = graded.reasons;
     reasons.extend(temperature_reasons(plan, station, &record.points));
     Ok(UnitRecord {
@@ -154,6 +160,8 @@ fn regrade(
         outcome: graded.outcome,
         reasons,
         decision_rule: Some(plan.plan.limits.decision_rule),
+        decision: Some(plan.plan.limits.decision()),
+        table_signature: record.table_signature.clone(),
         exclusions,
         ..record.clone()
     })

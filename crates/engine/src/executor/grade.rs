@@ -3,7 +3,8 @@
 //! reasons (k2 with its GUM U95, guarded by default).
 
 use super::*;
-use crate::plan::{DecisionRule, Verdict};
+use crate::plan::{DecisionRule, Measurand, Verdict};
+use spinbench_analysis::table_signature::TableSignature;
 
 /// One graded instrument: its reduction, k2_max, outcome and reasons.
 #[derive(Debug, Clone)]
@@ -26,6 +27,7 @@ pub fn grade(
     points: Vec<Point>,
     options: AnalysisOptions,
     limits: &crate::plan::Limits,
+    table: Option<&TableSignature>,
 ) -> Graded {
     let mut reasons = Vec::new();
     let mut analysis = None;
@@ -36,7 +38,7 @@ pub fn grade(
         run: None,
         points,
     };
-    match analyze_unit(&input, options) {
+    match spinbench_analysis::unit::analyze_unit_with(&input, options, table) {
         Ok(a) => {
             k2_max = a.k2_max_ug_per_g2;
             // Each figure against its limit; the outcome is the worst.
@@ -88,6 +90,7 @@ pub fn grade(
                     limit: l,
                     rule,
                     codes: [over, near],
+                    variant: None,
                 };
                 let verdict = rule.decide(v, u, l, limits.marginal_fraction);
                 record_verdict(
@@ -120,6 +123,141 @@ pub fn grade(
     }
 }
 
+/// Hold the k2 measurand the limits name (`decide_on`) against its limit
+/// under the limits' decision rule: the instrument's K2 with its U95
+/// ([`grade_instrument_k2`]), or k2_max ([`grade_k2_max`]).
+fn grade_k2(
+    a: &spinbench_analysis::UnitAnalysis,
+    limits: &crate::plan::Limits,
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    match limits.decide_on {
+        Measurand::K2 => grade_instrument_k2(a, limits, outcome, reasons),
+        Measurand::K2Max => grade_k2_max(a, limits, outcome, reasons),
+    }
+}
+
+/// The levels each mounting's diagnostics flagged off the curve [g].
+fn flagged_levels(f: &spinbench_analysis::MountingFit) -> Vec<f64> {
+    f.diagnostics
+        .as_ref()
+        .map(|d| d.outlier_levels.iter().map(|o| o.g).collect())
+        .unwrap_or_default()
+}
+
+/// Whether an uncertainty's budget carries a misfit source (model
+/// inadequacy or the fit's scatter).
+fn carries_misfit(u: &spinbench_analysis::uncertainty::Uncertainty) -> bool {
+    use spinbench_analysis::uncertainty::Source;
+    u.budget
+        .iter()
+        .any(|c| matches!(c.source, Source::ModelInadequacy | Source::FitScatter))
+}
+
+/// Hold the instrument's own K2 = (k2_P − k2_N)/2 (method.md (15)) with its
+/// GUM U95 against the limit. Without both mountings there is no K2:
+/// inconclusive, said so. A level flagged off the curve in one mounting
+/// only (the instrument's, which does not cancel from K2) while K2's U95
+/// carries no misfit is never a pass on that U; a level flagged in both
+/// mountings at the same g is the table's and cancels from K2.
+fn grade_instrument_k2(
+    a: &spinbench_analysis::UnitAnalysis,
+    limits: &crate::plan::Limits,
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    let rule = limits.decision_rule;
+    let l = limits.k2_max_ug_per_g2;
+    let Some(joint) = a.joint.as_ref() else {
+        if a.fits.values().any(|f| f.fit.k2_ug_per_g2.is_some()) {
+            reasons.push(
+                Reason::new(
+                    ReasonCode::K2Inconclusive,
+                    format!(
+                        "K2 needs both mountings (P and N) and this instrument has {}: not decided against the limit {l} µg/g²; measure the other mounting, or judge k2_max (decide_on = \"k2_max\")",
+                        a.fits.keys().map(|m| m.to_string()).collect::<Vec<_>>().join(", ")
+                    ),
+                )
+                .with("limit", l)
+                .with("variant", "one_mounting"),
+            );
+            if *outcome != Outcome::Fail {
+                *outcome = Outcome::Inconclusive;
+            }
+        }
+        return;
+    };
+    let v = joint.k2_even_ug_per_g2;
+    let u = joint.k2_even_u95;
+    let flagged: Vec<(Mount, Vec<f64>)> = a
+        .fits
+        .iter()
+        .map(|(m, f)| (*m, flagged_levels(f)))
+        .collect();
+    let in_both = |g: f64| flagged.iter().all(|(_, gs)| gs.contains(&g));
+    let unhandled: Vec<String> = flagged
+        .iter()
+        .filter_map(|(m, gs)| {
+            let own: Vec<f64> = gs.iter().copied().filter(|g| !in_both(*g)).collect();
+            (!own.is_empty()).then(|| format!("{m}: {own:?} g"))
+        })
+        .collect();
+    let misfit_in_u = joint
+        .uncertainty
+        .as_ref()
+        .is_some_and(|j| carries_misfit(&j.k2_even_ug_per_g2));
+    let judged = Judged {
+        name: "|K2| (both mountings)".to_string(),
+        shown: shown_value(rule, v.abs(), u),
+        unit: "µg/g²",
+        limit: l,
+        rule,
+        codes: [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
+        variant: Some("instrument"),
+    };
+    let verdict = rule.decide(v, u, l, limits.marginal_fraction);
+    if !unhandled.is_empty() && !misfit_in_u && matches!(verdict, Verdict::Pass | Verdict::Marginal)
+    {
+        misfit_not_in_u(&judged, &unhandled, outcome, reasons);
+        return;
+    }
+    record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
+}
+
+/// A pass that cannot stand: a level off the curve is not in the U95.
+fn misfit_not_in_u(
+    judged: &Judged,
+    unhandled: &[String],
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    let Judged {
+        name,
+        shown,
+        unit,
+        limit,
+        ..
+    } = judged;
+    reasons.push(
+        Reason::new(
+            ReasonCode::K2Inconclusive,
+            format!(
+                "{name} {shown} {unit}: a level off the curve ({}) is not in its U95, so the result cannot be graded a pass; retest, or reduce with anomalies = \"exclude\"",
+                unhandled.join("; ")
+            ),
+        )
+        .with("value", shown)
+        .with("unit", *unit)
+        .with("limit", *limit)
+        .with("levels", unhandled.join("; "))
+        .with("variant", "misfit"),
+    );
+    if *outcome != Outcome::Fail {
+        *outcome = Outcome::Inconclusive;
+    }
+}
+
 /// Hold k2_max, the larger |k2| of the mountings, against its limit under
 /// the limits' decision rule: each mounting's k2 with its own GUM U95 (the
 /// limit is on the maximum, so under the guarded rule every mounting must
@@ -127,13 +265,12 @@ pub fn grade(
 /// [`DecisionRule::decide_all`]). A mounting whose fit has a level flagged
 /// off the curve while its U95 carries no misfit (no model-inadequacy or
 /// fit-scatter source) is never a pass on that U: inconclusive, said so.
-fn grade_k2(
+fn grade_k2_max(
     a: &spinbench_analysis::UnitAnalysis,
     limits: &crate::plan::Limits,
     outcome: &mut Outcome,
     reasons: &mut Vec<Reason>,
 ) {
-    use spinbench_analysis::uncertainty::Source;
     let rule = limits.decision_rule;
     let l = limits.k2_max_ug_per_g2;
     let mut values = Vec::new();
@@ -148,16 +285,8 @@ fn grade_k2(
         let u = budget
             .map(|u| u.u95)
             .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)));
-        let flagged = f
-            .diagnostics
-            .as_ref()
-            .map(|d| d.outlier_levels.iter().map(|o| o.g).collect::<Vec<f64>>())
-            .unwrap_or_default();
-        let misfit_in_u = budget.is_some_and(|u| {
-            u.budget
-                .iter()
-                .any(|c| matches!(c.source, Source::ModelInadequacy | Source::FitScatter))
-        });
+        let flagged = flagged_levels(f);
+        let misfit_in_u = budget.is_some_and(carries_misfit);
         if !flagged.is_empty() && !misfit_in_u {
             unhandled.push(format!("{mount}: {flagged:?} g"));
         }
@@ -172,30 +301,16 @@ fn grade_k2(
     let (v, u) = values[i];
     let mount = mounts[i];
     let judged = Judged {
-        name: format!("|k2| (mounting {mount})"),
+        name: format!("k2_max: |k2| (mounting {mount})"),
         shown: shown_value(rule, v.abs(), u),
         unit: "µg/g²",
         limit: l,
         rule,
         codes: [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
+        variant: None,
     };
     if !unhandled.is_empty() && matches!(verdict, Verdict::Pass | Verdict::Marginal) {
-        let Judged {
-            name, shown, unit, ..
-        } = &judged;
-        reasons.push(
-            Reason::new(
-                ReasonCode::K2Inconclusive,
-                format!(
-                    "{name} {shown} {unit}: a level off the curve ({}) is not in its U95, so the result cannot be graded a pass; retest, or reduce with anomalies = \"exclude\"",
-                    unhandled.join("; ")
-                ),
-            )
-            .with("value", shown)
-            .with("unit", *unit)
-            .with("limit", l),
-        );
-        *outcome = Outcome::Inconclusive;
+        misfit_not_in_u(&judged, &unhandled, outcome, reasons);
         return;
     }
     record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
@@ -215,6 +330,9 @@ struct Judged {
     rule: DecisionRule,
     /// Its reason codes: over the limit, near it.
     codes: [ReasonCode; 2],
+    /// The catalogue's variant of its reasons (`reason.<code>.<variant>`),
+    /// when the figure is not the catalogue's plain one.
+    variant: Option<&'static str>,
 }
 
 /// "v ± U" under the guarded rule with a U, else "v".
@@ -240,7 +358,12 @@ fn record_verdict(
         limit: l,
         rule,
         codes: [over, near],
+        variant,
     } = judged;
+    let with_variant = |r: Reason| match variant {
+        Some(v) => r.with("variant", *v),
+        None => r,
+    };
     let guarded = if *rule == DecisionRule::Guarded {
         " (guarded rule)"
     } else {
@@ -248,7 +371,7 @@ fn record_verdict(
     };
     match verdict {
         Verdict::Fail => {
-            reasons.push(
+            reasons.push(with_variant(
                 Reason::new(
                     *over,
                     format!("{name} {shown} {unit} above the limit {l} {unit}{guarded}"),
@@ -257,11 +380,11 @@ fn record_verdict(
                 .with("unit", *unit)
                 .with("limit", *l)
                 .with("rule", rule.name()),
-            );
+            ));
             *outcome = Outcome::Fail;
         }
         Verdict::Inconclusive => {
-            reasons.push(
+            reasons.push(with_variant(
                 Reason::new(
                     ReasonCode::K2Inconclusive,
                     format!("{name} {shown} {unit} straddles the limit {l} {unit}: inconclusive under the guarded rule, retest advised"),
@@ -269,14 +392,14 @@ fn record_verdict(
                 .with("value", shown)
                 .with("unit", *unit)
                 .with("limit", *l),
-            );
+            ));
             if *outcome != Outcome::Fail {
                 *outcome = Outcome::Inconclusive;
             }
         }
         Verdict::Marginal => {
             let band = format!("{:.0}", (1.0 - marginal_fraction) * 100.0);
-            reasons.push(
+            reasons.push(with_variant(
                 Reason::new(
                     *near,
                     format!(
@@ -288,11 +411,104 @@ fn record_verdict(
                 .with("limit", *l)
                 .with("band", band)
                 .with("rule", rule.name()),
-            );
+            ));
             if *outcome == Outcome::Pass {
                 *outcome = Outcome::Marginal;
             }
         }
         Verdict::Pass => {}
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::Limits;
+    use spinbench_analysis::model::ieee1293_output;
+
+    /// One instrument of own K2 `k2` on an arm that adds `c` µg/g² to the
+    /// applied magnitude in both mountings (stretch, Koq: method.md (15)),
+    /// the published levels up and down, noise-free but for a 1 µg ripple
+    /// that keeps the fit's scatter above zero.
+    fn instrument(k2: f64, c: f64, mounts: &[Mount]) -> Vec<Point> {
+        let k = [0.02, 100.0, k2 * 1e-6, 0.2e-6];
+        let levels = spinbench_analysis::points::published_levels(70.0);
+        let mut out = Vec::new();
+        for &mount in mounts {
+            let sign = mount.input_sign();
+            let sequence = levels.iter().chain(levels.iter().rev());
+            for (i, &g) in sequence.enumerate() {
+                let a = g + c * 1e-6 * g * g + if i % 2 == 0 { 1e-6 } else { -1e-6 };
+                out.push(Point {
+                    mount,
+                    g_nominal: g,
+                    g_applied: g,
+                    output: ieee1293_output(k, sign * a),
+                    direction: None,
+                });
+            }
+        }
+        out
+    }
+
+    fn limits(decide_on: Measurand) -> Limits {
+        Limits {
+            decide_on,
+            ..Limits::default()
+        }
+    }
+
+    #[test]
+    fn the_default_verdict_is_on_the_instruments_own_k2_not_on_the_centrifuges_part() {
+        // K2 = 12, c' = 15: k2_P = 27 (over 20), k2_N = 3.
+        let points = instrument(12.0, 15.0, &[Mount::P, Mount::N]);
+        let options = AnalysisOptions::default();
+        let on_k2 = grade("A", points.clone(), options, &limits(Measurand::K2), None);
+        assert_eq!(on_k2.outcome, Outcome::Pass, "{:?}", on_k2.reasons);
+        let on_max = grade("A", points, options, &limits(Measurand::K2Max), None);
+        assert_eq!(on_max.outcome, Outcome::Fail, "{:?}", on_max.reasons);
+        let reason = on_max
+            .reasons
+            .iter()
+            .find(|r| r.code == ReasonCode::K2OverLimit)
+            .expect("over the limit");
+        assert!(reason.text.contains("k2_max"), "{}", reason.text);
+        // And the other way: K2 = 25 judged on K2 fails with its reason naming K2.
+        let over = grade(
+            "B",
+            instrument(25.0, 15.0, &[Mount::P, Mount::N]),
+            options,
+            &limits(Measurand::K2),
+            None,
+        );
+        assert_eq!(over.outcome, Outcome::Fail, "{:?}", over.reasons);
+        assert!(
+            over.reasons
+                .iter()
+                .any(|r| r.code == ReasonCode::K2OverLimit && r.text.contains("|K2|")),
+            "{:?}",
+            over.reasons
+        );
+    }
+
+    #[test]
+    fn one_mounting_has_no_k2_and_is_never_graded_pass_or_fail_on_it() {
+        for k2 in [2.0, 40.0] {
+            let g = grade(
+                "C",
+                instrument(k2, 0.0, &[Mount::P]),
+                AnalysisOptions::default(),
+                &limits(Measurand::K2),
+                None,
+            );
+            assert_eq!(g.outcome, Outcome::Inconclusive, "{:?}", g.reasons);
+            assert!(
+                g.reasons
+                    .iter()
+                    .any(|r| r.text.contains("needs both mountings")),
+                "{:?}",
+                g.reasons
+            );
+        }
     }
 }

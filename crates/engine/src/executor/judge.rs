@@ -159,15 +159,42 @@ impl Executor<'_> {
     pub(super) fn records(&self, run_complete: bool, run_reason: Option<&str>) -> Vec<UnitRecord> {
         let limits = self.plan.plan.limits;
         let mut out = Vec::new();
-        for (slot, u) in self.units.iter().enumerate() {
-            let Some(serial) = self.plan.serials[slot].clone() else {
+        // Each instrument's points as graded (the plan's exclusions applied).
+        let graded: Vec<Option<(Vec<Point>, Vec<_>)>> = self
+            .units
+            .iter()
+            .enumerate()
+            .map(|(slot, u)| {
+                let serial = self.plan.serials[slot].as_ref()?;
+                Some(self.excluded(serial, &graded_points(&self.plan, self.station, &u.points)))
+            })
+            .collect();
+        // The centrifuge's signature from every instrument that measured
+        // (a dead one has no points), before any is graded.
+        let table = table_signature(
+            self.units
+                .iter()
+                .zip(&graded)
+                .enumerate()
+                .filter(|(_, (u, _))| u.failed.is_none())
+                .filter_map(|(slot, (_, g))| {
+                    let (points, _) = g.as_ref()?;
+                    Some(UnitPoints {
+                        unit: self.plan.serials[slot].clone()?,
+                        run: None,
+                        points: points.clone(),
+                    })
+                }),
+            self.plan.order,
+        );
+        for (slot, (u, graded_points)) in self.units.iter().zip(graded).enumerate() {
+            let (Some(serial), Some((points, exclusions))) =
+                (self.plan.serials[slot].clone(), graded_points)
+            else {
                 continue;
             };
             let mut reasons = Vec::new();
             let mut analysis = None;
-            // The plan's exclusions for this instrument, applied to the points it is graded on.
-            let (points, exclusions) =
-                self.excluded(&serial, &graded_points(&self.plan, self.station, &u.points));
             let mut k2_max = None;
             let mut outcome = Outcome::Fail;
             let left = if run_complete || u.failed.is_some() {
@@ -189,13 +216,14 @@ impl Executor<'_> {
                     .with("why", run_reason.unwrap_or("no reason recorded")),
                 );
                 if !u.points.is_empty()
-                    && let Ok(a) = analyze_unit(
+                    && let Ok(a) = spinbench_analysis::unit::analyze_unit_with(
                         &UnitPoints {
                             unit: serial.clone(),
                             run: None,
                             points: points.clone(),
                         },
                         self.analysis_options(slot),
+                        table.as_ref(),
                     )
                 {
                     k2_max = a.k2_max_ug_per_g2;
@@ -211,6 +239,7 @@ impl Executor<'_> {
                     points.clone(),
                     self.analysis_options(slot),
                     &limits,
+                    table.as_ref(),
                 );
                 analysis = graded.analysis;
                 k2_max = graded.k2_max_ug_per_g2;
@@ -236,6 +265,8 @@ impl Executor<'_> {
                 outcome,
                 reasons,
                 decision_rule: Some(limits.decision_rule),
+                decision: Some(limits.decision()),
+                table_signature: table.clone(),
                 exclusions,
             });
         }
@@ -340,6 +371,16 @@ pub fn analysis_options(
             ..station_b
         },
     }
+}
+
+/// The centrifuge's signature learned from a run's instruments
+/// ([`spinbench_analysis::table_signature`]); `None` with too few of them.
+pub fn table_signature(
+    units: impl Iterator<Item = UnitPoints>,
+    order: spinbench_analysis::ModelOrder,
+) -> Option<spinbench_analysis::table_signature::TableSignature> {
+    let units: Vec<UnitPoints> = units.filter(|u| !u.points.is_empty()).collect();
+    spinbench_analysis::table_signature::estimate(&units, order)
 }
 
 /// The points an instrument is graded on: with temperatures, those at the

@@ -3,8 +3,8 @@
 //! visit the levels, and the prediction a plan carries into its run
 //! (issue 29; [`spinbench_analysis::design`] holds the arithmetic).
 
-use super::{AutoLevels, LevelTable, PlanError, PlanPrediction, TestPlan};
-use spinbench_analysis::points;
+use super::{AutoLevels, DecisionRule, LevelTable, Measurand, PlanError, PlanPrediction, TestPlan};
+use spinbench_analysis::{Mount, points};
 
 impl TestPlan {
     /// Ask for the levels to be designed for `target` [µg/g²] (`levels =
@@ -27,6 +27,63 @@ impl TestPlan {
                 .max(1.0) as usize
         } else {
             self.serials.len().max(1)
+        }
+    }
+
+    /// Whether this plan can decide, said before anything moves: `None`
+    /// when its prediction leaves room for a verdict, else why not, naming
+    /// the prediction and the limit. Under the guarded rule a K2 whose U95
+    /// is the limit or wider can never pass, and one wider than half the
+    /// limit passes only instruments with |K2| under limit − U95. The
+    /// prediction is of K2; a plan that judges k2_max is told that its
+    /// verdict's U95 is not the predicted one (each mounting's k2 carries
+    /// the centrifuge's common part, docs/method.md (15)).
+    pub fn decision_warning(&self) -> Option<String> {
+        let limits = &self.limits;
+        let limit = limits.k2_max_ug_per_g2;
+        // Without both passes (or with a slot fixed to one mounting by its
+        // P:/N: prefix) an instrument has one mounting and no K2.
+        let both = [Mount::P, Mount::N].iter().all(|m| self.passes.contains(m));
+        let fixed: Vec<&str> = self
+            .serials
+            .values()
+            .filter(|s| s.trim_start().starts_with("P:") || s.trim_start().starts_with("N:"))
+            .map(String::as_str)
+            .collect();
+        if limits.decide_on == Measurand::K2 && (!both || !fixed.is_empty()) {
+            let which = if both {
+                format!(
+                    "the slots of {} are fixed to one mounting",
+                    fixed.join(", ")
+                )
+            } else {
+                "the plan measures one mounting (passes = [\"P\", \"N\"] measures both)".into()
+            };
+            return Some(format!(
+                "the verdict is on K2 (decide_on = \"K2\") against {limit} µg/g², which needs both mountings, but {which}: those instruments cannot be decided; measure both mountings or judge k2_max (decide_on = \"k2_max\")"
+            ));
+        }
+        let p = self.prediction.as_ref()?;
+        let u = p.k2_u95_ug_per_g2;
+        match limits.decide_on {
+            Measurand::K2Max => Some(format!(
+                "the verdict is on k2_max (decide_on = \"k2_max\") against {limit} µg/g², but the prediction (K2 U95 {u:.3} µg/g²) is of the instrument's K2: each mounting's k2 also carries the centrifuge's common part and its U95 can be several times wider, so most instruments may be inconclusive; judge K2 (decide_on = \"K2\") to decide on the instrument"
+            )),
+            Measurand::K2 if limits.decision_rule == DecisionRule::Guarded && u >= limit => {
+                Some(format!(
+                    "the predicted K2 U95 {u:.3} µg/g² is as wide as the limit {limit} µg/g² or wider: under the guarded rule no instrument can pass; add levels or dwell (levels = \"auto\" with a target below {:.3}), or widen the limit",
+                    0.5 * limit
+                ))
+            }
+            Measurand::K2 if limits.decision_rule == DecisionRule::Guarded && u > 0.5 * limit => {
+                Some(format!(
+                    "the predicted K2 U95 {u:.3} µg/g² is over half the limit {limit} µg/g²: only instruments with |K2| under {:.3} can pass and over {:.3} can fail, the rest will be inconclusive; a target below {:.3} decides more",
+                    limit - u,
+                    limit + u,
+                    0.25 * limit
+                ))
+            }
+            Measurand::K2 => None,
         }
     }
 

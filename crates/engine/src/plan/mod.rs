@@ -12,7 +12,8 @@
 //! [dwell]
 //! seconds = 10
 //! [limits]
-//! k2_max_ug_per_g2 = 20
+//! k2_max_ug_per_g2 = 20   # the k2 limit [µg/g²]
+//! decide_on = "K2"        # the instrument's own K2 (default) or "k2_max" (published convention)
 //! ```
 
 mod compile;
@@ -268,8 +269,14 @@ impl Default for StabilityConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Limits {
-    /// |k2| of the worse mounting must not exceed this [µg/g²].
+    /// The k2 limit [µg/g²]: the largest |value| of the quantity
+    /// `decide_on` names (the instrument's K2 by default; with
+    /// `decide_on = "k2_max"`, the larger |k2| of the two mountings).
     pub k2_max_ug_per_g2: f64,
+    /// Which quantity the k2 limit is held against (method.md §6): `"K2"`,
+    /// the instrument's own second-order term (the default), or
+    /// `"k2_max"`, the published station's convention.
+    pub decide_on: Measurand,
     /// Scale-factor nonlinearity from the best straight line [ppm FS].
     pub nonlinearity_max_ppm_fs: Option<f64>,
     /// |Scale-factor asymmetry| between P and N [ppm].
@@ -280,6 +287,82 @@ pub struct Limits {
     pub marginal_fraction: f64,
     /// How a value with an uncertainty is judged against its limit.
     pub decision_rule: DecisionRule,
+}
+
+/// Which quantity a k2 limit judges (docs/method.md §6, (15)); a plan's
+/// `limits.decide_on` key.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+pub enum Measurand {
+    /// The instrument's own K2 = (k2_P − k2_N)/2 with its U95 (both
+    /// mountings): what the instrument is, the table's common part
+    /// cancelled. Needs both mountings; without them nothing is decided.
+    #[default]
+    #[serde(rename = "K2")]
+    K2,
+    /// The published station's k2_max: the larger |k2| of the two
+    /// mountings, each with its own U95. It carries the centrifuge's common
+    /// part (c′ of (15)), so it judges the table as well as the instrument.
+    #[serde(rename = "k2_max")]
+    K2Max,
+}
+
+impl Measurand {
+    /// Its name in plans, records and reports: `K2` or `k2_max`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Measurand::K2 => "K2",
+            Measurand::K2Max => "k2_max",
+        }
+    }
+
+    /// What it is, for reports.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Measurand::K2 => {
+                "the instrument's own K2 = (k2_P − k2_N)/2 of both mountings (docs/method.md (15)), the centrifuge's common part cancelled"
+            }
+            Measurand::K2Max => {
+                "k2_max, the larger |k2| of the two mountings (the published convention; it carries the centrifuge's common part, docs/method.md (15))"
+            }
+        }
+    }
+}
+
+impl std::str::FromStr for Measurand {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.trim() {
+            "K2" => Ok(Measurand::K2),
+            "k2_max" => Ok(Measurand::K2Max),
+            other => Err(format!(
+                "decide_on = '{other}': write \"K2\" (the instrument's own) or \"k2_max\" (the published convention)"
+            )),
+        }
+    }
+}
+
+/// What a k2 verdict judged: the quantity, its limit and the rule; in every
+/// record, so a reader never has to guess what was held against what.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+pub struct Decision {
+    /// The quantity judged.
+    pub measurand: Measurand,
+    /// Its limit [µg/g²].
+    pub limit_ug_per_g2: f64,
+    /// The decision rule.
+    pub rule: DecisionRule,
+}
+
+impl Limits {
+    /// The k2 decision these limits make.
+    pub fn decision(&self) -> Decision {
+        Decision {
+            measurand: self.decide_on,
+            limit_ug_per_g2: self.k2_max_ug_per_g2,
+            rule: self.decision_rule,
+        }
+    }
 }
 
 /// How a value with an uncertainty is judged against its limit (method.md §6).
@@ -403,6 +486,7 @@ impl Default for Limits {
     fn default() -> Self {
         Limits {
             k2_max_ug_per_g2: 20.0,
+            decide_on: Measurand::K2,
             nonlinearity_max_ppm_fs: None,
             asymmetry_max_ppm: None,
             hysteresis_max_ug: None,

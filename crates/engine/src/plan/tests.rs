@@ -440,3 +440,49 @@ fn a_prediction_gives_the_range_of_a_runs_median_for_its_number_of_instruments()
         .expect("prediction");
     assert_eq!(p.k2_u95_run_range_ug_per_g2, None);
 }
+
+#[test]
+fn a_plan_names_what_its_k2_limit_judges_and_says_beforehand_when_it_cannot_decide() {
+    use crate::plan::{Measurand, PlanPrediction};
+    // The default is the instrument's own K2; the published convention by name.
+    let both = "passes = [\"P\", \"N\"]\n[serials]\n1 = \"A\"\n";
+    let plan = TestPlan::from_toml(both).expect("plan");
+    assert_eq!(plan.limits.decide_on, Measurand::K2);
+    let max =
+        TestPlan::from_toml(&format!("{both}[limits]\ndecide_on = \"k2_max\"\n")).expect("plan");
+    assert_eq!(max.limits.decide_on, Measurand::K2Max);
+    let bad = TestPlan::from_toml(&format!("{both}[limits]\ndecide_on = \"k2\"\n"))
+        .expect_err("an unknown measurand");
+    assert!(bad.to_string().contains("decide_on"), "{bad}");
+    // One mounting has no K2: said before anything moves.
+    let one = TestPlan::from_toml("passes = [\"P\"]\n[serials]\n1 = \"A\"\n").expect("plan");
+    let w = one.decision_warning().expect("a warning");
+    assert!(w.contains("both mountings"), "{w}");
+    // A prediction against the limit: none when it leaves room, a warning
+    // naming both when it does not.
+    let predicted = |u: f64| {
+        let mut p = plan.clone();
+        p.prediction = Some(PlanPrediction {
+            k2_u95_ug_per_g2: u,
+            centrifuge_time_s: 1000.0,
+            published_k2_u95_ug_per_g2: None,
+            published_centrifuge_time_s: None,
+            target_k2_u95_ug_per_g2: None,
+            k2_u95_run_range_ug_per_g2: None,
+            model_runs: 0,
+        });
+        p
+    };
+    assert_eq!(predicted(4.0).decision_warning(), None);
+    let wide = predicted(25.0).decision_warning().expect("a warning");
+    assert!(wide.contains("25.000") && wide.contains("20"), "{wide}");
+    assert!(predicted(12.0).decision_warning().is_some());
+    // Judging k2_max: the prediction (of K2) is not its U95, and it says so.
+    let mut on_max = predicted(4.0);
+    on_max.limits.decide_on = Measurand::K2Max;
+    assert!(
+        on_max
+            .decision_warning()
+            .is_some_and(|w| w.contains("k2_max"))
+    );
+}

@@ -183,6 +183,9 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
         .collect();
     let headers: Vec<&str> = headers.iter().map(String::as_str).collect();
     c.table(y, &headers, &rows, 7.0, 1);
+    if let Some(signature) = crate::signature::of_run(report) {
+        signature_page(&mut c, signature, lang);
+    }
     for u in &report.units {
         unit_page(&mut c, u, lang);
     }
@@ -200,6 +203,34 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
         ),
         lang,
     )
+}
+
+/// The centrifuge's signature the run learned: what it rests on and its plot.
+fn signature_page(
+    c: &mut Canvas,
+    signature: &spinbench_analysis::table_signature::TableSignature,
+    lang: Lang,
+) {
+    c.new_page();
+    let mut y = MARGIN_MM + 6.0;
+    c.text(
+        MARGIN_MM,
+        y,
+        13.0,
+        &tr(lang, "signature.heading"),
+        Align::Left,
+    );
+    y += 6.0;
+    let text = crate::signature::describe(signature, lang);
+    for line in c.wrap(&text, 8.5, PAGE_W_MM - 2.0 * MARGIN_MM) {
+        c.text(MARGIN_MM, y, 8.5, &line, Align::Left);
+        y += 4.2;
+    }
+    y += 2.0;
+    let width = (PAGE_W_MM - 2.0 * MARGIN_MM) * 0.6;
+    c.plot(MARGIN_MM, y, width, |root| {
+        crate::signature::draw(signature, root, lang)
+    });
 }
 
 /// One instrument: title, fit figures, the three plots, the points.

@@ -86,6 +86,19 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         ));
     }
     h.push_str("</table>\n");
+    if let Some(signature) = crate::signature::of_run(report) {
+        h.push_str(&format!(
+            "<section class=\"signature\"><h2>{}</h2>\n<p>{}</p>\n",
+            esc(&tr(lang, "signature.heading")),
+            esc(&crate::signature::describe(signature, lang))
+        ));
+        if let Some(svg) = crate::signature::svg(signature, lang) {
+            h.push_str("<figure>");
+            h.push_str(&svg);
+            h.push_str("</figure>\n");
+        }
+        h.push_str("</section>\n");
+    }
     for u in &report.units {
         h.push_str(&format!(
             "<section class=\"unit\"><h2>{} — <span class=\"{}\">{}</span></h2>\n",

@@ -145,6 +145,10 @@ pub(super) fn run_plan(
         dir,
         store: db,
     })?;
+    // Whether the plan can decide, said before anything moves.
+    if let Some(w) = prepared.plan.decision_warning() {
+        writeln!(out, "warning: {w}")?;
+    }
     let bench = match connect_bench(&prepared.station, Some(&prepared.dir.raw_dir())) {
         Ok(bench) => bench,
         Err(e) => {

@@ -175,6 +175,7 @@ pub(super) async fn design_plan(
         .clone()
         .ok_or_else(|| ApiError::internal("the design gave no prediction"))?;
     Ok(Json(DesignReply {
+        decision_warning: designed.decision_warning(),
         levels_g: designed.level_table(),
         down_levels_g: designed.down_levels.clone().unwrap_or_default(),
         dwell_s: designed.dwell.seconds,

@@ -217,6 +217,9 @@ pub struct DesignReply {
     pub published_centrifuge_time_s: Option<f64>,
     /// Where the station's model came from.
     pub model_source: String,
+    /// Why the plan may not decide, before anything moves (the predicted
+    /// U95 of the judged quantity against its limit); none when it can.
+    pub decision_warning: Option<String>,
 }
 
 /// A run started, answered, paused, resumed or aborted.

@@ -146,7 +146,9 @@ export async function predict(ev) {
       source: d.model_source,
     };
     box.textContent = fill("web.msg.design", "designed: " + vars.levels + " levels, " + vars.down + " read again on the way down, " + vars.dwell + " s dwell — predicted K2 U95 " + vars.u95 + " µg/g² in " + vars.time + " s of centrifuge time; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (" + vars.source + ")", vars)
-      + predictionRange(d.k2_u95_run_range_ug_per_g2);
+      + predictionRange(d.k2_u95_run_range_ug_per_g2)
+      + (d.decision_warning ? " ⚠ " + d.decision_warning : "");
+    box.classList.toggle("warning", !!d.decision_warning);
     box.hidden = false;
   } catch (e) { box.hidden = true; show(e.message); }
 }

@@ -1,0 +1,761 @@
+//! The centrifuge's own signature, learned from the instruments it tests
+//! (docs/method.md §6, "Every instrument on the arm sees the same table").
+//!
+//! A disturbance of the table (a structural resonance, a broad bump of the
+//! arm's motion) moves the applied acceleration at a given speed by the
+//! same amount for every instrument on the arm, in both mountings, in every
+//! run on that centrifuge, scaled by the instrument's coupling to it (its
+//! place on the arm, within about ±20 %). An instrument's own anomaly (an
+//! activity dip) sits at one level of one instrument. So the population of
+//! a run's instruments measures the table:
+//!
+//! 1. each mounting of each instrument is fitted with the model's
+//!    polynomial, leaving out the levels found off the curve in that
+//!    mounting alone (the instrument's own anomalies), and its level-mean
+//!    residuals are expressed as acceleration, e_{j,ℓ} [µg];
+//! 2. the signature at each level is the median over the mountings of
+//!    e_{j,ℓ}/gᵢ, with its standard error from the median absolute
+//!    deviation (robust: an instrument's anomaly at a level moves one of
+//!    many values);
+//! 3. the signature is split into the table's sharp resonances, each a
+//!    spike at one level (a resonance narrower than the levels' spacing
+//!    is met at one speed), and its broad error: the spikes are fitted
+//!    through the polynomial's projection beside a smooth broad part (the
+//!    powers of the level above the model's degree, projected likewise),
+//!    each added only while significant against the signature's standard
+//!    errors at the family-wise level [`SIGNATURE_ALPHA`] over the levels
+//!    (at most [`MAX_SPIKES`]); what the spikes leave is the signature's
+//!    remainder, level by level;
+//! 4. steps 1–3 are repeated with the instrument-side levels found off
+//!    the curve once the table is taken out (one anomaly no longer hides
+//!    another).
+//!
+//! Each point's applied acceleration is then corrected by its
+//! instrument's coupling to the table (its place on the arm, within about
+//! ±20 %) times the spike and the remainder at its level. The coupling is
+//! read at the largest spike in each mounting: the table couples into both
+//! mountings alike, so when the two disagree one of them has an anomaly of
+//! the instrument's own at that level (the typical bench puts activity dips
+//! there), and the mounting nearer the median coupling gives it. An
+//! instrument's remaining difference is its own misfit, which the outlier
+//! test judges and its budget's model inadequacy carries.
+//!
+//! **What the data identify.** Only the part of the table's error that the
+//! model's polynomial does not absorb is seen in the residuals; the rest
+//! cannot be told from the instruments' own curvature. A spike is seen
+//! whole (a single level is no polynomial), so its whole effect, the
+//! coefficients' share of it too, is identified and corrected. A broad
+//! error is seen only in part: its seen part (the remainder) is taken out
+//! of the readings, which cleans the residuals that the misfit tests and
+//! the jackknife judge and changes no coefficient; its unseen part stays in
+//! the station's stated table-disturbance bound, a Type B term
+//! ([`crate::uncertainty::TypeBInputs::table_disturbance_ug`]). (Fitting
+//! broad Lorentzian lines and carrying their unseen part over was tried on
+//! the typical bench: lines of very different heights explain one seen
+//! part equally well, and the correction moved every mounting's k2 by
+//! several µg/g² the wrong way.)
+//!
+//! The correction's own uncertainty is the jackknife over the instruments
+//! (each left out in turn, the signature estimated again), the budget's
+//! table-signature source; both mountings share it, so it cancels from K2.
+
+use crate::lsq;
+use crate::model::ModelOrder;
+use crate::points::{Mount, Point};
+use crate::unit::UnitPoints;
+use crate::{AnalysisError, UG_PER_G};
+use nalgebra::DMatrix;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// Family-wise false-alarm rate of adding a line to the signature (over
+/// the candidate lines, Bonferroni).
+pub const SIGNATURE_ALPHA: f64 = 0.01;
+/// At most this many spikes explain a signature.
+pub const MAX_SPIKES: usize = 4;
+/// Fewer instruments than this cannot tell the table from an instrument.
+pub const MIN_INSTRUMENTS: usize = 4;
+/// Two mountings' couplings to the table agree within this (else one of
+/// them has an anomaly of its own at the spike's level).
+pub const COUPLING_AGREEMENT: f64 = 0.05;
+/// A level off the curve in more than this share of the mountings is the
+/// table's, not an instrument's.
+pub const MAX_OWN_SHARE: f64 = 0.2;
+/// The wide bumps that model the broad error beside the spikes.
+const BROAD_BUMPS: usize = 4;
+/// No spike below this level [g]: a table at a crawl has no resonance of
+/// note, and the lowest levels (0, 1 g) sit too close to tell a spike from
+/// the broad error.
+pub const MIN_SPIKE_G: f64 = 3.0;
+/// A spike's height is at most this [µg].
+const MAX_HEIGHT_UG: f64 = crate::uncertainty::MAX_TABLE_DISTURBANCE_UG;
+/// The signature's standard error never counts below this [µg].
+const SE_FLOOR_UG: f64 = 0.5;
+/// The detection limit is this many standard errors of the signature.
+pub const DETECTION_Z: f64 = 3.0;
+
+/// A sharp resonance of the table, met at one level.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Spike {
+    /// The level [g].
+    pub g: f64,
+    /// Its error of the applied acceleration there [µg] (positive: the arm
+    /// gives more acceleration than ω²R).
+    pub height_ug: f64,
+}
+
+/// What corrects the applied acceleration: the spikes, whole, and the
+/// seen remainder of the broad error, level by level.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Correction {
+    /// The spikes.
+    pub spikes: Vec<Spike>,
+    /// (level [g], remainder [µg]) of the levels the signature measured.
+    pub remainder: Vec<(f64, f64)>,
+}
+
+impl Correction {
+    /// Its value at a level [µg] (0 at a level the signature did not measure).
+    pub fn at_level(&self, g: f64) -> f64 {
+        self.spikes
+            .iter()
+            .filter(|s| s.g == g)
+            .map(|s| s.height_ug)
+            .sum::<f64>()
+            + self
+                .remainder
+                .iter()
+                .find(|(l, _)| *l == g)
+                .map_or(0.0, |(_, r)| *r)
+    }
+
+    /// Its value at a point [µg].
+    pub fn at(&self, p: &Point) -> f64 {
+        self.at_level(p.g_nominal.abs())
+    }
+
+    /// Whether it corrects nothing.
+    pub fn is_empty(&self) -> bool {
+        self.spikes.is_empty() && self.remainder.iter().all(|(_, r)| *r == 0.0)
+    }
+}
+
+/// The signature at one level.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct SignatureLevel {
+    /// The level [g].
+    pub g: f64,
+    /// The median residual of the mountings there, as acceleration [µg].
+    pub residual_ug: f64,
+    /// Its standard error [µg].
+    pub se_ug: f64,
+    /// The spike there, whole [µg] (0: none).
+    pub spike_ug: f64,
+    /// What the spikes leave of the signature there: the seen part of the
+    /// table's broad error, corrected at this level [µg].
+    pub remainder_ug: f64,
+    /// The mountings that measured it.
+    pub mountings: usize,
+}
+
+/// The table's signature learned from a run's instruments.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TableSignature {
+    /// What corrects the points: its spikes (none: no sharp resonance was
+    /// found) and the seen remainder level by level.
+    pub correction: Correction,
+    /// Each instrument's coupling to the table (1: the median instrument's).
+    #[serde(default)]
+    pub gains: BTreeMap<String, f64>,
+    /// The signature level by level.
+    pub levels: Vec<SignatureLevel>,
+    /// The instruments and mountings it rests on.
+    pub instruments: usize,
+    /// The mountings it rests on.
+    pub mountings: usize,
+    /// The runs it rests on.
+    pub runs: usize,
+    /// The smallest spike's seen part it finds [µg]
+    /// ([`DETECTION_Z`] × the signature's median standard error).
+    pub detection_ug: f64,
+    /// The correction with each instrument left out in turn (the jackknife of
+    /// the correction's uncertainty), by the instrument left out.
+    pub replicates: Vec<(String, Correction)>,
+    /// The instrument-side levels found off the curve once the table was
+    /// taken out: (serial, mounting, level [g]).
+    pub instrument_levels: Vec<(String, Mount, f64)>,
+}
+
+/// One mounting of one instrument.
+struct Series {
+    unit: String,
+    points: Vec<Point>,
+    /// Levels of this mounting alone left out of its fit [g].
+    own: Vec<f64>,
+}
+
+/// The level-mean residuals of `points`' polynomial fit of `degree`
+/// (leaving the levels `skip` out of the fit) as acceleration [µg], by level.
+fn level_residuals(points: &[Point], degree: usize, skip: &[f64]) -> Option<Vec<(f64, f64)>> {
+    let kept: Vec<&Point> = points
+        .iter()
+        .filter(|p| !skip.contains(&p.g_nominal.abs()))
+        .collect();
+    let x: Vec<f64> = kept.iter().map(|p| p.g_magnitude()).collect();
+    let y: Vec<f64> = kept.iter().map(|p| p.output).collect();
+    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
+    let c = &fit.coefficients;
+    let k1 = *c.get(1)?;
+    if !(k1.is_finite() && k1 != 0.0) {
+        return None;
+    }
+    let levels = crate::inadequacy::levels(points);
+    Some(
+        levels
+            .iter()
+            .map(|l| {
+                let r = l
+                    .members
+                    .iter()
+                    .map(|&i| {
+                        let a = points[i].g_magnitude();
+                        let predicted: f64 = c
+                            .iter()
+                            .enumerate()
+                            .map(|(j, cj)| cj * a.powi(j as i32))
+                            .sum();
+                        points[i].output - predicted
+                    })
+                    .sum::<f64>()
+                    / l.members.len() as f64;
+                (l.g, r / k1 * UG_PER_G)
+            })
+            .collect(),
+    )
+}
+
+/// The k1 (linear coefficient) of `points`' polynomial fit of `degree`.
+fn slope_of(points: &[Point], degree: usize) -> Option<f64> {
+    let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
+    let y: Vec<f64> = points.iter().map(|p| p.output).collect();
+    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
+    fit.coefficients.get(1).copied()
+}
+
+/// Median and the standard error of the median (1.2533 × 1.4826 × MAD / √n).
+fn median_se(values: &mut [f64]) -> Option<(f64, f64)> {
+    if values.is_empty() {
+        return None;
+    }
+    let median = |v: &mut [f64]| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let m = median(values);
+    let mut dev: Vec<f64> = values.iter().map(|v| (v - m).abs()).collect();
+    let mad = median(&mut dev);
+    let n = values.len() as f64;
+    Some((m, 1.2533 * 1.4826 * mad / n.sqrt()))
+}
+
+/// The projection onto the polynomial's residual space at `levels`:
+/// I − X(XᵀX)⁻¹Xᵀ, one reading per level.
+fn residual_projector(levels: &[f64], degree: usize) -> Option<DMatrix<f64>> {
+    let x = lsq::polynomial_design(levels, degree);
+    let op = lsq::solution_operator(&x, "table signature").ok()?;
+    let h = &x * &op;
+    Some(DMatrix::identity(levels.len(), levels.len()) - h)
+}
+
+/// Fit spikes to the signature `s` (standard errors `se`) at `levels`
+/// through the projector `m`, beside the broad part's powers (module
+/// docs): forward selection over the levels, each spike added only while
+/// significant.
+fn fit_spikes(
+    levels: &[f64],
+    s: &[f64],
+    se: &[f64],
+    m: &DMatrix<f64>,
+    degree: usize,
+) -> Vec<Spike> {
+    let n = levels.len();
+    // One level's standard error from a few mountings can come out small
+    // by chance: none counts below half the levels' median.
+    let floor = {
+        let mut v = se.to_vec();
+        median_se(&mut v).map_or(SE_FLOOR_UG, |(m, _)| (0.5 * m).max(SE_FLOOR_UG))
+    };
+    let w: Vec<f64> = se.iter().map(|e| 1.0 / e.max(floor).powi(2)).collect();
+    let top = levels.iter().copied().fold(1.0_f64, f64::max);
+    // The broad part: wide bumps spread over the range (half-width a
+    // quarter of it), projected likewise.
+    let broad: Vec<Vec<f64>> = (0..BROAD_BUMPS)
+        .map(|k| {
+            let centre = top * k as f64 / (BROAD_BUMPS - 1) as f64;
+            let hw = 0.25 * top;
+            let raw = DMatrix::from_fn(n, 1, |i, _| {
+                1.0 / (1.0 + ((levels[i] - centre) / hw).powi(2))
+            });
+            (m * raw).iter().copied().collect()
+        })
+        .collect();
+    let spike_shape = |l: usize| -> Vec<f64> { (0..n).map(|i| m[(i, l)]).collect() };
+    // A spike is added when its F against what is left (the broad part's
+    // misfit counts, not only the standard errors) is significant at
+    // SIGNATURE_ALPHA over the candidate levels (Bonferroni).
+    let candidates = levels.iter().filter(|g| **g >= MIN_SPIKE_G).count().max(1) as f64;
+    let significant = |ss: f64, new_ss: f64, k: usize| -> bool {
+        use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+        let dof = n as f64 - (degree + 1) as f64 - k as f64;
+        if dof < 1.0 || new_ss <= 0.0 {
+            return ss > new_ss;
+        }
+        let f = (ss - new_ss) / (new_ss / dof).max(1.0);
+        FisherSnedecor::new(1.0, dof).is_ok_and(|d| d.sf(f) * candidates < SIGNATURE_ALPHA)
+    };
+    // Weighted least squares of s on the broad part and the spikes at
+    // `chosen`: the spikes' heights and the weighted residual SS.
+    let solve = |chosen: &[usize]| -> Option<(Vec<f64>, f64)> {
+        let mut shapes: Vec<Vec<f64>> = broad.clone();
+        shapes.extend(chosen.iter().map(|&l| spike_shape(l)));
+        let k = shapes.len();
+        if k + 1 >= n.saturating_sub(degree + 1) {
+            return None;
+        }
+        let x = DMatrix::from_fn(n, k, |i, j| shapes[j][i] * w[i].sqrt());
+        let y: Vec<f64> = (0..n).map(|i| s[i] * w[i].sqrt()).collect();
+        let fit = lsq::solve(&x, &y, "table signature spikes").ok()?;
+        let c = &fit.coefficients;
+        let heights: Vec<f64> = c[broad.len()..].to_vec();
+        if heights
+            .iter()
+            .any(|h| !h.is_finite() || h.abs() > MAX_HEIGHT_UG)
+        {
+            return None;
+        }
+        Some((heights, fit.stats.rss))
+    };
+    let Some((_, mut ss)) = solve(&[]) else {
+        return Vec::new();
+    };
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut heights: Vec<f64> = Vec::new();
+    while chosen.len() < MAX_SPIKES {
+        let mut best: Option<(usize, f64, Vec<f64>)> = None;
+        for l in (0..n).filter(|&l| !chosen.contains(&l) && levels[l] >= MIN_SPIKE_G) {
+            let mut trial = chosen.clone();
+            trial.push(l);
+            if let Some((h, new_ss)) = solve(&trial)
+                && best.as_ref().is_none_or(|b| new_ss < b.1)
+            {
+                best = Some((l, new_ss, h));
+            }
+        }
+        let Some((l, new_ss, h)) = best else {
+            break;
+        };
+        if !significant(ss, new_ss, broad.len() + chosen.len() + 1) {
+            break;
+        }
+        chosen.push(l);
+        heights = h;
+        ss = new_ss;
+    }
+    chosen
+        .iter()
+        .zip(&heights)
+        .map(|(&l, &h)| Spike {
+            g: levels[l],
+            height_ug: h,
+        })
+        .collect()
+}
+
+/// The signature of `series` (each mounting's residuals over its
+/// instrument's coupling `gains`): the level set, the
+/// median residual and its standard error per level, and the mountings
+/// per level. Levels measured by fewer than half the mountings are left out.
+fn signature_of(
+    residuals: &[(usize, Vec<(f64, f64)>)],
+    series: &[Series],
+    gains: &BTreeMap<String, f64>,
+) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>) {
+    let mut at: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
+    for (j, r) in residuals {
+        let s = &series[*j];
+        let gain = gains.get(&s.unit).copied().unwrap_or(1.0);
+        for &(g, e) in r {
+            if !s.own.contains(&g) {
+                at.entry(g.to_bits()).or_default().push(e / gain);
+            }
+        }
+    }
+    let need = residuals.len().div_ceil(2).max(MIN_INSTRUMENTS);
+    let (mut levels, mut s, mut se, mut count) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let mut ordered: Vec<(f64, Vec<f64>)> = at
+        .into_iter()
+        .map(|(g, v)| (f64::from_bits(g), v))
+        .collect();
+    ordered.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for (g, mut v) in ordered {
+        if v.len() < need {
+            continue;
+        }
+        let n = v.len();
+        if let Some((m, e)) = median_se(&mut v) {
+            levels.push(g);
+            s.push(m);
+            se.push(e.max(SE_FLOOR_UG));
+            count.push(n);
+        }
+    }
+    (levels, s, se, count)
+}
+
+/// Each instrument's coupling to the table, read at the largest spike in
+/// each of its mountings (module docs): the mountings' mean when they
+/// agree within [`COUPLING_AGREEMENT`], else the one nearer 1; within
+/// 0.5–2; 1 without a spike.
+fn gains_of(
+    residuals: &[(usize, Vec<(f64, f64)>)],
+    series: &[Series],
+    correction: &Correction,
+    levels: &[f64],
+    s: &[f64],
+) -> BTreeMap<String, f64> {
+    let mut out: BTreeMap<String, f64> = BTreeMap::new();
+    let largest = correction
+        .spikes
+        .iter()
+        .max_by(|a, b| a.height_ug.abs().total_cmp(&b.height_ug.abs()));
+    let Some(spike) = largest else {
+        return out;
+    };
+    let Some(at) = levels.iter().position(|g| *g == spike.g) else {
+        return out;
+    };
+    if s[at].abs() <= f64::EPSILON {
+        return out;
+    }
+    let mut ratios: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for (j, r) in residuals {
+        if let Some(&(_, e)) = r.iter().find(|(g, _)| *g == spike.g) {
+            ratios
+                .entry(series[*j].unit.clone())
+                .or_default()
+                .push(e / s[at]);
+        }
+    }
+    for (unit, r) in ratios {
+        let gain = match r.as_slice() {
+            [a, b] if (a - b).abs() <= COUPLING_AGREEMENT => 0.5 * (a + b),
+            [a, b] => {
+                if (a - 1.0).abs() <= (b - 1.0).abs() {
+                    *a
+                } else {
+                    *b
+                }
+            }
+            [a] => *a,
+            _ => 1.0,
+        };
+        out.insert(
+            unit,
+            if gain.is_finite() {
+                gain.clamp(0.5, 2.0)
+            } else {
+                1.0
+            },
+        );
+    }
+    out
+}
+
+/// The correction the signature `s` at `levels` makes: its spikes and
+/// what they leave, level by level.
+fn correction_of(
+    levels: &[f64],
+    s: &[f64],
+    se: &[f64],
+    m: &DMatrix<f64>,
+    degree: usize,
+) -> Correction {
+    let spikes = fit_spikes(levels, s, se, m, degree);
+    let raw = DMatrix::from_fn(levels.len(), 1, |i, _| {
+        spikes
+            .iter()
+            .filter(|sp| sp.g == levels[i])
+            .map(|sp| sp.height_ug)
+            .sum::<f64>()
+    });
+    // The median of residuals need not lie in the residual space: the
+    // remainder is projected again, so that it changes no coefficient.
+    let rest = DMatrix::from_fn(levels.len(), 1, |i, _| s[i] - raw[i]);
+    let remainder = m * rest;
+    Correction {
+        remainder: levels
+            .iter()
+            .enumerate()
+            .map(|(i, &g)| (g, remainder[i]))
+            .collect(),
+        spikes,
+    }
+}
+
+/// Estimate the table's signature from a run's instruments (module docs).
+/// `None` with fewer than [`MIN_INSTRUMENTS`] instruments, or too few
+/// shared levels for the model with spare levels.
+pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignature> {
+    let degree = usize::from(order.degree());
+    let mut series: Vec<Series> = Vec::new();
+    for u in units {
+        let mut by_mount: BTreeMap<Mount, Vec<Point>> = BTreeMap::new();
+        for p in &u.points {
+            by_mount.entry(p.mount).or_default().push(*p);
+        }
+        for (_, points) in by_mount {
+            if crate::inadequacy::levels(&points).len() >= degree + 4 {
+                series.push(Series {
+                    unit: u.unit.clone(),
+                    points,
+                    own: Vec::new(),
+                });
+            }
+        }
+    }
+    let instruments: std::collections::BTreeSet<&str> =
+        series.iter().map(|s| s.unit.as_str()).collect();
+    if instruments.len() < MIN_INSTRUMENTS {
+        return None;
+    }
+    let instruments = instruments.len();
+    let mut correction = Correction::default();
+    let mut gains: BTreeMap<String, f64> = BTreeMap::new();
+    let mut result = None;
+    // Three rounds: the table from the mountings, then each mounting's own
+    // levels off the curve with the table taken out, then the table again.
+    for _round in 0..3 {
+        let residuals: Vec<(usize, Vec<(f64, f64)>)> = series
+            .iter()
+            .enumerate()
+            .filter_map(|(j, s)| level_residuals(&s.points, degree, &s.own).map(|r| (j, r)))
+            .collect();
+        let (levels, s, se, count) = signature_of(&residuals, &series, &gains);
+        if levels.len() < degree + 4 {
+            return None;
+        }
+        let m = residual_projector(&levels, degree)?;
+        correction = correction_of(&levels, &s, &se, &m, degree);
+        gains = gains_of(&residuals, &series, &correction, &levels, &s);
+        // Each mounting's own levels off the curve once the table is out.
+        for sr in &mut series {
+            let gain = gains.get(&sr.unit).copied().unwrap_or(1.0);
+            let corrected = correct_points(&sr.points, &correction, gain);
+            let k1 = slope_of(&corrected, degree).unwrap_or(1.0).abs();
+            sr.own = crate::inadequacy::outlier_levels(&corrected, degree, k1, "table signature")
+                .iter()
+                .map(|o| o.g)
+                .collect();
+        }
+        // A level off the curve in many mountings at once is the table's
+        // (what the correction does not yet explain), not an instrument's.
+        let mut flagged_in: BTreeMap<u64, usize> = BTreeMap::new();
+        for sr in &series {
+            for g in &sr.own {
+                *flagged_in.entry(g.to_bits()).or_default() += 1;
+            }
+        }
+        // A spike's level is the table's in every mounting.
+        let shared = (series.len() as f64 * MAX_OWN_SHARE).max(1.0);
+        for sr in &mut series {
+            sr.own.retain(|g| {
+                flagged_in
+                    .get(&g.to_bits())
+                    .is_some_and(|&n| n as f64 <= shared)
+                    && !correction.spikes.iter().any(|sp| sp.g == *g)
+            });
+        }
+        let median_se = {
+            let mut v = se.clone();
+            median_se(&mut v).map_or(SE_FLOOR_UG, |(m, _)| m)
+        };
+        result = Some((levels, s, se, count, m, median_se, residuals));
+    }
+    let (levels, s, se, count, m, median_se, residuals) = result?;
+    // The jackknife over instruments: each left out, the correction again.
+    let units_list: Vec<String> = series
+        .iter()
+        .map(|s| s.unit.clone())
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    let replicates = units_list
+        .iter()
+        .map(|left_out| {
+            let kept: Vec<(usize, Vec<(f64, f64)>)> = residuals
+                .iter()
+                .filter(|(j, _)| &series[*j].unit != left_out)
+                .cloned()
+                .collect();
+            let (lv, sv, sev, _) = signature_of(&kept, &series, &gains);
+            let replicate = if lv == levels {
+                correction_of(&lv, &sv, &sev, &m, degree)
+            } else {
+                residual_projector(&lv, degree).map_or_else(Correction::default, |mm| {
+                    correction_of(&lv, &sv, &sev, &mm, degree)
+                })
+            };
+            (left_out.clone(), replicate)
+        })
+        .collect();
+    let instrument_levels = series
+        .iter()
+        .flat_map(|s| {
+            let mount = s.points.first().map_or(Mount::P, |p| p.mount);
+            s.own.iter().map(move |g| (s.unit.clone(), mount, *g))
+        })
+        .collect();
+    Some(TableSignature {
+        levels: levels
+            .iter()
+            .enumerate()
+            .map(|(i, &g)| SignatureLevel {
+                g,
+                residual_ug: s[i],
+                se_ug: se[i],
+                spike_ug: correction
+                    .spikes
+                    .iter()
+                    .filter(|sp| sp.g == g)
+                    .map(|sp| sp.height_ug)
+                    .sum(),
+                remainder_ug: correction.remainder.get(i).map_or(0.0, |r| r.1),
+                mountings: count[i],
+            })
+            .collect(),
+        correction,
+        gains,
+        instruments,
+        mountings: series.len(),
+        runs: 1,
+        detection_ug: DETECTION_Z * median_se,
+        replicates,
+        instrument_levels,
+    })
+}
+
+/// `points` with each applied acceleration corrected by `gain` times the
+/// correction at it (its sign kept).
+pub fn correct_points(points: &[Point], correction: &Correction, gain: f64) -> Vec<Point> {
+    points
+        .iter()
+        .map(|p| {
+            let shift = gain * correction.at(p) / UG_PER_G;
+            let sign = if p.g_applied < 0.0 { -1.0 } else { 1.0 };
+            Point {
+                g_applied: p.g_applied + sign * shift,
+                ..*p
+            }
+        })
+        .collect()
+}
+
+impl TableSignature {
+    /// The coupling of instrument `unit` (1 when it was not part of the estimate).
+    pub fn gain(&self, unit: &str) -> f64 {
+        self.gains.get(unit).copied().unwrap_or(1.0)
+    }
+
+    /// `points` of instrument `unit` with the table taken out of their
+    /// applied acceleration.
+    pub fn correct(&self, unit: &str, points: &[Point]) -> Vec<Point> {
+        correct_points(points, &self.correction, self.gain(unit))
+    }
+
+    /// Whether it corrects nothing.
+    pub fn is_empty(&self) -> bool {
+        self.correction.is_empty()
+    }
+
+    /// The correction's standard uncertainty of each coefficient of one
+    /// mounting's fit of `points` (already corrected; instrument `unit`):
+    /// the jackknife over the instruments the signature rests on,
+    /// (n − 1)/n · Σ (Δ₍₋ᵢ₎ − Δ̄)², with Δ₍₋ᵢ₎ the coefficients' change when
+    /// the signature without instrument i corrects instead; its degrees of
+    /// freedom n − 1.
+    pub fn correction_effect(
+        &self,
+        unit: &str,
+        points: &[Point],
+        order: ModelOrder,
+        what: &str,
+    ) -> Result<Option<crate::uncertainty::Effect>, AnalysisError> {
+        let n = self.replicates.len();
+        if n < 2 || (self.is_empty() && self.replicates.iter().all(|(_, c)| c.is_empty())) {
+            return Ok(None);
+        }
+        let gain = self.gain(unit);
+        let full = crate::uncertainty::coefficients_of(points, order, what)?;
+        let mut deltas = Vec::with_capacity(n);
+        for (_, replicate) in &self.replicates {
+            // The replicate's correction in place of the full one's.
+            let swapped: Vec<Point> = points
+                .iter()
+                .map(|p| {
+                    let shift = gain * (replicate.at(p) - self.correction.at(p)) / UG_PER_G;
+                    let sign = if p.g_applied < 0.0 { -1.0 } else { 1.0 };
+                    Point {
+                        g_applied: p.g_applied + sign * shift,
+                        ..*p
+                    }
+                })
+                .collect();
+            let c = crate::uncertainty::coefficients_of(&swapped, order, what)?;
+            deltas.push(std::array::from_fn::<f64, 4, _>(|j| c[j] - full[j]));
+        }
+        let mean: [f64; 4] =
+            std::array::from_fn(|j| deltas.iter().map(|d| d[j]).sum::<f64>() / n as f64);
+        let factor = (n as f64 - 1.0) / n as f64;
+        let delta: [f64; 4] = std::array::from_fn(|j| {
+            (factor * deltas.iter().map(|d| (d[j] - mean[j]).powi(2)).sum::<f64>()).sqrt()
+        });
+        Ok(Some(crate::uncertainty::Effect {
+            source: crate::uncertainty::Source::TableSignature,
+            delta,
+            dof: Some((n - 1) as f64),
+        }))
+    }
+
+    /// One line for `analyze` and the reports.
+    pub fn describe(&self) -> String {
+        let largest = self
+            .correction
+            .remainder
+            .iter()
+            .fold(0.0_f64, |m, (_, r)| m.max(r.abs()));
+        let lines = if self.correction.spikes.is_empty() {
+            format!("no sharp resonance; the broad error's seen part up to {largest:.0} µg")
+        } else {
+            let sharp = self
+                .correction
+                .spikes
+                .iter()
+                .map(|sp| format!("{:+.0} µg at {} g", sp.height_ug, sp.g))
+                .collect::<Vec<_>>()
+                .join(", ");
+            format!("resonance {sharp}; the broad error's seen part up to {largest:.0} µg")
+        };
+        format!(
+            "the centrifuge's signature from {} instrument(s), {} mounting(s), {} run(s): {lines}; detection limit {:.0} µg",
+            self.instruments, self.mountings, self.runs, self.detection_ug
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests;
