@@ -68,6 +68,9 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+mod fit;
+use fit::{fit_spikes, median_se, residual_projector};
+
 /// Family-wise false-alarm rate of adding a line to the signature (over
 /// the candidate lines, Bonferroni).
 pub const SIGNATURE_ALPHA: f64 = 0.01;
@@ -186,6 +189,69 @@ pub struct TableSignature {
     pub instrument_levels: Vec<(String, Mount, f64)>,
 }
 
+/// What past runs on the same centrifuge measured of its signature: per
+/// level the inverse-variance mean of their own signatures and its
+/// standard error, pooled with a new run's before its correction is made.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Prior {
+    /// (level [g], signature [µg], standard error [µg]).
+    pub levels: Vec<(f64, f64, f64)>,
+    /// The runs it rests on.
+    pub runs: usize,
+    /// The instruments it rests on.
+    pub instruments: usize,
+}
+
+impl Prior {
+    /// Pool the runs' own signatures (each run's `levels`, its measurement
+    /// alone); `None` without any.
+    pub fn of(past: &[TableSignature]) -> Option<Prior> {
+        if past.is_empty() {
+            return None;
+        }
+        let mut sums: BTreeMap<u64, (f64, f64)> = BTreeMap::new();
+        for sig in past {
+            for l in &sig.levels {
+                let w = 1.0 / l.se_ug.max(SE_FLOOR_UG).powi(2);
+                let e = sums.entry(l.g.to_bits()).or_default();
+                e.0 += w * l.residual_ug;
+                e.1 += w;
+            }
+        }
+        let mut levels: Vec<(f64, f64, f64)> = sums
+            .into_iter()
+            .filter(|(_, (_, w))| *w > 0.0)
+            .map(|(g, (ws, w))| (f64::from_bits(g), ws / w, w.sqrt().recip()))
+            .collect();
+        levels.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Some(Prior {
+            levels,
+            runs: past
+                .iter()
+                .map(|s| s.runs.max(1))
+                .sum::<usize>()
+                .min(past.len()),
+            instruments: past.iter().map(|s| s.instruments).sum(),
+        })
+    }
+
+    /// `s` (standard errors `se`) at `levels` pooled with this prior by
+    /// inverse variance, level by level (a level it lacks is left as is).
+    fn pool(&self, levels: &[f64], s: &[f64], se: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        levels
+            .iter()
+            .enumerate()
+            .map(|(i, g)| match self.levels.iter().find(|(l, _, _)| l == g) {
+                Some(&(_, ps, pse)) => {
+                    let (w, wp) = (se[i].powi(-2), pse.max(SE_FLOOR_UG).powi(-2));
+                    ((w * s[i] + wp * ps) / (w + wp), (w + wp).sqrt().recip())
+                }
+                None => (s[i], se[i]),
+            })
+            .unzip()
+    }
+}
+
 /// One mounting of one instrument.
 struct Series {
     unit: String,
@@ -240,140 +306,6 @@ fn slope_of(points: &[Point], degree: usize) -> Option<f64> {
     let y: Vec<f64> = points.iter().map(|p| p.output).collect();
     let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
     fit.coefficients.get(1).copied()
-}
-
-/// Median and the standard error of the median (1.2533 × 1.4826 × MAD / √n).
-fn median_se(values: &mut [f64]) -> Option<(f64, f64)> {
-    if values.is_empty() {
-        return None;
-    }
-    let median = |v: &mut [f64]| {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        }
-    };
-    let m = median(values);
-    let mut dev: Vec<f64> = values.iter().map(|v| (v - m).abs()).collect();
-    let mad = median(&mut dev);
-    let n = values.len() as f64;
-    Some((m, 1.2533 * 1.4826 * mad / n.sqrt()))
-}
-
-/// The projection onto the polynomial's residual space at `levels`:
-/// I − X(XᵀX)⁻¹Xᵀ, one reading per level.
-fn residual_projector(levels: &[f64], degree: usize) -> Option<DMatrix<f64>> {
-    let x = lsq::polynomial_design(levels, degree);
-    let op = lsq::solution_operator(&x, "table signature").ok()?;
-    let h = &x * &op;
-    Some(DMatrix::identity(levels.len(), levels.len()) - h)
-}
-
-/// Fit spikes to the signature `s` (standard errors `se`) at `levels`
-/// through the projector `m`, beside the broad part's powers (module
-/// docs): forward selection over the levels, each spike added only while
-/// significant.
-fn fit_spikes(
-    levels: &[f64],
-    s: &[f64],
-    se: &[f64],
-    m: &DMatrix<f64>,
-    degree: usize,
-) -> Vec<Spike> {
-    let n = levels.len();
-    // One level's standard error from a few mountings can come out small
-    // by chance: none counts below half the levels' median.
-    let floor = {
-        let mut v = se.to_vec();
-        median_se(&mut v).map_or(SE_FLOOR_UG, |(m, _)| (0.5 * m).max(SE_FLOOR_UG))
-    };
-    let w: Vec<f64> = se.iter().map(|e| 1.0 / e.max(floor).powi(2)).collect();
-    let top = levels.iter().copied().fold(1.0_f64, f64::max);
-    // The broad part: wide bumps spread over the range (half-width a
-    // quarter of it), projected likewise.
-    let broad: Vec<Vec<f64>> = (0..BROAD_BUMPS)
-        .map(|k| {
-            let centre = top * k as f64 / (BROAD_BUMPS - 1) as f64;
-            let hw = 0.25 * top;
-            let raw = DMatrix::from_fn(n, 1, |i, _| {
-                1.0 / (1.0 + ((levels[i] - centre) / hw).powi(2))
-            });
-            (m * raw).iter().copied().collect()
-        })
-        .collect();
-    let spike_shape = |l: usize| -> Vec<f64> { (0..n).map(|i| m[(i, l)]).collect() };
-    // A spike is added when its F against what is left (the broad part's
-    // misfit counts, not only the standard errors) is significant at
-    // SIGNATURE_ALPHA over the candidate levels (Bonferroni).
-    let candidates = levels.iter().filter(|g| **g >= MIN_SPIKE_G).count().max(1) as f64;
-    let significant = |ss: f64, new_ss: f64, k: usize| -> bool {
-        use statrs::distribution::{ContinuousCDF, FisherSnedecor};
-        let dof = n as f64 - (degree + 1) as f64 - k as f64;
-        if dof < 1.0 || new_ss <= 0.0 {
-            return ss > new_ss;
-        }
-        let f = (ss - new_ss) / (new_ss / dof).max(1.0);
-        FisherSnedecor::new(1.0, dof).is_ok_and(|d| d.sf(f) * candidates < SIGNATURE_ALPHA)
-    };
-    // Weighted least squares of s on the broad part and the spikes at
-    // `chosen`: the spikes' heights and the weighted residual SS.
-    let solve = |chosen: &[usize]| -> Option<(Vec<f64>, f64)> {
-        let mut shapes: Vec<Vec<f64>> = broad.clone();
-        shapes.extend(chosen.iter().map(|&l| spike_shape(l)));
-        let k = shapes.len();
-        if k + 1 >= n.saturating_sub(degree + 1) {
-            return None;
-        }
-        let x = DMatrix::from_fn(n, k, |i, j| shapes[j][i] * w[i].sqrt());
-        let y: Vec<f64> = (0..n).map(|i| s[i] * w[i].sqrt()).collect();
-        let fit = lsq::solve(&x, &y, "table signature spikes").ok()?;
-        let c = &fit.coefficients;
-        let heights: Vec<f64> = c[broad.len()..].to_vec();
-        if heights
-            .iter()
-            .any(|h| !h.is_finite() || h.abs() > MAX_HEIGHT_UG)
-        {
-            return None;
-        }
-        Some((heights, fit.stats.rss))
-    };
-    let Some((_, mut ss)) = solve(&[]) else {
-        return Vec::new();
-    };
-    let mut chosen: Vec<usize> = Vec::new();
-    let mut heights: Vec<f64> = Vec::new();
-    while chosen.len() < MAX_SPIKES {
-        let mut best: Option<(usize, f64, Vec<f64>)> = None;
-        for l in (0..n).filter(|&l| !chosen.contains(&l) && levels[l] >= MIN_SPIKE_G) {
-            let mut trial = chosen.clone();
-            trial.push(l);
-            if let Some((h, new_ss)) = solve(&trial)
-                && best.as_ref().is_none_or(|b| new_ss < b.1)
-            {
-                best = Some((l, new_ss, h));
-            }
-        }
-        let Some((l, new_ss, h)) = best else {
-            break;
-        };
-        if !significant(ss, new_ss, broad.len() + chosen.len() + 1) {
-            break;
-        }
-        chosen.push(l);
-        heights = h;
-        ss = new_ss;
-    }
-    chosen
-        .iter()
-        .zip(&heights)
-        .map(|(&l, &h)| Spike {
-            g: levels[l],
-            height_ug: h,
-        })
-        .collect()
 }
 
 /// The signature of `series` (each mounting's residuals over its
@@ -511,6 +443,18 @@ fn correction_of(
 /// `None` with fewer than [`MIN_INSTRUMENTS`] instruments, or too few
 /// shared levels for the model with spare levels.
 pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignature> {
+    estimate_with(units, order, None)
+}
+
+/// [`estimate`], the run's signature pooled with what past runs on the
+/// same centrifuge measured (`prior`) before the correction is made; the
+/// signature's `levels` stay the run's own measurement (what the next
+/// run's prior pools), its correction rests on both.
+pub fn estimate_with(
+    units: &[UnitPoints],
+    order: ModelOrder,
+    prior: Option<&Prior>,
+) -> Option<TableSignature> {
     let degree = usize::from(order.degree());
     let mut series: Vec<Series> = Vec::new();
     for u in units {
@@ -550,8 +494,12 @@ pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignatur
             return None;
         }
         let m = residual_projector(&levels, degree)?;
-        correction = correction_of(&levels, &s, &se, &m, degree);
-        gains = gains_of(&residuals, &series, &correction, &levels, &s);
+        let (pooled, pooled_se) = match prior {
+            Some(p) => p.pool(&levels, &s, &se),
+            None => (s.clone(), se.clone()),
+        };
+        correction = correction_of(&levels, &pooled, &pooled_se, &m, degree);
+        gains = gains_of(&residuals, &series, &correction, &levels, &pooled);
         // Each mounting's own levels off the curve once the table is out.
         for sr in &mut series {
             let gain = gains.get(&sr.unit).copied().unwrap_or(1.0);
@@ -603,6 +551,10 @@ pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignatur
                 .cloned()
                 .collect();
             let (lv, sv, sev, _) = signature_of(&kept, &series, &gains);
+            let (sv, sev) = match prior {
+                Some(p) => p.pool(&lv, &sv, &sev),
+                None => (sv, sev),
+            };
             let replicate = if lv == levels {
                 correction_of(&lv, &sv, &sev, &m, degree)
             } else {
@@ -642,7 +594,7 @@ pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignatur
         gains,
         instruments,
         mountings: series.len(),
-        runs: 1,
+        runs: 1 + prior.map_or(0, |p| p.runs),
         detection_ug: DETECTION_Z * median_se,
         replicates,
         instrument_levels,

@@ -140,6 +140,12 @@ pub struct ArmConfig {
     /// `uncertainty.arm_stretch_u_ug_per_g2`. Default 0.
     #[serde(default)]
     pub stretch_ug_per_g2: f64,
+    /// The table's signature learned from past runs is used only while the
+    /// `[arm]` and `[centrifuge]` sections stay as they were; raise this
+    /// number to forget it without another change (after a repair of the
+    /// table, say). Default 0.
+    #[serde(default)]
+    pub signature_epoch: u32,
 }
 
 /// Supply roles.

@@ -37,6 +37,7 @@ fn fill(target: &StoreTarget, runs: usize) {
             passes: Vec::new(),
             steps: Vec::new(),
             order: Default::default(),
+            table_prior: None,
         };
         sink.emit(&Event::RunStarted {
             run_id: format!("run-bench-{r:04}"),

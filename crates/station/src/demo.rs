@@ -170,6 +170,8 @@ pub struct DemoPlanChoice {
     pub target_k2_u95: Option<f64>,
     /// What the reduction does with a level found off the curve.
     pub anomalies: spinbench_analysis::AnomalyRule,
+    /// What the k2 limit judges.
+    pub decide_on: spinbench_engine::plan::Measurand,
 }
 
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
@@ -266,6 +268,7 @@ pub fn demo(
         &plan_choice.temperatures_c,
     );
     plan.anomalies = plan_choice.anomalies;
+    plan.limits.decide_on = plan_choice.decide_on;
     if let Some(levels) = plan_choice.levels_g {
         plan.range_g = levels.iter().copied().fold(0.0, f64::max);
         plan.levels = Some(spinbench_engine::plan::LevelTable::List(levels));

@@ -252,13 +252,20 @@ pub fn prepare(setup: Setup) -> Result<Prepared, PrepareError> {
     } else {
         plan
     };
-    let compiled = match plan.compile(&station) {
+    let mut compiled = match plan.compile(&station) {
         Ok(c) => c,
         Err(e) => {
             dir.discard();
             return Err(e.into());
         }
     };
+    // The centrifuge's signature its past runs measured, pooled with the
+    // run's own when its points are corrected.
+    compiled.table_prior = crate::station_model::table_prior(
+        &store,
+        &station,
+        crate::station_model::DEFAULT_MODEL_RUNS,
+    );
     let resume = !dir.new;
     let write = |name: &str, text: &str| -> Result<(), PrepareError> {
         let path = dir.path().join(name);

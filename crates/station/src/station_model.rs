@@ -99,3 +99,113 @@ pub fn learn_from(store: &Store, station: &str, runs: usize) -> Learned {
         )),
     }
 }
+
+/// What the station's past runs on this centrifuge measured of its
+/// signature (docs/method.md §6): the newest `runs` completed runs of
+/// station `config.station` on the same table ([`same_table`]: another arm
+/// or centrifuge, or a raised `arm.signature_epoch`, forgets them), each
+/// run's own signature pooled. `None` with none, or a
+/// store that cannot be read (the run then learns alone).
+pub fn table_prior(
+    target: &StoreTarget,
+    config: &spinbench_engine::StationConfig,
+    runs: usize,
+) -> Option<spinbench_analysis::table_signature::Prior> {
+    if let StoreTarget::File(path) = target
+        && !path.exists()
+    {
+        return None;
+    }
+    let store = Store::open_read_only(target).ok()?;
+    let listed = store.runs().ok()?;
+    let mut past = Vec::new();
+    for run in listed
+        .iter()
+        .filter(|r| r.station == config.station && r.state == "completed")
+        .take(runs.min(MAX_MODEL_RUNS))
+    {
+        let same_centrifuge = store
+            .run_context(&run.id)
+            .ok()
+            .flatten()
+            .and_then(|c| c.station_config)
+            .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
+            .is_some_and(|then| same_table(&then, config));
+        if !same_centrifuge {
+            continue;
+        }
+        let own = store
+            .results(&run.id)
+            .ok()
+            .and_then(|results| results.into_iter().find_map(|r| r.record.table_signature));
+        past.extend(own);
+    }
+    spinbench_analysis::table_signature::Prior::of(&past)
+}
+
+/// The newest signature of the table `config` describes in `store` (its
+/// newest completed run on that table that learned one, which pooled the
+/// runs before it), with the run's id.
+pub fn latest_signature(
+    store: &Store,
+    config: &spinbench_engine::StationConfig,
+) -> Option<(String, spinbench_analysis::table_signature::TableSignature)> {
+    let listed = store.runs().ok()?;
+    listed
+        .iter()
+        .filter(|r| r.station == config.station && r.state == "completed")
+        .filter(|r| {
+            store
+                .run_context(&r.id)
+                .ok()
+                .flatten()
+                .and_then(|c| c.station_config)
+                .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
+                .is_some_and(|then| same_table(&then, config))
+        })
+        .find_map(|r| {
+            let signature = store
+                .results(&r.id)
+                .ok()?
+                .into_iter()
+                .find_map(|res| res.record.table_signature)?;
+            Some((r.id.clone(), signature))
+        })
+}
+
+/// Whether two station configs describe the same table: the same `[arm]`
+/// (its radii, rating, stretch and `signature_epoch`) and the same
+/// centrifuge (its name and rate limit); how it is reached (its port, its
+/// command language, its deadlines) is not the table.
+pub fn same_table(
+    a: &spinbench_engine::StationConfig,
+    b: &spinbench_engine::StationConfig,
+) -> bool {
+    a.arm == b.arm
+        && a.centrifuge.name == b.centrifuge.name
+        && a.centrifuge.max_rate_deg_s().ok() == b.centrifuge.max_rate_deg_s().ok()
+}
+
+#[cfg(test)]
+mod table_tests {
+    use super::same_table;
+    use spinbench_engine::StationConfig;
+
+    const SHIPPED: &str = include_str!("../../../packaging/station.toml");
+
+    #[test]
+    fn the_table_is_its_arm_and_centrifuge_not_the_port_that_reaches_it() {
+        let base = StationConfig::from_toml(SHIPPED).expect("the shipped config");
+        let moved = SHIPPED.replace("usb-centrifuge-controller", "usb-another-port");
+        assert_ne!(moved, SHIPPED);
+        let moved = StationConfig::from_toml(&moved).expect("config");
+        assert!(same_table(&base, &moved), "another port is the same table");
+        let repaired = SHIPPED.replacen("[arm]\n", "[arm]\nsignature_epoch = 1\n", 1);
+        assert_ne!(repaired, SHIPPED);
+        let repaired = StationConfig::from_toml(&repaired).expect("config");
+        assert!(
+            !same_table(&base, &repaired),
+            "a raised epoch forgets the table"
+        );
+    }
+}

@@ -260,6 +260,24 @@ fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
         "no signature section"
     );
     assert!(html.contains("µg @ 40 g"), "the resonance is not named");
+    // The station knows it as its table's signature (the web's station page).
+    let store =
+        spinbench_store::Store::open(&dir.path().join("spinbench.db")).expect("the demo's store");
+    let config = spinbench_engine::StationConfig::from_toml(
+        &std::fs::read_to_string(run_dir.join("station.toml")).expect("station.toml"),
+    )
+    .expect("the run's station config");
+    let (run_id, learned) =
+        spinbench_station::station_model::latest_signature(&store, &config).expect("learned");
+    assert_eq!(
+        Some(run_id.as_str()),
+        run_dir.file_name().and_then(|n| n.to_str())
+    );
+    assert!(
+        learned.correction.spikes.iter().any(|s| s.g == 40.0),
+        "{}",
+        learned.describe()
+    );
     assert!(html.contains("centrifuge signature"), "no signature plot");
     assert!(
         html.contains("guarded acceptance"),

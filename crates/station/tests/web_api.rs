@@ -521,6 +521,16 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     // Results and reports.
     let run = op.get_json(&format!("/api/runs/{run_id}"), 200);
     assert_eq!(run["state"], "completed");
+    // Two instruments cannot tell the table from an instrument: the
+    // station page says nothing is learned yet, and why.
+    let signature = op.get_json("/api/station/signature", 200);
+    assert_eq!(signature["runs"], 0, "{signature}");
+    assert!(
+        signature["text"]
+            .as_str()
+            .is_some_and(|t| t.contains("at least four instruments")),
+        "{signature}"
+    );
     assert_eq!(
         run["results"].as_array().map(Vec::len),
         Some(4),

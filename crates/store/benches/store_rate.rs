@@ -64,6 +64,7 @@ fn start_run(
         passes: Vec::new(),
         steps: Vec::new(),
         order: Default::default(),
+        table_prior: None,
     };
     sink.emit(&Event::RunStarted {
         run_id: run_id.into(),
@@ -167,6 +168,7 @@ fn bench(name: &str, target: &StoreTarget, measuring: bool, size_bytes: &dyn Fn(
         passes: Vec::new(),
         steps: Vec::new(),
         order: Default::default(),
+        table_prior: None,
     };
     sink.emit(&Event::RunStarted {
         run_id: "bench".into(),

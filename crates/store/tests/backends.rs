@@ -26,6 +26,7 @@ fn plan(serials: &[&str]) -> CompiledPlan {
         passes: Vec::new(),
         steps: Vec::new(),
         order: Default::default(),
+        table_prior: None,
     }
 }
 

@@ -142,3 +142,63 @@ fn too_few_instruments_learn_nothing() {
     let units = run(1, MIN_INSTRUMENTS - 1, &typical_table(), 10.0, None);
     assert!(estimate(&units, ModelOrder::Cubic).is_none());
 }
+
+#[test]
+fn past_runs_on_the_same_table_sharpen_the_correction() {
+    // Four instruments learn the table's resonance alone; with three past
+    // runs' signatures pooled, the correction rests on them too and its
+    // jackknife over this run's instruments shrinks.
+    let table = vec![(45.0, 0.6, 16_000.0)];
+    let alone = estimate(&run(21, 4, &table, 10.0, None), ModelOrder::Cubic).expect("a signature");
+    let past: Vec<TableSignature> = (0..3)
+        .map(|s| estimate(&run(30 + s, 12, &table, 10.0, None), ModelOrder::Cubic).expect("past"))
+        .collect();
+    let prior = Prior::of(&past).expect("a prior");
+    assert_eq!(prior.runs, 3);
+    assert_eq!(prior.instruments, 36);
+    let units = run(21, 4, &table, 10.0, None);
+    let pooled = estimate_with(&units, ModelOrder::Cubic, Some(&prior)).expect("a signature");
+    assert_eq!(pooled.runs, 4);
+    // The run's own measurement stays its own (what the next prior pools;
+    // only the couplings it is divided by follow the pooled correction).
+    for (p, a) in pooled.levels.iter().zip(&alone.levels) {
+        assert_eq!(p.g, a.g);
+        assert!(
+            (p.residual_ug - a.residual_ug).abs() <= 0.01 * a.residual_ug.abs() + 1.0,
+            "{p:?} {a:?}"
+        );
+    }
+    let spike = |s: &TableSignature| {
+        s.correction
+            .spikes
+            .iter()
+            .find(|sp| sp.g == 45.0)
+            .map(|sp| sp.height_ug)
+            .expect("the resonance")
+    };
+    let spread = |s: &TableSignature| {
+        let h: Vec<f64> = s
+            .replicates
+            .iter()
+            .filter_map(|(_, c)| {
+                c.spikes
+                    .iter()
+                    .find(|sp| sp.g == 45.0)
+                    .map(|sp| sp.height_ug)
+            })
+            .collect();
+        let mean = h.iter().sum::<f64>() / h.len() as f64;
+        (h.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / h.len() as f64).sqrt()
+    };
+    assert!(
+        (spike(&pooled) - 16_000.0).abs() < 0.05 * 16_000.0,
+        "{}",
+        pooled.describe()
+    );
+    assert!(
+        spread(&pooled) < spread(&alone),
+        "jackknife spread {} pooled, {} alone",
+        spread(&pooled),
+        spread(&alone)
+    );
+}

@@ -186,6 +186,7 @@ impl Executor<'_> {
                     })
                 }),
             self.plan.order,
+            self.plan.table_prior.as_ref(),
         );
         for (slot, (u, graded_points)) in self.units.iter().zip(graded).enumerate() {
             let (Some(serial), Some((points, exclusions))) =
@@ -378,9 +379,10 @@ pub fn analysis_options(
 pub fn table_signature(
     units: impl Iterator<Item = UnitPoints>,
     order: spinbench_analysis::ModelOrder,
+    prior: Option<&spinbench_analysis::table_signature::Prior>,
 ) -> Option<spinbench_analysis::table_signature::TableSignature> {
     let units: Vec<UnitPoints> = units.filter(|u| !u.points.is_empty()).collect();
-    spinbench_analysis::table_signature::estimate(&units, order)
+    spinbench_analysis::table_signature::estimate_with(&units, order, prior)
 }
 
 /// The points an instrument is graded on: with temperatures, those at the

@@ -401,6 +401,7 @@ impl TestPlan {
             passes,
             steps,
             order,
+            table_prior: None,
         })
     }
 }

@@ -589,6 +589,11 @@ pub struct CompiledPlan {
     /// Model order.
     #[serde(skip)]
     pub order: ModelOrder,
+    /// What past runs on this centrifuge measured of its signature, pooled
+    /// with the run's own before its points are corrected (the station
+    /// reads it from its store; `None`: the run learns alone).
+    #[serde(skip)]
+    pub table_prior: Option<spinbench_analysis::table_signature::Prior>,
 }
 
 impl Default for TestPlan {

@@ -99,6 +99,10 @@ pub enum Command {
         /// (the plan key `anomalies`).
         #[arg(long, default_value = "flag")]
         anomalies: spinbench_analysis::AnomalyRule,
+        /// What the k2 limit judges: K2 (the instrument's own) or k2_max
+        /// (the published convention; the plan key `limits.decide_on`).
+        #[arg(long, default_value = "K2")]
+        decide_on: spinbench_engine::plan::Measurand,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,

@@ -99,7 +99,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         history::runs, runs::start_run, history::run, history::report, exclusions::exclude_level, exclusions::withdraw_exclusion, runs::retest,
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::acknowledge_fault, history::unit,
         charts::control_charts,
-        equipment::equipment, equipment::set_equipment,
+        equipment::equipment, equipment::set_equipment, equipment::signature,
         live::fleet, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
     ),
     // Types used only as parameters are listed, so their references resolve.

@@ -2,10 +2,63 @@
 //! with its calibration certificate, dates and status, read by everyone and
 //! kept by engineers (each change in the audit log).
 
-use super::schema::{EquipmentEntry, EquipmentSaved, ErrorBody, SetEquipment};
+use super::schema::{
+    EquipmentEntry, EquipmentSaved, ErrorBody, SetEquipment, SignatureReply, SignatureSpike,
+};
 use super::*;
 use spinbench_engine::bounds::person_text;
 use spinbench_store::equipment::{EquipmentRow, parse_date};
+
+/// The centrifuge's signature this station has learned from its runs'
+/// instruments (docs/method.md §6): what it rests on, its resonances and
+/// its plot; `runs` 0 before any run on this table learned one.
+#[utoipa::path(get, path = "/api/station/signature", tag = "equipment",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the signature", body = SignatureReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+    ))]
+pub(super) async fn signature(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<Json<SignatureReply>> {
+    let session = authorize(&app, &headers, Role::Operator, false).await?;
+    let lang = super::session::language_of(&app, &headers, Some(&session)).await;
+    let station = app.runner.station().0;
+    let found = blocking(&app, move |app| {
+        Ok(crate::station_model::latest_signature(
+            &store(app),
+            &station,
+        ))
+    })
+    .await?;
+    Ok(Json(match found {
+        Some((run_id, sig)) => SignatureReply {
+            run_id: Some(run_id),
+            runs: sig.runs,
+            instruments: sig.instruments,
+            spikes: sig
+                .correction
+                .spikes
+                .iter()
+                .map(|s| SignatureSpike {
+                    g: s.g,
+                    height_ug: s.height_ug,
+                })
+                .collect(),
+            text: spinbench_report::signature::describe(&sig, lang),
+            svg: spinbench_report::signature::svg(&sig, lang),
+        },
+        None => SignatureReply {
+            run_id: None,
+            runs: 0,
+            instruments: 0,
+            spikes: Vec::new(),
+            text: spinbench_report::lang::tr(lang, "signature.none"),
+            svg: None,
+        },
+    }))
+}
 
 /// Every device of the station with its calibration and status.
 #[utoipa::path(get, path = "/api/equipment", tag = "equipment",

@@ -255,6 +255,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/api/units/{serial}", get(history::unit)),
         ("get", "/api/control-charts", get(charts::control_charts)),
         ("get", "/api/equipment", get(equipment::equipment)),
+        ("get", "/api/station/signature", get(equipment::signature)),
         (
             "put",
             "/api/equipment/{role}",

@@ -490,6 +490,32 @@ pub struct ChartsReply {
     pub yield_by_day: Vec<YieldRow>,
 }
 
+/// The centrifuge's signature the station has learned (docs/method.md §6).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SignatureReply {
+    /// The run whose signature this is (none: nothing learned yet).
+    pub run_id: Option<String>,
+    /// The runs it rests on (0: nothing learned yet).
+    pub runs: usize,
+    /// The instruments of that run it rests on.
+    pub instruments: usize,
+    /// The sharp resonances, each at one level, corrected whole.
+    pub spikes: Vec<SignatureSpike>,
+    /// What it rests on and what it corrected, in the user's language.
+    pub text: String,
+    /// Its plot (SVG), when learned.
+    pub svg: Option<String>,
+}
+
+/// A sharp resonance of the table.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SignatureSpike {
+    /// The level [g].
+    pub g: f64,
+    /// Its error of the applied acceleration [µg].
+    pub height_ug: f64,
+}
+
 /// One device of the equipment register.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct EquipmentEntry {

@@ -17,6 +17,10 @@ export async function loadEquipment() {
       roles.add(new Option(deviceWord(d.role), d.role));
     }
     $("equipment-form").hidden = !(state.session && state.session.role !== "operator");
+    // The centrifuge's signature the station learned (GET /api/station/signature).
+    const sig = await api("GET", "/api/station/signature");
+    $("signature-text").textContent = sig.text;
+    $("signature-figure").innerHTML = sig.svg || "";
   } catch (e) { show(e.message); }
 }
 

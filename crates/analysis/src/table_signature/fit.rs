@@ -1,0 +1,143 @@
+//! The signature's arithmetic: the median and its standard error, the
+//! polynomial's residual projector, and the spikes fitted beside the broad
+//! part (the module docs of [`super`]).
+
+use super::{
+    BROAD_BUMPS, MAX_HEIGHT_UG, MAX_SPIKES, MIN_SPIKE_G, SE_FLOOR_UG, SIGNATURE_ALPHA, Spike,
+};
+use crate::lsq;
+use nalgebra::DMatrix;
+
+/// Median and the standard error of the median (1.2533 × 1.4826 × MAD / √n).
+pub(super) fn median_se(values: &mut [f64]) -> Option<(f64, f64)> {
+    if values.is_empty() {
+        return None;
+    }
+    let median = |v: &mut [f64]| {
+        v.sort_by(f64::total_cmp);
+        let n = v.len();
+        if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        }
+    };
+    let m = median(values);
+    let mut dev: Vec<f64> = values.iter().map(|v| (v - m).abs()).collect();
+    let mad = median(&mut dev);
+    let n = values.len() as f64;
+    Some((m, 1.2533 * 1.4826 * mad / n.sqrt()))
+}
+
+/// The projection onto the polynomial's residual space at `levels`:
+/// I − X(XᵀX)⁻¹Xᵀ, one reading per level.
+pub(super) fn residual_projector(levels: &[f64], degree: usize) -> Option<DMatrix<f64>> {
+    let x = lsq::polynomial_design(levels, degree);
+    let op = lsq::solution_operator(&x, "table signature").ok()?;
+    let h = &x * &op;
+    Some(DMatrix::identity(levels.len(), levels.len()) - h)
+}
+
+/// Fit spikes to the signature `s` (standard errors `se`) at `levels`
+/// through the projector `m`, beside the broad part's powers (module
+/// docs): forward selection over the levels, each spike added only while
+/// significant.
+pub(super) fn fit_spikes(
+    levels: &[f64],
+    s: &[f64],
+    se: &[f64],
+    m: &DMatrix<f64>,
+    degree: usize,
+) -> Vec<Spike> {
+    let n = levels.len();
+    // One level's standard error from a few mountings can come out small
+    // by chance: none counts below half the levels' median.
+    let floor = {
+        let mut v = se.to_vec();
+        median_se(&mut v).map_or(SE_FLOOR_UG, |(m, _)| (0.5 * m).max(SE_FLOOR_UG))
+    };
+    let w: Vec<f64> = se.iter().map(|e| 1.0 / e.max(floor).powi(2)).collect();
+    let top = levels.iter().copied().fold(1.0_f64, f64::max);
+    // The broad part: wide bumps spread over the range (half-width a
+    // quarter of it), projected likewise.
+    let broad: Vec<Vec<f64>> = (0..BROAD_BUMPS)
+        .map(|k| {
+            let centre = top * k as f64 / (BROAD_BUMPS - 1) as f64;
+            let hw = 0.25 * top;
+            let raw = DMatrix::from_fn(n, 1, |i, _| {
+                1.0 / (1.0 + ((levels[i] - centre) / hw).powi(2))
+            });
+            (m * raw).iter().copied().collect()
+        })
+        .collect();
+    let spike_shape = |l: usize| -> Vec<f64> { (0..n).map(|i| m[(i, l)]).collect() };
+    // A spike is added when its F against what is left (the broad part's
+    // misfit counts, not only the standard errors) is significant at
+    // SIGNATURE_ALPHA over the candidate levels (Bonferroni).
+    let candidates = levels.iter().filter(|g| **g >= MIN_SPIKE_G).count().max(1) as f64;
+    let significant = |ss: f64, new_ss: f64, k: usize| -> bool {
+        use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+        let dof = n as f64 - (degree + 1) as f64 - k as f64;
+        if dof < 1.0 || new_ss <= 0.0 {
+            return ss > new_ss;
+        }
+        let f = (ss - new_ss) / (new_ss / dof).max(1.0);
+        FisherSnedecor::new(1.0, dof).is_ok_and(|d| d.sf(f) * candidates < SIGNATURE_ALPHA)
+    };
+    // Weighted least squares of s on the broad part and the spikes at
+    // `chosen`: the spikes' heights and the weighted residual SS.
+    let solve = |chosen: &[usize]| -> Option<(Vec<f64>, f64)> {
+        let mut shapes: Vec<Vec<f64>> = broad.clone();
+        shapes.extend(chosen.iter().map(|&l| spike_shape(l)));
+        let k = shapes.len();
+        if k + 1 >= n.saturating_sub(degree + 1) {
+            return None;
+        }
+        let x = DMatrix::from_fn(n, k, |i, j| shapes[j][i] * w[i].sqrt());
+        let y: Vec<f64> = (0..n).map(|i| s[i] * w[i].sqrt()).collect();
+        let fit = lsq::solve(&x, &y, "table signature spikes").ok()?;
+        let c = &fit.coefficients;
+        let heights: Vec<f64> = c[broad.len()..].to_vec();
+        if heights
+            .iter()
+            .any(|h| !h.is_finite() || h.abs() > MAX_HEIGHT_UG)
+        {
+            return None;
+        }
+        Some((heights, fit.stats.rss))
+    };
+    let Some((_, mut ss)) = solve(&[]) else {
+        return Vec::new();
+    };
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut heights: Vec<f64> = Vec::new();
+    while chosen.len() < MAX_SPIKES {
+        let mut best: Option<(usize, f64, Vec<f64>)> = None;
+        for l in (0..n).filter(|&l| !chosen.contains(&l) && levels[l] >= MIN_SPIKE_G) {
+            let mut trial = chosen.clone();
+            trial.push(l);
+            if let Some((h, new_ss)) = solve(&trial)
+                && best.as_ref().is_none_or(|b| new_ss < b.1)
+            {
+                best = Some((l, new_ss, h));
+            }
+        }
+        let Some((l, new_ss, h)) = best else {
+            break;
+        };
+        if !significant(ss, new_ss, broad.len() + chosen.len() + 1) {
+            break;
+        }
+        chosen.push(l);
+        heights = h;
+        ss = new_ss;
+    }
+    chosen
+        .iter()
+        .zip(&heights)
+        .map(|(&l, &h)| Spike {
+            g: levels[l],
+            height_ug: h,
+        })
+        .collect()
+}
