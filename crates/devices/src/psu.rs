@@ -30,7 +30,16 @@ pub trait PowerSupply: Send {
     fn set_output(&mut self, channel: u8, on: bool) -> Result<(), DeviceError>;
     /// Measure an output.
     fn measure(&mut self, channel: u8) -> Result<OutputReading, DeviceError>;
+    /// Read what the error queue holds from before (another program, an
+    /// earlier session), oldest first, then clear it (`*CLS`): a setting's
+    /// refusal after this is the setting's own. At most
+    /// [`MAX_STALE_ERRORS`] entries are read.
+    fn clear_errors(&mut self) -> Result<Vec<(i32, String)>, DeviceError>;
 }
+
+/// Most error-queue entries read before `*CLS` (a queue that never ends
+/// is a supply that does not answer as SCPI says).
+pub const MAX_STALE_ERRORS: usize = 32;
 
 /// A SCPI supply. After every setting it reads the error queue, so a
 /// refused setting surfaces as an error instead of passing silently.
@@ -125,6 +134,21 @@ impl<T: Transport> PowerSupply for ScpiPowerSupply<T> {
     fn set_output(&mut self, channel: u8, on: bool) -> Result<(), DeviceError> {
         self.select(channel)?;
         self.set(PsuRequest::Output(on))
+    }
+
+    fn clear_errors(&mut self) -> Result<Vec<(i32, String)>, DeviceError> {
+        let mut stale = Vec::new();
+        for _ in 0..MAX_STALE_ERRORS {
+            let (code, message) = self.channel.query(&PsuRequest::ReadError.line(), |r| {
+                scpi::parse_error_entry(r).map_err(|e| (e.expected.to_string(), false))
+            })?;
+            if code == 0 {
+                break;
+            }
+            stale.push((code, message));
+        }
+        self.channel.send(&PsuRequest::ClearStatus.line())?;
+        Ok(stale)
     }
 
     fn measure(&mut self, channel: u8) -> Result<OutputReading, DeviceError> {

@@ -263,6 +263,30 @@ fn power_supply_every_command() {
 }
 
 #[test]
+fn power_supply_reads_and_clears_errors_left_from_before() {
+    // Another program left a refusal in the queue: read (to be reported),
+    // then cleared, so the station's own correct setting is not blamed.
+    let (mut p, t) = psu(vec![
+        w("SYST:ERR?"),
+        r("-222,\"Data out of range\""),
+        w("SYST:ERR?"),
+        r("-113,\"Undefined header\""),
+        w("SYST:ERR?"),
+        r("0,\"No error\""),
+        w("*CLS"),
+    ]);
+    let stale = p.clear_errors().expect("cleared");
+    assert_eq!(
+        stale,
+        vec![
+            (-222, "Data out of range".to_string()),
+            (-113, "Undefined header".to_string())
+        ]
+    );
+    t.verify().expect("transcript followed");
+}
+
+#[test]
 fn power_supply_refusals_and_bad_channels() {
     let (mut p, t) = psu(vec![
         w("INST:NSEL 1"),

@@ -64,12 +64,32 @@ fn run_paused(
     pause_windows: Option<(u64, u64)>,
     adjust_station: &dyn Fn(&mut StationConfig),
 ) -> (RunSummary, Vec<Event>, RunningBench) {
+    run_prepared(
+        sim,
+        plan,
+        abort_after_windows,
+        pause_windows,
+        adjust_station,
+        &|_| {},
+    )
+}
+
+/// As `run_paused`, with `before` given the bench before the run starts.
+fn run_prepared(
+    sim: SimConfig,
+    plan: TestPlan,
+    abort_after_windows: Option<u64>,
+    pause_windows: Option<(u64, u64)>,
+    adjust_station: &dyn Fn(&mut StationConfig),
+    before: &dyn Fn(&RunningBench),
+) -> (RunSummary, Vec<Event>, RunningBench) {
     // Virtual time in lockstep, unless a test asks for a faster-than-real
     // clock (lost bytes stall the lockstep: the station waits for a window
     // the bench never completes).
     let speed = if sim.speed > 1.0 { sim.speed } else { 0.0 };
     let bench =
         RunningBench::start(SimConfig { speed, ..sim }, ServeOptions::default()).expect("bench");
+    before(&bench);
     let mut station = station_for(&bench);
     adjust_station(&mut station);
     let compiled = plan.compile(&station).expect("plan fits the station");
@@ -1323,3 +1343,30 @@ fn a_point_with_too_few_whole_values_is_measured_again_not_failed() {
 
 /// Lost bytes per byte on the modules' lines in the test above.
 const BYTE_DROP_RATE: f64 = 1.2e-5;
+
+#[test]
+fn an_error_another_program_left_in_a_supplys_queue_is_reported_and_the_run_completes() {
+    // Another program's refused setting, still queued in the rails supply:
+    // the station reads it, says so, clears it, and its own settings pass.
+    let (summary, events, _bench) = run_prepared(
+        SimConfig::default(),
+        small_plan(),
+        None,
+        None,
+        &|_| {},
+        &|bench| {
+            bench.with_world(|w| {
+                let _ = w.rails.handle("VOLT 40", &[]);
+            });
+        },
+    );
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let notice = events.iter().find_map(|e| match e {
+        Event::Notice { message, .. } if message.contains("*CLS") => Some(message.clone()),
+        _ => None,
+    });
+    assert!(
+        notice.as_deref().is_some_and(|m| m.contains("-222")),
+        "{notice:?}"
+    );
+}

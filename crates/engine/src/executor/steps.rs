@@ -8,6 +8,33 @@ const RESONATOR_RANGE_HZ: (f64, f64) = (5_000.0, 200_000.0);
 
 impl Executor<'_> {
     pub(super) fn power_on(&mut self) -> Result<(), EngineError> {
+        // Errors another program or an earlier session left in a supply's
+        // queue are read, reported and cleared first: a refusal after this
+        // is the station's own command's.
+        let mut stale = Vec::new();
+        if let Some(m) = &mut self.bench.module_supply {
+            stale.extend(m.clear_errors()?.into_iter().map(|e| ("module supply", e)));
+        }
+        stale.extend(
+            self.bench
+                .instrument_supply
+                .clear_errors()?
+                .into_iter()
+                .map(|e| ("instrument supply", e)),
+        );
+        if !stale.is_empty() {
+            let listed = stale
+                .iter()
+                .map(|(who, (code, text))| format!("{who}: {code}, \"{text}\""))
+                .collect::<Vec<_>>()
+                .join("; ");
+            self.emit(Event::Notice {
+                message: format!(
+                    "errors left in the supplies' queues from before this run, cleared (*CLS): {listed}"
+                ),
+                wording: Some(Wording::new("notice.stale_supply_errors").with("errors", &listed)),
+            })?;
+        }
         let p = &self.station.power;
         if let Some(m) = &mut self.bench.module_supply {
             m.set_output(1, true)?;
