@@ -113,7 +113,22 @@ fn devices(station: &StationConfig) -> Vec<Finding> {
         };
         found.push(device(&role, &p.transport, || {
             let mut d = p.connect().map_err(|e| e.to_string())?;
-            d.identify().map_err(|e| e.to_string())
+            let identity = d.identify().map_err(|e| e.to_string())?;
+            // What another program left in its error queue, read and cleared.
+            let stale = d.clear_errors().map_err(|e| e.to_string())?;
+            Ok(if stale.is_empty() {
+                identity
+            } else {
+                format!(
+                    "{identity}; {} error(s) another program left in its queue, read and cleared (*CLS): {}",
+                    stale.len(),
+                    stale
+                        .iter()
+                        .map(|(code, text)| format!("{code}, \"{text}\""))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                )
+            })
         }));
     }
     if let Some(ch) = &station.chamber {

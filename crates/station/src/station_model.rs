@@ -117,30 +117,41 @@ pub fn table_prior(
         return None;
     }
     let store = Store::open_read_only(target).ok()?;
-    let listed = store.runs().ok()?;
-    let mut past = Vec::new();
-    for run in listed
-        .iter()
-        .filter(|r| r.station == config.station && r.state == "completed")
+    let past: Vec<_> = signatures_on_table(&store, config)
         .take(runs.min(MAX_MODEL_RUNS))
-    {
-        let same_centrifuge = store
-            .run_context(&run.id)
-            .ok()
-            .flatten()
-            .and_then(|c| c.station_config)
-            .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
-            .is_some_and(|then| same_table(&then, config));
-        if !same_centrifuge {
-            continue;
-        }
-        let own = store
-            .results(&run.id)
-            .ok()
-            .and_then(|results| results.into_iter().find_map(|r| r.record.table_signature));
-        past.extend(own);
-    }
+        .map(|(_, signature)| signature)
+        .collect();
     spinbench_analysis::table_signature::Prior::of(&past)
+}
+
+/// The signatures the station's completed runs on the table `config`
+/// describes learned, newest first, with each run's id.
+fn signatures_on_table<'a>(
+    store: &'a Store,
+    config: &'a spinbench_engine::StationConfig,
+) -> impl Iterator<Item = (String, spinbench_analysis::table_signature::TableSignature)> + 'a {
+    store
+        .runs()
+        .unwrap_or_default()
+        .into_iter()
+        .filter(move |r| r.station == config.station && r.state == "completed")
+        .filter(move |r| {
+            store
+                .run_context(&r.id)
+                .ok()
+                .flatten()
+                .and_then(|c| c.station_config)
+                .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
+                .is_some_and(|then| same_table(&then, config))
+        })
+        .filter_map(move |r| {
+            let signature = store
+                .results(&r.id)
+                .ok()?
+                .into_iter()
+                .find_map(|res| res.record.table_signature)?;
+            Some((r.id, signature))
+        })
 }
 
 /// The newest signature of the table `config` describes in `store` (its
@@ -150,27 +161,7 @@ pub fn latest_signature(
     store: &Store,
     config: &spinbench_engine::StationConfig,
 ) -> Option<(String, spinbench_analysis::table_signature::TableSignature)> {
-    let listed = store.runs().ok()?;
-    listed
-        .iter()
-        .filter(|r| r.station == config.station && r.state == "completed")
-        .filter(|r| {
-            store
-                .run_context(&r.id)
-                .ok()
-                .flatten()
-                .and_then(|c| c.station_config)
-                .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
-                .is_some_and(|then| same_table(&then, config))
-        })
-        .find_map(|r| {
-            let signature = store
-                .results(&r.id)
-                .ok()?
-                .into_iter()
-                .find_map(|res| res.record.table_signature)?;
-            Some((r.id.clone(), signature))
-        })
+    signatures_on_table(store, config).next()
 }
 
 /// Whether two station configs describe the same table: the same `[arm]`
