@@ -226,11 +226,7 @@ impl Prior {
         levels.sort_by(|a, b| a.0.total_cmp(&b.0));
         Some(Prior {
             levels,
-            runs: past
-                .iter()
-                .map(|s| s.runs.max(1))
-                .sum::<usize>()
-                .min(past.len()),
+            runs: past.len(),
             instruments: past.iter().map(|s| s.instruments).sum(),
         })
     }
