@@ -232,6 +232,26 @@ impl Executor<'_> {
                 }
             } else if let Some(f) = &u.failed {
                 reasons.push(f.clone());
+                // An instrument that went silent was not measured: never
+                // graded pass or fail (a connector is as likely as the
+                // instrument); one that failed a measured criterion in a
+                // run that did not end complete is not graded either.
+                if unmeasured(f.code) || !run_complete {
+                    outcome = Outcome::Incomplete;
+                    if !run_complete {
+                        reasons.push(
+                            Reason::new(
+                                ReasonCode::Incomplete,
+                                format!(
+                                    "incomplete: the run did not end complete ({}), so no instrument is graded",
+                                    run_reason.unwrap_or("no reason recorded")
+                                ),
+                            )
+                            .with("variant", "run_ended")
+                            .with("why", run_reason.unwrap_or("no reason recorded")),
+                        );
+                    }
+                }
             } else if u.points.is_empty() {
                 reasons.push(Reason::new(ReasonCode::NoPoints, "no points were taken"));
             } else {
@@ -454,4 +474,11 @@ pub(super) fn temperature_reasons(
 /// The analysis' points of a unit's records.
 pub(super) fn point_list(records: &[PointRecord]) -> Vec<Point> {
     records.iter().map(PointRecord::point).collect()
+}
+
+/// A failure that means the instrument gave no output to judge (dead,
+/// unpowered, unplugged or silent), so its record is
+/// [`Outcome::Incomplete`], never [`Outcome::Fail`].
+fn unmeasured(code: ReasonCode) -> bool {
+    matches!(code, ReasonCode::Dead | ReasonCode::NoOutput)
 }
