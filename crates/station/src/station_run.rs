@@ -54,7 +54,22 @@ pub struct RunControl {
     pub pause: Arc<AtomicBool>,
     /// More subscribers to the event stream (the web UI's hub).
     pub sinks: Vec<Box<dyn EventSink + Send>>,
+    /// Where the run publishes its store's health (the outbox's) while it
+    /// runs, for `/metrics` and the fleet.
+    pub store_health: StoreHealthSlot,
 }
+
+/// The store's health of the run that runs now, if any (shared).
+pub type StoreHealthSlot = Arc<std::sync::Mutex<Option<Arc<spinbench_store::outbox::StoreHealth>>>>;
+
+/// How long a completed run waits at its end for the store to take what
+/// it has not yet (the store down at the end); what is left is kept in the
+/// run directory and written at the station's next start.
+pub const STORE_CATCH_UP_WAIT: Duration = Duration::from_secs(60);
+
+/// The same wait for a run that did not complete (an abort, a signal: the
+/// process may have to end within a service manager's stop time-out).
+pub const STORE_CATCH_UP_WAIT_STOPPING: Duration = Duration::from_secs(10);
 
 impl RunControl {
     /// Abort only (the terminal's Ctrl-C); no pause, no other subscriber.
@@ -63,6 +78,7 @@ impl RunControl {
             abort,
             pause: Arc::new(AtomicBool::new(false)),
             sinks: Vec::new(),
+            store_health: StoreHealthSlot::default(),
         }
     }
 }
@@ -138,8 +154,24 @@ pub fn execute(
             executor.continue_time_after(t);
         }
     }
+    // What the store did not take of this run's earlier start comes first.
+    let earlier = spinbench_store::outbox::catch_up(&db, dir).with_context(|| {
+        format!(
+            "the store must take the events of this run's earlier start first ({}): bring it back, then resume again",
+            dir.join(spinbench_store::outbox::OUTBOX_FILE).display()
+        )
+    })?;
+    if earlier > 0 && !quiet {
+        eprintln!("  wrote the {earlier} events the store had not taken when this run last ended");
+    }
+    // The store through its outbox: the run never waits on the database.
+    let (outbox, to_store) = db.outbox(dir)?;
+    *control
+        .store_health
+        .lock()
+        .unwrap_or_else(|e| e.into_inner()) = Some(outbox.health());
     executor.subscribe(journal);
-    executor.subscribe(db.sink()?);
+    executor.subscribe(to_store);
     executor.subscribe(ProgressPrinter::new(quiet));
     for sink in control.sinks {
         executor.subscribe(BoxedSink(sink));
@@ -149,6 +181,37 @@ pub fn execute(
     let results = serde_json::to_string_pretty(&summary.records)?;
     std::fs::write(dir.join("results.json"), results)
         .with_context(|| format!("{}: cannot write results.json", dir.display()))?;
+    // The hardware is safe; the store catches up (within a bound).
+    let wait = if summary.state == RunState::Completed {
+        STORE_CATCH_UP_WAIT
+    } else {
+        STORE_CATCH_UP_WAIT_STOPPING
+    };
+    let caught_up = outbox.finish(wait, |h| {
+        if !quiet {
+            eprintln!(
+                "  the store has {} events of this run to write (oldest {:.0} s; {}) — waiting",
+                h.depth, h.age_s, h.last_error
+            );
+        }
+    });
+    match caught_up {
+        Ok(f) if f.left == 0 => {}
+        Ok(f) => {
+            eprintln!(
+                "  note: the store {store} did not take {} events of this run within {} s; they are kept in {} \
+                 and written at the station's next start (spinbench run or serve); the report waits for them",
+                f.left,
+                wait.as_secs(),
+                dir.join(spinbench_store::outbox::OUTBOX_FILE).display()
+            );
+            return Ok(Finished {
+                dir: dir.to_path_buf(),
+                summary,
+            });
+        }
+        Err(e) => eprintln!("  warning: {e}"),
+    }
     // The run's report, written at the end of every run (a failed report
     // does not lose the run: it is in the store and can be made again).
     use spinbench_report::ReportFormat;

@@ -6,89 +6,13 @@
 //! and the rails through the same drivers, and the run's record from the
 //! store.
 
-use serde::Deserialize;
-use spinbench_devices::config::{CentrifugeConfig, PowerSupplyConfig};
-use std::io::{BufRead, BufReader, Write};
-use std::net::TcpStream;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-#[derive(Deserialize)]
-struct Devices {
-    centrifuge: CentrifugeConfig,
-    power_supply: Vec<PowerSupplyConfig>,
-}
-
-/// A `spinbench sim` child; killed when dropped.
-struct Sim {
-    child: Child,
-    /// The printed device sections.
-    devices_toml: String,
-    /// The control socket's address.
-    control: String,
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn start_sim(speed: &str) -> Sim {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args(["sim", "--for", "600", "--speed", speed])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start spinbench sim");
-    let stdout = child.stdout.take().expect("stdout");
-    let mut text = String::new();
-    let mut control = String::new();
-    for line in BufReader::new(stdout).lines() {
-        let line = line.expect("line");
-        if line.starts_with("# virtual bench running") {
-            break;
-        }
-        if let Some(addr) = line.strip_prefix("# control socket") {
-            control = addr.rsplit(' ').next().unwrap_or_default().to_string();
-        }
-        text.push_str(&line);
-        text.push('\n');
-    }
-    assert!(!control.is_empty(), "no control socket printed:\n{text}");
-    Sim {
-        child,
-        devices_toml: text,
-        control,
-    }
-}
-
-/// Send one line to the bench's control socket and read its answer.
-fn control(addr: &str, line: &str) -> String {
-    let mut stream = TcpStream::connect(addr).expect("control socket");
-    stream
-        .set_read_timeout(Some(Duration::from_secs(5)))
-        .expect("timeout");
-    writeln!(stream, "{line}").expect("send");
-    let mut reply = String::new();
-    let _ = BufReader::new(stream).read_line(&mut reply);
-    reply.trim().to_string()
-}
-
-/// The bench's mounting for a prompt of the station ("input axis UP", "mounting P").
-fn mounting_asked(prompt: &str) -> Option<&'static str> {
-    [
-        ("input axis UP", "UP"),
-        ("input axis DOWN", "DOWN"),
-        ("in mounting P", "P"),
-        ("in mounting N", "N"),
-    ]
-    .into_iter()
-    .find(|(text, _)| prompt.contains(text))
-    .map(|(_, m)| m)
-}
+#[path = "common/bench.rs"]
+mod bench;
+use bench::{Operated, start_sim};
 
 const PLAN: &str = r#"
 range_g = 20
@@ -120,97 +44,53 @@ fn signal_while_spinning(signal: &str, name: &str) {
     let plan = dir.path().join("plan.toml");
     std::fs::write(&plan, PLAN).expect("plan");
     let data = dir.path().join("data");
-    let mut run = Command::new(env!("CARGO_BIN_EXE_spinbench"))
-        .args(["run", "--station"])
-        .arg(&station)
-        .arg("--data")
-        .arg(&data)
-        .arg(&plan)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spinbench run");
-    let mut stdin = run.stdin.take().expect("stdin");
-    let stderr = run.stderr.take().expect("stderr");
-    let (lines_tx, lines) = mpsc::channel::<String>();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            if lines_tx.send(line).is_err() {
-                return;
-            }
-        }
-    });
+    let mut run = Operated::start(&[
+        "--station".as_ref(),
+        station.as_os_str(),
+        "--data".as_ref(),
+        data.as_os_str(),
+        plan.as_os_str(),
+    ]);
     // The operator: remount as asked, press Enter; wait for a level above 1 g.
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let mut seen = Vec::new();
-    let mut spinning = false;
-    while Instant::now() < deadline && !spinning {
-        let Ok(line) = lines.recv_timeout(Duration::from_secs(1)) else {
-            continue;
-        };
-        if let Some(m) = line.strip_prefix(">>> ").and_then(mounting_asked) {
-            assert_eq!(control(&sim.control, &format!("MOUNT ALL {m}")), "OK");
-            writeln!(stdin,).expect("Enter");
-        }
-        spinning = line.contains("10 g Up");
-        seen.push(line);
-    }
-    assert!(spinning, "the run never reached 10 g:\n{}", seen.join("\n"));
+    let spinning = run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("10 g Up"));
+    assert!(
+        spinning,
+        "the run never reached 10 g:\n{}",
+        run.transcript()
+    );
     // Let the table reach speed, then the signal.
     std::thread::sleep(Duration::from_millis(1500));
     let kill = Command::new("kill")
-        .args([&format!("-{signal}"), &run.id().to_string()])
+        .args([&format!("-{signal}"), &run.run.id().to_string()])
         .status()
         .expect("kill");
     assert!(kill.success());
     let ended = Instant::now();
-    let status = loop {
-        if let Some(status) = run.try_wait().expect("wait") {
-            break status;
-        }
-        assert!(
-            ended.elapsed() < Duration::from_secs(60),
-            "spinbench run did not exit within 60 s of {name}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    let rest: Vec<String> = lines.try_iter().collect();
+    let status = run.wait(&sim, Duration::from_secs(60));
+    let status = status.unwrap_or_else(|| {
+        panic!(
+            "spinbench run did not exit within 60 s of {name} ({:.0} s)",
+            ended.elapsed().as_secs_f64()
+        )
+    });
     assert!(!status.success(), "an aborted run is not a success");
     assert!(
-        rest.iter().any(|l| l.contains(name)),
+        run.seen.iter().any(|l| l.contains(name)),
         "the signal is named on screen:\n{}",
-        rest.join("\n")
+        run.transcript()
     );
 
     // The station is gone: its ports are free, read the devices ourselves.
-    let devices: Devices = toml::from_str(&sim.devices_toml).expect("devices");
-    let mut table = devices.centrifuge.connect().expect("centrifuge");
-    let mut rate = f64::NAN;
-    let stopping = Instant::now();
-    while stopping.elapsed() < Duration::from_secs(30) {
-        rate = table.read_rate().expect("rate");
-        if rate.abs() < 0.05 {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(200));
-    }
+    let (rate, rails) = sim.read_back();
     assert!(
         rate.abs() < 0.05,
         "the table still turns at {rate} deg/s after {name}"
     );
-    let rails = devices
-        .power_supply
-        .iter()
-        .find(|p| p.name == "rails")
-        .expect("rails");
-    let mut rails = rails.connect().expect("rails");
-    for ch in [1, 2] {
-        let out = rails.measure(ch).expect("measure");
+    for (ch, volts) in rails.iter().enumerate() {
         assert!(
-            out.volts.abs() < 0.5,
-            "rail {ch} at {} V after {name}",
-            out.volts
+            volts.abs() < 0.5,
+            "rail {} at {volts} V after {name}",
+            ch + 1
         );
     }
     check_recorded(&data, name);

@@ -182,8 +182,7 @@ impl Store {
             "{}: {}, certificate {}, calibrated {}, due {}",
             row.role, row.identity, row.certificate, row.calibrated_on, row.due_on
         );
-        self.db
-            .borrow_mut()
+        self.db()
             .transaction(|db| {
                 db.execute(
                     "INSERT INTO equipment (role, identity, certificate, calibrated_on, due_on, updated_by, updated_at)

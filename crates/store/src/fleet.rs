@@ -47,8 +47,7 @@ impl Store {
         let (done, of) = beat
             .progress
             .map_or((None, None), |(d, o)| (Some(d), Some(o)));
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "INSERT INTO stations (name, first_seen, last_seen, state, run_id, steps_done, steps_total, address)
                  VALUES ($1, $2, $3, $4, $5, $6, $7, $8)
@@ -126,8 +125,7 @@ impl Store {
 
     /// Mark a station offline at once (its server is stopping).
     pub fn station_offline(&self, station: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "UPDATE stations SET state = NULL WHERE name = $1",
                 &[station.into()],

@@ -16,6 +16,7 @@
 //! | `schema` | the migrations and the schema's version and soundness |
 //! | `queries` | runs, typed results, points, values, radii read back |
 //! | `sink` | [`StoreSink`]: the engine's events written as they happen |
+//! | [`outbox`] | the run's events queued and written on a thread of their own (the run never waits on the database), caught up after an outage or at the next start |
 //! | `csv` | points as CSV, text cells guarded against formula injection |
 //! | `users` | the web UI's users and the audit log |
 //! | `label` | runs' readable labels (`2026-11-24 · station 1 · #7`), typed labels resolved |
@@ -28,6 +29,7 @@ pub mod db;
 pub mod equipment;
 pub mod fleet;
 mod label;
+pub mod outbox;
 mod queries;
 mod schema;
 mod sink;
@@ -79,6 +81,33 @@ fn whole_reason(reason: &DbError) -> String {
 }
 
 impl StoreError {
+    /// Whether the store could not be reached or is busy, rather than
+    /// refusing what was asked: a closed or failed PostgreSQL connection, a
+    /// server shutting down, starting or out of connections (SQLSTATE
+    /// classes 08, 53, 57P), an SQLite file locked by another writer. Such
+    /// an error passes when the store is back: try again (the web answers
+    /// 503 with Retry-After).
+    pub fn is_unavailable(&self) -> bool {
+        if let Some(e) = self.reason.downcast_ref::<postgres::Error>() {
+            return match e.code() {
+                None => true,
+                Some(code) => {
+                    let c = code.code();
+                    c.starts_with("08") || c.starts_with("53") || c.starts_with("57P")
+                }
+            };
+        }
+        if let Some(rusqlite::Error::SqliteFailure(e, _)) =
+            self.reason.downcast_ref::<rusqlite::Error>()
+        {
+            return matches!(
+                e.code,
+                rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
+            );
+        }
+        false
+    }
+
     /// An error of the store's own (not the database's): `problem` says what to do.
     pub fn message(target: &StoreTarget, what: &str, problem: String) -> StoreError {
         StoreError {
@@ -143,7 +172,14 @@ fn hide_password(url: &str) -> String {
 pub struct Store {
     db: RefCell<Db>,
     target: StoreTarget,
+    /// When a closed PostgreSQL connection was last made again (at most
+    /// one attempt per [`RECONNECT_EVERY`]).
+    reconnected: std::cell::Cell<Option<std::time::Instant>>,
 }
+
+/// How often a store whose server closed its connection tries to make it
+/// again (each call of the store tries, at most this often).
+pub const RECONNECT_EVERY: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// An error of `target` while doing `what`, for `map_err`.
 fn failed(target: &StoreTarget, what: &str) -> impl Fn(DbError) -> StoreError + use<> {
@@ -204,6 +240,7 @@ impl Store {
         let store = Store {
             db: RefCell::new(db),
             target: target.clone(),
+            reconnected: std::cell::Cell::new(None),
         };
         let version = store.schema_version()?;
         if version != MIGRATIONS.len() as i64 {
@@ -246,23 +283,50 @@ impl Store {
                     .map_err(|e| err("cannot enable foreign keys")(e.into()))?;
                 Db::Sqlite(conn)
             }
-            StoreTarget::Postgres(url) => {
-                let config = pg_config(url, std::env::var("PGPASSWORD").ok())
-                    .map_err(|e| err("not a PostgreSQL URL")(e.into()))?;
-                let client = config.connect(postgres::NoTls).map_err(|e| {
-                    err("cannot connect (is the server running, and the URL's user, host, port and database right?)")(
-                        e.into(),
-                    )
-                })?;
-                Db::Postgres(Box::new(client), Default::default())
-            }
+            StoreTarget::Postgres(url) => Db::Postgres(
+                Box::new(connect_postgres(url).map_err(|e| err(e.0)(e.1))?),
+                Default::default(),
+            ),
         };
         let store = Store {
             db: RefCell::new(db),
             target: target.clone(),
+            reconnected: std::cell::Cell::new(None),
         };
         store.migrate()?;
         Ok(store)
+    }
+
+    /// The connection. A PostgreSQL server that closed it (restarted, or
+    /// the network reset it) is connected to again first, at most once per
+    /// [`RECONNECT_EVERY`]; until it answers, the call fails with an error
+    /// [`StoreError::is_unavailable`] recognises, and the next tries again.
+    fn db(&self) -> std::cell::RefMut<'_, Db> {
+        let mut db = self.db.borrow_mut();
+        if let (Db::Postgres(client, statements), StoreTarget::Postgres(url)) =
+            (&mut *db, &self.target)
+            && client.is_closed()
+            && self
+                .reconnected
+                .get()
+                .is_none_or(|t| t.elapsed() >= RECONNECT_EVERY)
+        {
+            self.reconnected.set(Some(std::time::Instant::now()));
+            if let Ok(fresh) = connect_postgres(url) {
+                **client = fresh;
+                statements.clear();
+            }
+        }
+        db
+    }
+
+    /// Whether the store can be reached now: a PostgreSQL connection that
+    /// is open (made again if it was closed); an SQLite file always.
+    pub fn is_connected(&self) -> bool {
+        match &*self.db() {
+            Db::Postgres(client, _) => !client.is_closed(),
+            Db::Sqlite(_) => true,
+        }
     }
 
     fn err(&self, what: &str) -> impl Fn(DbError) -> StoreError + '_ {
@@ -280,11 +344,46 @@ impl Store {
     }
 
     fn query(&self, what: &str, sql: &str, params: &[Value]) -> Result<Vec<Row>, StoreError> {
-        self.db
-            .borrow_mut()
-            .query(sql, params)
-            .map_err(self.err(what))
+        self.db().query(sql, params).map_err(self.err(what))
     }
+}
+
+/// How long making a PostgreSQL connection may take.
+pub const CONNECT_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// How long sent data may stay unacknowledged by a PostgreSQL server's
+/// host before the connection is closed (a network gone without a reset);
+/// keepalives find a silent peer the same way when nothing is sent.
+pub const TCP_USER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(15);
+
+/// A PostgreSQL connection to `url` (the password from `PGPASSWORD` when
+/// the URL has none), with the deadlines a plant network needs: a connect
+/// time-out, TCP keepalives and a TCP user time-out (each unless the URL
+/// sets its own). On failure, what was being done and why.
+fn connect_postgres(url: &str) -> Result<postgres::Client, (&'static str, DbError)> {
+    let mut config = pg_config(url, std::env::var("PGPASSWORD").ok())
+        .map_err(|e| ("not a PostgreSQL URL", e.into()))?;
+    if config.get_connect_timeout().is_none() {
+        config.connect_timeout(CONNECT_TIMEOUT);
+    }
+    if config.get_tcp_user_timeout().is_none() {
+        config.tcp_user_timeout(TCP_USER_TIMEOUT);
+    }
+    config
+        .keepalives(true)
+        .keepalives_idle(std::time::Duration::from_secs(10));
+    if config.get_keepalives_interval().is_none() {
+        config.keepalives_interval(std::time::Duration::from_secs(5));
+    }
+    if config.get_keepalives_retries().is_none() {
+        config.keepalives_retries(3);
+    }
+    config.connect(postgres::NoTls).map_err(|e| {
+        (
+            "cannot connect (is the server running, and the URL's user, host, port and database right?)",
+            e.into(),
+        )
+    })
 }
 
 /// Switch an SQLite file to WAL. SQLite answers "busy" at once (without

@@ -362,3 +362,28 @@ impl Store {
             .collect())
     }
 }
+
+impl Store {
+    /// Mark run `id` interrupted (its process ended without finishing it: a
+    /// crash, a power cut) when the store still has it `running`, with
+    /// `reason`. True when it was marked.
+    pub fn mark_interrupted(&self, id: &str, reason: &str) -> Result<bool, StoreError> {
+        let changed = self
+            .db()
+            .execute(
+                "UPDATE runs SET state = 'interrupted', reason = $2, finished_at = $3
+                 WHERE id = $1 AND state = 'running'",
+                &[id.into(), reason.into(), now_s().into()],
+            )
+            .map_err(self.err("mark a run interrupted"))?;
+        Ok(changed > 0)
+    }
+}
+
+impl Store {
+    /// The runs of `station` the store has as `running` now (a process runs
+    /// them, or one ended without finishing them).
+    pub fn running_runs(&self, station: &str) -> Result<Vec<RunRow>, StoreError> {
+        self.runs_where("r.state = 'running' AND r.station = $1", &[station.into()])
+    }
+}

@@ -320,7 +320,7 @@ fn schema_version(db: &mut Db) -> Result<i64, DbError> {
 
 impl Store {
     pub(crate) fn migrate(&self) -> Result<(), StoreError> {
-        let mut db = self.db.borrow_mut();
+        let mut db = self.db();
         let dialect = db.dialect();
         if dialect == Dialect::Postgres {
             db.batch(
@@ -376,14 +376,13 @@ impl Store {
 
     /// The schema version of the database.
     pub fn schema_version(&self) -> Result<i64, StoreError> {
-        schema_version(&mut self.db.borrow_mut())
-            .map_err(self.err("cannot read the schema version"))
+        schema_version(&mut self.db()).map_err(self.err("cannot read the schema version"))
     }
 
     /// Whether this connection may write the store (a write that changes
     /// nothing, rolled back): `spinbench doctor`'s check.
     pub fn check_writable(&self) -> Result<(), StoreError> {
-        let mut db = self.db.borrow_mut();
+        let mut db = self.db();
         db.batch("BEGIN").map_err(self.err("a write check"))?;
         // A write that changes nothing: refused on a read-only file or
         // without the privilege; rolled back either way.
@@ -398,7 +397,7 @@ impl Store {
     /// "ok" when the database is sound (SQLite's `PRAGMA integrity_check`;
     /// on PostgreSQL, that every table can be read).
     pub fn integrity_check(&self) -> Result<String, StoreError> {
-        let mut db = self.db.borrow_mut();
+        let mut db = self.db();
         match db.dialect() {
             Dialect::Sqlite => db
                 .query_one("PRAGMA integrity_check", &[])

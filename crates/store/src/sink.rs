@@ -9,7 +9,7 @@ use super::*;
 /// every second (nothing is dropped); only after its hold limit does the
 /// run fault into the safe state.
 pub struct StoreSink {
-    store: Store,
+    pub(crate) store: Store,
     serials: Vec<Option<String>>,
     run_id: String,
     /// The last prompt, recorded with the operator's answer.
@@ -17,8 +17,17 @@ pub struct StoreSink {
 }
 
 impl StoreSink {
-    fn write(&mut self, event: &Event) -> Result<(), DbError> {
-        let mut db = self.store.db.borrow_mut();
+    /// Take the run's identity from its start (`RunStarted`) without
+    /// writing it: for events of a run already started, written later.
+    pub(crate) fn prime(&mut self, started: &Event) {
+        if let Event::RunStarted { run_id, plan, .. } = started {
+            self.run_id = run_id.clone();
+            self.serials = plan.serials.clone();
+        }
+    }
+
+    pub(crate) fn write(&mut self, event: &Event) -> Result<(), DbError> {
+        let mut db = self.store.db();
         let run_id = self.run_id.clone();
         match event {
             Event::Progress { .. } => return Ok(()),

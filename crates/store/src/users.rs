@@ -55,8 +55,7 @@ pub struct AuditRow {
 impl Store {
     /// Add a user; an error when the name is taken.
     pub fn add_user(&self, name: &str, role: &str, password_hash: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "INSERT INTO users (name, role, password_hash, created_at) VALUES ($1, $2, $3, $4)",
                 &[
@@ -80,8 +79,7 @@ impl Store {
         let mut changed = 0;
         if let Some(role) = role {
             changed = self
-                .db
-                .borrow_mut()
+                .db()
                 .execute(
                     "UPDATE users SET role = $1 WHERE name = $2",
                     &[role.into(), name.into()],
@@ -90,8 +88,7 @@ impl Store {
         }
         if let Some(hash) = password_hash {
             changed = self
-                .db
-                .borrow_mut()
+                .db()
                 .execute(
                     "UPDATE users SET password_hash = $1 WHERE name = $2",
                     &[hash.into(), name.into()],
@@ -103,8 +100,7 @@ impl Store {
 
     /// Remove a user; false when there was none.
     pub fn delete_user(&self, name: &str) -> Result<bool, StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute("DELETE FROM users WHERE name = $1", &[name.into()])
             .map(|n| n > 0)
             .map_err(self.err(&format!("delete user '{name}'")))
@@ -137,8 +133,7 @@ impl Store {
 
     /// Record that `who` did `action`.
     pub fn audit(&self, who: &str, action: &str, detail: &str) -> Result<(), StoreError> {
-        insert_audit(&mut self.db.borrow_mut(), who, action, detail)
-            .map_err(self.err("write the audit log"))
+        insert_audit(&mut self.db(), who, action, detail).map_err(self.err("write the audit log"))
     }
 
     /// Replace one instrument's stored result with `record` (an engineer's
@@ -155,8 +150,7 @@ impl Store {
     ) -> Result<(), StoreError> {
         let json =
             serde_json::to_string(record).map_err(|e| self.err("encode a result")(Box::new(e)))?;
-        self.db
-            .borrow_mut()
+        self.db()
             .transaction(|db| {
                 let changed = db.execute(
                     "UPDATE results SET outcome = $3, k2_max_ug_per_g2 = $4, record_json = $5
@@ -193,8 +187,7 @@ impl Store {
 
     /// Set a user's language (the caller checks it is one the station speaks).
     pub fn set_user_language(&self, name: &str, language: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "UPDATE users SET language = $2 WHERE name = $1",
                 &[name.into(), language.into()],
@@ -206,8 +199,7 @@ impl Store {
     /// Keep a web session: the SHA-256 of its token (never the token), its
     /// user and CSRF token, used now.
     pub fn save_session(&self, token_hash: &str, user: &str, csrf: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "INSERT INTO sessions (token_hash, user_name, csrf, last_seen) VALUES ($1, $2, $3, $4)
                  ON CONFLICT (token_hash) DO UPDATE SET last_seen = excluded.last_seen",
@@ -241,8 +233,7 @@ impl Store {
 
     /// End a kept session.
     pub fn delete_session(&self, token_hash: &str) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "DELETE FROM sessions WHERE token_hash = $1",
                 &[token_hash.into()],
@@ -253,8 +244,7 @@ impl Store {
 
     /// End every kept session of `user`, and every one unused since `before` [Unix s].
     pub fn delete_sessions(&self, user: Option<&str>, before: i64) -> Result<(), StoreError> {
-        self.db
-            .borrow_mut()
+        self.db()
             .execute(
                 "DELETE FROM sessions WHERE user_name = $1 OR last_seen < $2",
                 &[user.unwrap_or("").into(), Value::Int(Some(before))],

@@ -109,6 +109,11 @@ pub(super) fn run_plan(
             .unwrap_or_else(|| crate::paths::default_store(data));
         let store = spinbench_store::Store::connect(&target)
             .with_context(|| format!("cannot open the store {target}"))?;
+        // Runs this station's processes left behind (left-over events
+        // written, crashed runs marked interrupted).
+        for line in crate::recovery::recover(data, &station.station, &store).lines() {
+            writeln!(out, "{line}")?;
+        }
         crate::retest::check_retest_of(&store, &plan).with_context(|| plan_source.label.clone())?;
         let list = crate::equipment::station_equipment(&store, &station)?;
         if let Some(late) = crate::equipment::overdue(&list, station.equipment.require_registered) {

@@ -156,6 +156,10 @@ const TOUCH_EVERY: Duration = Duration::from_secs(60);
 /// How long a cached session is trusted before the store confirms it again.
 pub const RECHECK: Duration = Duration::from_secs(2);
 
+/// How long a session check waits for the store's connection while
+/// another request holds it.
+const SESSION_STORE_WAIT: Duration = Duration::from_millis(500);
+
 /// The hex SHA-256 of a session token: what the store keeps.
 fn token_hash(token: &str) -> String {
     use sha2::Digest;
@@ -191,13 +195,17 @@ impl Sessions {
     /// end one, or to keep its use (at most once a minute): a request of a
     /// known session does not wait for the store.
     pub fn get(&self, store: &Mutex<Store>, token: &str) -> Option<Session> {
-        let store = || store.lock().unwrap_or_else(|e| e.into_inner());
+        // A store whose connection another request holds (its database
+        // not answering) is passed over: the cached session stands.
+        let store = || crate::web::lock_within(store, SESSION_STORE_WAIT);
         let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(session) = map.get_mut(token) {
             if session.last_seen.elapsed() >= IDLE_LIMIT {
                 map.remove(token);
                 drop(map);
-                let _ = store().delete_session(&token_hash(token));
+                if let Some(s) = store() {
+                    let _ = s.delete_session(&token_hash(token));
+                }
                 return None;
             }
             session.last_seen = Instant::now();
@@ -215,28 +223,30 @@ impl Sessions {
                 // Ended elsewhere (logout, the user removed) or the role
                 // changed: the session is over here too. A store that
                 // cannot answer leaves the cached session.
-                let kept = store().session(&token_hash(token));
+                let kept = store().map(|s| s.session(&token_hash(token)));
                 let over = match &kept {
-                    Ok(None) => true,
-                    Ok(Some((_, role, _, _))) => Role::parse(role) != Some(found.role),
-                    Err(_) => false,
+                    Some(Ok(None)) => true,
+                    Some(Ok(Some((_, role, _, _)))) => Role::parse(role) != Some(found.role),
+                    _ => false,
                 };
                 if over {
                     self.by_token
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .remove(token);
-                    let _ = store().delete_session(&token_hash(token));
+                    if let Some(s) = store() {
+                        let _ = s.delete_session(&token_hash(token));
+                    }
                     return None;
                 }
             }
-            if keep {
-                let _ = store().save_session(&token_hash(token), &found.user, &found.csrf);
+            if keep && let Some(s) = store() {
+                let _ = s.save_session(&token_hash(token), &found.user, &found.csrf);
             }
             return Some(found);
         }
         drop(map);
-        let store = store();
+        let store = store()?;
         let hash = token_hash(token);
         let (user, role, csrf, last_seen) = store.session(&hash).ok().flatten()?;
         let idle = now_unix().saturating_sub(last_seen).max(0) as u64;
@@ -259,6 +269,16 @@ impl Sessions {
             .unwrap_or_else(|e| e.into_inner())
             .insert(token.to_string(), session.clone());
         Some(session)
+    }
+
+    /// The session of a cookie token from the cache only (the store is not
+    /// asked): for the controls that make the station safe (abort, pause),
+    /// which must work whatever the database does.
+    pub fn cached(&self, token: &str) -> Option<Session> {
+        let map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
+        map.get(token)
+            .filter(|s| s.last_seen.elapsed() < IDLE_LIMIT)
+            .cloned()
     }
 
     /// Close a session (logout).

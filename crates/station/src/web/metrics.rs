@@ -24,6 +24,13 @@ pub struct Metrics {
     pub http_requests: IntCounterVec,
     /// Logins refused (wrong name or password, or locked out).
     pub login_failures: IntCounter,
+    /// 1 while the store takes writes (the heartbeat's, and the run's).
+    pub store_up: IntGauge,
+    /// The heartbeat's writes that failed.
+    pub store_errors: IntCounter,
+    store_queue_depth: IntGauge,
+    store_queue_age_s: Gauge,
+    store_run_errors: IntGauge,
 }
 
 /// The run states the state gauge has a series for (1 for the one now).
@@ -78,6 +85,26 @@ impl Metrics {
             &["route", "status"],
         )?;
         let login_failures = IntCounter::new("spinbench_login_failures_total", "logins refused")?;
+        let store_up = IntGauge::new(
+            "spinbench_store_up",
+            "1 while the store takes the station's writes (heartbeat and run), 0 while they fail",
+        )?;
+        let store_errors = IntCounter::new(
+            "spinbench_store_errors_total",
+            "the heartbeat's writes to the store that failed",
+        )?;
+        let store_queue_depth = IntGauge::new(
+            "spinbench_store_queue_events",
+            "the run's events waiting for the store (its outbox)",
+        )?;
+        let store_queue_age_s = Gauge::new(
+            "spinbench_store_queue_age_seconds",
+            "how long the oldest event waiting for the store has waited [s]",
+        )?;
+        let store_run_errors = IntGauge::new(
+            "spinbench_store_run_write_errors",
+            "the running (or last) run's writes to the store that failed and were tried again",
+        )?;
         registry.register(Box::new(state.clone()))?;
         registry.register(Box::new(rate_deg_s.clone()))?;
         registry.register(Box::new(demand_deg_s.clone()))?;
@@ -87,6 +114,11 @@ impl Metrics {
         registry.register(Box::new(store_write_s.clone()))?;
         registry.register(Box::new(http_requests.clone()))?;
         registry.register(Box::new(login_failures.clone()))?;
+        registry.register(Box::new(store_up.clone()))?;
+        registry.register(Box::new(store_errors.clone()))?;
+        registry.register(Box::new(store_queue_depth.clone()))?;
+        registry.register(Box::new(store_queue_age_s.clone()))?;
+        registry.register(Box::new(store_run_errors.clone()))?;
         Ok(Metrics {
             registry,
             state,
@@ -98,12 +130,27 @@ impl Metrics {
             store_write_s,
             http_requests,
             login_failures,
+            store_up,
+            store_errors,
+            store_queue_depth,
+            store_queue_age_s,
+            store_run_errors,
         })
     }
 
     /// The text a scrape gets, with the gauges set from `status` (the
     /// hub's snapshot) and `state` (the heartbeat's word for it).
-    pub fn render(&self, status: &super::hub::StatusSnapshot, state: &str) -> String {
+    pub fn render(
+        &self,
+        status: &super::hub::StatusSnapshot,
+        state: &str,
+        store: Option<&spinbench_store::outbox::HealthReading>,
+    ) -> String {
+        if let Some(h) = store {
+            self.store_queue_depth.set(h.depth as i64);
+            self.store_queue_age_s.set(h.age_s);
+            self.store_run_errors.set(h.errors as i64);
+        }
         for s in STATES {
             self.state
                 .with_label_values(&[s])

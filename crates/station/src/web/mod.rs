@@ -210,6 +210,11 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             crate::users::os_user()
         )
     })?;
+    // Runs this station's processes left behind: left-over events written,
+    // crashed runs marked interrupted.
+    for line in crate::recovery::recover(&args.data, &station.station, &store).lines() {
+        writeln!(out, "{line}")?;
+    }
     if store.users()?.is_empty() {
         writeln!(
             out,
@@ -303,7 +308,22 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     // Whatever still runs goes to its safe state before the process ends.
     state.runner.shutdown("the server stopping", RUN_STOP_LIMIT);
     state.hub.close();
-    let _ = heartbeat.join();
+    // A store that does not answer holds the heartbeat's last write (and
+    // any request's call): the process does not wait for it beyond
+    // STOP_STORE_WAIT (a service manager's stop time-out is 90 s).
+    let until = std::time::Instant::now() + STOP_STORE_WAIT;
+    while !heartbeat.is_finished() && std::time::Instant::now() < until {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    if heartbeat.is_finished() {
+        let _ = heartbeat.join();
+    } else {
+        eprintln!(
+            "the store did not answer within {} s: the station is not marked offline in it",
+            STOP_STORE_WAIT.as_secs()
+        );
+    }
+    runtime.shutdown_timeout(std::time::Duration::from_secs(2));
     Ok(())
 }
 
@@ -320,6 +340,9 @@ fn renamed(station_toml: &str, name: &str) -> Result<String> {
     table.insert("station".into(), toml::Value::String(name.to_string()));
     toml::to_string(&table).context("the station config")
 }
+
+/// How long a stopping server waits for the store's last writes.
+const STOP_STORE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 
 /// How often a server writes its station's heartbeat into the store.
 const HEARTBEAT_EVERY: std::time::Duration = std::time::Duration::from_secs(2);
@@ -347,11 +370,22 @@ fn spawn_heartbeat(
                 let beat = heartbeat_now(&state, &station, &address);
                 let started = std::time::Instant::now();
                 let written = store.as_ref().map(|s| s.heartbeat(&beat));
+                // Up while the heartbeat's write and the run's (if one runs)
+                // are taken.
+                let run_up = state.runner.store_health().is_none_or(|h| h.up);
+                state
+                    .metrics
+                    .store_up
+                    .set(i64::from(matches!(written, Some(Ok(()))) && run_up));
                 if let Some(Ok(())) = written {
+                    warned = false;
                     state
                         .metrics
                         .store_write_s
                         .observe(started.elapsed().as_secs_f64());
+                }
+                if !matches!(written, Some(Ok(()))) {
+                    state.metrics.store_errors.inc();
                 }
                 if let Some(Err(e)) = written {
                     if !warned {
@@ -426,4 +460,25 @@ fn termination_signals() -> std::io::Result<impl std::future::Future<Output = St
         };
         crate::signals::reason_of(signal)
     })
+}
+
+/// `mutex` locked, waiting at most `within` for another holder (one whose
+/// database call does not come back must not stall every request).
+pub(crate) fn lock_within<T>(
+    mutex: &std::sync::Mutex<T>,
+    within: std::time::Duration,
+) -> Option<std::sync::MutexGuard<'_, T>> {
+    let until = std::time::Instant::now() + within;
+    loop {
+        match mutex.try_lock() {
+            Ok(guard) => return Some(guard),
+            Err(std::sync::TryLockError::Poisoned(e)) => return Some(e.into_inner()),
+            Err(std::sync::TryLockError::WouldBlock) => {
+                if std::time::Instant::now() >= until {
+                    return None;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(10));
+            }
+        }
+    }
 }

@@ -141,6 +141,8 @@ pub struct Runner {
     db: StoreTarget,
     hub: Arc<Hub>,
     active: Mutex<Option<ActiveRun>>,
+    /// The store's health as the last run's outbox saw it.
+    store_health: crate::station_run::StoreHealthSlot,
 }
 
 impl Runner {
@@ -160,7 +162,18 @@ impl Runner {
             db,
             hub,
             active: Mutex::new(None),
+            store_health: Default::default(),
         }
+    }
+
+    /// The store's health as the running (or last) run's outbox sees it:
+    /// none before the first run.
+    pub fn store_health(&self) -> Option<spinbench_store::outbox::HealthReading> {
+        self.store_health
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .map(|h| h.reading())
     }
 
     /// The station config and its text.
@@ -249,6 +262,7 @@ impl Runner {
             abort: abort.clone(),
             pause: pause.clone(),
             sinks: vec![Box::new(HubSink(self.hub.clone()))],
+            store_health: self.store_health.clone(),
         };
         let (hub, done) = (self.hub.clone(), finished.clone());
         std::thread::Builder::new()

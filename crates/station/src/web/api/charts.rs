@@ -53,7 +53,7 @@ pub(super) async fn control_charts(
         .clone()
         .unwrap_or_else(|| app.runner.station().0.station);
     let batch = blocking(&app, move |app| {
-        let store = store(app);
+        let store = store(app)?;
         let ids: Vec<String> = store
             .runs()?
             .into_iter()

@@ -27,7 +27,7 @@ pub(super) async fn signature(
     let station = app.runner.station().0;
     let found = blocking(&app, move |app| {
         Ok(crate::station_model::latest_signature(
-            &store(app),
+            &*store(app)?,
             &station,
         ))
     })
@@ -74,7 +74,10 @@ pub(super) async fn equipment(
     authorize(&app, &headers, Role::Operator, false).await?;
     let station = app.runner.station().0;
     let list = blocking(&app, move |app| {
-        Ok(crate::equipment::station_equipment(&store(app), &station)?)
+        Ok(crate::equipment::station_equipment(
+            &*store(app)?,
+            &station,
+        )?)
     })
     .await?;
     Ok(Json(
@@ -158,7 +161,7 @@ pub(super) async fn set_equipment(
     };
     let due_on = row.due_on.clone();
     blocking(&app, move |app| {
-        Ok(store(app).set_equipment(&row, &session.user)?)
+        Ok(store(app)?.set_equipment(&row, &session.user)?)
     })
     .await?;
     Ok(Json(EquipmentSaved { role, due_on }))

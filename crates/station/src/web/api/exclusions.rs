@@ -82,7 +82,7 @@ async fn change_level(
     let ask: ExcludeLevel = parse_json(&body)?;
     check_exclusion_ask(&app, &id, &ask)?;
     blocking(&app, move |app| {
-        let store = store(app);
+        let store = store(app)?;
         let (before, after) =
             change_record(
                 &store,

@@ -29,7 +29,7 @@ pub(super) async fn runs(
 ) -> ApiResult<Json<Vec<RunEntry>>> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let Query(q) = q.map_err(query_error)?;
-    let runs = blocking(&app, |app| Ok(store(app).runs()?)).await?;
+    let runs = blocking(&app, |app| Ok(store(app)?.runs()?)).await?;
     Ok(Json(
         runs.iter()
             .filter(|r| q.station.as_ref().is_none_or(|s| &r.station == s))
@@ -57,7 +57,7 @@ pub(super) async fn run(
     let lang = super::session::language_of(&app, &headers, Some(&session)).await;
     let asked = id.clone();
     let report = blocking(&app, move |app| {
-        Ok(spinbench_report::gather(&store(app), &asked))
+        Ok(spinbench_report::gather(&*store(app)?, &asked))
     })
     .await?
     .map_err(|e| match e {
@@ -198,7 +198,7 @@ pub(super) async fn unit(
 ) -> ApiResult<Json<UnitHistory>> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let asked = serial.clone();
-    let history = blocking(&app, move |app| Ok(store(app).unit_history(&asked)?)).await?;
+    let history = blocking(&app, move |app| Ok(store(app)?.unit_history(&asked)?)).await?;
     if history.is_empty() {
         return Err(ApiError::not_found(format!(
             "no run holds serial '{serial}'"

@@ -160,7 +160,7 @@ pub(super) async fn fleet(
 ) -> ApiResult<Json<Vec<FleetStation>>> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let this = app.runner.station().0.station;
-    let rows = blocking(&app, |app| Ok(store(app).stations()?)).await?;
+    let rows = blocking(&app, |app| Ok(store(app)?.stations()?)).await?;
     Ok(Json(
         rows.into_iter()
             .map(|r| FleetStation {

@@ -49,6 +49,8 @@ pub struct ApiError {
     status: StatusCode,
     message: String,
     wording: Option<spinbench_engine::event::Wording>,
+    /// Seconds after which the request may be tried again (503).
+    retry_after_s: Option<u64>,
 }
 
 impl ApiError {
@@ -57,7 +59,21 @@ impl ApiError {
             status,
             message: message.into(),
             wording: None,
+            retry_after_s: None,
         }
+    }
+    /// The store cannot answer now (down, restarting, stalled): 503 with
+    /// `Retry-After`, and what to do.
+    fn store_unavailable(problem: impl std::fmt::Display) -> ApiError {
+        let mut e = ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "the station's database cannot answer now ({problem}); try again in a few seconds — \
+                 a run in progress goes on measuring and its record follows when the database is back"
+            ),
+        );
+        e.retry_after_s = Some(RETRY_AFTER_S);
+        e
     }
     /// The same error with its wording (`say.<key>` in the catalogue).
     fn worded(mut self, wording: spinbench_engine::event::Wording) -> ApiError {
@@ -80,22 +96,43 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (
+        let mut response = (
             self.status,
             Json(schema::ErrorBody {
                 error: self.message,
                 wording: self.wording,
             }),
         )
-            .into_response()
+            .into_response();
+        if let Some(s) = self.retry_after_s {
+            response
+                .headers_mut()
+                .insert(header::RETRY_AFTER, HeaderValue::from(s));
+        }
+        response
     }
 }
 
 impl From<spinbench_store::StoreError> for ApiError {
     fn from(e: spinbench_store::StoreError) -> ApiError {
-        ApiError::internal(e.to_string())
+        if e.is_unavailable() {
+            ApiError::store_unavailable(e)
+        } else {
+            ApiError::internal(e.to_string())
+        }
     }
 }
+
+/// Seconds a 503 of the store asks the client to wait before trying again.
+pub const RETRY_AFTER_S: u64 = 5;
+
+/// How long a request waits for the store's answer before it is told 503
+/// (a database that stopped answering: paused, a network partition).
+pub const STORE_DEADLINE: Duration = Duration::from_secs(10);
+
+/// How long a request waits for the store's connection while another
+/// request holds it.
+pub const STORE_LOCK_WAIT: Duration = Duration::from_secs(3);
 
 type ApiResult<T> = Result<T, ApiError>;
 
@@ -116,6 +153,38 @@ pub(super) async fn authorize(
         Some(t) => blocking(app, move |app| Ok(app.sessions.get(&app.store, &t))).await?,
         None => None,
     };
+    check_session(session, headers, min, changes)
+}
+
+/// As [`authorize`], with a session this server already knows first (the
+/// store is not asked for it): the controls that make the station safe
+/// (abort, pause) work whatever the database does. A session the cache
+/// does not have is looked up as [`authorize`] does.
+pub(super) async fn authorize_cached(
+    app: &App,
+    headers: &HeaderMap,
+    min: Role,
+    changes: bool,
+) -> ApiResult<Session> {
+    let cached = headers
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(auth::session_token)
+        .and_then(|t| app.sessions.cached(&t));
+    match cached {
+        Some(session) => check_session(Some(session), headers, min, changes),
+        None => authorize(app, headers, min, changes).await,
+    }
+}
+
+/// The request's session checked for its CSRF token (when it changes
+/// something) and its role.
+fn check_session(
+    session: Option<Session>,
+    headers: &HeaderMap,
+    min: Role,
+    changes: bool,
+) -> ApiResult<Session> {
     let session = session.ok_or_else(|| {
         ApiError::new(
             StatusCode::UNAUTHORIZED,
@@ -170,15 +239,36 @@ pub(super) async fn blocking<T: Send + 'static>(
     work: impl FnOnce(&AppState) -> ApiResult<T> + Send + 'static,
 ) -> ApiResult<T> {
     let app = Arc::clone(app);
-    tokio::task::spawn_blocking(move || work(&app))
-        .await
-        .map_err(|e| ApiError::internal(format!("the store's call did not finish: {e}")))?
+    // A database that stops answering holds the call's thread until it
+    // answers again; the request is told 503 at the deadline instead.
+    match tokio::time::timeout(
+        STORE_DEADLINE,
+        tokio::task::spawn_blocking(move || work(&app)),
+    )
+    .await
+    {
+        Ok(done) => {
+            done.map_err(|e| ApiError::internal(format!("the store's call did not finish: {e}")))?
+        }
+        Err(_) => Err(ApiError::store_unavailable(format!(
+            "no answer within {} s",
+            STORE_DEADLINE.as_secs()
+        ))),
+    }
 }
 
 /// The store, locked: only inside [`blocking`] (the lock and the queries
-/// block).
-pub(super) fn store(app: &AppState) -> std::sync::MutexGuard<'_, spinbench_store::Store> {
-    app.store.lock().unwrap_or_else(|e| e.into_inner())
+/// block). One held longer than [`STORE_LOCK_WAIT`] by another request
+/// (whose database call does not come back) is a 503.
+pub(super) fn store(
+    app: &AppState,
+) -> ApiResult<std::sync::MutexGuard<'_, spinbench_store::Store>> {
+    super::lock_within(&app.store, STORE_LOCK_WAIT).ok_or_else(|| {
+        ApiError::store_unavailable(format!(
+            "its connection is held by a call that has not come back for {} s",
+            STORE_LOCK_WAIT.as_secs()
+        ))
+    })
 }
 
 /// Write an entry of the audit log (through [`blocking`]).
@@ -189,7 +279,7 @@ pub(super) async fn audit(app: &App, who: &str, action: &str, detail: &str) -> A
 
 /// Write an entry of the audit log: only inside [`blocking`].
 pub(super) fn audit_now(app: &AppState, who: &str, action: &str, detail: &str) -> ApiResult<()> {
-    store(app)
+    store(app)?
         .audit(who, action, detail)
         .map_err(ApiError::from)
 }
@@ -314,7 +404,8 @@ async fn metrics(State(app): State<App>) -> Response {
             header::CONTENT_TYPE,
             "text/plain; version=0.0.4; charset=utf-8",
         )],
-        app.metrics.render(&status, state),
+        app.metrics
+            .render(&status, state, app.runner.store_health().as_ref()),
     )
         .into_response()
 }

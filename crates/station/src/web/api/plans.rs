@@ -154,7 +154,7 @@ pub(super) async fn design_plan(
     let station = config.station.clone();
     let learned = blocking(&app, move |app| {
         Ok(crate::station_model::learn_from(
-            &store(app),
+            &*store(app)?,
             &station,
             crate::station_model::DEFAULT_MODEL_RUNS,
         ))

@@ -43,7 +43,7 @@ pub(super) async fn start_run(
     if plan.retest_of.is_some() {
         let checked = plan.clone();
         blocking(&app, move |app| {
-            crate::retest::check_retest_of(&store(app), &checked).map_err(|e| match e {
+            crate::retest::check_retest_of(&*store(app)?, &checked).map_err(|e| match e {
                 crate::retest::RetestFromStoreError::Store(e) => ApiError::from(e),
                 e => ApiError::bad(e.to_string()),
             })
@@ -93,7 +93,10 @@ async fn check_equipment(
     let station = app.runner.station().0;
     let required = station.equipment.require_registered;
     let list = blocking(app, move |app| {
-        Ok(crate::equipment::station_equipment(&store(app), &station)?)
+        Ok(crate::equipment::station_equipment(
+            &*store(app)?,
+            &station,
+        )?)
     })
     .await?;
     let Some(late) = crate::equipment::overdue(&list, required) else {
@@ -174,7 +177,7 @@ pub(super) async fn retest(
     };
     let asked = id.clone();
     let (found, recorded_by) = blocking(&app, move |app| {
-        let store = store(app);
+        let store = store(app)?;
         let recorded_by = store.run(&asked).ok().flatten().map(|r| r.station);
         Ok((retest_plan_from_store(&store, &asked), recorded_by))
     })
@@ -273,15 +276,31 @@ pub(super) async fn answer_prompt(
     Ok(Json(RunId { run_id }))
 }
 
+/// How long a control's answer waits for its audit entry (a store that
+/// does not answer: the entry is written when it does).
+const AUDIT_WAIT: Duration = Duration::from_secs(2);
+
 pub(super) async fn control(
     app: &App,
     headers: &HeaderMap,
     action: &str,
     act: impl FnOnce(&crate::web::runner::Runner, &str) -> Result<String, String>,
 ) -> ApiResult<Json<RunId>> {
-    let session = authorize(app, headers, Role::Operator, true).await?;
+    // Whatever the database does: the session from the cache, the action
+    // at once, the audit entry written when the store answers.
+    let session = authorize_cached(app, headers, Role::Operator, true).await?;
     let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
-    audit(app, &session.user, action, &run_id).await?;
+    let (app, action, id) = (Arc::clone(app), action.to_string(), run_id.clone());
+    let written = tokio::spawn(async move {
+        if let Err(e) = audit(&app, &session.user, &action, &id).await {
+            eprintln!(
+                "warning: the audit entry of {} by {} on run {id} was not written: {}",
+                action, session.user, e.message
+            );
+        }
+    });
+    // Answered once the entry is written, or after AUDIT_WAIT (it goes on).
+    let _ = tokio::time::timeout(AUDIT_WAIT, written).await;
     Ok(Json(RunId { run_id }))
 }
 

@@ -76,7 +76,7 @@ pub(super) async fn login(
     // both off the runtime.
     let (user, ok) = blocking(&app, move |app| {
         let user = match known {
-            Some(name) => store(app).user(&name)?,
+            Some(name) => store(app)?.user(&name)?,
             None => None,
         };
         let ok = check_password(&password, user.as_ref());
@@ -129,7 +129,7 @@ pub(super) async fn login(
     app.logins.succeeded(&name);
     let opened = name.clone();
     let (token, session) = blocking(&app, move |app| {
-        Ok(app.sessions.open(&store(app), &opened, role))
+        Ok(app.sessions.open(&*store(app)?, &opened, role))
     })
     .await?;
     audit(&app, &name, "login", role.as_str()).await?;
@@ -162,7 +162,7 @@ pub(super) async fn logout(
         .and_then(auth::session_token)
     {
         blocking(&app, move |app| {
-            app.sessions.close(&store(app), &token);
+            app.sessions.close(&*store(app)?, &token);
             Ok(())
         })
         .await?;
@@ -210,7 +210,7 @@ fn check_password(password: &str, user: Option<&spinbench_store::UserRow>) -> bo
 pub(super) async fn language_of(app: &App, headers: &HeaderMap, session: Option<&Session>) -> Lang {
     let chosen = match session.map(|s| s.user.clone()) {
         Some(user) => blocking(app, move |app| {
-            Ok(store(app).user_language(&user).ok().flatten())
+            Ok(store(app)?.user_language(&user).ok().flatten())
         })
         .await
         .ok()
@@ -252,7 +252,7 @@ pub(super) async fn set_language(
     })?;
     let user = session.user.clone();
     blocking(&app, move |app| {
-        Ok(store(app).set_user_language(&user, lang.code())?)
+        Ok(store(app)?.set_user_language(&user, lang.code())?)
     })
     .await?;
     Ok(Json(Language {

@@ -16,7 +16,7 @@ pub(super) async fn users(
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<UserEntry>>> {
     authorize(&app, &headers, Role::Admin, false).await?;
-    let users = blocking(&app, |app| Ok(store(app).users()?)).await?;
+    let users = blocking(&app, |app| Ok(store(app)?.users()?)).await?;
     Ok(Json(
         users
             .iter()
@@ -53,7 +53,7 @@ pub(super) async fn add_user(
     let (name, role, password) = (new.name.clone(), new.role.clone(), new.password.clone());
     let role = blocking(&app, move |app| {
         Ok(crate::users::add_user(
-            &store(app),
+            &*store(app)?,
             &name,
             &role,
             &password,
@@ -102,11 +102,11 @@ pub(super) async fn delete_user(
     }
     blocking(&app, move |app| {
         let removed =
-            crate::users::remove_user(&store(app), &name, &session.user).map_err(user_error)?;
+            crate::users::remove_user(&*store(app)?, &name, &session.user).map_err(user_error)?;
         if !removed {
             return Err(ApiError::not_found(format!("no user '{name}'")));
         }
-        app.sessions.close_user(&store(app), &name);
+        app.sessions.close_user(&*store(app)?, &name);
         Ok(())
     })
     .await?;
@@ -141,18 +141,18 @@ pub(super) async fn change_user(
     }
     let user = name.clone();
     let role = blocking(&app, move |app| {
-        if store(app).user(&user)?.is_none() {
+        if store(app)?.user(&user)?.is_none() {
             return Err(ApiError::not_found(format!("no user '{user}'")));
         }
         let role = crate::users::change_user(
-            &store(app),
+            &*store(app)?,
             &user,
             change.role.as_deref(),
             change.password.as_deref(),
             &session.user,
         )
         .map_err(user_error)?;
-        app.sessions.close_user(&store(app), &user);
+        app.sessions.close_user(&*store(app)?, &user);
         Ok(role)
     })
     .await?;
@@ -187,7 +187,7 @@ pub(super) async fn audit_log(
     headers: HeaderMap,
 ) -> ApiResult<Json<Vec<AuditEntry>>> {
     authorize(&app, &headers, Role::Admin, false).await?;
-    let rows = blocking(&app, |app| Ok(store(app).audit_log(500)?)).await?;
+    let rows = blocking(&app, |app| Ok(store(app)?.audit_log(500)?)).await?;
     Ok(Json(
         rows.iter()
             .map(|r| AuditEntry {

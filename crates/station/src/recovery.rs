@@ -1,0 +1,114 @@
+//! What a station finds at its start (`run`, `serve`) of the runs its
+//! processes left behind (issue 37): events the store had not taken when a
+//! run ended (the run directory's outbox file, written now), and runs the
+//! store still has `running` whose process ended without finishing them (a
+//! crash, a power cut), marked `interrupted` with how to resume them.
+//!
+//! Only this data directory's runs are looked at, and only those no
+//! process runs now (their directory's lock is free): another station of
+//! the fleet, or a run in progress, is never touched.
+
+use crate::run_setup::RUNS_DIR;
+use spinbench_engine::RunState;
+use spinbench_engine::event::Event;
+use spinbench_engine::journal::read_journal;
+use spinbench_store::Store;
+use spinbench_store::outbox::{OUTBOX_FILE, catch_up};
+use std::path::{Path, PathBuf};
+
+/// What [`recover`] did, a line each, for the terminal and the log.
+#[derive(Debug, Default, Clone, PartialEq)]
+pub struct Recovered {
+    /// Runs whose left-over events were written (run id, events).
+    pub caught_up: Vec<(String, u64)>,
+    /// Runs marked interrupted (run id, directory).
+    pub interrupted: Vec<(String, PathBuf)>,
+    /// What could not be done, and why (tried again at the next start).
+    pub problems: Vec<String>,
+}
+
+impl Recovered {
+    /// The lines to print (none when nothing was found).
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        for (id, n) in &self.caught_up {
+            out.push(format!(
+                "run {id}: wrote the {n} events the store had not taken when the run ended"
+            ));
+        }
+        for (id, dir) in &self.interrupted {
+            out.push(format!(
+                "run {id} was left running by a process that ended without finishing it: marked interrupted; \
+                 continue it with `spinbench run --resume {}` (or start a new run)",
+                dir.display()
+            ));
+        }
+        for p in &self.problems {
+            out.push(format!("warning: {p}"));
+        }
+        out
+    }
+}
+
+/// Whether no process runs the run in `dir` now (its lock is free).
+fn idle(dir: &Path) -> bool {
+    std::fs::File::open(dir).is_ok_and(|f| f.try_lock().is_ok())
+}
+
+/// Whether the journal in `dir` finished the run it last started.
+fn journal_finished(dir: &Path) -> bool {
+    let Ok((events, _)) = read_journal(dir) else {
+        return false;
+    };
+    let last_start = events
+        .iter()
+        .rposition(|e| matches!(e, Event::RunStarted { .. }));
+    last_start.is_some_and(|i| {
+        events[i..].iter().any(|e| {
+            matches!(
+                e,
+                Event::RunFinished {
+                    state: RunState::Completed | RunState::Aborted | RunState::Faulted,
+                    ..
+                }
+            )
+        })
+    })
+}
+
+/// Catch up and mark, for station `station` with data directory `data`.
+pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
+    let mut out = Recovered::default();
+    let runs = data.join(RUNS_DIR);
+    if let Ok(entries) = std::fs::read_dir(&runs) {
+        for entry in entries.flatten() {
+            let dir = entry.path();
+            if !dir.join(OUTBOX_FILE).is_file() || !idle(&dir) {
+                continue;
+            }
+            let id = entry.file_name().to_string_lossy().into_owned();
+            match catch_up(store, &dir) {
+                Ok(n) => out.caught_up.push((id, n)),
+                Err(e) => out.problems.push(e.to_string()),
+            }
+        }
+    }
+    match store.running_runs(station) {
+        Ok(rows) => {
+            for row in rows {
+                let dir = runs.join(&row.id);
+                if !dir.is_dir() || !idle(&dir) || journal_finished(&dir) {
+                    continue;
+                }
+                let why = "interrupted: the station's process ended without finishing the run (a crash or a power cut)";
+                match store.mark_interrupted(&row.id, why) {
+                    Ok(true) => out.interrupted.push((row.id, dir)),
+                    Ok(false) => {}
+                    Err(e) => out.problems.push(e.to_string()),
+                }
+            }
+        }
+        Err(e) => out.problems.push(e.to_string()),
+    }
+    out
+}

@@ -1,0 +1,177 @@
+//! The run never waits on the store (issue 37): `spinbench run` drives a
+//! separate `spinbench sim` (real PTYs) and writes to a PostgreSQL server
+//! of the test's own, which is restarted, or paused (SIGSTOP: a stall, as a
+//! network partition without a reset), in the middle of the run.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+#[path = "common/bench.rs"]
+mod bench;
+#[path = "common/postgres.rs"]
+mod postgres;
+use bench::{Operated, Sim, start_sim};
+use postgres::Cluster;
+
+const PLAN: &str = r#"
+range_g = 20
+levels = [0, 1, 5, 10, 15, 20]
+passes = ["P"]
+warmup_s = 0
+dwell = { seconds = 10 }
+stability = { hold_s = 3 }
+[serials]
+1 = "OUT1"
+2 = "OUT2"
+"#;
+
+/// A run of `PLAN` on `sim` writing to `url`, in `dir`.
+fn start_run(dir: &std::path::Path, sim: &Sim, url: &str) -> Operated {
+    let station = dir.join("station.toml");
+    std::fs::write(
+        &station,
+        format!(
+            "station = \"outage test\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\n\
+             instrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
+            sim.devices_toml
+        ),
+    )
+    .expect("station");
+    let plan = dir.join("plan.toml");
+    std::fs::write(&plan, PLAN).expect("plan");
+    Operated::start(&[
+        "--station".as_ref(),
+        station.as_os_str(),
+        "--data".as_ref(),
+        dir.join("data").as_os_str(),
+        "--db".as_ref(),
+        url.as_ref(),
+        plan.as_os_str(),
+    ])
+}
+
+/// The instruments' points the journal of the only run under `data`
+/// recorded (a point of the plan is one per instrument: two).
+fn journal_points(data: &std::path::Path) -> usize {
+    let runs = data.join("runs");
+    let run = std::fs::read_dir(&runs)
+        .expect("runs")
+        .flatten()
+        .next()
+        .expect("a run directory")
+        .path();
+    std::fs::read_to_string(run.join("journal.jsonl"))
+        .expect("journal")
+        .lines()
+        .filter(|l| l.contains("\"event\":\"point_done\""))
+        .count()
+        * 2
+}
+
+#[test]
+fn a_postgres_restart_in_the_middle_of_a_run_loses_nothing() {
+    let Some(db) = Cluster::start() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = start_sim("10");
+    let mut run = start_run(dir.path(), &sim, &db.url);
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("5 g Up")),
+        "the run never reached 5 g:\n{}",
+        run.transcript()
+    );
+    db.restart();
+    let status = run
+        .wait(&sim, Duration::from_secs(240))
+        .unwrap_or_else(|| panic!("the run did not end:\n{}", run.transcript()));
+    assert!(status.success(), "{}", run.transcript());
+    assert!(
+        !run.seen.iter().any(|l| l.contains("held")),
+        "the run was held:\n{}",
+        run.transcript()
+    );
+    // Everything is in the store: the run completed, every point, both results.
+    let store =
+        spinbench_store::Store::connect(&spinbench_store::StoreTarget::Postgres(db.url.clone()))
+            .expect("store");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0].state, "completed", "{:?}", runs[0].reason);
+    let points = store.points(&runs[0].id).expect("points").len();
+    assert!(points > 0);
+    assert_eq!(points, journal_points(&dir.path().join("data")));
+    assert_eq!(store.results(&runs[0].id).expect("results").len(), 2);
+    assert!(store.value_count(&runs[0].id).expect("values") > 0);
+}
+
+#[test]
+fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
+    let Some(db) = Cluster::start() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = start_sim("10");
+    let mut run = start_run(dir.path(), &sim, &db.url);
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("5 g Up")),
+        "the run never reached 5 g:\n{}",
+        run.transcript()
+    );
+    db.pause();
+    // The run goes on measuring with the database stalled: the next level.
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(60), |l| l.contains("10 g Up")),
+        "the run stopped measuring while the database stalled:\n{}",
+        run.transcript()
+    );
+    // SIGTERM: the safe state whatever the database does, the process ends.
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(
+        Command::new("kill")
+            .args(["-TERM", &run.run.id().to_string()])
+            .status()
+            .expect("kill")
+            .success()
+    );
+    let signalled = Instant::now();
+    let status = run
+        .wait(&sim, Duration::from_secs(60))
+        .unwrap_or_else(|| panic!("no exit within 60 s of SIGTERM:\n{}", run.transcript()));
+    let took = signalled.elapsed();
+    assert!(!status.success());
+    assert!(took < Duration::from_secs(30), "took {took:?}");
+    let (rate, rails) = sim.read_back();
+    assert!(rate.abs() < 0.05, "the table turns at {rate} deg/s");
+    assert!(rails.iter().all(|v| v.abs() < 0.5), "rails at {rails:?}");
+    // What the store did not take is kept, and written once it is back.
+    let data = dir.path().join("data");
+    let left = std::fs::read_dir(data.join("runs"))
+        .expect("runs")
+        .flatten()
+        .any(|e| {
+            e.path()
+                .join(spinbench_store::outbox::OUTBOX_FILE)
+                .is_file()
+        });
+    assert!(left, "no outbox file kept:\n{}", run.transcript());
+    db.resume();
+    let store =
+        spinbench_store::Store::connect(&spinbench_store::StoreTarget::Postgres(db.url.clone()))
+            .expect("store");
+    let recovered = spinbench_station::recovery::recover(&data, "outage test", &store);
+    assert_eq!(recovered.caught_up.len(), 1, "{recovered:?}");
+    assert!(recovered.problems.is_empty(), "{recovered:?}");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 1);
+    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0].reason);
+    assert!(
+        runs[0]
+            .reason
+            .as_deref()
+            .unwrap_or_default()
+            .contains("SIGTERM"),
+        "{:?}",
+        runs[0].reason
+    );
+    assert_eq!(
+        store.points(&runs[0].id).expect("points").len(),
+        journal_points(&data)
+    );
+}

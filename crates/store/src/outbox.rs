@@ -1,0 +1,475 @@
+//! The store's outbox: a run's events written to the store on a thread of
+//! their own, so that the run never waits on the database (issue 37).
+//!
+//! The engine hands each event to an [`OutboxSender`], which only queues
+//! it and returns. A writer thread takes the events in order and writes
+//! them through a [`StoreSink`]; a write that fails (the server restarting,
+//! a network gone, a file locked) is tried again with a growing pause, on
+//! a connection made again, the same event, until it is taken: nothing is
+//! lost and, since a failed write's transaction is rolled back, nothing is
+//! written twice. The queue is bounded in memory ([`MEMORY_EVENTS`]); past
+//! that, events go in order to a spill file beside the journal and are
+//! written from there when the store is back. Only a failing local disk
+//! refuses an event (the engine then holds the run and, at its hold limit,
+//! goes to its safe state).
+//!
+//! At the run's end [`Outbox::finish`] waits, within a bound, for the store
+//! to catch up; whatever is still unwritten then is kept in the run
+//! directory's [`OUTBOX_FILE`] and written by [`catch_up`] at the next
+//! start of the station. [`StoreHealth`] says how the store is doing (up,
+//! errors, the queue's depth and age) for `/metrics` and the fleet.
+
+use super::*;
+use std::collections::VecDeque;
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// Events held in memory before the queue spills to disk (about a day of
+/// one-second values: at most a few hundred MB).
+pub const MEMORY_EVENTS: usize = 100_000;
+
+/// The file in a run directory that holds the events the store has not
+/// taken yet (while the queue spills, and after a run that ended with the
+/// store down), one JSON event per line.
+pub const OUTBOX_FILE: &str = "store-outbox.jsonl";
+
+/// The longest pause between two tries of a failing write.
+pub const RETRY_AT_MOST: Duration = Duration::from_secs(5);
+
+/// How the store is doing, as the outbox sees it: shared with `/metrics`,
+/// the heartbeat and the screens.
+#[derive(Debug, Default)]
+pub struct StoreHealth {
+    down: AtomicBool,
+    errors: AtomicU64,
+    depth: AtomicU64,
+    oldest: Mutex<Option<Instant>>,
+    last_error: Mutex<String>,
+}
+
+/// A reading of [`StoreHealth`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct HealthReading {
+    /// Whether the last write succeeded (or none has failed yet).
+    pub up: bool,
+    /// Writes that failed since the outbox opened.
+    pub errors: u64,
+    /// Events waiting to be written.
+    pub depth: u64,
+    /// How long the oldest waiting event has waited [s] (0 when none).
+    pub age_s: f64,
+    /// The last failure's message (empty when none).
+    pub last_error: String,
+}
+
+fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+impl StoreHealth {
+    /// The health now.
+    pub fn reading(&self) -> HealthReading {
+        HealthReading {
+            up: !self.down.load(Ordering::Relaxed),
+            errors: self.errors.load(Ordering::Relaxed),
+            depth: self.depth.load(Ordering::Relaxed),
+            age_s: locked(&self.oldest).map_or(0.0, |t| t.elapsed().as_secs_f64()),
+            last_error: locked(&self.last_error).clone(),
+        }
+    }
+    fn failed(&self, why: &str) {
+        self.down.store(true, Ordering::Relaxed);
+        self.errors.fetch_add(1, Ordering::Relaxed);
+        *locked(&self.last_error) = why.to_string();
+    }
+    fn succeeded(&self) {
+        self.down.store(false, Ordering::Relaxed);
+    }
+}
+
+/// Events past the memory bound, in a file, in order.
+struct Spill {
+    path: PathBuf,
+    file: File,
+    reader: BufReader<File>,
+    written: u64,
+    read: u64,
+}
+
+impl Spill {
+    fn open(path: PathBuf) -> std::io::Result<Spill> {
+        let file = OpenOptions::new()
+            .create(true)
+            .truncate(true)
+            .write(true)
+            .read(true)
+            .open(&path)?;
+        let reader = BufReader::new(File::open(&path)?);
+        Ok(Spill {
+            path,
+            file,
+            reader,
+            written: 0,
+            read: 0,
+        })
+    }
+    fn push(&mut self, event: &Event) -> Result<(), String> {
+        let mut line = serde_json::to_vec(event).map_err(|e| e.to_string())?;
+        line.push(b'\n');
+        self.file
+            .write_all(&line)
+            .and_then(|()| self.file.flush())
+            .map_err(|e| format!("{}: cannot write: {e}", self.path.display()))?;
+        self.written += 1;
+        Ok(())
+    }
+    fn next(&mut self) -> Option<Event> {
+        if self.read >= self.written {
+            return None;
+        }
+        let mut line = String::new();
+        self.reader.read_line(&mut line).ok()?;
+        self.read += 1;
+        serde_json::from_str(&line).ok()
+    }
+}
+
+struct Queue {
+    memory: VecDeque<(Instant, Event)>,
+    spill: Option<Spill>,
+    /// The event being written (taken from the queue, not yet accepted).
+    writing: Option<Event>,
+    /// No more events will come: the writer ends once all are written.
+    closing: bool,
+    /// The writer is to end now (what is left goes to the outbox file).
+    leave: bool,
+}
+
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+    health: Arc<StoreHealth>,
+    spill_path: PathBuf,
+}
+
+impl Shared {
+    fn depth(q: &Queue) -> u64 {
+        q.memory.len() as u64
+            + q.spill.as_ref().map_or(0, |s| s.written - s.read)
+            + u64::from(q.writing.is_some())
+    }
+    fn publish(&self, q: &Queue) {
+        self.health.depth.store(Shared::depth(q), Ordering::Relaxed);
+        if q.writing.is_none() && q.memory.is_empty() && q.spill.is_none() {
+            *locked(&self.health.oldest) = None;
+        } else if let Some((t, _)) = q.memory.front()
+            && q.writing.is_none()
+        {
+            *locked(&self.health.oldest) = Some(*t);
+        }
+    }
+}
+
+/// The engine's side of the outbox: queues each event and returns.
+pub struct OutboxSender {
+    shared: Arc<Shared>,
+}
+
+impl EventSink for OutboxSender {
+    fn emit(&mut self, event: &Event) -> Result<(), String> {
+        if matches!(event, Event::Progress { .. }) {
+            return Ok(());
+        }
+        let mut q = locked(&self.shared.queue);
+        if q.spill.is_none() && q.memory.len() >= MEMORY_EVENTS {
+            q.spill = Some(Spill::open(self.shared.spill_path.clone()).map_err(|e| {
+                format!(
+                    "{}: cannot spill the store's queue to disk: {e}",
+                    self.shared.spill_path.display()
+                )
+            })?);
+        }
+        if let Some(spill) = q.spill.as_mut() {
+            spill.push(event)?;
+        } else {
+            q.memory.push_back((Instant::now(), event.clone()));
+        }
+        if locked(&self.shared.health.oldest).is_none() {
+            *locked(&self.shared.health.oldest) = Some(Instant::now());
+        }
+        self.shared.publish(&q);
+        drop(q);
+        self.shared.wake.notify_all();
+        Ok(())
+    }
+}
+
+/// The outbox of one run: its writer thread and health.
+pub struct Outbox {
+    shared: Arc<Shared>,
+    writer: Option<std::thread::JoinHandle<()>>,
+    target: String,
+}
+
+/// What [`Outbox::finish`] saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Finished {
+    /// Events the store had not taken when the wait ended (kept in the
+    /// run directory's [`OUTBOX_FILE`]).
+    pub left: u64,
+    /// The writes that failed during the run.
+    pub errors: u64,
+}
+
+impl Store {
+    /// An outbox writing a run's events to this store (a connection of its
+    /// own, on a thread of its own); its spill and left-over file is
+    /// `run_dir`/[`OUTBOX_FILE`]. Returns the outbox and the engine's sender.
+    pub fn outbox(&self, run_dir: &Path) -> Result<(Outbox, OutboxSender), StoreError> {
+        let sink = self.sink()?;
+        let shared = Arc::new(Shared {
+            queue: Mutex::new(Queue {
+                memory: VecDeque::new(),
+                spill: None,
+                writing: None,
+                closing: false,
+                leave: false,
+            }),
+            wake: Condvar::new(),
+            health: Arc::new(StoreHealth::default()),
+            spill_path: run_dir.join(OUTBOX_FILE),
+        });
+        let for_writer = Arc::clone(&shared);
+        let writer = std::thread::Builder::new()
+            .name("store-outbox".into())
+            .spawn(move || write_all(&for_writer, sink))
+            .map_err(|e| {
+                StoreError::message(
+                    &self.target,
+                    "start the store's writer thread",
+                    e.to_string(),
+                )
+            })?;
+        Ok((
+            Outbox {
+                shared: Arc::clone(&shared),
+                writer: Some(writer),
+                target: self.target.to_string(),
+            },
+            OutboxSender { shared },
+        ))
+    }
+}
+
+impl Outbox {
+    /// The store's health as this outbox sees it (shared: stays current).
+    pub fn health(&self) -> Arc<StoreHealth> {
+        Arc::clone(&self.shared.health)
+    }
+
+    /// The run has ended: wait up to `wait` for the store to take every
+    /// event, calling `progress` with the count left about once a second
+    /// while it has not; then end the writer. What is left is kept in the
+    /// run directory's [`OUTBOX_FILE`] for [`catch_up`].
+    pub fn finish(
+        mut self,
+        wait: Duration,
+        mut progress: impl FnMut(&HealthReading),
+    ) -> Result<Finished, String> {
+        let until = Instant::now() + wait;
+        {
+            let mut q = locked(&self.shared.queue);
+            q.closing = true;
+            self.shared.wake.notify_all();
+            let mut told = Instant::now();
+            while Shared::depth(&q) > 0 && Instant::now() < until {
+                q = self
+                    .shared
+                    .wake
+                    .wait_timeout(q, Duration::from_millis(200))
+                    .map(|(g, _)| g)
+                    .unwrap_or_else(|e| e.into_inner().0);
+                if told.elapsed() >= Duration::from_secs(1) && Shared::depth(&q) > 0 {
+                    told = Instant::now();
+                    drop(q);
+                    progress(&self.shared.health.reading());
+                    q = locked(&self.shared.queue);
+                }
+            }
+            q.leave = true;
+            self.shared.wake.notify_all();
+        }
+        // The writer ends at its next look at the queue; one blocked in a
+        // database call that does not answer is left behind (its event is
+        // kept below, and written again at the catch-up: a transaction the
+        // server never committed).
+        let writer = self.writer.take();
+        let joined_by = Instant::now() + Duration::from_secs(2);
+        if let Some(w) = writer {
+            while !w.is_finished() && Instant::now() < joined_by {
+                std::thread::sleep(Duration::from_millis(20));
+            }
+            if w.is_finished() {
+                let _ = w.join();
+            }
+        }
+        let errors = self.shared.health.reading().errors;
+        let left = self.keep_left()?;
+        Ok(Finished { left, errors })
+    }
+
+    /// Everything not written, in order, into the outbox file.
+    fn keep_left(&self) -> Result<u64, String> {
+        let mut q = locked(&self.shared.queue);
+        let mut rest: Vec<Event> = q.writing.take().into_iter().collect();
+        rest.extend(q.memory.drain(..).map(|(_, e)| e));
+        if let Some(mut spill) = q.spill.take() {
+            while let Some(e) = spill.next() {
+                rest.push(e);
+            }
+        }
+        let path = &self.shared.spill_path;
+        if rest.is_empty() {
+            let _ = std::fs::remove_file(path);
+            return Ok(0);
+        }
+        let mut text = Vec::new();
+        for e in &rest {
+            serde_json::to_writer(&mut text, e).map_err(|e| e.to_string())?;
+            text.push(b'\n');
+        }
+        let tmp = path.with_extension("jsonl.tmp");
+        std::fs::write(&tmp, &text)
+            .and_then(|()| File::open(&tmp)?.sync_all())
+            .and_then(|()| std::fs::rename(&tmp, path))
+            .map_err(|e| {
+                format!(
+                    "{}: cannot keep the {} events the store {} has not taken: {e}",
+                    path.display(),
+                    rest.len(),
+                    self.target
+                )
+            })?;
+        Ok(rest.len() as u64)
+    }
+}
+
+/// The writer thread: each event in order, tried until the store takes it.
+fn write_all(shared: &Shared, mut sink: StoreSink) {
+    let mut pause = Duration::from_millis(250);
+    loop {
+        let event = {
+            let mut q = locked(&shared.queue);
+            loop {
+                if q.leave {
+                    return;
+                }
+                if let Some(e) = q.writing.clone() {
+                    break e;
+                }
+                if let Some((_, e)) = q.memory.pop_front() {
+                    q.writing = Some(e.clone());
+                    break e;
+                }
+                if let Some(spill) = q.spill.as_mut() {
+                    if let Some(e) = spill.next() {
+                        q.writing = Some(e.clone());
+                        break e;
+                    }
+                    // Drained: later events go to memory again.
+                    let _ = std::fs::remove_file(&spill.path);
+                    q.spill = None;
+                    continue;
+                }
+                shared.publish(&q);
+                if q.closing {
+                    shared.wake.notify_all();
+                    return;
+                }
+                q = shared.wake.wait(q).unwrap_or_else(|e| e.into_inner());
+            }
+        };
+        match sink.write(&event) {
+            Ok(()) => {
+                shared.health.succeeded();
+                pause = Duration::from_millis(250);
+                let mut q = locked(&shared.queue);
+                q.writing = None;
+                *locked(&shared.health.oldest) = q.memory.front().map(|(t, _)| *t);
+                shared.publish(&q);
+                drop(q);
+                shared.wake.notify_all();
+            }
+            Err(e) => {
+                shared
+                    .health
+                    .failed(&format!("store {}: {e}", sink.store.target));
+                // Wait before the next try, waking early to leave.
+                let q = locked(&shared.queue);
+                let (q, _) = shared
+                    .wake
+                    .wait_timeout_while(q, pause, |q| !q.leave)
+                    .unwrap_or_else(|e| e.into_inner());
+                drop(q);
+                pause = (pause * 2).min(RETRY_AT_MOST);
+            }
+        }
+    }
+}
+
+/// Write what a run directory's [`OUTBOX_FILE`] holds (events a store did
+/// not take before its run ended) into `store`, then remove the file.
+/// Returns how many events were written. An event that cannot be read is
+/// an error naming its line; a failing write leaves the file as it was.
+pub fn catch_up(store: &Store, run_dir: &Path) -> Result<u64, StoreError> {
+    let path = run_dir.join(OUTBOX_FILE);
+    let text = match std::fs::read_to_string(&path) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => {
+            return Err(StoreError::message(
+                store.target(),
+                "catch up from a run's outbox",
+                format!("{}: {e}", path.display()),
+            ));
+        }
+    };
+    let mut events = Vec::new();
+    for (i, line) in text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+    {
+        let event: Event = serde_json::from_str(line).map_err(|e| {
+            StoreError::message(
+                store.target(),
+                "catch up from a run's outbox",
+                format!("{} line {}: {e}", path.display(), i + 1),
+            )
+        })?;
+        events.push(event);
+    }
+    let mut sink = store.sink()?;
+    // The run the events belong to, from its journal's last start.
+    if let Ok((journal, _)) = spinbench_engine::journal::read_journal(run_dir)
+        && let Some(started) = journal
+            .iter()
+            .rev()
+            .find(|e| matches!(e, Event::RunStarted { .. }))
+    {
+        sink.prime(started);
+    }
+    for event in &events {
+        sink.write(event).map_err(|reason| StoreError {
+            target: store.target().to_string(),
+            what: format!("catch up from {}", path.display()),
+            reason,
+        })?;
+    }
+    let _ = std::fs::remove_file(&path);
+    Ok(events.len() as u64)
+}
