@@ -29,6 +29,10 @@ pub trait Chamber: Send {
     fn alarms(&mut self) -> Result<u16, DeviceError>;
     /// Switch the dry-air purge on or off.
     fn set_purge(&mut self, on: bool) -> Result<(), DeviceError>;
+    /// How long a controller that is away or busy is waited for from now
+    /// on (a driver that cannot ride outages ignores it): the safe state
+    /// shortens it and leaves the rest to its keeper.
+    fn set_outage_budget(&mut self, _budget: std::time::Duration) {}
 }
 
 /// Largest or smallest setpoint any chamber driver sends [°C].
@@ -57,6 +61,19 @@ pub struct ModbusChamber<T: Transport> {
     codec: ModbusChamberCodec,
     device: String,
     policy: IoPolicy,
+    /// How long a controller that is away (connection refused or reset) or
+    /// busy (exception 05 or 06) is waited for, trying again with back-off.
+    outage_budget: std::time::Duration,
+}
+
+/// How one exchange failed.
+enum Failed {
+    /// Busy: a Modbus exception 05 or 06 (the code).
+    Busy(u8),
+    /// Away: the connection failed (refused, reset, closed).
+    Away,
+    /// Anything else: final.
+    Final,
 }
 
 enum Attempt {
@@ -83,6 +100,56 @@ impl<T: Transport> ModbusChamber<T> {
             codec: ModbusChamberCodec::new(map, framing),
             device,
             policy,
+            outage_budget: std::time::Duration::from_secs_f64(crate::outage::DEFAULT_OUTAGE_S),
+        }
+    }
+
+    /// The same driver riding outages of at most `budget` (0: none).
+    pub fn with_outage_budget(mut self, budget: std::time::Duration) -> Self {
+        self.outage_budget = budget;
+        self
+    }
+
+    /// One operation, riding a controller that is busy or briefly away
+    /// (rebooting) within the outage budget, with back-off
+    /// ([`crate::outage::Outage`]); a refusal or a silent controller (the
+    /// I/O policy's retries spent) is final at once.
+    fn exchange(&mut self, op: ChamberOp) -> Result<ChamberReply, DeviceError> {
+        let mut outage: Option<crate::outage::Outage> = None;
+        loop {
+            let (error, how) = match self.exchange_once(op) {
+                Ok(reply) => return Ok(reply),
+                Err(failed) => failed,
+            };
+            if matches!(how, Failed::Final) {
+                return Err(error);
+            }
+            let budget = self.outage_budget;
+            let o = outage.get_or_insert_with(|| crate::outage::Outage::new(budget));
+            if !o.wait() {
+                let what = match how {
+                    Failed::Busy(code) => format!(
+                        "busy for {:.1} s (Modbus exception {code}: {})",
+                        o.lasted().as_secs_f64(),
+                        spinbench_wire::chamber::modbus_exception_meaning(code)
+                    ),
+                    _ => format!("away for {:.1} s", o.lasted().as_secs_f64()),
+                };
+                return Err(self.error(
+                    op,
+                    DeviceErrorKind::Io(format!(
+                        "{what}, {} tries with back-off, beyond its outage budget of {:.0} s \
+                         (chamber.outage_s); the last: {}",
+                        o.tries() + 1,
+                        budget.as_secs_f64(),
+                        match &error.kind {
+                            DeviceErrorKind::Io(why) | DeviceErrorKind::Refused(why) => why.clone(),
+                            other => format!("{other:?}"),
+                        }
+                    )),
+                ));
+            }
+            // Away: the next exchange reopens the transport first.
         }
     }
 
@@ -94,7 +161,9 @@ impl<T: Transport> ModbusChamber<T> {
         }
     }
 
-    fn exchange(&mut self, op: ChamberOp) -> Result<ChamberReply, DeviceError> {
+    /// One operation with the I/O policy's retries of a lost or garbled
+    /// reply; how it failed says whether the controller was away or busy.
+    fn exchange_once(&mut self, op: ChamberOp) -> Result<ChamberReply, (DeviceError, Failed)> {
         let attempts = self.policy.retries + 1;
         let mut last = Attempt::Timeout;
         for attempt in 1..=attempts {
@@ -109,10 +178,12 @@ impl<T: Transport> ModbusChamber<T> {
                     let _ = self.transport.discard_input();
                 }
             }
-            let (frame, pending) = self
-                .codec
-                .request(op)
-                .map_err(|e| self.error(op, DeviceErrorKind::Rejected(e.to_string())))?;
+            let (frame, pending) = self.codec.request(op).map_err(|e| {
+                (
+                    self.error(op, DeviceErrorKind::Rejected(e.to_string())),
+                    Failed::Final,
+                )
+            })?;
             let deadline = Instant::now() + self.policy.timeout();
             if let Err(e) = self.transport.write_all(&frame, deadline) {
                 last = if e.kind() == io::ErrorKind::TimedOut {
@@ -155,28 +226,46 @@ impl<T: Transport> ModbusChamber<T> {
             match self.codec.parse(&pending, &reply) {
                 Ok(r) => return Ok(r),
                 Err(ChamberCodecError::Exception(code)) => {
-                    return Err(self.error(
-                        op,
-                        DeviceErrorKind::Refused(format!("Modbus exception {code}")),
+                    let how = if spinbench_wire::chamber::modbus_exception_is_transient(code) {
+                        Failed::Busy(code)
+                    } else {
+                        Failed::Final
+                    };
+                    return Err((
+                        self.error(
+                            op,
+                            DeviceErrorKind::Refused(format!(
+                                "Modbus exception {code} ({})",
+                                spinbench_wire::chamber::modbus_exception_meaning(code)
+                            )),
+                        ),
+                        how,
                     ));
                 }
                 Err(e) => last = Attempt::Garbled(hex(&reply), e.to_string()),
             }
         }
-        Err(self.error(
-            op,
-            match last {
-                Attempt::Timeout => DeviceErrorKind::Timeout {
-                    waited: self.policy.timeout(),
-                    attempts,
+        let how = match last {
+            Attempt::Io(_) => Failed::Away,
+            _ => Failed::Final,
+        };
+        Err((
+            self.error(
+                op,
+                match last {
+                    Attempt::Timeout => DeviceErrorKind::Timeout {
+                        waited: self.policy.timeout(),
+                        attempts,
+                    },
+                    Attempt::Garbled(reply, expected) => DeviceErrorKind::Garbled {
+                        reply,
+                        expected,
+                        attempts,
+                    },
+                    Attempt::Io(e) => DeviceErrorKind::Io(e.to_string()),
                 },
-                Attempt::Garbled(reply, expected) => DeviceErrorKind::Garbled {
-                    reply,
-                    expected,
-                    attempts,
-                },
-                Attempt::Io(e) => DeviceErrorKind::Io(e.to_string()),
-            },
+            ),
+            how,
         ))
     }
 
@@ -212,6 +301,9 @@ fn hex(bytes: &[u8]) -> String {
 }
 
 impl<T: Transport> Chamber for ModbusChamber<T> {
+    fn set_outage_budget(&mut self, budget: std::time::Duration) {
+        self.outage_budget = budget;
+    }
     fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
         check_setpoint(&self.device, celsius)?;
         self.exchange(ChamberOp::SetSetpoint(celsius)).map(|_| ())
@@ -341,6 +433,12 @@ pub struct ChamberConfig {
     /// Deadlines and retries.
     #[serde(default)]
     pub io: IoPolicy,
+    /// How long a Modbus controller that is away (its connection refused
+    /// or reset: rebooting) or busy (exceptions 05, 06) is waited for,
+    /// trying again with back-off, before the command fails [s] (default
+    /// 30, at most 300; 0: not at all).
+    #[serde(default = "default_outage_s")]
+    pub outage_s: f64,
     /// The dry-air purge valve on a relay module of its own
     /// (`[chamber.purge_relay]`) rather than on the controller.
     #[serde(default)]
@@ -380,6 +478,10 @@ pub enum RelayProtocol {
         #[serde(default = "crlf")]
         line_ending: String,
     },
+}
+
+fn default_outage_s() -> f64 {
+    crate::outage::DEFAULT_OUTAGE_S
 }
 
 fn unit_one() -> u8 {
@@ -476,6 +578,10 @@ impl PurgeOnRelay {
 }
 
 impl Chamber for PurgeOnRelay {
+    fn set_outage_budget(&mut self, budget: std::time::Duration) {
+        self.chamber.set_outage_budget(budget);
+        self.relay.set_outage_budget(budget);
+    }
     fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
         self.chamber.set_setpoint_c(celsius)
     }
@@ -500,6 +606,13 @@ impl ChamberConfig {
     /// Check the section; the error names the key.
     pub fn validate(&self) -> Result<(), ConfigError> {
         self.io.validate("chamber")?;
+        let max = crate::outage::MAX_OUTAGE_S;
+        if !(self.outage_s.is_finite() && (0.0..=max).contains(&self.outage_s)) {
+            return Err(ConfigError {
+                key: "chamber.outage_s".into(),
+                problem: format!("{} s is outside 0 to {max} s (MAX_OUTAGE_S)", self.outage_s),
+            });
+        }
         self.transport.validate("chamber")?;
         if let Some(relay) = &self.purge_relay {
             relay.io.validate("chamber.purge_relay")?;
@@ -538,21 +651,28 @@ impl ChamberConfig {
             device: self.name.clone(),
             error: e.to_string(),
         })?;
+        let outage = std::time::Duration::from_secs_f64(self.outage_s);
         let controller: Box<dyn Chamber> = match &self.protocol {
-            ChamberProtocol::ModbusRtu(map) => Box::new(ModbusChamber::new(
-                transport,
-                map.clone(),
-                ModbusFraming::Rtu,
-                &self.name,
-                self.io,
-            )),
-            ChamberProtocol::ModbusTcp(map) => Box::new(ModbusChamber::new(
-                transport,
-                map.clone(),
-                ModbusFraming::Tcp,
-                &self.name,
-                self.io,
-            )),
+            ChamberProtocol::ModbusRtu(map) => Box::new(
+                ModbusChamber::new(
+                    transport,
+                    map.clone(),
+                    ModbusFraming::Rtu,
+                    &self.name,
+                    self.io,
+                )
+                .with_outage_budget(outage),
+            ),
+            ChamberProtocol::ModbusTcp(map) => Box::new(
+                ModbusChamber::new(
+                    transport,
+                    map.clone(),
+                    ModbusFraming::Tcp,
+                    &self.name,
+                    self.io,
+                )
+                .with_outage_budget(outage),
+            ),
             ChamberProtocol::Line(dialect) => Box::new(LineChamber::new(
                 transport,
                 (**dialect).clone(),

@@ -21,6 +21,7 @@ pub mod config;
 mod error;
 pub mod fmu;
 pub mod line;
+pub mod outage;
 pub mod psu;
 pub mod transcript;
 pub mod transport;

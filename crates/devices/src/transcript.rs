@@ -24,6 +24,9 @@ pub enum Step {
     Disconnect,
     /// The driver must reopen the transport here.
     Reopen,
+    /// The driver tries to reopen here and is refused (a controller
+    /// rebooting: connection refused); the connection stays down.
+    RefuseReopen,
 }
 
 impl Step {
@@ -177,6 +180,14 @@ impl Transport for Transcript {
                 s.steps.pop_front();
                 s.disconnected = false;
                 Ok(())
+            }
+            Some(Step::RefuseReopen) => {
+                s.steps.pop_front();
+                s.disconnected = true;
+                Err(io::Error::new(
+                    io::ErrorKind::ConnectionRefused,
+                    "connection refused (scripted)",
+                ))
             }
             other => {
                 let m = format!("unexpected reopen at step {other:?}");

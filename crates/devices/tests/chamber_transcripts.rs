@@ -93,7 +93,10 @@ fn modbus_a_lost_reply_is_retried_a_bad_crc_is_garbled_and_an_exception_is_final
     let e = c.set_running(true).expect_err("exception");
     assert_eq!(
         e.kind,
-        DeviceErrorKind::Refused("Modbus exception 4".into()),
+        DeviceErrorKind::Refused(
+            "Modbus exception 4 (server device failure: the controller failed while doing it)"
+                .into()
+        ),
         "{e}"
     );
     let e = c.set_setpoint_c(f64::NAN).expect_err("never sent");
@@ -255,4 +258,60 @@ fn a_purge_on_both_the_controller_and_a_relay_is_refused_naming_the_key() {
         toml::from_str("setpoint = 1\nprocess_value = 2\nrun = 3\npurge = 4\npurge_coil = 5\n")
             .expect("map");
     assert!(map.validate().expect_err("both").contains("purge_coil"));
+}
+
+#[test]
+fn modbus_busy_is_asked_again_and_a_wrong_address_is_named() {
+    let read = crc(&[1, 3, 0, 101, 0, 1]);
+    let (mut c, t) = rtu(vec![
+        // 06 (busy) and 05 (acknowledge): asked again, with back-off.
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 0x83, 0x06])),
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 0x83, 0x05])),
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])),
+        // 02: a wrong register address, final, and said so.
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 0x83, 0x02])),
+    ]);
+    let started = std::time::Instant::now();
+    assert_eq!(c.temperature_c().expect("asked again"), 23.5);
+    assert!(started.elapsed() >= std::time::Duration::from_millis(300));
+    let e = c.temperature_c().expect_err("wrong address");
+    assert!(e.to_string().contains("wrong register address"), "{e}");
+    t.verify().expect("transcript followed");
+}
+
+#[test]
+fn modbus_a_controller_rebooting_is_waited_for_within_the_outage_budget() {
+    let read = crc(&[1, 3, 0, 101, 0, 1]);
+    // Refused twice (one exchange's retries), then back after a pause.
+    let (mut c, t) = rtu(vec![
+        Step::Disconnect,
+        Step::RefuseReopen,
+        Step::RefuseReopen,
+        Step::Reopen,
+        Step::Write(read.clone()),
+        Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])),
+    ]);
+    assert_eq!(c.temperature_c().expect("rode the outage"), 23.5);
+    t.verify().expect("transcript followed");
+    // Away beyond the budget (0.25 s: one pause of 0.1 s, not a second of
+    // 0.2 s): the command fails, saying how long and what to configure.
+    let t = Transcript::new(vec![
+        Step::Disconnect,
+        Step::RefuseReopen,
+        Step::RefuseReopen,
+        Step::RefuseReopen,
+        Step::RefuseReopen,
+    ]);
+    let mut c = ModbusChamber::new(t.clone(), map(), ModbusFraming::Rtu, "climate", POLICY)
+        .with_outage_budget(std::time::Duration::from_millis(250));
+    let e = c.temperature_c().expect_err("away too long");
+    assert!(
+        e.to_string().contains("outage budget") && e.to_string().contains("chamber.outage_s"),
+        "{e}"
+    );
+    t.verify().expect("transcript followed");
 }

@@ -1195,6 +1195,16 @@ fn chamber_faults_during_a_run_end_in_the_safe_state_with_the_reason() {
         "{}",
         reason(&summary)
     );
+    // The silent chamber's safe state is not confirmed: said, and left to
+    // the keeper (issue 37 item 6).
+    assert!(!summary.safe_devices_confirmed);
+    assert!(
+        reason(&summary).contains("chamber: purge on and setpoint to ambient")
+            && reason(&summary).contains("tries again every 2 s"),
+        "{}",
+        reason(&summary)
+    );
+    assert!(spinbench_engine::executor::unconfirmed_safe_devices() >= 1);
     assert_safe(&bench, true);
     bench.shutdown();
 
@@ -1374,4 +1384,46 @@ fn an_error_another_program_left_in_a_supplys_queue_is_reported_and_the_run_comp
         notice.as_deref().is_some_and(|m| m.contains("-222")),
         "{notice:?}"
     );
+}
+
+#[test]
+fn a_chamber_alarm_while_a_pass_measures_faults_the_run() {
+    use spinbench_sim::chamber::{ChamberFault, ChamberSimConfig};
+    // The heater runs away long after the soak, while the levels are measured.
+    let (summary, events, bench) = chamber_run(
+        ChamberSimConfig {
+            fault: ChamberFault::Runaway,
+            fault_at_s: 800.0,
+            ..quick_chamber()
+        },
+        &[30.0],
+        1800,
+    );
+    let points_before = events
+        .iter()
+        .filter(|e| matches!(e, Event::PointDone { .. }))
+        .count();
+    assert!(
+        points_before > 0,
+        "the alarm came before any level was measured"
+    );
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("alarm word"),
+        "{}",
+        reason(&summary)
+    );
+    // Not complete: nothing graded.
+    for r in &summary.records {
+        assert_eq!(
+            r.outcome,
+            Outcome::Incomplete,
+            "{}: {:?}",
+            r.serial,
+            r.reasons
+        );
+    }
+    assert!(summary.safe_devices_confirmed, "{}", reason(&summary));
+    assert_safe(&bench, true);
+    bench.shutdown();
 }

@@ -133,14 +133,36 @@ fn devices(station: &StationConfig) -> Vec<Finding> {
     }
     if let Some(ch) = &station.chamber {
         found.push(device("chamber", &ch.transport, || {
+            // Every register the run reads: the air, the setpoint (a wrong
+            // setpoint register or scale shows here), the alarm word.
             let mut d = ch.connect().map_err(|e| e.to_string())?;
-            d.temperature_c()
-                .map(|t| format!("air {t:.1} °C"))
-                .map_err(|e| e.to_string())
+            let air = d.temperature_c().map_err(|e| e.to_string())?;
+            let setpoint = d.setpoint_c().map_err(|e| e.to_string())?;
+            let alarms = d.alarms().map_err(|e| e.to_string())?;
+            if !(PLAUSIBLE_SETPOINT_C.0..=PLAUSIBLE_SETPOINT_C.1).contains(&setpoint) {
+                return Err(format!(
+                    "its setpoint reads {setpoint:.1} °C, outside {} to {} °C: check the map's \
+                     setpoint register, counts_per_c and signed",
+                    PLAUSIBLE_SETPOINT_C.0, PLAUSIBLE_SETPOINT_C.1
+                ));
+            }
+            if alarms != 0 {
+                return Err(format!(
+                    "air {air:.1} °C, setpoint {setpoint:.1} °C, and an alarm is active \
+                     (alarm word {alarms:#06x}): clear it at the controller before a run"
+                ));
+            }
+            Ok(format!(
+                "air {air:.1} °C, setpoint {setpoint:.1} °C, no alarm"
+            ))
         }));
     }
     found
 }
+
+/// The setpoints a chamber's controller plausibly holds [°C]; one read
+/// outside them is a wrong register, scale or sign in the map.
+pub const PLAUSIBLE_SETPOINT_C: (f64, f64) = (-80.0, 180.0);
 
 /// One device: its port looked at first (so a missing one is named plainly),
 /// then opened and asked, timed.

@@ -30,20 +30,34 @@ pub fn received() -> usize {
 /// keep the process (and the thread that commands the stop) alive, saying
 /// so every 10 s, until it is acknowledged or another signal comes.
 pub fn wait_for_unconfirmed_stops() {
-    use spinbench_engine::executor::{STOP_NOT_CONFIRMED, unconfirmed_stops};
-    if unconfirmed_stops() == 0 {
+    use spinbench_engine::executor::{
+        KEEP_RETRY, STOP_NOT_CONFIRMED, unconfirmed_safe_devices, unconfirmed_stops,
+    };
+    let left = || unconfirmed_stops() + unconfirmed_safe_devices();
+    if left() == 0 {
         return;
     }
     let signals_before = received();
     let since = std::time::Instant::now();
     let mut said = None::<std::time::Instant>;
-    while unconfirmed_stops() > 0 && received() == signals_before {
+    while left() > 0 && received() == signals_before {
         if said.is_none_or(|t| t.elapsed() >= std::time::Duration::from_secs(10)) {
-            eprintln!(
-                "  {STOP_NOT_CONFIRMED} — the stop is commanded again every 2 s ({:.0} s so far); \
-                 Ctrl-C leaves without it",
-                since.elapsed().as_secs_f64()
-            );
+            if unconfirmed_stops() > 0 {
+                eprintln!(
+                    "  {STOP_NOT_CONFIRMED} — the stop is commanded again every 2 s ({:.0} s so far); \
+                     Ctrl-C leaves without it",
+                    since.elapsed().as_secs_f64()
+                );
+            }
+            if unconfirmed_safe_devices() > 0 {
+                eprintln!(
+                    "  {} device(s) not confirmed safe — tried again every {} s ({:.0} s so far); \
+                     Ctrl-C leaves without it",
+                    unconfirmed_safe_devices(),
+                    KEEP_RETRY.as_secs(),
+                    since.elapsed().as_secs_f64()
+                );
+            }
             said = Some(std::time::Instant::now());
         }
         std::thread::sleep(std::time::Duration::from_millis(200));

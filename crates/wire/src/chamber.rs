@@ -69,7 +69,7 @@ pub enum ChamberCodecError {
     #[error("{0}")]
     Rejected(String),
     /// The controller answered with a Modbus exception.
-    #[error("the controller refused it: Modbus exception {0}")]
+    #[error("the controller refused it: Modbus exception {0} ({meaning})", meaning = modbus_exception_meaning(*.0))]
     Exception(u8),
     /// The reply is not a valid answer to the request.
     #[error("garbled reply: {0}")]
@@ -315,6 +315,38 @@ impl ModbusChamberCodec {
     fn check(&self, pending: &PendingReply, frame: &[u8]) -> Result<(), ChamberCodecError> {
         pending.request.parse_ok(frame).map_err(codec_error)
     }
+}
+
+/// What a Modbus exception code means (the Modbus application protocol
+/// specification V1.1b3, §7), with what to check for the codes a station's
+/// configuration causes.
+pub fn modbus_exception_meaning(code: u8) -> &'static str {
+    match code {
+        1 => {
+            "illegal function: the controller does not know this function code (check the map's register kinds)"
+        }
+        2 => {
+            "illegal data address: a wrong register address (check the register map against the controller's manual)"
+        }
+        3 => {
+            "illegal data value: the value is out of the register's range (check the map's scale and sign)"
+        }
+        4 => "server device failure: the controller failed while doing it",
+        5 => "acknowledge: accepted, still working on it (asked again)",
+        6 => "server device busy: try again later (asked again)",
+        8 => "memory parity error",
+        10 => "gateway path unavailable: check the gateway's routing",
+        11 => {
+            "gateway target device failed to respond: check the unit id and the controller behind the gateway"
+        }
+        _ => "an exception code the specification does not define",
+    }
+}
+
+/// Whether a Modbus exception means "not now, ask again" (05 acknowledge,
+/// 06 server device busy) rather than a refusal.
+pub fn modbus_exception_is_transient(code: u8) -> bool {
+    matches!(code, 5 | 6)
 }
 
 /// rmodbus's reading of a reply: a Modbus exception (the controller's

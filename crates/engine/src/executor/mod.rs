@@ -25,6 +25,7 @@ mod exclusions;
 mod fanout;
 mod grade;
 mod judge;
+mod keeper;
 mod ports;
 mod resume;
 mod safety;
@@ -37,6 +38,7 @@ pub use crate::bench::Bench;
 pub use exclusions::{exclude_after_run, withdraw_exclusion_after_run};
 pub use grade::{Graded, grade};
 pub use judge::analysis_options;
+pub use keeper::{KEEP_RETRY, unconfirmed_safe_devices};
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
 pub use steps::{label, wording};
@@ -289,6 +291,10 @@ pub struct RunSummary {
     /// When false the reason says [`STOP_NOT_CONFIRMED`], and a thread keeps
     /// commanding the stop for as long as the process lives.
     pub stop_confirmed: bool,
+    /// The chamber and the instruments' supply confirmed their safe state
+    /// (purge on, setpoint at ambient, rails off). When false the reason
+    /// says which was not, and a keeper tries again while the process lives.
+    pub safe_devices_confirmed: bool,
 }
 
 /// The executor.
@@ -320,6 +326,8 @@ pub struct Executor<'a> {
     supply_first: (f64, f64),
     /// The controller acknowledged the last stop command.
     stop_confirmed: bool,
+    /// The chamber and the supply confirmed their safe state.
+    safe_devices_confirmed: bool,
     /// The run's state, changed only through the table.
     machine: StateMachine,
 }
@@ -368,6 +376,7 @@ impl<'a> Executor<'a> {
             dropped_windows: 0,
             supply_first: (0.0, 0.0),
             stop_confirmed: false,
+            safe_devices_confirmed: true,
             machine: StateMachine::default(),
         }
     }
@@ -543,6 +552,7 @@ impl<'a> Executor<'a> {
             duration_s: self.windows as f64,
             dropped_windows: self.dropped_windows,
             stop_confirmed: self.stop_confirmed,
+            safe_devices_confirmed: self.safe_devices_confirmed,
         }
     }
 

@@ -124,6 +124,11 @@ impl Executor<'_> {
         if self.demand_deg_s != 0.0 && !self.bench.centrifuge.read_interlocks()? {
             return Err(EngineError::InterlockOpen);
         }
+        // The chamber watched throughout (not only while it soaks): an
+        // alarm or a lost controller while a pass measures faults the run.
+        if self.windows.is_multiple_of(CHAMBER_WATCH_S) {
+            self.watch_chamber()?;
+        }
         if self.windows.is_multiple_of(5) {
             let first = self.bench.instrument_supply.measure(1)?;
             if first.volts < 0.5 * self.station.power.rail_volts {
@@ -215,4 +220,60 @@ impl Executor<'_> {
         })?;
         Ok(window)
     }
+}
+
+/// How often the chamber is read while a run uses it [s of windows].
+pub const CHAMBER_WATCH_S: u64 = 5;
+
+impl Executor<'_> {
+    /// Read the chamber's alarm word (and the air) when the run has given it
+    /// a setpoint: an alarm is [`EngineError::ChamberAlarm`], a controller
+    /// that does not answer (beyond its driver's retries and outage budget)
+    /// a device error; either ends the run into the safe state.
+    pub(super) fn watch_chamber(&mut self) -> Result<(), EngineError> {
+        let Some(setpoint_c) = self.setpoint_c else {
+            return Ok(());
+        };
+        let Some(chamber) = self.bench.chamber.as_mut() else {
+            return Ok(());
+        };
+        let word = chamber.alarms()?;
+        if word != 0 {
+            let air_c = chamber.temperature_c().unwrap_or(f64::NAN);
+            return Err(EngineError::ChamberAlarm {
+                word,
+                air_c,
+                setpoint_c,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// How far a chamber's setpoint read back may be from the one written [°C]
+/// (a controller holding whole or tenth degrees rounds; a wrong register or
+/// scale is far off).
+pub const SETPOINT_READBACK_C: f64 = 0.5;
+
+/// Write `celsius` as the chamber's setpoint and read it back: a controller
+/// that holds another value (a wrong register, scale or sign in the map,
+/// or a controller that ignored the write) is an error that says so.
+pub(super) fn set_and_confirm_setpoint(
+    chamber: &mut dyn spinbench_devices::chamber::Chamber,
+    celsius: f64,
+) -> Result<(), DeviceError> {
+    chamber.set_setpoint_c(celsius)?;
+    let held = chamber.setpoint_c()?;
+    if (held - celsius).abs() > SETPOINT_READBACK_C {
+        return Err(DeviceError {
+            device: "chamber".into(),
+            command: format!("set setpoint {celsius} °C"),
+            kind: DeviceErrorKind::Rejected(format!(
+                "the controller holds {held:.2} °C after the write of {celsius} °C \
+                 (more than {SETPOINT_READBACK_C} °C apart): check the map's setpoint \
+                 register, counts_per_c and signed, and that the controller is in remote mode"
+            )),
+        });
+    }
+    Ok(())
 }

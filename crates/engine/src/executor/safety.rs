@@ -78,23 +78,59 @@ impl Executor<'_> {
             );
         }
         // The chamber back to the laboratory's temperature with the purge on
-        // first, so cold air never meets humid air on the instruments.
+        // first, so cold air never meets humid air on the instruments; a
+        // controller away is waited for briefly here, then by the keeper.
         let ambient_c = self.station.temperature.ambient_c;
         if let Some(chamber) = self.bench.chamber.as_mut() {
+            chamber.set_outage_budget(SAFE_STATE_OUTAGE);
             budget.attempt("chamber", "purge on", &mut problems, || {
                 chamber.set_purge(true)
             });
             budget.attempt("chamber", "setpoint to ambient", &mut problems, || {
-                chamber.set_setpoint_c(ambient_c)
+                super::ports::set_and_confirm_setpoint(chamber.as_mut(), ambient_c)
             });
         }
         if !budget.skipped.is_empty() {
             problems.push(format!(
-                "not tried, since the devices did not answer within the safe state's {} s: {}; \
-                 switch them off by hand",
+                "not tried, since the devices did not answer within the safe state's {} s: {}",
                 SAFE_STATE_BUDGET.as_secs(),
                 budget.skipped.join(", ")
             ));
+        }
+        // What was not confirmed goes to a keeper that tries again every
+        // 2 s while the process lives.
+        self.safe_devices_confirmed = true;
+        if budget.unconfirmed("chamber")
+            && let Some(chamber) = self.bench.chamber.take()
+        {
+            problems.push(format!(
+                "chamber: purge on and setpoint to ambient ({ambient_c} °C) not confirmed at the run's end; \
+                 the station tries again every {} s while it runs — check the chamber",
+                keeper::KEEP_RETRY.as_secs()
+            ));
+            keeper::keep_making_safe(keeper::Kept::Chamber {
+                chamber,
+                ambient_c,
+                purge_on: false,
+                at_ambient: false,
+            });
+            self.safe_devices_confirmed = false;
+        }
+        if budget.unconfirmed("instrument supply") {
+            let supply = std::mem::replace(
+                &mut self.bench.instrument_supply,
+                Box::new(keeper::HandedToKeeper),
+            );
+            problems.push(format!(
+                "instrument supply: outputs 1 and 2 off not confirmed at the run's end; \
+                 the station tries again every {} s while it runs — switch the rails off by hand",
+                keeper::KEEP_RETRY.as_secs()
+            ));
+            keeper::keep_making_safe(keeper::Kept::Supply {
+                supply,
+                off: [false, false],
+            });
+            self.safe_devices_confirmed = false;
         }
         self.demand_deg_s = 0.0;
         problems
@@ -108,12 +144,18 @@ impl Executor<'_> {
 /// the service's stop time (`TimeoutStopSec=90`).
 pub const SAFE_STATE_BUDGET: Duration = Duration::from_secs(30);
 
+/// How long the safe state waits for a chamber controller that is away or
+/// busy before leaving it to the keeper.
+pub const SAFE_STATE_OUTAGE: Duration = Duration::from_secs(5);
+
 /// The safe state's time: a device that timed out is not asked again (its
 /// driver already retried), and nothing is started after the deadline.
 struct SafeStateBudget {
     until: Instant,
     silent: Vec<String>,
     skipped: Vec<String>,
+    /// Devices with an action that failed or was not tried.
+    failed: Vec<String>,
 }
 
 impl SafeStateBudget {
@@ -122,7 +164,13 @@ impl SafeStateBudget {
             until,
             silent: Vec::new(),
             skipped: Vec::new(),
+            failed: Vec::new(),
         }
+    }
+
+    /// Whether an action of `device` failed or was not tried.
+    fn unconfirmed(&self, device: &str) -> bool {
+        self.failed.iter().any(|d| d == device)
     }
 
     fn spent(&self) -> bool {
@@ -140,9 +188,11 @@ impl SafeStateBudget {
     ) {
         if self.spent() || self.silent.iter().any(|d| d == device) {
             self.skipped.push(format!("{device}: {what}"));
+            self.failed.push(device.to_string());
             return;
         }
         if let Err(e) = action() {
+            self.failed.push(device.to_string());
             if matches!(e.kind, DeviceErrorKind::Timeout { .. }) {
                 self.silent.push(device.to_string());
             }

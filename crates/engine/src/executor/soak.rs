@@ -21,7 +21,7 @@ impl Executor<'_> {
             chamber.set_purge(true)?;
             self.purge_on = true;
         }
-        chamber.set_setpoint_c(setpoint_c)?;
+        ports::set_and_confirm_setpoint(chamber.as_mut(), setpoint_c)?;
         chamber.set_running(true)?;
         self.setpoint_c = Some(setpoint_c);
         self.emit(Event::Notice {

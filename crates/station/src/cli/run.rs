@@ -171,6 +171,13 @@ pub(super) fn run_plan(
     )?;
     crate::station_run::render_records(out, &finished)?;
     crate::signals::wait_for_unconfirmed_stops();
+    if !finished.summary.safe_devices_confirmed {
+        anyhow::bail!(
+            "the run ended {:?} but the safe state was not confirmed: {}",
+            finished.summary.state,
+            finished.summary.reason.unwrap_or_default()
+        );
+    }
     if finished.summary.state != spinbench_engine::RunState::Completed {
         anyhow::bail!(
             "the run ended {:?}: {}",
