@@ -343,8 +343,24 @@ impl Store {
         &self.target
     }
 
+    /// A read. One that failed because the server closed the connection
+    /// under it (a restart: the client learns of it only then) is made once
+    /// more on a connection made again.
     fn query(&self, what: &str, sql: &str, params: &[Value]) -> Result<Vec<Row>, StoreError> {
-        self.db().query(sql, params).map_err(self.err(what))
+        let first = self.db().query(sql, params);
+        match first {
+            Err(e) if self.connection_closed() => {
+                self.reconnected.set(None);
+                self.db().query(sql, params).map_err(|_| e)
+            }
+            done => done,
+        }
+        .map_err(self.err(what))
+    }
+
+    /// Whether this store's PostgreSQL connection is closed now.
+    fn connection_closed(&self) -> bool {
+        matches!(&*self.db.borrow(), Db::Postgres(client, _) if client.is_closed())
     }
 }
 

@@ -150,6 +150,23 @@ pub struct Sessions {
     by_token: Mutex<HashMap<String, Session>>,
 }
 
+/// What the cache holds for a request's token ([`Sessions::from_cache`]).
+pub enum CacheHit {
+    /// Not cached: the store may have it.
+    Miss,
+    /// Cached, but idle past the limit: ended.
+    Expired,
+    /// Cached and open.
+    Hit {
+        /// The session.
+        session: Session,
+        /// The store should confirm it now.
+        recheck: bool,
+        /// Its use should be written now.
+        keep: bool,
+    },
+}
+
 /// How often a session's use is written to the store.
 const TOUCH_EVERY: Duration = Duration::from_secs(60);
 
@@ -195,58 +212,99 @@ impl Sessions {
     /// end one, or to keep its use (at most once a minute): a request of a
     /// known session does not wait for the store.
     pub fn get(&self, store: &Mutex<Store>, token: &str) -> Option<Session> {
-        // A store whose connection another request holds (its database
-        // not answering) is passed over: the cached session stands.
-        let store = || crate::web::lock_within(store, SESSION_STORE_WAIT);
+        match self.from_cache(token) {
+            CacheHit::Expired => {
+                self.expire(store, token);
+                None
+            }
+            CacheHit::Hit {
+                session,
+                recheck,
+                keep,
+            } => self
+                .confirm(store, token, &session, recheck, keep)
+                .then_some(session),
+            CacheHit::Miss => self.load(store, token),
+        }
+    }
+
+    /// What the cache holds for a token (the session marked used), and
+    /// whether the store should confirm it ([`RECHECK`]) or keep its use
+    /// ([`TOUCH_EVERY`]) now; the store is not asked.
+    pub fn from_cache(&self, token: &str) -> CacheHit {
         let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(session) = map.get_mut(token) {
-            if session.last_seen.elapsed() >= IDLE_LIMIT {
-                map.remove(token);
-                drop(map);
+        let Some(session) = map.get_mut(token) else {
+            return CacheHit::Miss;
+        };
+        if session.last_seen.elapsed() >= IDLE_LIMIT {
+            map.remove(token);
+            return CacheHit::Expired;
+        }
+        session.last_seen = Instant::now();
+        let keep = session.kept.elapsed() >= TOUCH_EVERY;
+        if keep {
+            session.kept = Instant::now();
+        }
+        let recheck = session.checked.elapsed() >= RECHECK;
+        if recheck {
+            session.checked = Instant::now();
+        }
+        CacheHit::Hit {
+            session: session.clone(),
+            recheck,
+            keep,
+        }
+    }
+
+    /// A session idle past the limit, ended in the store too.
+    pub fn expire(&self, store: &Mutex<Store>, token: &str) {
+        if let Some(s) = crate::web::lock_within(store, SESSION_STORE_WAIT) {
+            let _ = s.delete_session(&token_hash(token));
+        }
+    }
+
+    /// The store's part of a cached session's use: with `recheck`, whether
+    /// it was ended elsewhere (logout, the user removed) or its role
+    /// changed (then it is over here too: false); with `keep`, its use
+    /// written. A store that cannot answer (its connection held by a call
+    /// that does not come back) leaves the cached session standing.
+    pub fn confirm(
+        &self,
+        store: &Mutex<Store>,
+        token: &str,
+        found: &Session,
+        recheck: bool,
+        keep: bool,
+    ) -> bool {
+        let store = || crate::web::lock_within(store, SESSION_STORE_WAIT);
+        if recheck {
+            let kept = store().map(|s| s.session(&token_hash(token)));
+            let over = match &kept {
+                Some(Ok(None)) => true,
+                Some(Ok(Some((_, role, _, _)))) => Role::parse(role) != Some(found.role),
+                _ => false,
+            };
+            if over {
+                self.by_token
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .remove(token);
                 if let Some(s) = store() {
                     let _ = s.delete_session(&token_hash(token));
                 }
-                return None;
+                return false;
             }
-            session.last_seen = Instant::now();
-            let keep = session.kept.elapsed() >= TOUCH_EVERY;
-            if keep {
-                session.kept = Instant::now();
-            }
-            let recheck = session.checked.elapsed() >= RECHECK;
-            if recheck {
-                session.checked = Instant::now();
-            }
-            let found = session.clone();
-            drop(map);
-            if recheck {
-                // Ended elsewhere (logout, the user removed) or the role
-                // changed: the session is over here too. A store that
-                // cannot answer leaves the cached session.
-                let kept = store().map(|s| s.session(&token_hash(token)));
-                let over = match &kept {
-                    Some(Ok(None)) => true,
-                    Some(Ok(Some((_, role, _, _)))) => Role::parse(role) != Some(found.role),
-                    _ => false,
-                };
-                if over {
-                    self.by_token
-                        .lock()
-                        .unwrap_or_else(|e| e.into_inner())
-                        .remove(token);
-                    if let Some(s) = store() {
-                        let _ = s.delete_session(&token_hash(token));
-                    }
-                    return None;
-                }
-            }
-            if keep && let Some(s) = store() {
-                let _ = s.save_session(&token_hash(token), &found.user, &found.csrf);
-            }
-            return Some(found);
         }
-        drop(map);
-        let store = store()?;
+        if keep && let Some(s) = store() {
+            let _ = s.save_session(&token_hash(token), &found.user, &found.csrf);
+        }
+        true
+    }
+
+    /// A session the cache does not have, read from the store (one from
+    /// before a restart, or another server's of the fleet) and cached.
+    fn load(&self, store: &Mutex<Store>, token: &str) -> Option<Session> {
+        let store = crate::web::lock_within(store, SESSION_STORE_WAIT)?;
         let hash = token_hash(token);
         let (user, role, csrf, last_seen) = store.session(&hash).ok().flatten()?;
         let idle = now_unix().saturating_sub(last_seen).max(0) as u64;
@@ -269,16 +327,6 @@ impl Sessions {
             .unwrap_or_else(|e| e.into_inner())
             .insert(token.to_string(), session.clone());
         Some(session)
-    }
-
-    /// The session of a cookie token from the cache only (the store is not
-    /// asked): for the controls that make the station safe (abort, pause),
-    /// which must work whatever the database does.
-    pub fn cached(&self, token: &str) -> Option<Session> {
-        let map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
-        map.get(token)
-            .filter(|s| s.last_seen.elapsed() < IDLE_LIMIT)
-            .cloned()
     }
 
     /// Close a session (logout).

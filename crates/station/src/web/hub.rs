@@ -48,6 +48,10 @@ pub struct StatusSnapshot {
     pub rate_deg_s: Option<f64>,
     /// Demanded rate [deg/s].
     pub demand_deg_s: Option<f64>,
+    /// The run has ended and its safe state was done (the stop commanded
+    /// and read back, the rails off; the reason says what was not
+    /// confirmed). The run stays `active` while its record is written.
+    pub ended: bool,
     /// Applied acceleration at the mean drawing radius [g].
     pub g_at_r0: Option<f64>,
     /// Rate within tolerance.
@@ -377,6 +381,8 @@ impl Hub {
                 s.reason_wording = wording.clone();
                 s.prompt = None;
                 s.eta_s = None;
+                s.ended = true;
+                s.demand_deg_s = Some(0.0);
                 s.achieved = Some(spinbench_engine::planning::achieved(&state.records));
             }
             Event::UnitResult { record } => state.records.push((**record).clone()),

@@ -148,33 +148,41 @@ pub(super) async fn authorize(
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
         .and_then(auth::session_token);
-    let session = match token {
+    let Some(token) = token else {
+        return check_session(None, headers, min, changes);
+    };
+    let session = match app.sessions.from_cache(&token) {
+        // Known here: answered from the cache; the store confirms it (a
+        // logout, a removal or a role change elsewhere ends it within
+        // auth::RECHECK) on a thread of its own, so that a database that
+        // stops answering never holds a request of a known session.
+        auth::CacheHit::Hit {
+            session,
+            recheck,
+            keep,
+        } => {
+            if recheck || keep {
+                let (app, found) = (Arc::clone(app), session.clone());
+                tokio::task::spawn_blocking(move || {
+                    app.sessions
+                        .confirm(&app.store, &token, &found, recheck, keep)
+                });
+            }
+            Some(session)
+        }
+        auth::CacheHit::Expired => {
+            blocking(app, move |app| {
+                app.sessions.expire(&app.store, &token);
+                Ok(None)
+            })
+            .await?
+        }
         // The session may have to be read from the store (another server's).
-        Some(t) => blocking(app, move |app| Ok(app.sessions.get(&app.store, &t))).await?,
-        None => None,
+        auth::CacheHit::Miss => {
+            blocking(app, move |app| Ok(app.sessions.get(&app.store, &token))).await?
+        }
     };
     check_session(session, headers, min, changes)
-}
-
-/// As [`authorize`], with a session this server already knows first (the
-/// store is not asked for it): the controls that make the station safe
-/// (abort, pause) work whatever the database does. A session the cache
-/// does not have is looked up as [`authorize`] does.
-pub(super) async fn authorize_cached(
-    app: &App,
-    headers: &HeaderMap,
-    min: Role,
-    changes: bool,
-) -> ApiResult<Session> {
-    let cached = headers
-        .get(header::COOKIE)
-        .and_then(|v| v.to_str().ok())
-        .and_then(auth::session_token)
-        .and_then(|t| app.sessions.cached(&t));
-    match cached {
-        Some(session) => check_session(Some(session), headers, min, changes),
-        None => authorize(app, headers, min, changes).await,
-    }
 }
 
 /// The request's session checked for its CSRF token (when it changes
