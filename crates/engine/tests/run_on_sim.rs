@@ -1427,3 +1427,40 @@ fn a_chamber_alarm_while_a_pass_measures_faults_the_run() {
     assert_safe(&bench, true);
     bench.shutdown();
 }
+
+#[test]
+fn an_instrument_that_falls_silent_mid_run_is_put_to_the_operator_and_ends_incomplete() {
+    let mut sim = SimConfig::default();
+    // Slot 2 works loose after the tumble, while the levels are measured.
+    sim.faults.instrument_silent_at = Some((SlotRef { module: 0, slot: 1 }, 120.0));
+    let (summary, events, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let asked: Vec<&String> = events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Prompt { text, .. } if text.contains("went silent") => Some(text),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(asked.len(), 1, "{asked:?}");
+    assert!(
+        asked[0].contains("A2 (slot 2)") && asked[0].contains("reseat"),
+        "{}",
+        asked[0]
+    );
+    let silent = summary
+        .records
+        .iter()
+        .find(|r| r.serial == "A2")
+        .expect("record");
+    assert_eq!(silent.outcome, Outcome::Incomplete, "{:?}", silent.reasons);
+    assert!(!silent.points.is_empty(), "its points before are kept");
+    let good = summary
+        .records
+        .iter()
+        .find(|r| r.serial == "A1")
+        .expect("record");
+    assert_eq!(good.points.len(), 13);
+    assert_ne!(good.outcome, Outcome::Incomplete);
+    bench.shutdown();
+}

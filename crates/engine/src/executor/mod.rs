@@ -398,6 +398,7 @@ impl<'a> Executor<'a> {
     }
 
     fn fail_unit(&mut self, slot: usize, reason: Reason) -> Result<(), EngineError> {
+        let (code, why) = (reason.code, reason.text.clone());
         if self.units[slot].failed.is_none() {
             self.units[slot].failed = Some(reason.clone());
             self.emit(Event::UnitFailed {
@@ -409,6 +410,20 @@ impl<'a> Executor<'a> {
         }
         if (0..self.units.len()).all(|s| !self.live(s)) {
             return Err(EngineError::NoUnits);
+        }
+        // An instrument that went silent during a step: the operator
+        // decides whether the run goes on without it (its result incomplete)
+        // or ends, to reseat it and resume.
+        if code == ReasonCode::NoOutput {
+            let serial = self.plan.serials[slot].clone().unwrap_or_default();
+            let text = format!(
+                "{serial} (slot {}) went silent: {}. Its result will be incomplete. \
+                 Go on without it, or abort the run (the table stops first) to reseat its \
+                 connector, then resume the run",
+                slot + 1,
+                why
+            );
+            self.ask_operator(&text, &[])?;
         }
         Ok(())
     }

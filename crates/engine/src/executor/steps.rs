@@ -127,7 +127,17 @@ impl Executor<'_> {
                 ));
             }
         }
-        let text = mount_text(fixtures);
+        self.ask_operator(&mount_text(fixtures), fixtures)
+    }
+
+    /// Put `text` to the operator (with the fixtures it asks for) and wait
+    /// for the answer, reading the ports meanwhile; a "no" aborts the run.
+    pub(super) fn ask_operator(
+        &mut self,
+        text: &str,
+        fixtures: &[Option<Fixture>],
+    ) -> Result<(), EngineError> {
+        let text = text.to_string();
         self.set_state(Trigger::Prompt)?;
         self.emit(Event::Prompt {
             text: text.clone(),

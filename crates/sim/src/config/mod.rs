@@ -336,6 +336,9 @@ pub struct FaultConfig {
     pub module_silent: Option<(usize, f64)>,
     /// Instruments that output nothing.
     pub dead_instruments: Vec<SlotRef>,
+    /// An instrument that goes silent at a time (a connector working
+    /// loose): (its slot, seconds).
+    pub instrument_silent_at: Option<(SlotRef, f64)>,
     /// Instruments with this many times the normal noise.
     pub noisy_instruments: Vec<SlotRef>,
     /// Noise multiplier of noisy instruments (default 1000 if zero).

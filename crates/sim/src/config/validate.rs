@@ -391,10 +391,19 @@ impl SimConfig {
                 ),
             );
         }
+        if let Some((_, at_s)) = &self.faults.instrument_silent_at
+            && !(at_s.is_finite() && (0.0..=1e7).contains(at_s))
+        {
+            return err(
+                "faults.instrument_silent_at",
+                format!("{at_s} s is outside 0 to 1e7 s"),
+            );
+        }
         for s in self
             .faults
             .dead_instruments
             .iter()
+            .chain(self.faults.instrument_silent_at.as_ref().map(|(s, _)| s))
             .chain(&self.faults.noisy_instruments)
             .chain(&self.faults.drifting_instruments)
         {

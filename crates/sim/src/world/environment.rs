@@ -76,6 +76,15 @@ impl World {
         self.logic.outputs[0].on && !self.module_silent.get(m).copied().unwrap_or(true)
     }
 
+    /// Whether instrument `i` has gone silent by now (`faults.instrument_silent_at`).
+    pub(super) fn fallen_silent(&self, i: usize) -> bool {
+        self.config
+            .faults
+            .instrument_silent_at
+            .as_ref()
+            .is_some_and(|(s, at_s)| self.is(std::slice::from_ref(s), i) && self.now_s() >= *at_s)
+    }
+
     pub(super) fn is(&self, list: &[SlotRef], i: usize) -> bool {
         list.iter()
             .any(|s| s.module * INSTRUMENTS_PER_MODULE + s.slot == i)

@@ -38,12 +38,14 @@ impl World {
             let mut recips = [spinbench_wire::fmu::ReciprocalCount::default(); INPUTS_PER_MODULE];
             for slot in 0..INSTRUMENTS_PER_MODULE {
                 let i = m * INSTRUMENTS_PER_MODULE + slot;
-                let (f1, f2) =
-                    if self.powered(i) && !self.is(&self.config.faults.dead_instruments, i) {
-                        self.frequencies(i, now, disturbance)
-                    } else {
-                        (0.0, 0.0)
-                    };
+                let (f1, f2) = if self.powered(i)
+                    && !self.is(&self.config.faults.dead_instruments, i)
+                    && !self.fallen_silent(i)
+                {
+                    self.frequencies(i, now, disturbance)
+                } else {
+                    (0.0, 0.0)
+                };
                 for (k, f) in [f1, f2].into_iter().enumerate() {
                     let input = 2 * slot + k;
                     let c = self.modules[m].inputs[input].advance(
