@@ -105,10 +105,22 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (mut server, mut op) = running(&db, dir.path());
     db.pause();
+    // The status says the database does not answer (a stall fails no
+    // write: it is seen as writes that do not come back).
+    let s = op.wait_status(20, |s| s["store"]["up"] == false);
+    assert!(s["store"]["queue_events"].as_u64().is_some(), "{s}");
     // A store route: 503 with Retry-After at its deadline, not a hang.
     let asked = Instant::now();
     let r = op.send("GET", "/api/runs", None);
     assert_eq!(r.status, 503, "{:?}", r.json());
+    assert_eq!(r.retry_after.as_deref(), Some("5"));
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("database cannot answer")),
+        "{:?}",
+        r.json()
+    );
     assert!(asked.elapsed() < Duration::from_secs(15));
     // The abort needs no database: applied, and the safe state reached.
     let asked = Instant::now();

@@ -37,6 +37,10 @@ pub const MEMORY_EVENTS: usize = 100_000;
 /// store down), one JSON event per line.
 pub const OUTBOX_FILE: &str = "store-outbox.jsonl";
 
+/// An event waiting this long means the store is not taking writes (down
+/// or stalled), whatever the writer has seen.
+pub const STALLED_AFTER: Duration = Duration::from_secs(10);
+
 /// The longest pause between two tries of a failing write.
 pub const RETRY_AT_MOST: Duration = Duration::from_secs(5);
 
@@ -54,7 +58,8 @@ pub struct StoreHealth {
 /// A reading of [`StoreHealth`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct HealthReading {
-    /// Whether the last write succeeded (or none has failed yet).
+    /// Whether the last write succeeded (or none has failed yet) and no
+    /// event has waited [`STALLED_AFTER`].
     pub up: bool,
     /// Writes that failed since the outbox opened.
     pub errors: u64,
@@ -73,11 +78,14 @@ fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 impl StoreHealth {
     /// The health now.
     pub fn reading(&self) -> HealthReading {
+        let age_s = locked(&self.oldest).map_or(0.0, |t| t.elapsed().as_secs_f64());
         HealthReading {
-            up: !self.down.load(Ordering::Relaxed),
+            // A write that does not come back (a stalled server) is no
+            // failure the writer can see: an event waiting this long is.
+            up: !self.down.load(Ordering::Relaxed) && age_s < STALLED_AFTER.as_secs_f64(),
             errors: self.errors.load(Ordering::Relaxed),
             depth: self.depth.load(Ordering::Relaxed),
-            age_s: locked(&self.oldest).map_or(0.0, |t| t.elapsed().as_secs_f64()),
+            age_s,
             last_error: locked(&self.last_error).clone(),
         }
     }

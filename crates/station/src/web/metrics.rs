@@ -28,6 +28,9 @@ pub struct Metrics {
     pub store_up: IntGauge,
     /// The heartbeat's writes that failed.
     pub store_errors: IntCounter,
+    /// Since when the heartbeat's write now in flight has waited (a stalled
+    /// store does not fail the write; it does not answer).
+    pub store_write_since: std::sync::Mutex<Option<std::time::Instant>>,
     store_queue_depth: IntGauge,
     store_queue_age_s: Gauge,
     store_run_errors: IntGauge,
@@ -114,6 +117,8 @@ impl Metrics {
         registry.register(Box::new(store_write_s.clone()))?;
         registry.register(Box::new(http_requests.clone()))?;
         registry.register(Box::new(login_failures.clone()))?;
+        // Up until a write says otherwise (the server opened its store).
+        store_up.set(1);
         registry.register(Box::new(store_up.clone()))?;
         registry.register(Box::new(store_errors.clone()))?;
         registry.register(Box::new(store_queue_depth.clone()))?;
@@ -132,10 +137,22 @@ impl Metrics {
             login_failures,
             store_up,
             store_errors,
+            store_write_since: std::sync::Mutex::new(None),
             store_queue_depth,
             store_queue_age_s,
             store_run_errors,
         })
+    }
+
+    /// Whether the store takes the heartbeat's writes: the last was taken
+    /// and none has waited [`spinbench_store::outbox::STALLED_AFTER`].
+    pub fn store_answering(&self) -> bool {
+        let since = *self
+            .store_write_since
+            .lock()
+            .unwrap_or_else(|e| e.into_inner());
+        self.store_up.get() == 1
+            && since.is_none_or(|t| t.elapsed() < spinbench_store::outbox::STALLED_AFTER)
     }
 
     /// The text a scrape gets, with the gauges set from `status` (the
@@ -146,7 +163,13 @@ impl Metrics {
         state: &str,
         store: Option<&spinbench_store::outbox::HealthReading>,
     ) -> String {
+        if !self.store_answering() {
+            self.store_up.set(0);
+        }
         if let Some(h) = store {
+            if !h.up {
+                self.store_up.set(0);
+            }
             self.store_queue_depth.set(h.depth as i64);
             self.store_queue_age_s.set(h.age_s);
             self.store_run_errors.set(h.errors as i64);

@@ -369,7 +369,17 @@ fn spawn_heartbeat(
                 }
                 let beat = heartbeat_now(&state, &station, &address);
                 let started = std::time::Instant::now();
+                *state
+                    .metrics
+                    .store_write_since
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner()) = Some(started);
                 let written = store.as_ref().map(|s| s.heartbeat(&beat));
+                *state
+                    .metrics
+                    .store_write_since
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner()) = None;
                 // Up while the heartbeat's write and the run's (if one runs)
                 // are taken.
                 let run_up = state.runner.store_health().is_none_or(|h| h.up);

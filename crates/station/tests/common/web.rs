@@ -204,6 +204,8 @@ pub struct Reply {
     pub set_cookie: Option<String>,
     /// The `Content-Type` header.
     pub content_type: String,
+    /// The `Retry-After` header, if any.
+    pub retry_after: Option<String>,
     /// The body.
     pub body: Vec<u8>,
 }
@@ -298,6 +300,7 @@ impl Client {
         };
         let set_cookie = header("set-cookie");
         let content_type = header("content-type").unwrap_or_default();
+        let retry_after = header("retry-after");
         let status = response.status().as_u16();
         let body = response
             .body_mut()
@@ -309,6 +312,7 @@ impl Client {
             status,
             set_cookie,
             content_type,
+            retry_after,
             body,
         }
     }

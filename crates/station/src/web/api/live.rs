@@ -19,11 +19,19 @@ pub(super) async fn status(
     let mut snapshot = app.hub.status();
     // The runner's prompt is the one waiting now (the hub's may be answered).
     snapshot.prompt = app.runner.prompt();
+    let run = app.runner.store_health();
+    let store = super::schema::StoreHealthReply {
+        up: app.metrics.store_answering() && run.as_ref().is_none_or(|h| h.up),
+        queue_events: run.as_ref().map_or(0, |h| h.depth),
+        queue_age_s: run.as_ref().map_or(0.0, |h| h.age_s),
+        last_error: run.map(|h| h.last_error).unwrap_or_default(),
+    };
     Ok(Json(StatusReply {
         snapshot,
         active: app.runner.active(),
         simulated: app.runner.simulated(),
         station: app.runner.station().0.station,
+        store,
     }))
 }
 

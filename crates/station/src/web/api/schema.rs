@@ -88,6 +88,22 @@ pub struct StatusReply {
     pub simulated: bool,
     /// The station's name.
     pub station: String,
+    /// How the station's database is doing.
+    pub store: StoreHealthReply,
+}
+
+/// The station's database as this server sees it: its heartbeat's writes
+/// and the running (or last) run's outbox.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct StoreHealthReply {
+    /// The last writes were taken.
+    pub up: bool,
+    /// The run's events waiting to be written.
+    pub queue_events: u64,
+    /// How long the oldest of them has waited [s].
+    pub queue_age_s: f64,
+    /// The last failure's message (empty when none).
+    pub last_error: String,
 }
 
 /// One plan in `GET /api/plans`.

@@ -216,6 +216,15 @@ export async function refreshStatus() {
   else if (s.fault && s.fault_acknowledged && $("alarm").className === "fault") clearAlarm();
   else if (why && st === "aborted") alarm(bannerText("aborted", why), "aborted");
   else if (st === "completed" && !s.active && ["notice", "left-out"].includes($("alarm").className)) alarm(word("web.banner.completed", "Run completed"), "done");
+  // The station's database: a line while it does not take the writes
+  // (the run goes on measuring; its record follows when it is back).
+  const db = s.store;
+  if (db && !db.up) {
+    const args = { events: db.queue_events, age: Math.round(db.queue_age_s) };
+    $("store-health").textContent = fill("web.store.down",
+      `The station's database is not answering: the run goes on measuring; ${args.events} events wait to be written (the oldest for ${args.age} s).`, args);
+    $("store-health").hidden = false;
+  } else $("store-health").hidden = true;
   if (s.state) $("run-state").textContent = stateWord(s.state);
   // A status fetched before an answer arrived still shows the old prompt: wait for the next.
   if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
