@@ -130,6 +130,10 @@ pub enum StartError {
     Hardware(String),
     /// The run's directory or files could not be written.
     Files(String),
+    /// No such run in this station's data directory.
+    NotHere(String),
+    /// The run cannot be continued (completed, or run by another process now).
+    Refused(String),
 }
 
 /// Starts and steers the web's runs.
@@ -224,9 +228,55 @@ impl Runner {
         {
             return Err(StartError::Busy(a.run_id.clone()));
         }
-        let (station, station_toml) = self.station();
         let dir =
             RunDir::create(&self.data_dir).map_err(|e| StartError::Files(format!("{e:#}")))?;
+        self.launch(&mut active, dir, plan, plan_text, by)
+    }
+
+    /// Continue run `run_id` of this data directory, left interrupted (its
+    /// process ended without finishing it) or ended aborted or faulted,
+    /// with its own plan, from its journal (its completed steps kept).
+    pub fn resume(&self, run_id: &str, by: &str) -> Result<String, StartError> {
+        let mut active = self.lock();
+        if let Some(a) = active.as_ref()
+            && !a.finished.load(Ordering::Relaxed)
+        {
+            return Err(StartError::Busy(a.run_id.clone()));
+        }
+        // A run's id names its directory: nothing else is looked at.
+        if run_id.is_empty()
+            || run_id.len() > 64
+            || !run_id
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '-')
+        {
+            return Err(StartError::NotHere(format!("'{run_id}' is not a run id")));
+        }
+        let path = self.data_dir.join(crate::run_setup::RUNS_DIR).join(run_id);
+        let plan_path = path.join(crate::run_setup::PLAN_FILE);
+        let plan_text = std::fs::read_to_string(&plan_path).map_err(|_| {
+            StartError::NotHere(format!(
+                "run {run_id} has no directory with its plan on this station ({}): resume it on the station that ran it",
+                path.display()
+            ))
+        })?;
+        let plan = TestPlan::from_toml(&plan_text)
+            .map_err(|e| StartError::Files(format!("{}: {e}", plan_path.display())))?;
+        let dir =
+            RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
+        self.launch(&mut active, dir, plan, &plan_text, by)
+    }
+
+    /// Prepare and start the run in `dir` on its own thread.
+    fn launch(
+        &self,
+        active: &mut Option<ActiveRun>,
+        dir: RunDir,
+        plan: TestPlan,
+        plan_text: &str,
+        by: &str,
+    ) -> Result<String, StartError> {
+        let (station, station_toml) = self.station();
         let prepared = prepare(Setup {
             station,
             station_toml,

@@ -96,7 +96,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         session::login, session::logout, session::session, session::set_language, session::catalogue,
         live::status, live::events,
         plans::plans, plans::save_plan, plans::design_plan, plans::station, plans::save_station,
-        history::runs, runs::start_run, history::run, history::report, exclusions::exclude_level, exclusions::withdraw_exclusion, runs::retest,
+        history::runs, runs::start_run, history::run, history::report, exclusions::exclude_level, exclusions::withdraw_exclusion, runs::retest, runs::resume_run,
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::acknowledge_fault, history::unit,
         charts::control_charts,
         equipment::equipment, equipment::set_equipment, equipment::signature,

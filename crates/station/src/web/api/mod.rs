@@ -259,10 +259,23 @@ pub(super) async fn blocking<T: Send + 'static>(
             done.map_err(|e| ApiError::internal(format!("the store's call did not finish: {e}")))?
         }
         Err(_) => Err(ApiError::store_unavailable(format!(
-            "no answer within {} s",
+            "no answer within {} s; a change asked for may still be made when it answers: \
+             look before asking again",
             STORE_DEADLINE.as_secs()
         ))),
     }
+}
+
+/// As [`blocking`], with no deadline: for starting a run, which moves
+/// hardware and must never be reported as not started while it starts.
+pub(super) async fn blocking_to_the_end<T: Send + 'static>(
+    app: &App,
+    work: impl FnOnce(&AppState) -> ApiResult<T> + Send + 'static,
+) -> ApiResult<T> {
+    let app = Arc::clone(app);
+    tokio::task::spawn_blocking(move || work(&app))
+        .await
+        .map_err(|e| ApiError::internal(format!("the store's call did not finish: {e}")))?
 }
 
 /// The store, locked: only inside [`blocking`] (the lock and the queries
@@ -341,6 +354,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
             post(exclusions::withdraw_exclusion),
         ),
         ("post", "/api/runs/{id}/retest", post(runs::retest)),
+        ("post", "/api/runs/{id}/resume", post(runs::resume_run)),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),
         ("post", "/api/run/resume", post(runs::resume)),

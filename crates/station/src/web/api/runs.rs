@@ -128,11 +128,16 @@ async fn check_equipment(
 async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
     let plan_text = toml::to_string(plan).map_err(|e| ApiError::internal(e.to_string()))?;
     let (plan, user) = (plan.clone(), user.to_string());
-    blocking(app, move |app| {
+    blocking_to_the_end(app, move |app| {
         Ok(app.runner.start(plan, &plan_text, &user))
     })
     .await?
-    .map_err(|e| match e {
+    .map_err(start_error)
+}
+
+/// A run that could not start, as the API says it.
+fn start_error(e: StartError) -> ApiError {
+    match e {
         StartError::Busy(id) => ApiError::conflict(format!(
             "run {id} is active; wait for it to end or abort it"
         ))
@@ -140,7 +145,38 @@ async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String>
         StartError::Invalid(why) => ApiError::bad(why),
         StartError::Hardware(why) => ApiError::new(StatusCode::SERVICE_UNAVAILABLE, why),
         StartError::Files(why) => ApiError::internal(why),
-    })
+        StartError::NotHere(why) => ApiError::not_found(why),
+        StartError::Refused(why) => ApiError::conflict(why),
+    }
+}
+
+/// `POST /api/runs/{id}/resume`: continue a run of this station that a
+/// crash left interrupted, or that ended aborted or faulted, with its own
+/// plan from its journal (the steps it completed are kept).
+#[utoipa::path(post, path = "/api/runs/{id}/resume", tag = "runs",
+    security(("session" = [], "csrf" = [])),
+    params(("id" = String, Path, description = "the run to continue")),
+    responses(
+        (status = 201, description = "the run goes on", body = RunId),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 404, description = "no such run in this station's data directory", body = ErrorBody),
+        (status = 409, description = "a run is active, or this one completed or is being run by another process", body = ErrorBody),
+        (status = 503, description = "the hardware cannot be reached", body = ErrorBody),
+    ))]
+pub(super) async fn resume_run(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    _body: Bytes,
+) -> ApiResult<(StatusCode, Json<RunId>)> {
+    let session = authorize(&app, &headers, Role::Operator, true).await?;
+    let (asked, user) = (id.clone(), session.user.clone());
+    let run_id = blocking_to_the_end(&app, move |app| Ok(app.runner.resume(&asked, &user)))
+        .await?
+        .map_err(start_error)?;
+    audit(&app, &session.user, "resume run", &run_id).await?;
+    Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }
 
 /// `POST /api/runs/{id}/retest`: a run of the finished run's failed,

@@ -134,6 +134,21 @@ export function showLinks(box, r) {
     r.retested_by.forEach((id, i) => { if (i) p.append(", "); p.append(runLink(id)); });
     box.appendChild(p);
   }
+  // A run a crash left interrupted, or one aborted or faulted, goes on
+  // from its journal (on the station that ran it: the server says if not).
+  if (["interrupted", "aborted", "faulted"].includes(r.state)) {
+    const b = document.createElement("button");
+    b.id = "resume-run-button"; b.type = "button";
+    b.textContent = word("web.resume.button", "Resume this run (its completed steps are kept)");
+    b.addEventListener("click", async () => {
+      try {
+        const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/resume");
+        show(fill("web.resume.started", "run " + res.run_id + " goes on", { run: res.run_id }), true);
+        location.hash = "#run";
+      } catch (e) { show(e.message); }
+    });
+    box.appendChild(b);
+  }
   if (r.state !== "running" && r.to_retest && r.to_retest.length) {
     const b = document.createElement("button");
     b.id = "retest-button"; b.type = "button";

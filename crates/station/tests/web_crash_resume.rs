@@ -1,0 +1,80 @@
+//! A `serve` killed (SIGKILL) under a run (issue 37 item 9): at the next
+//! start the run is marked interrupted, History offers to resume it, and
+//! the resumed run completes with its earlier steps kept. On SQLite and on
+//! PostgreSQL.
+
+#[path = "common/web.rs"]
+mod web;
+
+use std::time::{Duration, Instant};
+use web::{Backend, Client, add_user, serve};
+
+fn crashed_run_is_marked_interrupted_and_resumed_on(backend: Backend) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
+    add_user(dir.path(), "op", "operator", "op-password");
+    std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
+    std::fs::write(
+        dir.path().join("plans").join("crash.toml"),
+        web::short_plan("crash", &["CR-1", "CR-2"]),
+    )
+    .expect("plan");
+    let server = serve(dir.path(), "5");
+    let mut op = Client::login(&server, "op", "op-password");
+    let r = op.send("POST", "/api/runs", Some(r#"{"plan": "crash"}"#));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let run_id = r.json()["run_id"].as_str().expect("id").to_string();
+    // Past the tumble: some steps done.
+    for _ in 0..3 {
+        op.wait_status(120, |s| s["prompt"].is_string());
+        op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+    }
+    op.wait_status(120, |s| s["points"].as_u64().is_some_and(|p| p >= 2));
+    drop(server); // SIGKILL: no safe state, no record of the end.
+
+    let server = serve(dir.path(), "0");
+    let mut op = Client::login(&server, "op", "op-password");
+    let runs = op.get_json("/api/runs", 200);
+    let run = runs
+        .as_array()
+        .expect("runs")
+        .iter()
+        .find(|r| r["id"] == run_id.as_str())
+        .expect("the run")
+        .clone();
+    assert_eq!(run["state"], "interrupted", "{run}");
+    assert!(
+        run["reason"].as_str().is_some_and(|r| r.contains("crash")),
+        "{run}"
+    );
+    let r = op.send("POST", &format!("/api/runs/{run_id}/resume"), Some("null"));
+    assert_eq!(r.status, 201, "{:?}", r.json());
+    let started = Instant::now();
+    loop {
+        let s = op.wait_status(300, |s| s["prompt"].is_string() || s["active"].is_null());
+        if s["active"].is_null() {
+            assert_eq!(s["state"], "completed", "{s}");
+            break;
+        }
+        op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+        assert!(started.elapsed() < Duration::from_secs(300));
+    }
+    let run = op.get_json(&format!("/api/runs/{run_id}"), 200);
+    assert_eq!(run["state"], "completed", "{run}");
+    // A completed run is not resumed again.
+    let r = op.send("POST", &format!("/api/runs/{run_id}/resume"), None);
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    // Nor a run of no such id.
+    let r = op.send("POST", "/api/runs/..%2Fetc/resume", None);
+    assert!(r.status == 404 || r.status == 400, "{}", r.status);
+}
+
+#[test]
+fn sqlite_a_crashed_run_is_marked_interrupted_and_resumed_from_the_web() {
+    crashed_run_is_marked_interrupted_and_resumed_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_a_crashed_run_is_marked_interrupted_and_resumed_from_the_web() {
+    crashed_run_is_marked_interrupted_and_resumed_on(Backend::Postgres);
+}
