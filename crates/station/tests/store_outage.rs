@@ -135,6 +135,10 @@ fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
         .wait(&sim, Duration::from_secs(60))
         .unwrap_or_else(|| panic!("no exit within 60 s of SIGTERM:\n{}", run.transcript()));
     let took = signalled.elapsed();
+    eprintln!(
+        "stall: spinbench run exited {:.1} s after SIGTERM",
+        took.as_secs_f64()
+    );
     assert!(!status.success());
     assert!(took < Duration::from_secs(30), "took {took:?}");
     let (rate, rails) = sim.read_back();
@@ -174,4 +178,46 @@ fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
         store.points(&runs[0].id).expect("points").len(),
         journal_points(&data)
     );
+}
+
+#[test]
+fn a_minute_of_a_stalled_postgres_under_a_run_loses_nothing() {
+    let Some(db) = Cluster::start() else { return };
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = start_sim("10");
+    let mut run = start_run(dir.path(), &sim, &db.url);
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("1 g Up")),
+        "the run never reached 1 g:\n{}",
+        run.transcript()
+    );
+    db.pause();
+    let paused = Instant::now();
+    // The run measures on through the minute: two more levels at least.
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(60), |l| l.contains("10 g Up")),
+        "the run stopped measuring while the database stalled:\n{}",
+        run.transcript()
+    );
+    let measured_by_s = paused.elapsed().as_secs_f64();
+    std::thread::sleep(Duration::from_secs(60).saturating_sub(paused.elapsed()));
+    db.resume();
+    let status = run
+        .wait(&sim, Duration::from_secs(300))
+        .unwrap_or_else(|| panic!("the run did not end:\n{}", run.transcript()));
+    eprintln!(
+        "stalled 60 s; 10 g measured {measured_by_s:.0} s into the stall; the run ended {:.0} s after the pause began",
+        paused.elapsed().as_secs_f64()
+    );
+    assert!(status.success(), "{}", run.transcript());
+    let store =
+        spinbench_store::Store::connect(&spinbench_store::StoreTarget::Postgres(db.url.clone()))
+            .expect("store");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs[0].state, "completed", "{:?}", runs[0].reason);
+    assert_eq!(
+        store.points(&runs[0].id).expect("points").len(),
+        journal_points(&dir.path().join("data"))
+    );
+    assert_eq!(store.results(&runs[0].id).expect("results").len(), 2);
 }

@@ -83,8 +83,13 @@ fn serve_rides_out_a_postgres_restart_under_a_run() {
         );
         std::thread::sleep(Duration::from_millis(200));
     }
+    let runs_back_s = back.elapsed().as_secs_f64();
     let mut fresh = Client::new(&server).log_in("op", "op-password");
     assert!(back.elapsed() < Duration::from_secs(15));
+    eprintln!(
+        "restart: /api/runs answered 200 {runs_back_s:.1} s after the restart began, a login {:.1} s",
+        back.elapsed().as_secs_f64()
+    );
     let s = to_the_end(&mut op);
     assert_eq!(s["state"], "completed", "{s}");
     let runs = fresh.get_json("/api/runs", 200);
@@ -133,6 +138,10 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
         "{:?}",
         asked.elapsed()
     );
+    eprintln!(
+        "stall: the abort's safe state done {:.1} s after it was asked",
+        asked.elapsed().as_secs_f64()
+    );
     // The stop was confirmed (read back) and nothing else left unsafe.
     let reason = s["reason"].as_str().unwrap_or_default();
     assert!(!reason.contains("making safe"), "{reason}");
@@ -145,6 +154,10 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
         status.is_some(),
         "serve alive {:?} after SIGTERM",
         signalled.elapsed()
+    );
+    eprintln!(
+        "stall: serve exited {:.1} s after SIGTERM",
+        signalled.elapsed().as_secs_f64()
     );
     // Back: the next start writes what the store had not taken.
     db.resume();
