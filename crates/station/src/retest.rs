@@ -51,7 +51,7 @@ pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromS
     let run = store
         .run(run_id)?
         .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
-    if matches!(run.state.as_str(), "running" | "paused" | "created") {
+    if !run.is_ended() {
         return Err(RetestFromStoreError::NotEnded(
             run_id.to_string(),
             run.state,
@@ -89,7 +89,7 @@ pub fn retest_plan_from_store(
     let run = store
         .run(run_id)?
         .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
-    if matches!(run.state.as_str(), "running" | "paused" | "created") {
+    if !run.is_ended() {
         return Err(RetestFromStoreError::NotEnded(
             run_id.to_string(),
             run.state,

@@ -38,7 +38,9 @@ mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
 pub use label::{LABEL_SEPARATOR, TypedLabel, label_file_part, parse_label, run_label};
-pub use queries::{PointRow, ResultRow, RunContext, RunRow, UnitRow, ValueRow};
+pub use queries::{
+    ENDED_STATES, PointRow, ResultRow, RunContext, RunRow, UnitRow, ValueRow, run_state_is_ended,
+};
 pub use schema::{MIGRATIONS, Migration};
 pub use sink::StoreSink;
 pub use users::{AuditRow, UserRow};

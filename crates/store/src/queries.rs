@@ -387,3 +387,21 @@ impl Store {
         self.runs_where("r.state = 'running' AND r.station = $1", &[station.into()])
     }
 }
+
+/// The states of a run that has ended, as the store writes them: the
+/// engine's three ends, and `interrupted` (its process ended without
+/// finishing it, [`Store::mark_interrupted`]). The one list every reader
+/// asks ([`run_state_is_ended`]).
+pub const ENDED_STATES: [&str; 4] = ["completed", "faulted", "aborted", "interrupted"];
+
+/// Whether a stored run state is an end ([`ENDED_STATES`]).
+pub fn run_state_is_ended(state: &str) -> bool {
+    ENDED_STATES.contains(&state)
+}
+
+impl RunRow {
+    /// Whether the run has ended ([`ENDED_STATES`]).
+    pub fn is_ended(&self) -> bool {
+        run_state_is_ended(&self.state)
+    }
+}

@@ -239,7 +239,64 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: MIGRATION_RUN_SEQ,
         postgres: MIGRATION_RUN_SEQ_PG,
     },
+    Migration {
+        what: "indexes on a run's events and operator actions; checks on every enumeration (PostgreSQL); the migration history",
+        sqlite: "CREATE INDEX events_run ON events (run_id, seq);
+    CREATE INDEX operator_actions_run ON operator_actions (run_id, seq);
+    CREATE TABLE spinbench_migrations (
+        version INTEGER PRIMARY KEY,
+        what TEXT NOT NULL,
+        applied_at INTEGER,
+        release TEXT
+    );",
+        // NOT VALID: rows already stored are not re-checked (an archive is
+        // never refused at an upgrade); every new row is.
+        postgres: "CREATE INDEX events_run ON events (run_id, seq);
+    CREATE INDEX operator_actions_run ON operator_actions (run_id, seq);
+    ALTER TABLE runs ADD CONSTRAINT runs_state_known CHECK (state IN
+        ('idle', 'running', 'prompting', 'paused', 'stopping', 'completed', 'faulted', 'aborted', 'interrupted')) NOT VALID;
+    ALTER TABLE results ADD CONSTRAINT results_outcome_known CHECK (outcome IN
+        ('pass', 'marginal', 'fail', 'incomplete', 'inconclusive')) NOT VALID;
+    ALTER TABLE points ADD CONSTRAINT points_mount_known CHECK (mount IN ('P', 'N')) NOT VALID;
+    ALTER TABLE points ADD CONSTRAINT points_direction_known CHECK (direction IN ('up', 'down')) NOT VALID;
+    ALTER TABLE users ADD CONSTRAINT users_role_known CHECK (role IN ('operator', 'engineer', 'admin')) NOT VALID;
+    CREATE TABLE spinbench_migrations (
+        version BIGINT PRIMARY KEY,
+        what TEXT NOT NULL,
+        applied_at TIMESTAMPTZ,
+        release TEXT
+    );",
+    },
 ];
+
+/// The first migration whose application is written into
+/// `spinbench_migrations` (the table it makes); the ones before it are
+/// listed there with no time, as applied before the history was kept.
+const HISTORY_FROM: usize = 13;
+
+/// The history row of migration `v` (1-based), applied now by this release.
+fn history_row(db: &mut Db, v: usize) -> Result<(), DbError> {
+    let what = MIGRATIONS.get(v - 1).map_or("", |m| m.what);
+    let now = match db.dialect() {
+        Dialect::Sqlite => "CAST(strftime('%s', 'now') AS INTEGER)",
+        Dialect::Postgres => "now()",
+    };
+    if v == HISTORY_FROM {
+        for (i, m) in MIGRATIONS.iter().enumerate().take(HISTORY_FROM - 1) {
+            db.execute(
+                "INSERT INTO spinbench_migrations (version, what) VALUES ($1, $2)",
+                &[((i + 1) as i64).into(), m.what.into()],
+            )?;
+        }
+    }
+    db.execute(
+        &format!(
+            "INSERT INTO spinbench_migrations (version, what, applied_at, release) VALUES ($1, $2, {now}, $3)"
+        ),
+        &[(v as i64).into(), what.into(), env!("CARGO_PKG_VERSION").into()],
+    )?;
+    Ok(())
+}
 
 /// The runs stored before labels were given are numbered as they started.
 const MIGRATION_RUN_SEQ: &str = "ALTER TABLE runs ADD COLUMN seq INTEGER;
@@ -339,6 +396,12 @@ impl Store {
                     for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
                         let v = (i + 1) as i64;
                         db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite))
+                            .and_then(|()| {
+                                if i + 1 >= HISTORY_FROM {
+                                    history_row(&mut db, i + 1)?;
+                                }
+                                Ok(())
+                            })
                             .map_err(|e| -> DbError {
                                 format!("migration {v} ({}): {e}", m.what).into()
                             })?;
@@ -361,7 +424,11 @@ impl Store {
                         db.batch(&format!(
                             "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
                             m.postgres
-                        ))
+                        ))?;
+                        if i + 1 >= HISTORY_FROM {
+                            history_row(db, i + 1)?;
+                        }
+                        Ok(())
                     })
                     .map_err(|e| -> DbError { format!("migration {v} ({}): {e}", m.what).into() })?;
                 }

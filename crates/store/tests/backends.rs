@@ -308,3 +308,83 @@ fn many_writers_at_once_keep_their_runs_apart() {
         }
     });
 }
+
+#[test]
+fn a_runs_events_are_read_through_an_index_enumerations_are_checked_and_migrations_recorded() {
+    // SQLite: the planner's own account of a run's events.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("store.db");
+    drop(Store::open(&path).expect("store"));
+    let conn = rusqlite::Connection::open(&path).expect("sqlite");
+    let plan: Vec<String> = conn
+        .prepare("EXPLAIN QUERY PLAN SELECT json FROM events WHERE run_id = 'r' ORDER BY seq")
+        .expect("explain")
+        .query_map([], |r| r.get::<_, String>(3))
+        .expect("rows")
+        .map(|r| r.expect("row"))
+        .collect();
+    assert!(plan.iter().any(|l| l.contains("events_run")), "{plan:?}");
+    let history: Vec<(i64, Option<i64>, Option<String>)> = conn
+        .prepare("SELECT version, applied_at, release FROM spinbench_migrations ORDER BY version")
+        .expect("history")
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)))
+        .expect("rows")
+        .map(|r| r.expect("row"))
+        .collect();
+    assert_eq!(history.len(), MIGRATIONS.len());
+    let last = history.last().expect("a row");
+    assert!(last.1.is_some_and(|t| t > 1_700_000_000), "{last:?}");
+    assert_eq!(last.2.as_deref(), Some(env!("CARGO_PKG_VERSION")));
+    assert!(
+        history[0].1.is_none(),
+        "applied before the history was kept"
+    );
+
+    // PostgreSQL: an index scan, checks on the enumerations, the history.
+    let admin = postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = fresh_postgres_database(&admin).expect("a fresh PostgreSQL database");
+    drop(Store::connect(&StoreTarget::Postgres(url.clone())).expect("store"));
+    let mut pg = postgres::Client::connect(&url, postgres::NoTls).expect("postgres");
+    pg.batch_execute("SET enable_seqscan = off").expect("set");
+    let plan: Vec<String> = pg
+        .query(
+            "EXPLAIN SELECT json FROM events WHERE run_id = 'r' ORDER BY seq",
+            &[],
+        )
+        .expect("explain")
+        .iter()
+        .map(|r| r.get(0))
+        .collect();
+    assert!(plan.iter().any(|l| l.contains("events_run")), "{plan:?}");
+    for (sql, constraint) in [
+        (
+            "INSERT INTO runs (id, station, plan_json, software_version, state, started_at) \
+             VALUES ('r', 's', '{}', 'v', 'finished-ish', 0)",
+            "runs_state_known",
+        ),
+        (
+            "INSERT INTO users (name, role, password_hash, created_at) VALUES ('u', 'root', 'x', 0)",
+            "users_role_known",
+        ),
+    ] {
+        let e = pg.batch_execute(sql).expect_err("refused");
+        assert_eq!(
+            e.as_db_error().and_then(|d| d.constraint()),
+            Some(constraint),
+            "{e:?}"
+        );
+    }
+    let rows = pg
+        .query(
+            "SELECT version, applied_at IS NOT NULL, release FROM spinbench_migrations ORDER BY version",
+            &[],
+        )
+        .expect("history");
+    assert_eq!(rows.len(), MIGRATIONS.len());
+    let last = rows.last().expect("a row");
+    assert!(last.get::<_, bool>(1));
+    assert_eq!(
+        last.get::<_, Option<String>>(2).as_deref(),
+        Some(env!("CARGO_PKG_VERSION"))
+    );
+}

@@ -207,7 +207,7 @@ impl Hub {
                 && status
                     .state
                     .as_deref()
-                    .is_some_and(|s| !["completed", "faulted", "aborted"].contains(&s))
+                    .is_some_and(|s| !spinbench_store::run_state_is_ended(s))
             {
                 status.eta_s = state.clock.eta_s(std::time::Instant::now());
             }
