@@ -478,6 +478,9 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     );
     assert_eq!(r.status, 201, "{:?}", r.json());
     let run_id = r.json()["run_id"].as_str().expect("run id").to_string();
+    // The started run's own link answers at once (issue 38).
+    let r = op.send("GET", &format!("/api/runs/{run_id}"), None);
+    assert_eq!(r.status, 200, "{:?}", r.json());
     let r = op.send("POST", "/api/runs", Some(&start("api", json!({}))));
     assert_eq!(r.status, 409);
 
@@ -488,6 +491,8 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         let s = op.wait_status(120, |s| {
             s["prompt"].is_string() || s["active"].is_null() && s["run_id"] == run_id.as_str()
         });
+        // What is sent matches the document, at a prompt too (issue 38).
+        web::matches_document(&mut op, "StatusReply", &s, "GET /api/status");
         if s["active"].is_null() {
             break;
         }
@@ -499,9 +504,20 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         let r = op.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
         assert_eq!(r.status, 200, "{:?}", r.json());
         prompts += 1;
+        // And at a step, settling or averaging.
+        let s = op.wait_status(60, |s| {
+            s["progress"].is_object() || s["prompt"].is_string() || s["active"].is_null()
+        });
+        web::matches_document(&mut op, "StatusReply", &s, "GET /api/status at a step");
         assert!(prompts < 10, "too many prompts");
     }
     assert!(prompts >= 3, "tumble up, tumble down, remount: {prompts}");
+    let end = op.get_json("/api/status", 200);
+    web::matches_document(&mut op, "StatusReply", &end, "GET /api/status at the end");
+    // The check can fail: the step as the tuple it once was sent as.
+    let mut tuple = end.clone();
+    tuple["step"] = json!([3, 21, "10 g Up"]);
+    assert!(!web::document_errors(&mut op, "StatusReply", &tuple).is_empty());
     let s = op.get_json("/api/status", 200);
     assert_eq!(s["state"], "completed", "{s}");
     // The plan's prediction beside what the run achieved.

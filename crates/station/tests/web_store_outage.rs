@@ -36,10 +36,8 @@ fn running(db: &Cluster, data: &std::path::Path) -> (web::Server, Client) {
         assert_eq!(r.status, 200, "{:?}", r.json());
     }
     op.wait_status(120, |s| {
-        s["step"]
-            .as_array()
-            .and_then(|a| a.get(2))
-            .and_then(|l| l.as_str())
+        s["step"]["label"]
+            .as_str()
             .is_some_and(|l| l.contains("5 g"))
     });
     (server, op)

@@ -28,6 +28,28 @@ pub struct HubEvent {
     pub json: String,
 }
 
+/// The step a run is at.
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+pub struct StepNow {
+    /// Its index among the run's steps (0-based).
+    pub index: usize,
+    /// How many steps the run has.
+    pub of: usize,
+    /// Its label ("10 g Up (pass 1)").
+    pub label: String,
+}
+
+/// Where a settling or an averaging at a level stands.
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+pub struct ProgressNow {
+    /// `settling`, `averaging`, `warm-up`, `soaking`, ….
+    pub phase: String,
+    /// Done so far.
+    pub done: u32,
+    /// Of.
+    pub of: u32,
+}
+
 /// What the status panel shows, kept current from the events.
 #[derive(Debug, Clone, Default, Serialize, utoipa::ToSchema)]
 pub struct StatusSnapshot {
@@ -35,15 +57,13 @@ pub struct StatusSnapshot {
     pub run_id: Option<String>,
     /// Its state (`running`, `prompting`, `paused`, `completed`, …).
     pub state: Option<String>,
-    /// Current step: index (0-based), of, label.
-    #[schema(value_type = Option<Vec<Object>>)]
-    pub step: Option<(usize, usize, String)>,
+    /// The current step.
+    pub step: Option<StepNow>,
     /// The current step's label as a key and values, for the page's language.
     #[schema(value_type = Option<Object>)]
     pub step_wording: Option<Wording>,
-    /// Settling or averaging at a level: phase, done, of.
-    #[schema(value_type = Option<Vec<Object>>)]
-    pub progress: Option<(String, u32, u32)>,
+    /// Settling or averaging at a level.
+    pub progress: Option<ProgressNow>,
     /// Measured rate [deg/s].
     pub rate_deg_s: Option<f64>,
     /// Demanded rate [deg/s].
@@ -66,8 +86,10 @@ pub struct StatusSnapshot {
     pub modules: Vec<ModuleHealth>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
-    /// The fixture it asks of each slot (for the page's language).
-    #[schema(value_type = Vec<Object>)]
+    /// The fixture it asks of each slot (for the page's language): null for
+    /// a slot it asks nothing of, else the fixture as the engine names it
+    /// (`"Up"`, `"Down"`, `{"Arm": "P"}`, `{"Crosswise": {"as_on_arm": true}}`).
+    #[schema(value_type = Vec<Option<Value>>)]
     pub prompt_fixtures: Vec<Option<spinbench_engine::plan::Fixture>>,
     /// The last notices (newest last).
     pub notices: Vec<String>,
@@ -314,11 +336,21 @@ impl Hub {
                 wording,
             } => {
                 state.clock.step_started(*index, std::time::Instant::now());
-                s.step = Some((*index, *of, label.clone()));
+                s.step = Some(StepNow {
+                    index: *index,
+                    of: *of,
+                    label: label.clone(),
+                });
                 s.step_wording = wording.clone();
                 s.progress = None;
             }
-            Event::Progress { phase, done, of } => s.progress = Some((phase.clone(), *done, *of)),
+            Event::Progress { phase, done, of } => {
+                s.progress = Some(ProgressNow {
+                    phase: phase.clone(),
+                    done: *done,
+                    of: *of,
+                })
+            }
             Event::Values {
                 rate_deg_s,
                 demand_deg_s,

@@ -182,8 +182,8 @@ impl Metrics {
         self.rate_deg_s.set(status.rate_deg_s.unwrap_or(0.0));
         self.demand_deg_s.set(status.demand_deg_s.unwrap_or(0.0));
         let progress = match (&status.step, state) {
-            (Some((index, of, _)), "running") if *of > 0 => {
-                (*index as f64 + 1.0).min(*of as f64) / *of as f64
+            (Some(step), "running") if step.of > 0 => {
+                (step.index as f64 + 1.0).min(step.of as f64) / step.of as f64
             }
             _ => 0.0,
         };

@@ -447,7 +447,7 @@ fn heartbeat_now(
             .step
             .as_ref()
             .filter(|_| active)
-            .map(|(index, of, _)| ((*index as i64 + 1).min(*of as i64), *of as i64)),
+            .map(|step| ((step.index as i64 + 1).min(step.of as i64), step.of as i64)),
         address: Some(address.to_string()),
     }
 }

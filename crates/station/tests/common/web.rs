@@ -340,3 +340,30 @@ impl Client {
         }
     }
 }
+
+/// Check `value` against the schema `name` of the server's own OpenAPI
+/// document (JSON Schema 2020-12, its `$ref`s resolved in the document),
+/// by the jsonschema crate; panics naming every mismatch and `what`.
+pub fn matches_document(client: &mut Client, name: &str, value: &Value, what: &str) {
+    let errors = document_errors(client, name, value);
+    assert!(
+        errors.is_empty(),
+        "{what}: the answer does not match the document's {name}:\n{}\n{value}",
+        errors.join("\n")
+    );
+}
+
+/// What in `value` the schema `name` of the server's OpenAPI document refuses.
+pub fn document_errors(client: &mut Client, name: &str, value: &Value) -> Vec<String> {
+    let doc = client.get_json("/api/openapi.json", 200);
+    let schema = serde_json::json!({
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "components": doc["components"],
+        "$ref": format!("#/components/schemas/{name}"),
+    });
+    let validator = jsonschema::validator_for(&schema).expect("the document's schema compiles");
+    validator
+        .iter_errors(value)
+        .map(|e| format!("{} at {}", e, e.instance_path))
+        .collect()
+}

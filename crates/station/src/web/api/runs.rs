@@ -128,11 +128,32 @@ async fn check_equipment(
 async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
     let plan_text = toml::to_string(plan).map_err(|e| ApiError::internal(e.to_string()))?;
     let (plan, user) = (plan.clone(), user.to_string());
-    blocking_to_the_end(app, move |app| {
+    let run_id = blocking_to_the_end(app, move |app| {
         Ok(app.runner.start(plan, &plan_text, &user))
     })
     .await?
-    .map_err(start_error)
+    .map_err(start_error)?;
+    readable(app, &run_id).await;
+    Ok(run_id)
+}
+
+/// How long a start's answer waits for the store to have the run, so that
+/// the run's own link (`GET /api/runs/{id}`) answers at once.
+const READABLE_WAIT: Duration = Duration::from_secs(5);
+
+/// Wait (at most [`READABLE_WAIT`]) until the store has run `id` (its
+/// outbox writes the start first); a store that is down is not waited for
+/// longer: the run goes on and its record follows.
+async fn readable(app: &App, id: &str) {
+    let until = Instant::now() + READABLE_WAIT;
+    while Instant::now() < until {
+        let asked = id.to_string();
+        let found = blocking(app, move |app| Ok(store(app)?.run(&asked)?.is_some())).await;
+        if matches!(found, Ok(true)) {
+            return;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
 }
 
 /// A run that could not start, as the API says it.
@@ -175,6 +196,7 @@ pub(super) async fn resume_run(
     let run_id = blocking_to_the_end(&app, move |app| Ok(app.runner.resume(&asked, &user)))
         .await?
         .map_err(start_error)?;
+    readable(&app, &run_id).await;
     audit(&app, &session.user, "resume run", &run_id).await?;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }

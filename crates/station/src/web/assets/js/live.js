@@ -208,7 +208,7 @@ export async function refreshStatus() {
   $("abort-button").hidden = !s.active;
   renderBoard(s.board);
   renderPrediction(s.prediction, s.achieved);
-  if (s.step) { $("run-progress").max = s.step[1]; $("run-progress").value = st === "completed" ? s.step[1] : s.step[0]; }
+  if (s.step) { $("run-progress").max = s.step.of; $("run-progress").value = st === "completed" ? s.step.of : s.step.index; }
   $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
     : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
   const why = s.reason ? say(s.reason_wording, s.reason) : "";
@@ -230,8 +230,8 @@ export async function refreshStatus() {
   if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
   else if (s.active && !s.prompt) $("prompt").hidden = true;
   const eta = s.active && s.eta_s ? word("web.comma", ", ") + etaText(s.eta_s) : "";
-  if (s.step) $("progress").textContent = stepText(s.step[0], s.step[1], s.step[2], s.step_wording)
-    + (s.active && s.progress ? progressText(s.progress[0], s.progress[1], s.progress[2]) : "") + eta;
+  if (s.step) $("progress").textContent = stepText(s.step.index, s.step.of, s.step.label, s.step_wording)
+    + (s.active && s.progress ? progressText(s.progress.phase, s.progress.done, s.progress.of) : "") + eta;
 }
 
 // Where a run's median K2 U95 falls with 80 % probability ("" before the
