@@ -162,42 +162,20 @@ fn the_supply_driver_clears_what_another_program_left_in_an_scpipy_servers_queue
     assert!(supply.clear_errors().expect("empty").is_empty());
 }
 
-const PLAN: &str = r#"
-range_g = 20
-levels = [0, 1, 5, 10, 15, 20]
-passes = ["P"]
-warmup_s = 0
-temperatures_c = [30]
-dwell = { seconds = 10 }
-stability = { hold_s = 3 }
-soak = { tolerance_c = 0.5, window_s = 15, max_soak_s = 300 }
-[serials]
-1 = "PLANT1"
-2 = "PLANT2"
-"#;
-
-/// `spinbench run` on a separate `spinbench sim` whose chamber is `peer`.
+/// `spinbench run` of the 20-g plan at 30 °C on a separate `spinbench sim`
+/// whose chamber is `peer`.
 fn run_with_chamber(dir: &std::path::Path, peer: &Peer, sim: &bench::Sim) -> Operated {
-    let station = dir.join("station.toml");
-    std::fs::write(
-        &station,
-        format!(
-            "station = \"plant test\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\n\
-             instrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}\n{}",
-            sim.devices_toml,
-            chamber_section(peer.port, 100)
+    Operated::run_on(
+        dir,
+        sim,
+        "plant test",
+        &chamber_section(peer.port, 100),
+        &bench::plan_to_20g(
+            "PLANT",
+            "temperatures_c = [30]\nsoak = { tolerance_c = 0.5, window_s = 15, max_soak_s = 300 }",
         ),
+        &[],
     )
-    .expect("station");
-    let plan = dir.join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
-    Operated::start(&[
-        "--station".as_ref(),
-        station.as_os_str(),
-        "--data".as_ref(),
-        dir.join("data").as_os_str(),
-        plan.as_os_str(),
-    ])
 }
 
 #[test]

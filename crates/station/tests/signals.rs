@@ -14,43 +14,20 @@ use std::time::{Duration, Instant};
 mod bench;
 use bench::{Operated, start_sim};
 
-const PLAN: &str = r#"
-range_g = 20
-levels = [0, 1, 5, 10, 15, 20]
-passes = ["P"]
-warmup_s = 0
-dwell = { seconds = 10 }
-stability = { hold_s = 3 }
-[serials]
-1 = "SIG1"
-2 = "SIG2"
-"#;
-
 /// Run a plan against a separate bench, signal the station at a level,
 /// and check the table, the rails and the record afterwards.
 fn signal_while_spinning(signal: &str, name: &str) {
     let dir = tempfile::tempdir().expect("tempdir");
     let sim = start_sim("10");
-    let station = dir.path().join("station.toml");
-    std::fs::write(
-        &station,
-        format!(
-            "station = \"signal test\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\n\
-             instrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
-            sim.devices_toml
-        ),
-    )
-    .expect("station");
-    let plan = dir.path().join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
     let data = dir.path().join("data");
-    let mut run = Operated::start(&[
-        "--station".as_ref(),
-        station.as_os_str(),
-        "--data".as_ref(),
-        data.as_os_str(),
-        plan.as_os_str(),
-    ]);
+    let mut run = Operated::run_on(
+        dir.path(),
+        &sim,
+        "signal test",
+        "",
+        &bench::plan_to_20g("SIG", ""),
+        &[],
+    );
     // The operator: remount as asked, press Enter; wait for a level above 1 g.
     let spinning = run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("10 g Up"));
     assert!(

@@ -13,41 +13,32 @@ mod postgres;
 use bench::{Operated, Sim, start_sim};
 use postgres::Cluster;
 
-const PLAN: &str = r#"
-range_g = 20
-levels = [0, 1, 5, 10, 15, 20]
-passes = ["P"]
-warmup_s = 0
-dwell = { seconds = 10 }
-stability = { hold_s = 3 }
-[serials]
-1 = "OUT1"
-2 = "OUT2"
-"#;
+/// A PostgreSQL of the test's own, a `spinbench sim` and a run of the
+/// 20-g plan on them, operated until it says `line` (None without a
+/// PostgreSQL: the test is skipped).
+fn running_to(line: &str) -> Option<(Cluster, tempfile::TempDir, Sim, Operated)> {
+    let db = Cluster::start()?;
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = start_sim("10");
+    let mut run = start_run(dir.path(), &sim, &db.url);
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains(line)),
+        "the run never reached {line}:\n{}",
+        run.transcript()
+    );
+    Some((db, dir, sim, run))
+}
 
-/// A run of `PLAN` on `sim` writing to `url`, in `dir`.
+/// A run of the 20-g plan on `sim` writing to `url`, in `dir`.
 fn start_run(dir: &std::path::Path, sim: &Sim, url: &str) -> Operated {
-    let station = dir.join("station.toml");
-    std::fs::write(
-        &station,
-        format!(
-            "station = \"outage test\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\n\
-             instrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}",
-            sim.devices_toml
-        ),
+    Operated::run_on(
+        dir,
+        sim,
+        "outage test",
+        "",
+        &bench::plan_to_20g("OUT", ""),
+        &["--db".as_ref(), url.as_ref()],
     )
-    .expect("station");
-    let plan = dir.join("plan.toml");
-    std::fs::write(&plan, PLAN).expect("plan");
-    Operated::start(&[
-        "--station".as_ref(),
-        station.as_os_str(),
-        "--data".as_ref(),
-        dir.join("data").as_os_str(),
-        "--db".as_ref(),
-        url.as_ref(),
-        plan.as_os_str(),
-    ])
 }
 
 /// The instruments' points the journal of the only run under `data`
@@ -70,15 +61,9 @@ fn journal_points(data: &std::path::Path) -> usize {
 
 #[test]
 fn a_postgres_restart_in_the_middle_of_a_run_loses_nothing() {
-    let Some(db) = Cluster::start() else { return };
-    let dir = tempfile::tempdir().expect("tempdir");
-    let sim = start_sim("10");
-    let mut run = start_run(dir.path(), &sim, &db.url);
-    assert!(
-        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("5 g Up")),
-        "the run never reached 5 g:\n{}",
-        run.transcript()
-    );
+    let Some((db, dir, sim, mut run)) = running_to("5 g Up") else {
+        return;
+    };
     db.restart();
     let status = run
         .wait(&sim, Duration::from_secs(240))
@@ -105,15 +90,9 @@ fn a_postgres_restart_in_the_middle_of_a_run_loses_nothing() {
 
 #[test]
 fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
-    let Some(db) = Cluster::start() else { return };
-    let dir = tempfile::tempdir().expect("tempdir");
-    let sim = start_sim("10");
-    let mut run = start_run(dir.path(), &sim, &db.url);
-    assert!(
-        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("5 g Up")),
-        "the run never reached 5 g:\n{}",
-        run.transcript()
-    );
+    let Some((db, dir, sim, mut run)) = running_to("5 g Up") else {
+        return;
+    };
     db.pause();
     // The run goes on measuring with the database stalled: the next level.
     assert!(
@@ -182,15 +161,9 @@ fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
 
 #[test]
 fn a_minute_of_a_stalled_postgres_under_a_run_loses_nothing() {
-    let Some(db) = Cluster::start() else { return };
-    let dir = tempfile::tempdir().expect("tempdir");
-    let sim = start_sim("10");
-    let mut run = start_run(dir.path(), &sim, &db.url);
-    assert!(
-        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("1 g Up")),
-        "the run never reached 1 g:\n{}",
-        run.transcript()
-    );
+    let Some((db, dir, sim, mut run)) = running_to("1 g Up") else {
+        return;
+    };
     db.pause();
     let paused = Instant::now();
     // The run measures on through the minute: two more levels at least.

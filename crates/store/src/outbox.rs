@@ -471,12 +471,30 @@ pub fn catch_up(store: &Store, run_dir: &Path) -> Result<u64, StoreError> {
     {
         sink.prime(started);
     }
-    for event in &events {
-        sink.write(event).map_err(|reason| StoreError {
-            target: store.target().to_string(),
-            what: format!("catch up from {}", path.display()),
-            reason,
-        })?;
+    for (done, event) in events.iter().enumerate() {
+        if let Err(reason) = sink.write(event) {
+            // What was written is not written again next time: the file
+            // keeps only the rest.
+            let mut rest = Vec::new();
+            for e in &events[done..] {
+                if serde_json::to_writer(&mut rest, e).is_ok() {
+                    rest.push(b'\n');
+                }
+            }
+            let tmp = path.with_extension("jsonl.tmp");
+            if std::fs::write(&tmp, &rest).is_ok() {
+                let _ = std::fs::rename(&tmp, &path);
+            }
+            return Err(StoreError {
+                target: store.target().to_string(),
+                what: format!(
+                    "catch up from {} ({done} of {} events written; the rest kept)",
+                    path.display(),
+                    events.len()
+                ),
+                reason,
+            });
+        }
     }
     let _ = std::fs::remove_file(&path);
     Ok(events.len() as u64)

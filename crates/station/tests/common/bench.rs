@@ -209,3 +209,51 @@ impl Operated {
         self.seen.join("\n")
     }
 }
+
+/// The plan the signal, outage and plant tests run: mounting P, 0 to 20 g
+/// in six levels, 10 s dwell, instruments `{prefix}1` and `{prefix}2`, with
+/// `extra` lines (keys of the plan's top level).
+pub fn plan_to_20g(prefix: &str, extra: &str) -> String {
+    format!(
+        "range_g = 20\nlevels = [0, 1, 5, 10, 15, 20]\npasses = [\"P\"]\nwarmup_s = 0\n\
+         dwell = {{ seconds = 10 }}\nstability = {{ hold_s = 3 }}\n{extra}\n\
+         [serials]\n1 = \"{prefix}1\"\n2 = \"{prefix}2\"\n"
+    )
+}
+
+impl Operated {
+    /// `spinbench run` of `plan` on `sim`'s devices as station `name` (its
+    /// config with `sections` added), in `dir` (its data in `dir/data`),
+    /// with `more` arguments.
+    pub fn run_on(
+        dir: &std::path::Path,
+        sim: &Sim,
+        name: &str,
+        sections: &str,
+        plan: &str,
+        more: &[&std::ffi::OsStr],
+    ) -> Operated {
+        let station = dir.join("station.toml");
+        std::fs::write(
+            &station,
+            format!(
+                "station = \"{name}\"\n[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\n\
+                 instrument_supply = \"rails\"\nmodule_supply = \"logic\"\n\n{}\n{sections}",
+                sim.devices_toml
+            ),
+        )
+        .expect("station");
+        let plan_path = dir.join("plan.toml");
+        std::fs::write(&plan_path, plan).expect("plan");
+        let data = dir.join("data");
+        let mut args: Vec<&std::ffi::OsStr> = vec![
+            "--station".as_ref(),
+            station.as_os_str(),
+            "--data".as_ref(),
+            data.as_os_str(),
+        ];
+        args.extend_from_slice(more);
+        args.push(plan_path.as_os_str());
+        Operated::start(&args)
+    }
+}
