@@ -61,6 +61,58 @@ pub enum RunState {
     Aborted,
 }
 
+impl RunState {
+    /// Every state, in the order of the table.
+    pub const ALL: [RunState; 8] = [
+        RunState::Idle,
+        RunState::Running,
+        RunState::Prompting,
+        RunState::Paused,
+        RunState::Stopping,
+        RunState::Completed,
+        RunState::Faulted,
+        RunState::Aborted,
+    ];
+
+    /// Its name, as serde, the store and the API write it (`completed`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunState::Idle => "idle",
+            RunState::Running => "running",
+            RunState::Prompting => "prompting",
+            RunState::Paused => "paused",
+            RunState::Stopping => "stopping",
+            RunState::Completed => "completed",
+            RunState::Faulted => "faulted",
+            RunState::Aborted => "aborted",
+        }
+    }
+
+    /// Whether the run has ended in it (completed, faulted or aborted).
+    pub fn is_ended(self) -> bool {
+        matches!(
+            self,
+            RunState::Completed | RunState::Faulted | RunState::Aborted
+        )
+    }
+}
+
+impl std::fmt::Display for RunState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl std::str::FromStr for RunState {
+    type Err = String;
+    fn from_str(text: &str) -> Result<RunState, String> {
+        RunState::ALL
+            .into_iter()
+            .find(|s| s.as_str() == text)
+            .ok_or_else(|| format!("'{text}' is not a run state"))
+    }
+}
+
 /// One event.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "event", rename_all = "snake_case")]
@@ -279,11 +331,94 @@ pub struct ModuleHealth {
     pub reconnects: u64,
 }
 
+/// What a device is in the station. Written and read as its name
+/// (`centrifuge`, `fmu 1` … `fmu 64`, `instrument supply`, `module supply`),
+/// in the event stream, the store and the equipment register alike.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum DeviceRole {
+    /// The rate table and its controller.
+    Centrifuge,
+    /// Frequency-counter module N (1-based, as its label on the rack).
+    Fmu(u8),
+    /// The supply that powers the instruments.
+    InstrumentSupply,
+    /// The supply that powers the modules.
+    ModuleSupply,
+}
+
+/// The most frequency-counter modules a station names ([`DeviceRole::Fmu`]).
+pub const MAX_FMU_ROLES: u8 = 64;
+
+impl DeviceRole {
+    /// Its name (`fmu 3`).
+    pub fn name(self) -> String {
+        match self {
+            DeviceRole::Centrifuge => "centrifuge".into(),
+            DeviceRole::Fmu(n) => format!("fmu {n}"),
+            DeviceRole::InstrumentSupply => "instrument supply".into(),
+            DeviceRole::ModuleSupply => "module supply".into(),
+        }
+    }
+
+    /// Its kind without a number, for a catalogue key (`fmu`, `instrument_supply`).
+    pub fn kind(self) -> &'static str {
+        match self {
+            DeviceRole::Centrifuge => "centrifuge",
+            DeviceRole::Fmu(_) => "fmu",
+            DeviceRole::InstrumentSupply => "instrument_supply",
+            DeviceRole::ModuleSupply => "module_supply",
+        }
+    }
+}
+
+impl std::fmt::Display for DeviceRole {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+impl std::str::FromStr for DeviceRole {
+    type Err = String;
+    /// A role's exact name; anything else (a typo would leave a real device
+    /// unregistered while the register looks kept) is refused, saying the names.
+    fn from_str(text: &str) -> Result<DeviceRole, String> {
+        match text {
+            "centrifuge" => return Ok(DeviceRole::Centrifuge),
+            "instrument supply" => return Ok(DeviceRole::InstrumentSupply),
+            "module supply" => return Ok(DeviceRole::ModuleSupply),
+            _ => {}
+        }
+        text.strip_prefix("fmu ")
+            .and_then(|n| n.parse::<u8>().ok())
+            .filter(|n| (1..=MAX_FMU_ROLES).contains(n) && text == format!("fmu {n}"))
+            .map(DeviceRole::Fmu)
+            .ok_or_else(|| {
+                format!(
+                    "'{text}' is not a device role: centrifuge, fmu 1 … fmu {MAX_FMU_ROLES}, instrument supply or module supply"
+                )
+            })
+    }
+}
+
+impl TryFrom<String> for DeviceRole {
+    type Error = String;
+    fn try_from(text: String) -> Result<DeviceRole, String> {
+        text.parse()
+    }
+}
+
+impl From<DeviceRole> for String {
+    fn from(role: DeviceRole) -> String {
+        role.name()
+    }
+}
+
 /// One device's identity, as it reported it.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct DeviceIdentity {
-    /// What it is in the station (`centrifuge`, `fmu 1`, `instrument supply`, …).
-    pub role: String,
+    /// What it is in the station.
+    pub role: DeviceRole,
     /// What it said (`*IDN?`, the controller's identification, the module's firmware id),
     /// or why it could not say.
     pub identity: String,

@@ -30,7 +30,7 @@ pub mod soak;
 
 pub use abort::AbortFlag;
 pub use config::StationConfig;
-pub use event::{Event, EventSink, RunState};
+pub use event::{DeviceRole, Event, EventSink, RunState};
 pub use executor::{Answer, Bench, EngineError, Executor, Operator, RunOptions, RunSummary};
 pub use plan::{CompiledPlan, Fixture, TestPlan};
 pub use record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};

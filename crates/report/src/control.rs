@@ -538,7 +538,7 @@ mod tests {
         RunRow {
             id: format!("r{i:02}"),
             station: "s".into(),
-            state: "completed".into(),
+            state: spinbench_store::StoredState::Completed,
             reason: None,
             started_at: 1_700_000_000 + 3600 * i as i64,
             units: 2,

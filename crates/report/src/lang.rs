@@ -174,25 +174,21 @@ pub fn decision_rule(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> 
 
 /// A device's role as `lang` names it (`instrument supply` → 仪表电源,
 /// `fmu 2` → 计数模块 2); the role itself when the catalogue has no word.
-pub fn device_role(lang: Lang, role: &str) -> String {
-    let (kind, number) = match role.rsplit_once(' ') {
-        Some((kind, n)) if n.chars().all(|c| c.is_ascii_digit()) => (kind, Some(n)),
-        _ => (role, None),
-    };
-    let key = format!("device.{}", kind.replace(' ', "_"));
+pub fn device_role(lang: Lang, role: spinbench_engine::DeviceRole) -> String {
+    let key = format!("device.{}", role.kind());
     let word = tr(lang, &key);
     if word == key {
-        return role.to_string();
+        return role.name();
     }
-    match number {
-        Some(n) => format!("{word} {n}"),
-        None => word,
+    match role {
+        spinbench_engine::DeviceRole::Fmu(n) => format!("{word} {n}"),
+        _ => word,
     }
 }
 
 /// A run state's word (`completed` → "已完成").
-pub fn state(lang: Lang, state: &str) -> String {
-    tr_or(lang, &format!("state.{state}"), state)
+pub fn state(lang: Lang, state: spinbench_store::StoredState) -> String {
+    tr_or(lang, &format!("state.{state}"), state.as_str())
 }
 
 /// A reason of an outcome in `lang`. English: its text, as the engine wrote
@@ -280,10 +276,14 @@ mod tests {
         assert_eq!(header(Lang::ZhCn, "radius [m]"), "半径 [m]");
         assert_eq!(header(Lang::ZhCn, "no such header"), "no such header");
         assert_eq!(outcome(Lang::ZhCn, "fail"), "不合格");
-        assert_eq!(device_role(Lang::ZhCn, "fmu 2"), "计数模块 2");
-        assert_eq!(device_role(Lang::ZhCn, "instrument supply"), "仪表电源");
-        assert_eq!(device_role(Lang::En, "fmu 2"), "fmu 2");
-        assert_eq!(device_role(Lang::ZhCn, "something else"), "something else");
+        use spinbench_engine::DeviceRole;
+        assert_eq!(device_role(Lang::ZhCn, DeviceRole::Fmu(2)), "计数模块 2");
+        assert_eq!(
+            device_role(Lang::ZhCn, DeviceRole::InstrumentSupply),
+            "仪表电源"
+        );
+        assert_eq!(device_role(Lang::En, DeviceRole::Fmu(2)), "fmu 2");
+        assert_eq!(device_role(Lang::En, DeviceRole::Centrifuge), "centrifuge");
         assert_eq!(
             date_time(Lang::ZhCn, 1_795_446_697),
             "2026年11月23日 15:11 UTC"

@@ -33,7 +33,6 @@ pub(crate) use text::{csv_field, esc, fmt, unix_date};
 
 pub use diagnostics::{diagnostic_lines, diagnostic_lines_in, temperature_line};
 pub use lang::{Lang, tr};
-use serde_json::Value;
 
 rust_i18n::i18n!("../../locales", fallback = "en");
 use spinbench_store::{Store, StoreError};
@@ -119,24 +118,27 @@ impl ReportFormat {
 /// recorded them: (role, identity, calibration — "certificate C, due D
 /// (status)", "not in the register", or empty for runs before the register).
 pub(crate) fn devices(report: &RunReport, lang: Lang) -> Option<Vec<(String, String, String)>> {
-    let devices: Vec<Value> = serde_json::from_str(report.context.devices_json.as_deref()?).ok()?;
-    let text = |d: &Value, key: &str| d[key].as_str().unwrap_or("").to_string();
+    let devices = &report.record.devices;
+    if devices.is_empty() {
+        return None;
+    }
     Some(
         devices
             .iter()
             .map(|d| {
-                let status = |s: &str| {
+                let status = |s: spinbench_store::equipment::CalibrationStatus| {
+                    let s = s.as_str();
                     lang::tr_or(
                         lang,
                         &format!("calibration_status.{}", s.replace(' ', "_")),
                         s,
                     )
                 };
-                let calibration = match (d["certificate"].as_str(), d["calibration"].as_str()) {
+                let calibration = match (&d.certificate, d.calibration) {
                     (Some(cert), Some(s)) => rust_i18n::t!(
                         "report.certificate_due",
                         certificate = cert,
-                        due = text(d, "due_on"),
+                        due = d.due_on.as_deref().unwrap_or_default(),
                         status = status(s),
                         locale = lang.code()
                     )
@@ -145,8 +147,8 @@ pub(crate) fn devices(report: &RunReport, lang: Lang) -> Option<Vec<(String, Str
                     _ => String::new(),
                 };
                 (
-                    lang::device_role(lang, &text(d, "role")),
-                    text(d, "identity"),
+                    lang::device_role(lang, d.role),
+                    d.identity.clone(),
                     calibration,
                 )
             })

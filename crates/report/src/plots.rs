@@ -4,6 +4,7 @@
 use crate::UnitReport;
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use spinbench_analysis::{Direction, Mount};
 
 /// Size of every plot [px]; the PDF maps it onto its page.
 pub(crate) const SIZE: (u32, u32) = (460, 320);
@@ -12,13 +13,13 @@ pub(crate) const SIZE: (u32, u32) = (460, 320);
 #[derive(Debug, Clone, PartialEq)]
 pub struct ResidualPoint {
     /// P or N.
-    pub mount: String,
+    pub mount: Mount,
     /// Level [g].
     pub g_nominal: f64,
     /// Fit input [g] (signed by the mounting in the plots).
     pub g_input: f64,
-    /// up, down or empty.
-    pub direction: String,
+    /// Up, down, or not known.
+    pub direction: Option<Direction>,
     /// Observed output [Hz].
     pub output: f64,
     /// Residual [µg].
@@ -32,12 +33,10 @@ pub fn residuals(u: &UnitReport) -> Vec<ResidualPoint> {
     for (mount, fit) in fits.into_iter().flatten() {
         for r in &fit.fit.residuals {
             out.push(ResidualPoint {
-                mount: mount.to_string(),
+                mount: *mount,
                 g_nominal: r.g_nominal,
                 g_input: r.g_input,
-                direction: r
-                    .direction
-                    .map_or(String::new(), |d| d.as_str().to_string()),
+                direction: r.direction,
                 output: r.output,
                 residual_ug: r.residual_ug,
             });
@@ -46,8 +45,8 @@ pub fn residuals(u: &UnitReport) -> Vec<ResidualPoint> {
     out
 }
 
-fn sign(mount: &str) -> f64 {
-    if mount == "N" { -1.0 } else { 1.0 }
+fn sign(mount: &Mount) -> f64 {
+    mount.input_sign()
 }
 
 fn range(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
@@ -118,7 +117,7 @@ fn draw_output_vs_g<DB: DrawingBackend>(
             (
                 sign(&p.mount) * p.g_applied.abs(),
                 p.output_hz,
-                p.mount.as_str(),
+                if p.mount == Mount::N { "N" } else { "P" },
             )
         })
         .collect();
@@ -164,7 +163,7 @@ pub fn outlier_marks(u: &UnitReport, res: &[ResidualPoint]) -> Vec<(f64, f64)> {
     let mut out = Vec::new();
     let fits = u.record().analysis.as_ref().map(|a| &a.fits);
     for (mount, fit) in fits.into_iter().flatten() {
-        let m = mount.to_string();
+        let m = *mount;
         for o in fit.diagnostics.iter().flat_map(|d| &d.outlier_levels) {
             let at: Vec<f64> = res
                 .iter()
@@ -204,21 +203,27 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
             .draw()
             .ok()?;
         chart
-            .draw_series(res.iter().filter(|r| r.direction != "down").map(|r| {
-                Circle::new(
-                    (sign(&r.mount) * r.g_nominal.abs(), r.residual_ug),
-                    3,
-                    BLUE.filled(),
-                )
-            }))
+            .draw_series(
+                res.iter()
+                    .filter(|r| r.direction != Some(Direction::Down))
+                    .map(|r| {
+                        Circle::new(
+                            (sign(&r.mount) * r.g_nominal.abs(), r.residual_ug),
+                            3,
+                            BLUE.filled(),
+                        )
+                    }),
+            )
             .ok()?
             .label("up")
             .legend(|(x, y)| Circle::new((x, y), 3, BLUE.filled()));
         chart
             .draw_series(
-                res.iter().filter(|r| r.direction == "down").map(|r| {
-                    Cross::new((sign(&r.mount) * r.g_nominal.abs(), r.residual_ug), 4, RED)
-                }),
+                res.iter()
+                    .filter(|r| r.direction == Some(Direction::Down))
+                    .map(|r| {
+                        Cross::new((sign(&r.mount) * r.g_nominal.abs(), r.residual_ug), 4, RED)
+                    }),
             )
             .ok()?
             .label("down")

@@ -71,11 +71,11 @@ fn write_xlsx(points: &[PointRow], results: &[ResultRow], run_id: &str, out: &Pa
     for (i, p) in points.iter().enumerate() {
         let r = (i + 1) as u32;
         sheet.write_string(r, 0, &p.serial)?;
-        sheet.write_string(r, 1, &p.mount)?;
+        sheet.write_string(r, 1, p.mount.to_string())?;
         sheet.write_number(r, 2, p.g_nominal)?;
         sheet.write_number(r, 3, p.g_applied)?;
         sheet.write_number(r, 4, p.output_hz)?;
-        sheet.write_string(r, 5, &p.direction)?;
+        sheet.write_string(r, 5, p.direction.as_str())?;
         sheet.write_string(r, 6, run_id)?;
         sheet.write_number(r, 7, p.step as f64)?;
         sheet.write_number(r, 8, (p.slot + 1) as f64)?;
@@ -192,8 +192,8 @@ fn write_parquet(points: &[PointRow], run_id: &str, out: &Path) -> Result<()> {
             "unit" | "mount" | "direction" | "run" => {
                 let values = text(&|p: &PointRow| match name {
                     "unit" => p.serial.clone(),
-                    "mount" => p.mount.clone(),
-                    "direction" => p.direction.clone(),
+                    "mount" => p.mount.to_string(),
+                    "direction" => p.direction.as_str().to_string(),
                     _ => run_id.to_string(),
                 });
                 writer

@@ -54,7 +54,7 @@ pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromS
     if !run.is_ended() {
         return Err(RetestFromStoreError::NotEnded(
             run_id.to_string(),
-            run.state,
+            run.state.to_string(),
         ));
     }
     let needing: Vec<String> = store
@@ -86,25 +86,22 @@ pub fn retest_plan_from_store(
     if !is_run_id(run_id) {
         return Err(RetestError::BadRunId(run_id.chars().take(80).collect()).into());
     }
-    let run = store
-        .run(run_id)?
+    let record = store
+        .run_record(run_id)?
         .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
-    if !run.is_ended() {
+    if !record.end.state.is_ended() {
         return Err(RetestFromStoreError::NotEnded(
             run_id.to_string(),
-            run.state,
+            record.end.state.to_string(),
         ));
     }
-    let context = store
-        .run_context(run_id)?
-        .ok_or_else(|| RetestFromStoreError::NotFound(run_id.to_string()))?;
-    let original: TestPlan = serde_json::from_str(&context.plan_json)
-        .map_err(|e| RetestFromStoreError::Plan(run_id.to_string(), e.to_string()))?;
-    let records: Vec<_> = store
-        .results(run_id)?
-        .into_iter()
-        .map(|r| r.record)
-        .collect();
+    let original = record.start.plan.plan.ok_or_else(|| {
+        RetestFromStoreError::Plan(
+            run_id.to_string(),
+            record.start.plan.unread.unwrap_or_default(),
+        )
+    })?;
+    let records: Vec<_> = record.results.into_iter().map(|r| r.record).collect();
     let (plan, serials) = retest_plan(run_id, &original, &records)?;
-    Ok((plan, serials, context.station_config))
+    Ok((plan, serials, record.start.station_config))
 }

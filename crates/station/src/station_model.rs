@@ -5,7 +5,7 @@
 //! with no history (or a store it cannot read) uses the defaults and says so.
 
 use spinbench_analysis::design::StationModel;
-use spinbench_store::{Store, StoreTarget};
+use spinbench_store::{Store, StoreTarget, StoredState};
 
 /// Runs the model learns from unless told otherwise (the newest completed ones).
 pub const DEFAULT_MODEL_RUNS: usize = 10;
@@ -53,13 +53,14 @@ pub fn learn_from(store: &Store, station: &str, runs: usize) -> Learned {
     let mut at_rest = Vec::new();
     for run in listed
         .iter()
-        .filter(|r| r.station == station && r.state == "completed")
+        .filter(|r| r.station == station && r.state == StoredState::Completed)
         .take(runs.min(MAX_MODEL_RUNS))
     {
-        let plan =
-            store.run_context(&run.id).ok().flatten().and_then(|c| {
-                serde_json::from_str::<spinbench_engine::TestPlan>(&c.plan_json).ok()
-            });
+        let plan = store
+            .run_start(&run.id)
+            .ok()
+            .flatten()
+            .and_then(|start| start.plan.plan);
         if let (Some(plan), Ok(results)) = (plan, store.results(&run.id)) {
             let records_of_run: Vec<_> = results.into_iter().map(|r| r.record).collect();
             // The one-second values at rest, per instrument (its noise's Allan deviation).
@@ -134,13 +135,13 @@ fn signatures_on_table<'a>(
         .runs()
         .unwrap_or_default()
         .into_iter()
-        .filter(move |r| r.station == config.station && r.state == "completed")
+        .filter(move |r| r.station == config.station && r.state == StoredState::Completed)
         .filter(move |r| {
             store
-                .run_context(&r.id)
+                .run_start(&r.id)
                 .ok()
                 .flatten()
-                .and_then(|c| c.station_config)
+                .and_then(|start| start.station_config)
                 .and_then(|text| spinbench_engine::StationConfig::from_toml(&text).ok())
                 .is_some_and(|then| same_table(&then, config))
         })

@@ -94,7 +94,7 @@ fn a_postgresql_store_is_backed_up_and_restored_by_its_own_tools() {
 
     // Restored into another, empty database: the same runs.
     let other =
-        spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
+        spinbench_store::testing::empty_postgres_database(&admin).expect("a fresh database");
     let dump = dumps[0].to_str().expect("utf-8");
     let (ok, said, err) = spinbench(&["restore", dump, "--db", &other]);
     assert!(ok && said.contains("restored 1 runs"), "{said}{err}");

@@ -496,7 +496,7 @@ fn item_2_sigterm_with_silent_devices_ends_in_bounded_time_and_records_the_run()
     let runs = store.runs().expect("runs");
     assert_eq!(runs.len(), 1);
     assert!(
-        runs[0].state == "aborted" || runs[0].state == "faulted",
+        runs[0].state.as_str() == "aborted" || runs[0].state.as_str() == "faulted",
         "{} {:?}",
         runs[0].state,
         runs[0].reason

@@ -200,7 +200,7 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
         );
         assert_eq!(
             store.run(&run_id).expect("run").map(|r| r.state),
-            Some("completed".to_string()),
+            Some(spinbench_store::StoredState::Completed),
             "trial {trial}"
         );
         let got = points(&run_dir);

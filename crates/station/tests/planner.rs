@@ -119,9 +119,8 @@ fn a_plan_is_designed_from_the_stations_runs_and_its_prediction_is_reported() {
     ))
     .expect("store");
     let run = store.runs().expect("runs").remove(0);
-    let context = store.run_context(&run.id).expect("context").expect("run");
-    let plan: spinbench_engine::TestPlan =
-        serde_json::from_str(&context.plan_json).expect("the run's plan");
+    let start = store.run_start(&run.id).expect("start").expect("run");
+    let plan: spinbench_engine::TestPlan = start.plan.plan.expect("the run's plan");
     assert!(!plan.is_auto(), "the run's plan holds what was designed");
     let prediction = plan.prediction.clone().expect("prediction");
     assert!(prediction.k2_u95_ug_per_g2 <= published * (1.0 + 1e-12));

@@ -93,12 +93,13 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         .collect();
     // Same serials in the same slots (1 and 7, 0-based 0 and 6).
     assert_eq!(again, [(0, "R1".to_string()), (6, "R7".to_string())]);
-    let context = store
-        .run_context(&retest.id)
-        .expect("context")
+    let plan: spinbench_engine::TestPlan = store
+        .run_start(&retest.id)
+        .expect("start")
+        .expect("the retest")
+        .plan
+        .plan
         .expect("plan");
-    let plan: spinbench_engine::TestPlan =
-        serde_json::from_str(&context.plan_json).expect("plan json");
     assert_eq!(plan.retest_of.as_deref(), Some(first.as_str()));
     assert_eq!(plan.limits.k2_max_ug_per_g2, 25.0);
 

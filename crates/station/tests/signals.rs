@@ -81,7 +81,7 @@ fn check_recorded(data: &Path, name: &str) {
     .expect("store");
     let runs = store.runs().expect("runs");
     assert_eq!(runs.len(), 1);
-    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0].reason);
+    assert_eq!(runs[0].state.as_str(), "aborted", "{:?}", runs[0].reason);
     let reason = runs[0].reason.clone().unwrap_or_default();
     assert!(reason.contains(name), "{reason}");
     for r in store.results(&runs[0].id).expect("results") {

@@ -80,7 +80,7 @@ fn a_postgres_restart_in_the_middle_of_a_run_loses_nothing() {
             .expect("store");
     let runs = store.runs().expect("runs");
     assert_eq!(runs.len(), 1);
-    assert_eq!(runs[0].state, "completed", "{:?}", runs[0].reason);
+    assert_eq!(runs[0].state.as_str(), "completed", "{:?}", runs[0].reason);
     let points = store.points(&runs[0].id).expect("points").len();
     assert!(points > 0);
     assert_eq!(points, journal_points(&dir.path().join("data")));
@@ -143,7 +143,7 @@ fn a_stalled_postgres_neither_stops_the_measuring_nor_the_abort() {
     assert!(recovered.problems.is_empty(), "{recovered:?}");
     let runs = store.runs().expect("runs");
     assert_eq!(runs.len(), 1);
-    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0].reason);
+    assert_eq!(runs[0].state.as_str(), "aborted", "{:?}", runs[0].reason);
     assert!(
         runs[0]
             .reason
@@ -187,7 +187,7 @@ fn a_minute_of_a_stalled_postgres_under_a_run_loses_nothing() {
         spinbench_store::Store::connect(&spinbench_store::StoreTarget::Postgres(db.url.clone()))
             .expect("store");
     let runs = store.runs().expect("runs");
-    assert_eq!(runs[0].state, "completed", "{:?}", runs[0].reason);
+    assert_eq!(runs[0].state.as_str(), "completed", "{:?}", runs[0].reason);
     assert_eq!(
         store.points(&runs[0].id).expect("points").len(),
         journal_points(&dir.path().join("data"))

@@ -380,7 +380,7 @@ fn postgres_four_stations_write_at_once_and_nothing_is_lost_or_mixed() {
             .run(&run_id)
             .expect("query")
             .expect("the run is stored");
-        assert_eq!(run.state, "completed", "station {k}");
+        assert_eq!(run.state.as_str(), "completed", "station {k}");
         // Every point of the run's own record is stored, once, under this run only.
         let records: Value = serde_json::from_str(
             &std::fs::read_to_string(run_dir.join("results.json")).expect("results.json"),
@@ -563,6 +563,172 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
                 .iter()
                 .any(|p| p.contains(&format!("{serial} (slot"))),
             "a page of {serial}"
+        );
+    }
+}
+
+#[test]
+fn postgres_a_whole_test_runs_with_a_role_that_has_data_rights_only() {
+    // The schema made by its owner (`spinbench migrate`, here the test's
+    // fresh database); the station works as a role that may read and write
+    // rows and nothing else, as a plant's DBA grants it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let url = fresh_postgres();
+    let role = format!(
+        "app_{}",
+        url.rsplit('/')
+            .next()
+            .unwrap_or("x")
+            .trim_start_matches("spinbench_test_")
+    );
+    let mut owner = postgres::Client::connect(&url, postgres::NoTls).expect("owner");
+    owner
+        .batch_execute(&format!(
+            "CREATE ROLE {role} LOGIN;
+             GRANT USAGE ON SCHEMA public TO {role};
+             GRANT SELECT, INSERT, UPDATE, DELETE ON ALL TABLES IN SCHEMA public TO {role};
+             GRANT USAGE, SELECT ON ALL SEQUENCES IN SCHEMA public TO {role};"
+        ))
+        .expect("a role with data rights only");
+    let app = url.replacen("://spinbench@", &format!("://{role}@"), 1);
+    // It cannot change the schema…
+    let mut as_app = postgres::Client::connect(&app, postgres::NoTls).expect("app");
+    let e = as_app
+        .batch_execute("CREATE TABLE not_allowed (i INTEGER)")
+        .expect_err("no DDL rights");
+    assert_eq!(
+        e.code(),
+        Some(&postgres::error::SqlState::INSUFFICIENT_PRIVILEGE),
+        "{e:?}"
+    );
+    drop(as_app);
+    // …and runs, stores, lists, exports, reports and replays a whole test.
+    roundtrip(dir.path(), Some(&app), &StoreTarget::Postgres(app.clone()));
+    // `spinbench migrate` as that role: nothing to do on a current store.
+    let (ok, said, err) = spinbench(&["migrate", "--db", &app]);
+    assert!(ok && said.contains("nothing to do"), "{said}{err}");
+}
+
+#[test]
+fn postgres_a_store_that_is_not_migrated_is_refused_with_the_command_to_run() {
+    let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::empty_postgres_database(&admin).expect("an empty database");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("M")).expect("plan");
+    let data = dir.path().join("data");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--data",
+        data.to_str().expect("utf-8"),
+        plan.to_str().expect("utf-8"),
+        "--db",
+        &url,
+    ]);
+    assert!(!ok, "a run started on a store with no schema");
+    assert!(err.contains("spinbench migrate --db"), "{err}");
+    let (ok, said, err) = spinbench(&["migrate", "--db", &url, "--history"]);
+    let wanted = spinbench_store::MIGRATIONS.len();
+    assert!(
+        ok && said.contains(&format!("schema version 0 → {wanted}")),
+        "{said}{err}"
+    );
+    // The history: every version, this release for each.
+    assert_eq!(
+        said.lines()
+            .filter(|l| l.contains(env!("CARGO_PKG_VERSION")))
+            .count(),
+        wanted,
+        "{said}"
+    );
+}
+
+/// A store written by the previous release (`b9d354f`, schema 13: a
+/// simulated run of `common::short_plan("OLD-")`, seed 4) with what that
+/// release's `export` and `report --format csv` said of it.
+const PREVIOUS_RELEASE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/fixtures/previous-release"
+);
+
+#[test]
+fn a_store_written_by_the_previous_release_migrates_and_reads_back_the_same_record() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let db = dir.path().join("spinbench.db");
+    std::fs::copy(format!("{PREVIOUS_RELEASE}/spinbench.db"), &db).expect("the fixture");
+    let db_s = db.to_str().expect("utf-8");
+    let (ok, said, err) = spinbench(&["migrate", "--db", db_s, "--history"]);
+    let wanted = spinbench_store::MIGRATIONS.len();
+    assert!(
+        ok && said.contains(&format!("schema version 13 → {wanted}")),
+        "{said}{err}"
+    );
+    // The history: the first twelve from before it was kept, then each with its time.
+    assert_eq!(said.matches("(before the history)").count(), 12, "{said}");
+    let store = Store::connect(&StoreTarget::File(db.clone())).expect("open");
+    let runs = store.runs().expect("runs");
+    assert_eq!(runs.len(), 1);
+    let id = runs[0].id.clone();
+    // The same points and the same report, byte for byte.
+    let (ok, points, err) = spinbench(&["export", &id, "--db", db_s]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        points,
+        std::fs::read_to_string(format!("{PREVIOUS_RELEASE}/export.csv")).expect("export.csv")
+    );
+    let out = dir.path().join("reports");
+    let (ok, _, err) = spinbench(&[
+        "report",
+        &id,
+        "--format",
+        "csv",
+        "--out",
+        out.to_str().expect("utf-8"),
+        "--db",
+        db_s,
+    ]);
+    assert!(ok, "{err}");
+    let report = std::fs::read_dir(&out)
+        .expect("reports")
+        .flatten()
+        .find(|e| e.path().extension().is_some_and(|x| x == "csv"))
+        .expect("a csv report");
+    assert_eq!(
+        std::fs::read_to_string(report.path()).expect("report"),
+        std::fs::read_to_string(format!("{PREVIOUS_RELEASE}/report.csv")).expect("report.csv")
+    );
+    // The typed record: an old layout (no version), its plan and devices read.
+    let record = store.run_record(&id).expect("read").expect("the run");
+    assert_eq!(record.start.record_version, 1);
+    assert!(
+        record.start.plan.plan.is_some(),
+        "{:?}",
+        record.start.plan.unread
+    );
+    assert!(!record.devices.is_empty());
+    assert_eq!(record.end.state, spinbench_store::StoredState::Completed);
+    assert_eq!(record.results.len(), 3);
+    // The migration filled the results' figure columns from the records.
+    let conn = rusqlite::Connection::open(&db).expect("sqlite");
+    for r in &record.results {
+        let (k2_p, k2_u95_p, big_k2, measurand): (Option<f64>, Option<f64>, Option<f64>, Option<String>) = conn
+            .query_row(
+                "SELECT k2_p_ug_per_g2, k2_p_u95, instrument_k2_ug_per_g2, measurand FROM results WHERE run_id = ?1 AND slot = ?2",
+                rusqlite::params![id, r.slot],
+                |row| Ok((row.get(0)?, row.get(1)?, row.get(2)?, row.get(3)?)),
+            )
+            .expect("figures");
+        let f = spinbench_store::ResultFigures::of(&r.record);
+        assert_eq!(k2_p, f.k2_p, "{}", r.serial);
+        assert_eq!(k2_u95_p, f.k2_p_u95, "{}", r.serial);
+        assert_eq!(big_k2, f.instrument_k2, "{}", r.serial);
+        assert_eq!(measurand.as_deref(), f.measurand, "{}", r.serial);
+        assert!(
+            f.k2_p.is_some() && f.instrument_k2.is_some(),
+            "{}",
+            r.serial
         );
     }
 }

@@ -347,7 +347,7 @@ fn sigterm_stops_the_run_then_the_event_streams_in_bounded_time_on(backend: Back
     .expect("store");
     let runs = store.runs().expect("runs");
     assert_eq!(runs.len(), 1);
-    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0].reason);
+    assert_eq!(runs[0].state.as_str(), "aborted", "{:?}", runs[0].reason);
     assert!(
         runs[0]
             .reason

@@ -166,5 +166,5 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
         spinbench_station::recovery::recover(dir.path(), "spinbench virtual bench", &store);
     assert!(recovered.problems.is_empty(), "{recovered:?}");
     let runs = store.runs().expect("runs");
-    assert_eq!(runs[0].state, "aborted", "{:?}", runs[0]);
+    assert_eq!(runs[0].state.as_str(), "aborted", "{:?}", runs[0]);
 }

@@ -52,7 +52,7 @@ impl Store {
                 p.g_nominal,
                 p.g_applied,
                 p.output_hz,
-                p.direction
+                p.direction.as_str()
             ));
         }
         Ok(out)

@@ -71,6 +71,15 @@ impl Row {
             _ => 0,
         }
     }
+    /// Column `i` as an integer, if any.
+    pub fn opt_int(&self, i: usize) -> Option<i64> {
+        match self.0.get(i) {
+            Some(Value::Int(v)) => *v,
+            Some(Value::Real(v)) => v.map(|v| v as i64),
+            Some(Value::Text(v)) => v.as_deref().and_then(|t| t.parse().ok()),
+            _ => None,
+        }
+    }
     /// Column `i` as a number, if any.
     pub fn opt_real(&self, i: usize) -> Option<f64> {
         match self.0.get(i) {

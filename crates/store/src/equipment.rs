@@ -26,15 +26,19 @@ pub struct EquipmentRow {
 }
 
 /// How a device stands against its due date.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum CalibrationStatus {
     /// Within its calibration, more than [`DUE_SOON_DAYS`] days to go.
+    #[serde(rename = "valid")]
     Valid,
     /// Due within [`DUE_SOON_DAYS`] days.
+    #[serde(rename = "due soon")]
     DueSoon,
     /// Past its due date.
+    #[serde(rename = "overdue")]
     Overdue,
     /// Not in the register.
+    #[serde(rename = "not in the register")]
     Unregistered,
 }
 

@@ -15,6 +15,7 @@
 //! | `db` | the thin layer over both databases: SQL written once, typed values |
 //! | `schema` | the migrations and the schema's version and soundness |
 //! | `queries` | runs, typed results, points, values, radii read back |
+//! | `record` | [`RunRecord`]: a whole run, typed, in one call; the stored enumerations ([`StoredState`]) |
 //! | `sink` | [`StoreSink`]: the engine's events written as they happen |
 //! | [`outbox`] | the run's events queued and written on a thread of their own (the run never waits on the database), caught up after an outage or at the next start |
 //! | `csv` | points as CSV, text cells guarded against formula injection |
@@ -31,6 +32,7 @@ pub mod fleet;
 mod label;
 pub mod outbox;
 mod queries;
+mod record;
 mod schema;
 mod sink;
 pub mod testing;
@@ -38,10 +40,12 @@ mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
 pub use label::{LABEL_SEPARATOR, TypedLabel, label_file_part, parse_label, run_label};
-pub use queries::{
-    ENDED_STATES, PointRow, ResultRow, RunContext, RunRow, UnitRow, ValueRow, run_state_is_ended,
+pub use queries::{PointRow, ResultRow, RunRow, UnitRow, ValueRow};
+pub use record::{
+    DeviceEntry, OperatorAction, RECORD_VERSION, ResultFigures, RunEnd, RunRecord, RunStart,
+    StoredPlan, StoredState,
 };
-pub use schema::{MIGRATIONS, Migration};
+pub use schema::{MIGRATIONS, Migration, MigrationApplied};
 pub use sink::StoreSink;
 pub use users::{AuditRow, UserRow};
 
@@ -257,8 +261,35 @@ impl Store {
         Ok(store)
     }
 
-    /// Open a store (a file is created if needed) and bring its schema up to date.
+    /// Open a store for the station's work (`run`, `serve`, the users and
+    /// the register). An SQLite file is created if needed and its schema
+    /// brought up to date (the file is the station's own). A PostgreSQL
+    /// store is never changed here: its schema must be this release's, made
+    /// by `spinbench migrate` as the database's owner, so the station can
+    /// work with a role that has data rights only; one that is not is
+    /// refused, saying the command to run.
     pub fn connect(target: &StoreTarget) -> Result<Store, StoreError> {
+        let store = Store::open_connection(target)?;
+        match target {
+            StoreTarget::File(_) => store.migrate()?,
+            StoreTarget::Postgres(_) => store.require_current_schema()?,
+        }
+        Ok(store)
+    }
+
+    /// Open a store and bring its schema up to date on either back end
+    /// (`spinbench migrate`, a restore, tests): the versions it was at and
+    /// is at now.
+    pub fn migrate_target(target: &StoreTarget) -> Result<(Store, i64, i64), StoreError> {
+        let store = Store::open_connection(target)?;
+        let before = store.schema_version_if_any()?;
+        store.migrate()?;
+        let after = store.schema_version()?;
+        Ok((store, before, after))
+    }
+
+    /// The connection to `target`, its schema not looked at.
+    fn open_connection(target: &StoreTarget) -> Result<Store, StoreError> {
         let err = |what: &str| failed(target, what);
         let db = match target {
             StoreTarget::File(path) => {
@@ -290,13 +321,11 @@ impl Store {
                 Default::default(),
             ),
         };
-        let store = Store {
+        Ok(Store {
             db: RefCell::new(db),
             target: target.clone(),
             reconnected: std::cell::Cell::new(None),
-        };
-        store.migrate()?;
-        Ok(store)
+        })
     }
 
     /// The connection. A PostgreSQL server that closed it (restarted, or

@@ -2,6 +2,8 @@
 //! one-second values, radii.
 
 use super::*;
+use crate::record::{parse_column, stored_direction, stored_mount};
+use spinbench_analysis::{Direction, Mount};
 
 /// One run in a listing.
 #[derive(Debug, Clone, PartialEq)]
@@ -11,7 +13,7 @@ pub struct RunRow {
     /// Station name.
     pub station: String,
     /// Final (or current) state.
-    pub state: String,
+    pub state: StoredState,
     /// Why it ended, if not completed.
     pub reason: Option<String>,
     /// Unix time it started.
@@ -55,11 +57,11 @@ pub struct PointRow {
     /// Serial number.
     pub serial: String,
     /// P or N.
-    pub mount: String,
+    pub mount: Mount,
     /// Nominal level [g].
     pub g_nominal: f64,
-    /// up or down.
-    pub direction: String,
+    /// Up or down.
+    pub direction: Direction,
     /// Applied acceleration, method.md (9) [g].
     pub g_applied: f64,
     /// Mean measured rate [deg/s].
@@ -99,28 +101,13 @@ pub struct UnitRow {
     /// Slot (0-based).
     pub slot: i64,
     /// P or N.
-    pub mount: String,
+    pub mount: Mount,
     /// Serial number.
     pub serial: String,
     /// The fixture's drawing radius R0 [m].
     pub drawing_radius_m: f64,
     /// The radius found [m].
     pub radius_m: f64,
-}
-
-/// One run's context: what the station was and what it was made of.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct RunContext {
-    /// The station config (TOML) as the run used it.
-    pub station_config: Option<String>,
-    /// The devices' identities (JSON list of `{role, identity}`).
-    pub devices_json: Option<String>,
-    /// The plan (JSON).
-    pub plan_json: String,
-    /// The software version that ran it.
-    pub software_version: String,
-    /// Operator actions: (unix time, who, what).
-    pub operator_actions: Vec<(i64, String, String)>,
 }
 
 impl Store {
@@ -145,23 +132,24 @@ impl Store {
             ),
             params,
         )?;
-        Ok(rows
-            .iter()
-            .map(|r| RunRow {
-                id: r.text(0),
-                station: r.text(1),
-                state: r.text(2),
-                reason: r.opt_text(3),
-                started_at: r.int(4),
-                units: r.int(5),
-                points: r.int(6),
-                retest_of: r.opt_text(7),
-                reason_wording: r
-                    .opt_text(8)
-                    .and_then(|json| serde_json::from_str(&json).ok()),
-                seq: r.opt_text(9).and_then(|s| s.parse().ok()),
+        rows.iter()
+            .map(|r| {
+                Ok(RunRow {
+                    id: r.text(0),
+                    station: r.text(1),
+                    state: parse_column(&r.text(2), "run state").map_err(self.err("list runs"))?,
+                    reason: r.opt_text(3),
+                    started_at: r.int(4),
+                    units: r.int(5),
+                    points: r.int(6),
+                    retest_of: r.opt_text(7),
+                    reason_wording: r
+                        .opt_text(8)
+                        .and_then(|json| serde_json::from_str(&json).ok()),
+                    seq: r.opt_int(9),
+                })
             })
-            .collect())
+            .collect()
     }
 
     /// The runs that retest `id`, oldest first.
@@ -180,36 +168,6 @@ impl Store {
             .runs_where("r.id = $1", &[id.into()])?
             .into_iter()
             .next())
-    }
-
-    /// A run's context (station config, devices, plan, operator actions).
-    pub fn run_context(&self, id: &str) -> Result<Option<RunContext>, StoreError> {
-        let Some(row) = self
-            .query(
-                "read a run",
-                "SELECT station_config, devices_json, plan_json, software_version FROM runs WHERE id = $1",
-                &[id.into()],
-            )?
-            .into_iter()
-            .next()
-        else {
-            return Ok(None);
-        };
-        let actions = self.query(
-            "read operator actions",
-            "SELECT at, who, action FROM operator_actions WHERE run_id = $1 ORDER BY seq",
-            &[id.into()],
-        )?;
-        Ok(Some(RunContext {
-            station_config: row.opt_text(0),
-            devices_json: row.opt_text(1),
-            plan_json: row.text(2),
-            software_version: row.text(3),
-            operator_actions: actions
-                .iter()
-                .map(|r| (r.int(0), r.text(1), r.text(2)))
-                .collect(),
-        }))
     }
 
     pub(crate) fn results_where(
@@ -270,25 +228,27 @@ impl Store {
              FROM points WHERE run_id = $1 ORDER BY step, slot",
             &[run_id.into()],
         )?;
-        Ok(rows
-            .iter()
-            .map(|r| PointRow {
-                step: r.int(0),
-                slot: r.int(1),
-                serial: r.text(2),
-                mount: r.text(3),
-                g_nominal: r.real(4),
-                direction: r.text(5),
-                g_applied: r.real(6),
-                rate_deg_s: r.real(7),
-                output_hz: r.real(8),
-                std_hz: r.real(9),
-                n: r.int(10),
-                time_s: [r.real(11), r.real(12)],
-                temperature_c: r.opt_real(13),
-                temperature_change_c: r.opt_real(14),
+        let bad = self.err("read points");
+        rows.iter()
+            .map(|r| {
+                Ok(PointRow {
+                    step: r.int(0),
+                    slot: r.int(1),
+                    serial: r.text(2),
+                    mount: stored_mount(&r.text(3)).map_err(&bad)?,
+                    g_nominal: r.real(4),
+                    direction: stored_direction(&r.text(5)).map_err(&bad)?,
+                    g_applied: r.real(6),
+                    rate_deg_s: r.real(7),
+                    output_hz: r.real(8),
+                    std_hz: r.real(9),
+                    n: r.int(10),
+                    time_s: [r.real(11), r.real(12)],
+                    temperature_c: r.opt_real(13),
+                    temperature_change_c: r.opt_real(14),
+                })
             })
-            .collect())
+            .collect()
     }
 
     /// The one-second values of a run, by time and slot.
@@ -350,16 +310,18 @@ impl Store {
             "SELECT slot, mount, serial, drawing_radius_m, radius_m FROM units WHERE run_id = $1 ORDER BY slot, mount",
             &[run_id.into()],
         )?;
-        Ok(rows
-            .iter()
-            .map(|r| UnitRow {
-                slot: r.int(0),
-                mount: r.text(1),
-                serial: r.text(2),
-                drawing_radius_m: r.real(3),
-                radius_m: r.real(4),
+        let bad = self.err("read units");
+        rows.iter()
+            .map(|r| {
+                Ok(UnitRow {
+                    slot: r.int(0),
+                    mount: stored_mount(&r.text(1)).map_err(&bad)?,
+                    serial: r.text(2),
+                    drawing_radius_m: r.real(3),
+                    radius_m: r.real(4),
+                })
             })
-            .collect())
+            .collect()
     }
 }
 
@@ -388,20 +350,9 @@ impl Store {
     }
 }
 
-/// The states of a run that has ended, as the store writes them: the
-/// engine's three ends, and `interrupted` (its process ended without
-/// finishing it, [`Store::mark_interrupted`]). The one list every reader
-/// asks ([`run_state_is_ended`]).
-pub const ENDED_STATES: [&str; 4] = ["completed", "faulted", "aborted", "interrupted"];
-
-/// Whether a stored run state is an end ([`ENDED_STATES`]).
-pub fn run_state_is_ended(state: &str) -> bool {
-    ENDED_STATES.contains(&state)
-}
-
 impl RunRow {
-    /// Whether the run has ended ([`ENDED_STATES`]).
+    /// Whether the run has ended ([`StoredState::is_ended`]).
     pub fn is_ended(&self) -> bool {
-        run_state_is_ended(&self.state)
+        self.state.is_ended()
     }
 }

@@ -15,6 +15,20 @@ pub struct Migration {
     pub postgres: &'static str,
 }
 
+/// One row of the migration history (`spinbench_migrations`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MigrationApplied {
+    /// Its version (1-based).
+    pub version: i64,
+    /// What it adds.
+    pub what: String,
+    /// When it was applied (`YYYY-MM-DD HH:MM:SS UTC`); `None` for one
+    /// applied before the history was kept.
+    pub applied_at: Option<String>,
+    /// The release that applied it.
+    pub release: Option<String>,
+}
+
 /// Schema migrations, in order; never edit one that has shipped, add a new one.
 pub const MIGRATIONS: &[Migration] = &[
     Migration {
@@ -267,34 +281,108 @@ pub const MIGRATIONS: &[Migration] = &[
         release TEXT
     );",
     },
+    Migration {
+        what: "the record's layout version; the result's figures as columns (k2 and U95 per mounting, K2 and U95, measurand, limit), filled from the stored records; foreign keys from a run's rows to the run, from a run to its station and from a session to its user (PostgreSQL)",
+        sqlite: MIGRATION_14_SQLITE,
+        postgres: MIGRATION_14_POSTGRES,
+    },
 ];
+
+/// Migration 14 on SQLite. SQLite cannot add a foreign key to a table
+/// that exists (it would rebuild every large table): its references stay
+/// those the tables were made with (points, results, units → runs).
+const MIGRATION_14_SQLITE: &str = "ALTER TABLE runs ADD COLUMN record_version INTEGER;
+    ALTER TABLE results ADD COLUMN k2_p_ug_per_g2 REAL;
+    ALTER TABLE results ADD COLUMN k2_p_u95 REAL;
+    ALTER TABLE results ADD COLUMN k2_n_ug_per_g2 REAL;
+    ALTER TABLE results ADD COLUMN k2_n_u95 REAL;
+    ALTER TABLE results ADD COLUMN instrument_k2_ug_per_g2 REAL;
+    ALTER TABLE results ADD COLUMN instrument_k2_u95 REAL;
+    ALTER TABLE results ADD COLUMN measurand TEXT;
+    ALTER TABLE results ADD COLUMN limit_ug_per_g2 REAL;
+    UPDATE results SET
+        k2_p_ug_per_g2 = json_extract(record_json, '$.analysis.fits.P.k2_ug_per_g2'),
+        k2_p_u95 = json_extract(record_json, '$.analysis.fits.P.uncertainty.k2_ug_per_g2.U95'),
+        k2_n_ug_per_g2 = json_extract(record_json, '$.analysis.fits.N.k2_ug_per_g2'),
+        k2_n_u95 = json_extract(record_json, '$.analysis.fits.N.uncertainty.k2_ug_per_g2.U95'),
+        instrument_k2_ug_per_g2 = json_extract(record_json, '$.analysis.joint.k2_even_ug_per_g2'),
+        instrument_k2_u95 = json_extract(record_json, '$.analysis.joint.k2_even_U95'),
+        measurand = json_extract(record_json, '$.decision.measurand'),
+        limit_ug_per_g2 = json_extract(record_json, '$.decision.limit_ug_per_g2')
+    WHERE json_valid(record_json);
+    CREATE INDEX results_outcome ON results (outcome, run_id);";
+
+/// Migration 14 on PostgreSQL. A record that is not JSON is left without
+/// figures (never a failed upgrade); the keys are NOT VALID, as the checks
+/// of migration 13: rows already stored are not re-checked, new ones are.
+const MIGRATION_14_POSTGRES: &str = "ALTER TABLE runs ADD COLUMN record_version BIGINT;
+    ALTER TABLE results ADD COLUMN k2_p_ug_per_g2 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN k2_p_u95 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN k2_n_ug_per_g2 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN k2_n_u95 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN instrument_k2_ug_per_g2 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN instrument_k2_u95 DOUBLE PRECISION;
+    ALTER TABLE results ADD COLUMN measurand TEXT;
+    ALTER TABLE results ADD COLUMN limit_ug_per_g2 DOUBLE PRECISION;
+    CREATE FUNCTION pg_temp.spinbench_jsonb(t TEXT) RETURNS jsonb LANGUAGE plpgsql AS
+        $f$ BEGIN RETURN t::jsonb; EXCEPTION WHEN others THEN RETURN NULL; END $f$;
+    CREATE FUNCTION pg_temp.spinbench_number(j jsonb) RETURNS DOUBLE PRECISION LANGUAGE sql AS
+        $f$ SELECT CASE WHEN jsonb_typeof(j) = 'number' THEN (j #>> '{}')::double precision END $f$;
+    UPDATE results r SET
+        k2_p_ug_per_g2 = pg_temp.spinbench_number(j #> '{analysis,fits,P,k2_ug_per_g2}'),
+        k2_p_u95 = pg_temp.spinbench_number(j #> '{analysis,fits,P,uncertainty,k2_ug_per_g2,U95}'),
+        k2_n_ug_per_g2 = pg_temp.spinbench_number(j #> '{analysis,fits,N,k2_ug_per_g2}'),
+        k2_n_u95 = pg_temp.spinbench_number(j #> '{analysis,fits,N,uncertainty,k2_ug_per_g2,U95}'),
+        instrument_k2_ug_per_g2 = pg_temp.spinbench_number(j #> '{analysis,joint,k2_even_ug_per_g2}'),
+        instrument_k2_u95 = pg_temp.spinbench_number(j #> '{analysis,joint,k2_even_U95}'),
+        measurand = j #>> '{decision,measurand}',
+        limit_ug_per_g2 = pg_temp.spinbench_number(j #> '{decision,limit_ug_per_g2}')
+    FROM (SELECT run_id, slot, pg_temp.spinbench_jsonb(record_json) AS j FROM results) parsed
+    WHERE parsed.run_id = r.run_id AND parsed.slot = r.slot AND parsed.j IS NOT NULL;
+    CREATE INDEX results_outcome ON results (outcome, run_id);
+    ALTER TABLE results ADD CONSTRAINT results_measurand_known CHECK (measurand IN ('K2', 'k2_max')) NOT VALID;
+    ALTER TABLE events ADD CONSTRAINT events_run FOREIGN KEY (run_id) REFERENCES runs(id) NOT VALID;
+    ALTER TABLE values_1s ADD CONSTRAINT values_1s_run FOREIGN KEY (run_id) REFERENCES runs(id) NOT VALID;
+    ALTER TABLE operator_actions ADD CONSTRAINT operator_actions_run FOREIGN KEY (run_id) REFERENCES runs(id) NOT VALID;
+    ALTER TABLE runs ADD CONSTRAINT runs_station FOREIGN KEY (station) REFERENCES stations(name) NOT VALID;
+    ALTER TABLE runs ADD CONSTRAINT runs_retest_of_run FOREIGN KEY (retest_of) REFERENCES runs(id) NOT VALID;
+    ALTER TABLE sessions ADD CONSTRAINT sessions_user FOREIGN KEY (user_name) REFERENCES users(name) ON DELETE CASCADE NOT VALID;";
 
 /// The first migration whose application is written into
 /// `spinbench_migrations` (the table it makes); the ones before it are
 /// listed there with no time, as applied before the history was kept.
 const HISTORY_FROM: usize = 13;
 
-/// The history row of migration `v` (1-based), applied now by this release.
-fn history_row(db: &mut Db, v: usize) -> Result<(), DbError> {
-    let what = MIGRATIONS.get(v - 1).map_or("", |m| m.what);
+/// The history row of migration `v` (1-based), applied now by this
+/// release, in a migration that started from version `from`. With the
+/// history's own migration, the ones before it are listed too: those this
+/// call applied with this time and release, those applied before with none.
+fn history_row(db: &mut Db, v: usize, from: usize) -> Result<(), DbError> {
     let now = match db.dialect() {
         Dialect::Sqlite => "CAST(strftime('%s', 'now') AS INTEGER)",
         Dialect::Postgres => "now()",
     };
-    if v == HISTORY_FROM {
-        for (i, m) in MIGRATIONS.iter().enumerate().take(HISTORY_FROM - 1) {
+    let first = if v == HISTORY_FROM { 1 } else { v };
+    for version in first..=v {
+        let what = MIGRATIONS.get(version - 1).map_or("", |m| m.what);
+        if version > from {
+            db.execute(
+                &format!(
+                    "INSERT INTO spinbench_migrations (version, what, applied_at, release) VALUES ($1, $2, {now}, $3)"
+                ),
+                &[
+                    (version as i64).into(),
+                    what.into(),
+                    env!("CARGO_PKG_VERSION").into(),
+                ],
+            )?;
+        } else {
             db.execute(
                 "INSERT INTO spinbench_migrations (version, what) VALUES ($1, $2)",
-                &[((i + 1) as i64).into(), m.what.into()],
+                &[(version as i64).into(), what.into()],
             )?;
         }
     }
-    db.execute(
-        &format!(
-            "INSERT INTO spinbench_migrations (version, what, applied_at, release) VALUES ($1, $2, {now}, $3)"
-        ),
-        &[(v as i64).into(), what.into(), env!("CARGO_PKG_VERSION").into()],
-    )?;
     Ok(())
 }
 
@@ -377,6 +465,11 @@ fn schema_version(db: &mut Db) -> Result<i64, DbError> {
 
 impl Store {
     pub(crate) fn migrate(&self) -> Result<(), StoreError> {
+        // A current store is not touched (no lock, no DDL): a role with
+        // data rights only may ask.
+        if self.schema_version_if_any()? == MIGRATIONS.len() as i64 {
+            return Ok(());
+        }
         let mut db = self.db();
         let dialect = db.dialect();
         if dialect == Dialect::Postgres {
@@ -398,7 +491,7 @@ impl Store {
                         db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite))
                             .and_then(|()| {
                                 if i + 1 >= HISTORY_FROM {
-                                    history_row(&mut db, i + 1)?;
+                                    history_row(&mut db, i + 1, version.max(0) as usize)?;
                                 }
                                 Ok(())
                             })
@@ -426,7 +519,7 @@ impl Store {
                             m.postgres
                         ))?;
                         if i + 1 >= HISTORY_FROM {
-                            history_row(db, i + 1)?;
+                            history_row(db, i + 1, version.max(0) as usize)?;
                         }
                         Ok(())
                     })
@@ -439,6 +532,65 @@ impl Store {
             let _ = db.batch("SELECT pg_advisory_unlock(1293)");
         }
         result.map_err(self.err("cannot bring the schema up to date"))
+    }
+
+    /// The schema version, 0 for a database the station never migrated
+    /// (PostgreSQL: no `spinbench_schema` table yet).
+    pub(crate) fn schema_version_if_any(&self) -> Result<i64, StoreError> {
+        let mut db = self.db();
+        if db.dialect() == Dialect::Postgres {
+            let exists = db
+                .query_one("SELECT to_regclass('spinbench_schema') IS NOT NULL", &[])
+                .map_err(self.err("cannot read the schema version"))?
+                .is_some_and(|r| r.int(0) != 0);
+            if !exists {
+                return Ok(0);
+            }
+        }
+        schema_version(&mut db).map_err(self.err("cannot read the schema version"))
+    }
+
+    /// Refuse a store whose schema is not this release's, saying what to do.
+    pub(crate) fn require_current_schema(&self) -> Result<(), StoreError> {
+        let version = self.schema_version_if_any()?;
+        let wanted = MIGRATIONS.len() as i64;
+        let problem = if version < wanted {
+            format!(
+                "its schema is version {version} and this release needs version {wanted}: run `spinbench migrate --db {}` as the database's owner (the Debian package runs it on install and upgrade), then start again",
+                self.target
+            )
+        } else if version > wanted {
+            format!(
+                "its schema is version {version}, written by a newer release; this release reads up to version {wanted}: upgrade spinbench on this station"
+            )
+        } else {
+            return Ok(());
+        };
+        Err(StoreError::message(&self.target, "cannot use it", problem))
+    }
+
+    /// The migration history, oldest first.
+    pub fn migration_history(&self) -> Result<Vec<MigrationApplied>, StoreError> {
+        let applied_at = match self.db().dialect() {
+            Dialect::Sqlite => "datetime(applied_at, 'unixepoch') || ' UTC'",
+            Dialect::Postgres => {
+                "to_char(applied_at AT TIME ZONE 'UTC', 'YYYY-MM-DD HH24:MI:SS') || ' UTC'"
+            }
+        };
+        Ok(self
+            .query(
+                "read the migration history",
+                &format!("SELECT version, what, {applied_at}, release FROM spinbench_migrations ORDER BY version"),
+                &[],
+            )?
+            .iter()
+            .map(|r| MigrationApplied {
+                version: r.int(0),
+                what: r.text(1),
+                applied_at: r.opt_text(2),
+                release: r.opt_text(3),
+            })
+            .collect())
     }
 
     /// The schema version of the database.

@@ -3,6 +3,7 @@
 //! the run (nothing is dropped).
 
 use super::*;
+use crate::record::{DeviceEntry, ResultFigures, StoredState};
 
 /// Writes a run's events as they happen. A failed write is an error the
 /// engine answers by holding the run and offering the same event again
@@ -98,8 +99,8 @@ impl StoreSink {
                             .map_or(0, |r| r.int(0));
                         db.execute(
                             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
-                               station_config, retest_of, seq)
-                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8, $9)",
+                               station_config, retest_of, seq, record_version)
+                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8, $9, $10)",
                             &[
                                 run_id.into(),
                                 station.into(),
@@ -110,6 +111,7 @@ impl StoreSink {
                                 (!station_config.is_empty()).then(|| station_config.clone()).into(),
                                 plan.plan.retest_of.clone().into(),
                                 seq.into(),
+                                crate::record::RECORD_VERSION.into(),
                             ],
                         )?;
                     }
@@ -124,33 +126,30 @@ impl StoreSink {
                 for d in devices {
                     let row = db.query_one(
                         "SELECT certificate, calibrated_on, due_on FROM equipment WHERE role = $1",
-                        &[d.role.as_str().into()],
+                        &[d.role.name().into()],
                     )?;
-                    let mut entry = serde_json::json!({ "role": d.role, "identity": d.identity });
-                    match row {
-                        Some(r) => {
-                            let due = r.text(2);
-                            let status = crate::equipment::status_of_due(&due, today).as_str();
-                            entry["certificate"] = r.text(0).into();
-                            entry["calibrated_on"] = r.text(1).into();
-                            entry["due_on"] = due.into();
-                            entry["calibration"] = status.into();
-                        }
-                        None => {
-                            entry["calibration"] =
-                                crate::equipment::CalibrationStatus::Unregistered
-                                    .as_str()
-                                    .into();
-                        }
+                    let mut entry = DeviceEntry {
+                        role: d.role,
+                        identity: d.identity.clone(),
+                        calibration: Some(crate::equipment::CalibrationStatus::Unregistered),
+                        certificate: None,
+                        calibrated_on: None,
+                        due_on: None,
+                    };
+                    if let Some(r) = row {
+                        let due = r.text(2);
+                        entry.calibration = Some(crate::equipment::status_of_due(&due, today));
+                        entry.certificate = Some(r.text(0));
+                        entry.calibrated_on = Some(r.text(1));
+                        entry.due_on = Some(due);
                     }
                     listed.push(entry);
                 }
+                let listed = serde_json::to_string(&listed)
+                    .map_err(|e| -> DbError { format!("the device list: {e}").into() })?;
                 db.execute(
                     "UPDATE runs SET devices_json = $2 WHERE id = $1",
-                    &[
-                        run_id.as_str().into(),
-                        serde_json::Value::Array(listed).to_string().into(),
-                    ],
+                    &[run_id.as_str().into(), listed.into()],
                 )?;
             }
             Event::RadiusDone {
@@ -217,7 +216,7 @@ impl StoreSink {
                                 serial.into(),
                                 p.mount.to_string().into(),
                                 p.g_nominal.into(),
-                                format!("{:?}", p.direction).to_lowercase().into(),
+                                p.direction.as_str().into(),
                                 p.g_applied.into(),
                                 p.rate_deg_s.into(),
                                 p.output_hz.into(),
@@ -234,13 +233,22 @@ impl StoreSink {
                 })?;
             }
             Event::UnitResult { record } => {
-                let json = serde_json::to_string(record).unwrap_or_default();
+                let json = serde_json::to_string(record)
+                    .map_err(|e| -> DbError { format!("the unit's record: {e}").into() })?;
+                let f = ResultFigures::of(record);
                 db.execute(
-                    "INSERT INTO results (run_id, slot, serial, outcome, k2_max_ug_per_g2, record_json)
-                     VALUES ($1, $2, $3, $4, $5, $6)
+                    "INSERT INTO results (run_id, slot, serial, outcome, k2_max_ug_per_g2, record_json,
+                       k2_p_ug_per_g2, k2_p_u95, k2_n_ug_per_g2, k2_n_u95,
+                       instrument_k2_ug_per_g2, instrument_k2_u95, measurand, limit_ug_per_g2)
+                     VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)
                      ON CONFLICT (run_id, slot) DO UPDATE SET serial = excluded.serial,
                        outcome = excluded.outcome, k2_max_ug_per_g2 = excluded.k2_max_ug_per_g2,
-                       record_json = excluded.record_json",
+                       record_json = excluded.record_json, k2_p_ug_per_g2 = excluded.k2_p_ug_per_g2,
+                       k2_p_u95 = excluded.k2_p_u95, k2_n_ug_per_g2 = excluded.k2_n_ug_per_g2,
+                       k2_n_u95 = excluded.k2_n_u95,
+                       instrument_k2_ug_per_g2 = excluded.instrument_k2_ug_per_g2,
+                       instrument_k2_u95 = excluded.instrument_k2_u95,
+                       measurand = excluded.measurand, limit_ug_per_g2 = excluded.limit_ug_per_g2",
                     &[
                         run_id.as_str().into(),
                         (record.slot as i64).into(),
@@ -248,6 +256,14 @@ impl StoreSink {
                         record.outcome.as_str().into(),
                         record.k2_max_ug_per_g2.into(),
                         json.into(),
+                        f.k2_p.into(),
+                        f.k2_p_u95.into(),
+                        f.k2_n.into(),
+                        f.k2_n_u95.into(),
+                        f.instrument_k2.into(),
+                        f.instrument_k2_u95.into(),
+                        f.measurand.map(str::to_string).into(),
+                        f.limit.into(),
                     ],
                 )?;
             }
@@ -262,7 +278,7 @@ impl StoreSink {
                      WHERE id = $1",
                     &[
                         run_id.as_str().into(),
-                        format!("{state:?}").to_lowercase().into(),
+                        StoredState::of_engine(*state).as_str().into(),
                         reason.clone().into(),
                         now_s().into(),
                         wording.into(),

@@ -4,9 +4,20 @@
 /// (`scripts/test` starts one and sets it).
 pub const POSTGRES_ENV: &str = "SPINBENCH_TEST_POSTGRES";
 
-/// Create a new database (a random name) on the server at `admin_url` and
+/// Create a new database (a random name) on the server at `admin_url`,
+/// migrated to this release's schema (as `spinbench migrate` does), and
 /// return the URL that reaches it.
 pub fn fresh_postgres_database(admin_url: &str) -> Result<String, super::DbError> {
+    let url = empty_postgres_database(admin_url)?;
+    super::Store::migrate_target(&super::StoreTarget::Postgres(url.clone()))
+        .map_err(|e| -> super::DbError { e.to_string().into() })?;
+    Ok(url)
+}
+
+/// Create a new, empty database (a random name) on the server at
+/// `admin_url` (no schema: for tests of `spinbench migrate` itself) and
+/// return the URL that reaches it.
+pub fn empty_postgres_database(admin_url: &str) -> Result<String, super::DbError> {
     let mut admin = postgres::Client::connect(admin_url, postgres::NoTls)?;
     let name = format!("spinbench_test_{:016x}", rand_u64());
     admin.batch_execute(&format!("CREATE DATABASE {name}"))?;

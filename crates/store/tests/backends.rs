@@ -68,7 +68,11 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
         outcome: Outcome::Pass,
         reasons: Vec::new(),
         decision_rule: Some(spinbench_engine::plan::DecisionRule::Guarded),
-        decision: None,
+        decision: Some(spinbench_engine::plan::Decision {
+            measurand: spinbench_engine::plan::Measurand::K2,
+            limit_ug_per_g2: 20.0,
+            rule: spinbench_engine::plan::DecisionRule::Guarded,
+        }),
         table_signature: None,
         exclusions: Vec::new(),
     }
@@ -87,7 +91,7 @@ fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
         },
         Event::Identified {
             devices: vec![DeviceIdentity {
-                role: "centrifuge".into(),
+                role: spinbench_engine::DeviceRole::Centrifuge,
                 identity: "ACUTRONIC,X".into(),
             }],
         },
@@ -170,7 +174,7 @@ fn a_run_is_stored_whole_and_a_redone_step_replaces_its_points() {
         let store = Store::connect(target).expect("open");
         write_run(&store, "r1", &["A1", "中文-7"]);
         let run = store.run("r1").expect("query").expect("the run");
-        assert_eq!(run.state, "completed");
+        assert_eq!(run.state, spinbench_store::StoredState::Completed);
         assert_eq!((run.units, run.points), (2, 4), "{target}");
         let points = store.points("r1").expect("points");
         let redone: Vec<f64> = points
@@ -204,26 +208,42 @@ fn a_run_is_stored_whole_and_a_redone_step_replaces_its_points() {
             values[1].output_hz, None,
             "a missing output is stored as missing"
         );
-        let context = store.run_context("r1").expect("context").expect("the run");
+        // The whole run in one call, typed: the same as the parts.
+        let record = store.run_record("r1").expect("record").expect("the run");
         assert_eq!(
-            context.station_config.as_deref(),
+            record.start.station_config.as_deref(),
             Some("station = \"bench 1\"\n")
         );
+        assert_eq!(record.start.record_version, spinbench_store::RECORD_VERSION);
         assert!(
-            context
-                .devices_json
-                .unwrap_or_default()
-                .contains("ACUTRONIC,X")
+            record.start.plan.plan.is_some(),
+            "{:?}",
+            record.start.plan.unread
         );
-        assert_eq!(context.operator_actions.len(), 1);
-        assert_eq!(context.operator_actions[0].1, "operator 李四");
-        assert!(context.operator_actions[0].2.contains("Mount IA up"));
+        assert_eq!(record.devices.len(), 1);
+        assert_eq!(
+            record.devices[0].role,
+            spinbench_engine::DeviceRole::Centrifuge
+        );
+        assert_eq!(record.devices[0].identity, "ACUTRONIC,X");
+        assert_eq!(
+            record.devices[0].calibration,
+            Some(spinbench_store::equipment::CalibrationStatus::Unregistered)
+        );
+        assert_eq!(record.operator_actions.len(), 1);
+        assert_eq!(record.operator_actions[0].who, "operator 李四");
+        assert!(record.operator_actions[0].action.contains("Mount IA up"));
+        assert_eq!(record.points, points);
+        assert_eq!(record.results, results);
+        assert_eq!(record.end.state, spinbench_store::StoredState::Completed);
+        assert_eq!(record.row(), run);
+        assert!(store.run_record("no such run").expect("read").is_none());
         let radii = store.unit_radii("r1").expect("units");
         assert_eq!(radii.len(), 1);
         assert_eq!(
             (
                 radii[0].slot,
-                radii[0].mount.as_str(),
+                radii[0].mount.to_string().as_str(),
                 radii[0].serial.as_str()
             ),
             (0, "P", "A1")
@@ -336,8 +356,10 @@ fn a_runs_events_are_read_through_an_index_enumerations_are_checked_and_migratio
     assert!(last.1.is_some_and(|t| t > 1_700_000_000), "{last:?}");
     assert_eq!(last.2.as_deref(), Some(env!("CARGO_PKG_VERSION")));
     assert!(
-        history[0].1.is_none(),
-        "applied before the history was kept"
+        history
+            .iter()
+            .all(|h| h.1.is_some() && h.2.as_deref() == Some(env!("CARGO_PKG_VERSION"))),
+        "a new store: every migration applied now, by this release: {history:?}"
     );
 
     // PostgreSQL: an index scan, checks on the enumerations, the history.
@@ -387,4 +409,85 @@ fn a_runs_events_are_read_through_an_index_enumerations_are_checked_and_migratio
         last.get::<_, Option<String>>(2).as_deref(),
         Some(env!("CARGO_PKG_VERSION"))
     );
+}
+
+#[test]
+fn a_postgresql_store_is_changed_only_by_migrate_and_refused_until_then() {
+    let admin = postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::empty_postgres_database(&admin).expect("an empty database");
+    let target = StoreTarget::Postgres(url.clone());
+    let refused = Store::connect(&target)
+        .err()
+        .expect("an empty database is refused for work");
+    let said = refused.to_string();
+    assert!(
+        said.contains("schema is version 0")
+            && said.contains(&format!("spinbench migrate --db {target}")),
+        "{said}"
+    );
+    let (store, before, after) = Store::migrate_target(&target).expect("migrate");
+    assert_eq!((before, after), (0, MIGRATIONS.len() as i64));
+    drop(store);
+    let (_, again, now) = Store::migrate_target(&target).expect("migrate again");
+    assert_eq!(
+        (again, now),
+        (after, after),
+        "a second migrate changes nothing"
+    );
+    Store::connect(&target).expect("a migrated store opens for work");
+    // A newer release's store is refused, not written.
+    let mut pg = postgres::Client::connect(&url, postgres::NoTls).expect("postgres");
+    pg.batch_execute("UPDATE spinbench_schema SET version = version + 1")
+        .expect("bump");
+    let newer = Store::connect(&target)
+        .err()
+        .expect("a newer schema is refused");
+    assert!(newer.to_string().contains("newer release"), "{newer}");
+}
+
+#[test]
+fn a_results_figures_are_columns_and_a_runs_rows_belong_to_it() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("open");
+        write_run(&store, "r1", &["A1", "B2"]);
+        let sql = "SELECT serial, k2_max_ug_per_g2, measurand, limit_ug_per_g2 FROM results ORDER BY slot";
+        type Figures = (String, Option<f64>, Option<String>, Option<f64>);
+        let rows: Vec<Figures> = match target {
+            StoreTarget::File(path) => {
+                let c = rusqlite::Connection::open(path).expect("sqlite");
+                let mut s = c.prepare(sql).expect("prepare");
+                s.query_map([], |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?, r.get(3)?)))
+                    .expect("rows")
+                    .map(|r| r.expect("row"))
+                    .collect()
+            }
+            StoreTarget::Postgres(url) => {
+                let mut pg = postgres::Client::connect(url, postgres::NoTls).expect("postgres");
+                // A run's rows belong to a run: an event of no run is refused.
+                let e = pg
+                    .batch_execute(
+                        "INSERT INTO events (run_id, at, kind, json) VALUES ('no such run', 0, 'x', '{}')",
+                    )
+                    .expect_err("refused");
+                assert_eq!(
+                    e.as_db_error().and_then(|d| d.constraint()),
+                    Some("events_run"),
+                    "{e:?}"
+                );
+                pg.query(sql, &[])
+                    .expect("rows")
+                    .iter()
+                    .map(|r| (r.get(0), r.get(1), r.get(2), r.get(3)))
+                    .collect()
+            }
+        };
+        let stored = store.results("r1").expect("results");
+        assert_eq!(rows.len(), stored.len(), "{target}");
+        for ((serial, k2_max, measurand, limit), r) in rows.iter().zip(&stored) {
+            assert_eq!(serial, &r.serial);
+            assert_eq!(*k2_max, r.record.k2_max_ug_per_g2, "{target}");
+            assert_eq!(measurand.as_deref(), Some("K2"), "{target}");
+            assert_eq!(*limit, Some(20.0), "{target}");
+        }
+    });
 }

@@ -45,7 +45,7 @@ pub use steps::{label, wording};
 
 use crate::abort::AbortFlag;
 use crate::config::StationConfig;
-use crate::event::{DeviceIdentity, Event, EventSink, ModuleHealth, RunState, Wording};
+use crate::event::{DeviceIdentity, DeviceRole, Event, EventSink, ModuleHealth, RunState, Wording};
 use crate::plan::{CompiledPlan, Fixture, Step};
 use crate::record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
 use spinbench_analysis::radius::RadiusCalibration;
@@ -455,12 +455,12 @@ impl<'a> Executor<'a> {
             }
         };
         let mut devices = vec![DeviceIdentity {
-            role: "centrifuge".into(),
+            role: DeviceRole::Centrifuge,
             identity: asked(&mut || self.bench.centrifuge.identify()),
         }];
         for (m, module) in self.bench.modules.iter_mut().enumerate() {
             devices.push(DeviceIdentity {
-                role: format!("fmu {}", m + 1),
+                role: DeviceRole::Fmu(u8::try_from(m + 1).unwrap_or(u8::MAX)),
                 identity: asked(&mut || {
                     module
                         .status()
@@ -469,12 +469,12 @@ impl<'a> Executor<'a> {
             });
         }
         devices.push(DeviceIdentity {
-            role: "instrument supply".into(),
+            role: DeviceRole::InstrumentSupply,
             identity: asked(&mut || self.bench.instrument_supply.identify()),
         });
         if let Some(supply) = self.bench.module_supply.as_mut() {
             devices.push(DeviceIdentity {
-                role: "module supply".into(),
+                role: DeviceRole::ModuleSupply,
                 identity: asked(&mut || supply.identify()),
             });
         }

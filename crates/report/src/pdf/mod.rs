@@ -195,11 +195,11 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
             title: &format!("spinbench report {}", run.id),
             author: &format!("spinbench station {}", run.station),
             subject: "centrifuge test of vibrating-beam accelerometers: k2 and nonlinearity",
-            version: &report.context.software_version,
+            version: &report.record.start.software_version,
         },
         &format!(
             "spinbench {} · run {}",
-            report.context.software_version, run.id
+            report.record.start.software_version, run.id
         ),
         lang,
     )

@@ -133,16 +133,16 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         }
         h.push_str("</table></section>\n");
     }
-    if !report.context.operator_actions.is_empty() {
+    if !report.record.operator_actions.is_empty() {
         h.push_str(
             "<h2>Operator actions</h2><table><tr><th>time</th><th>who</th><th>what</th></tr>",
         );
-        for (t, who, what) in &report.context.operator_actions {
+        for a in &report.record.operator_actions {
             h.push_str(&format!(
                 "<tr><td>{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
-                unix_date(*t),
-                esc(who),
-                esc(what)
+                unix_date(a.at),
+                esc(&a.who),
+                esc(&a.action)
             ));
         }
         h.push_str("</table>\n");

@@ -14,7 +14,7 @@ pub use summary::{SUMMARY_HEADERS, SummaryRow, summary, summary_in};
 pub(crate) use xlsx::xlsx_in;
 
 use crate::*;
-use spinbench_store::{PointRow, ResultRow, RunContext, RunRow, Store};
+use spinbench_store::{PointRow, ResultRow, RunRecord, RunRow, Store};
 
 /// One instrument of a run.
 #[derive(Debug, Clone)]
@@ -53,10 +53,10 @@ impl UnitReport {
 /// Everything a run's report shows.
 #[derive(Debug, Clone)]
 pub struct RunReport {
-    /// The run.
+    /// The run, as a listing shows it.
     pub run: RunRow,
-    /// Station config, devices, plan, operator actions.
-    pub context: RunContext,
+    /// The whole record (plan, devices, operator actions, the end).
+    pub record: RunRecord,
     /// Every instrument, in slot order.
     pub units: Vec<UnitReport>,
     /// The runs that retest this one (`spinbench retest`), oldest first.
@@ -65,27 +65,26 @@ pub struct RunReport {
 
 /// Read a run's report data from the store.
 pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
-    let run = store
-        .run(run_id)?
+    let record = store
+        .run_record(run_id)?
         .ok_or_else(|| ReportError::NoRun(run_id.to_string()))?;
-    let context = store.run_context(run_id)?.unwrap_or_default();
-    let points = store.points(run_id)?;
-    let mut units = Vec::new();
-    for result in store.results(run_id)? {
-        let own = points
-            .iter()
-            .filter(|p| p.slot == result.slot)
-            .cloned()
-            .collect();
-        units.push(UnitReport {
-            result,
-            points: own,
-        });
-    }
+    let units = record
+        .results
+        .iter()
+        .map(|result| UnitReport {
+            result: result.clone(),
+            points: record
+                .points
+                .iter()
+                .filter(|p| p.slot == result.slot)
+                .cloned()
+                .collect(),
+        })
+        .collect();
     let retested_by = store.retests_of(run_id)?;
     Ok(RunReport {
-        run,
-        context,
+        run: record.row(),
+        record,
         units,
         retested_by,
     })

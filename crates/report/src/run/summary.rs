@@ -135,12 +135,12 @@ pub(crate) const POINT_HEADERS: [&str; 10] = [
 pub(crate) fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
     let direction = lang::tr_or(
         lang,
-        &format!("arg.direction.{}", p.direction),
-        &p.direction,
+        &format!("arg.direction.{}", p.direction.as_str()),
+        p.direction.as_str(),
     );
     [
         p.step.to_string(),
-        p.mount.clone(),
+        p.mount.to_string(),
         p.g_nominal.to_string(),
         direction,
         format!("{:.6}", p.g_applied),
@@ -157,7 +157,7 @@ pub(crate) fn point_cells(p: &PointRow, lang: Lang) -> [String; 10] {
 /// value, dates as `lang` writes them).
 pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str, String)> {
     let run = &report.run;
-    let plan: Value = serde_json::from_str(&report.context.plan_json).unwrap_or_default();
+    let plan = &report.record.start.plan;
     let mut rows = Vec::new();
     if run.seq.is_some() {
         rows.push(("label", run.label()));
@@ -178,47 +178,38 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
         rows.push(("retested by", runs.join(&tr(lang, "report.list_separator"))));
     }
     rows.extend([
-        (
-            "operator",
-            plan["operator"].as_str().unwrap_or("").to_string(),
-        ),
+        ("operator", plan.operator()),
         ("started", lang::date_time(lang, run.started_at)),
         (
             "state",
             match (lang, &run.reason) {
                 // English: the state and the reason as recorded.
                 (Lang::En, Some(r)) => format!("{}: {r}", run.state),
-                (Lang::En, None) => run.state.clone(),
+                (Lang::En, None) => run.state.to_string(),
                 (_, Some(r)) => format!(
                     "{}：{}",
-                    lang::state(lang, &run.state),
+                    lang::state(lang, run.state),
                     run.reason_wording
                         .as_ref()
                         .and_then(|w| lang::say(lang, w))
                         .unwrap_or_else(|| r.clone())
                 ),
-                (_, None) => lang::state(lang, &run.state),
+                (_, None) => lang::state(lang, run.state),
             },
         ),
-        ("plan", plan["name"].as_str().unwrap_or("").to_string()),
+        ("plan", plan.name()),
         (
             "decision rule",
-            // Plans made before the rule was recorded were judged by value alone.
-            match serde_json::from_value::<spinbench_engine::plan::DecisionRule>(
-                plan["limits"]["decision_rule"].clone(),
-            ) {
-                Ok(rule) => lang::decision_rule(lang, rule),
-                Err(_) => lang::decision_rule(lang, spinbench_engine::plan::DecisionRule::Simple),
-            },
+            // Plans made before the rule was recorded (or that this release
+            // cannot read) were judged by value alone.
+            lang::decision_rule(lang, plan.decision_rule()),
         ),
         (
             "software",
-            format!("spinbench {}", report.context.software_version),
+            format!("spinbench {}", report.record.start.software_version),
         ),
     ]);
-    if let Ok(p) =
-        serde_json::from_value::<spinbench_engine::plan::PlanPrediction>(plan["prediction"].clone())
-    {
+    if let Some(p) = plan.plan.as_ref().and_then(|p| p.prediction.clone()) {
         let a = spinbench_engine::planning::achieved(report.units.iter().map(|u| u.record()));
         let shown = |v: Option<f64>, digits: usize| {
             v.map_or_else(|| "—".into(), |v| format!("{v:.digits$}"))

@@ -43,9 +43,9 @@ pub(crate) fn xlsx_in(
             for p in &u.points {
                 sheet.write_string(r, 0, &u.result.serial)?;
                 sheet.write_number(r, 1, p.step as f64)?;
-                sheet.write_string(r, 2, &p.mount)?;
+                sheet.write_string(r, 2, p.mount.to_string())?;
                 sheet.write_number(r, 3, p.g_nominal)?;
-                sheet.write_string(r, 4, &p.direction)?;
+                sheet.write_string(r, 4, p.direction.as_str())?;
                 sheet.write_number(r, 5, p.g_applied)?;
                 sheet.write_number(r, 6, p.rate_deg_s)?;
                 sheet.write_number(r, 7, p.output_hz)?;
@@ -108,10 +108,10 @@ pub(crate) fn xlsx_in(
             sheet.write_string_with_format(0, c as u16, *head, &bold)?;
         }
         for (r, res) in (1u32..).zip(plots::residuals(u)) {
-            sheet.write_string(r, 0, &res.mount)?;
+            sheet.write_string(r, 0, res.mount.to_string())?;
             sheet.write_number(r, 1, res.g_nominal)?;
             sheet.write_number(r, 2, res.g_input)?;
-            sheet.write_string(r, 3, &res.direction)?;
+            sheet.write_string(r, 3, res.direction.map_or("", |d| d.as_str()))?;
             sheet.write_number(r, 4, res.output)?;
             sheet.write_number(r, 5, res.residual_ug)?;
         }

@@ -321,6 +321,20 @@ pub enum Command {
         #[arg(long, value_parser = parse_store)]
         db: Option<StoreTarget>,
     },
+    /// Bring a store's schema up to this release (each migration once, in
+    /// its own transaction, recorded in the migration history). Run it as
+    /// the database's owner: `run` and `serve` never change a PostgreSQL
+    /// schema, so they can work with a role that has data rights only, and
+    /// refuse a store that is not migrated. The Debian package runs it on
+    /// install and upgrade. An SQLite file is migrated when it is opened.
+    Migrate {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+        /// Also list every migration the store has, with when and by which release.
+        #[arg(long)]
+        history: bool,
+    },
     /// Restore a backup made by `spinbench backup` into a store file that
     /// does not exist yet (move the old one aside first).
     Restore {

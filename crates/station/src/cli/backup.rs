@@ -231,12 +231,46 @@ fn refuse_inside(dir: &Path, db: &StoreTarget, data: Option<&Path>) -> Result<()
     Ok(())
 }
 
+/// `spinbench migrate --db PATH|URL [--history]`.
+pub(super) fn migrate(db: &StoreTarget, history: bool, out: &mut dyn Write) -> Result<()> {
+    let (store, before, after) = Store::migrate_target(db).with_context(|| {
+        "the schema could not be brought up to date: run `spinbench migrate` as the database's owner (a role that may create and alter its tables)"
+    })?;
+    if before == after {
+        writeln!(
+            out,
+            "{db}: schema version {after}, this release's; nothing to do"
+        )?;
+    } else {
+        writeln!(
+            out,
+            "{db}: schema version {before} → {after} ({} migrations applied)",
+            after - before
+        )?;
+    }
+    if history {
+        for m in store.migration_history()? {
+            writeln!(
+                out,
+                "  {:>3}  {}  {:<14}  {}",
+                m.version,
+                m.applied_at.as_deref().unwrap_or("(before the history)"),
+                m.release.as_deref().unwrap_or(""),
+                m.what
+            )?;
+        }
+    }
+    Ok(())
+}
+
 /// `spinbench restore FILE --db PATH|URL`.
 pub(super) fn restore(backup: &Path, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     let db = match db {
         StoreTarget::Postgres(_) => {
             spinbench_store::pg_restore(db, backup)?;
-            let restored = Store::connect(db)?;
+            // A dump made by an earlier release is brought up to this one's
+            // schema (a restore is the database owner's work, as a migration).
+            let (restored, _, _) = Store::migrate_target(db)?;
             writeln!(
                 out,
                 "restored {} runs into {db} (schema version {})",

@@ -298,6 +298,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             crate::doctor::run(station.as_deref(), simulate, &db, &data, out)
         }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
+        Command::Migrate { db, history } => backup::migrate(&db, history, out),
         Command::Equipment { action } => match action {
             EquipmentAction::List { db } => equipment::list(&db, out),
             EquipmentAction::Set {

@@ -40,7 +40,10 @@ fn station_name(args: &DesignArgs) -> Result<String> {
         db => spinbench_store::Store::open_read_only(db)
             .ok()
             .and_then(|s| s.runs().ok())
-            .and_then(|runs| runs.into_iter().find(|r| r.state == "completed"))
+            .and_then(|runs| {
+                runs.into_iter()
+                    .find(|r| r.state == spinbench_store::StoredState::Completed)
+            })
             .map(|r| r.station),
     };
     Ok(newest.unwrap_or_else(|| "spinbench".into()))

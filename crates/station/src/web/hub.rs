@@ -55,8 +55,9 @@ pub struct ProgressNow {
 pub struct StatusSnapshot {
     /// The run on the station, if any was started since the server began.
     pub run_id: Option<String>,
-    /// Its state (`running`, `prompting`, `paused`, `completed`, …).
-    pub state: Option<String>,
+    /// Its state.
+    #[schema(value_type = Option<crate::web::api::schema::LiveRunState>)]
+    pub state: Option<spinbench_engine::RunState>,
     /// The current step.
     pub step: Option<StepNow>,
     /// The current step's label as a key and values, for the page's language.
@@ -225,12 +226,7 @@ impl Hub {
         status.board = state.board.slots().to_vec();
         if let Some(t) = state.started {
             status.elapsed_s = t.elapsed().as_secs_f64();
-            if status.step.is_some()
-                && status
-                    .state
-                    .as_deref()
-                    .is_some_and(|s| !spinbench_store::run_state_is_ended(s))
-            {
+            if status.step.is_some() && status.state.is_some_and(|s| !s.is_ended()) {
                 status.eta_s = state.clock.eta_s(std::time::Instant::now());
             }
         }
@@ -318,16 +314,14 @@ impl Hub {
                 *s = StatusSnapshot {
                     run_id: Some(run_id.clone()),
                     prediction: plan.plan.prediction.clone(),
-                    state: Some("running".into()),
+                    state: Some(spinbench_engine::RunState::Running),
                     slots: plan.serials.len(),
                     serials: plan.serials.clone(),
                     ..StatusSnapshot::default()
                 };
             }
             Event::StateChanged { state: st } => {
-                s.state = serde_json::to_value(st)
-                    .ok()
-                    .and_then(|v| v.as_str().map(str::to_string));
+                s.state = Some(*st);
             }
             Event::StepStarted {
                 index,
@@ -406,9 +400,7 @@ impl Hub {
                 reason,
                 wording,
             } => {
-                s.state = serde_json::to_value(st)
-                    .ok()
-                    .and_then(|v| v.as_str().map(str::to_string));
+                s.state = Some(*st);
                 s.reason = reason.clone();
                 s.reason_wording = wording.clone();
                 s.prompt = None;

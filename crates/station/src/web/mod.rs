@@ -423,8 +423,8 @@ fn spawn_heartbeat(
 /// last run faulted, until the next starts), `running` (a run is active),
 /// else `idle`.
 pub(crate) fn station_state(state: &AppState, status: &hub::StatusSnapshot) -> &'static str {
-    match (state.runner.active().is_some(), status.state.as_deref()) {
-        (_, Some("faulted")) => "faulted",
+    match (state.runner.active().is_some(), status.state) {
+        (_, Some(spinbench_engine::RunState::Faulted)) => "faulted",
         (true, _) => "running",
         _ => "idle",
     }

@@ -129,3 +129,91 @@ pub fn json() -> &'static str {
         made.unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"))
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The names a documented enumeration lists.
+    fn listed(doc: &serde_json::Value, name: &str) -> Vec<String> {
+        doc["components"]["schemas"][name]["enum"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{name} is not a documented enumeration"))
+            .iter()
+            .filter_map(|v| v.as_str().map(str::to_string))
+            .collect()
+    }
+
+    #[test]
+    fn documented_states_and_outcomes_are_the_ones_sent() {
+        let doc: serde_json::Value = serde_json::from_str(json()).expect("the document is JSON");
+        let live: Vec<String> = spinbench_engine::RunState::ALL
+            .iter()
+            .map(|s| s.as_str().to_string())
+            .collect();
+        assert_eq!(listed(&doc, "LiveRunState"), live);
+        let stored: Vec<String> = spinbench_store::StoredState::ALL
+            .iter()
+            .map(|s| s.as_str().to_string())
+            .collect();
+        assert_eq!(listed(&doc, "StoredRunState"), stored);
+        let outcomes: Vec<String> = spinbench_engine::Outcome::ALL
+            .iter()
+            .map(|o| o.as_str().to_string())
+            .collect();
+        let mut documented = listed(&doc, "OutcomeName");
+        documented.sort();
+        let mut sent = outcomes;
+        sent.sort();
+        assert_eq!(documented, sent);
+    }
+
+    #[test]
+    fn binary_reports_are_documented_as_binary() {
+        let doc: serde_json::Value = serde_json::from_str(json()).expect("the document is JSON");
+        let content =
+            &doc["paths"]["/api/runs/{id}/report/{format}"]["get"]["responses"]["200"]["content"];
+        for media in [
+            "application/pdf",
+            "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
+        ] {
+            let mut schema = content[media]["schema"].clone();
+            if let Some(r) = schema["$ref"].as_str() {
+                schema = doc
+                    .pointer(r.trim_start_matches('#'))
+                    .cloned()
+                    .unwrap_or_default();
+            }
+            assert_eq!(schema["type"], "string", "{media}: {schema}");
+            assert_eq!(schema["format"], "binary", "{media}: {schema}");
+        }
+    }
+
+    #[test]
+    fn every_reference_of_the_document_resolves() {
+        let doc: serde_json::Value = serde_json::from_str(json()).expect("the document is JSON");
+        let mut refs = Vec::new();
+        fn walk(v: &serde_json::Value, refs: &mut Vec<String>) {
+            match v {
+                serde_json::Value::Object(m) => {
+                    if let Some(r) = m.get("$ref").and_then(|r| r.as_str()) {
+                        refs.push(r.to_string());
+                    }
+                    m.values().for_each(|v| walk(v, refs));
+                }
+                serde_json::Value::Array(a) => a.iter().for_each(|v| walk(v, refs)),
+                _ => {}
+            }
+        }
+        walk(&doc, &mut refs);
+        assert!(
+            refs.len() > 20,
+            "the document has references: {}",
+            refs.len()
+        );
+        for r in refs {
+            let pointer = r.trim_start_matches('#');
+            assert!(doc.pointer(pointer).is_some(), "{r} does not resolve");
+        }
+    }
+}

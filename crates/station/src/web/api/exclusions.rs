@@ -183,33 +183,33 @@ fn change_record(
         &spinbench_engine::StationConfig,
     ) -> Result<spinbench_engine::UnitRecord, String>,
 ) -> ApiResult<(spinbench_engine::UnitRecord, spinbench_engine::UnitRecord)> {
-    let run = store
-        .run(id)?
+    let record = store
+        .run_record(id)?
         .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
-    let context = store
-        .run_context(id)?
-        .ok_or_else(|| ApiError::not_found(format!("no run '{id}'")))?;
-    let station_toml = context.station_config.ok_or_else(|| {
+    let start = record.start;
+    let station_toml = start.station_config.ok_or_else(|| {
         ApiError::conflict(format!(
             "run {id} did not record its station config, so it cannot be reduced again here; use `spinbench analyze --exclude-level`"
         ))
     })?;
     let station = spinbench_engine::StationConfig::from_toml(&station_toml)
         .map_err(|e| ApiError::internal(format!("run {id}'s station config: {e}")))?;
-    let plan: TestPlan = serde_json::from_str(&context.plan_json)
-        .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
+    let plan: TestPlan = start.plan.plan.ok_or_else(|| {
+        ApiError::conflict(format!(
+            "run {id}'s plan: {}",
+            start.plan.unread.unwrap_or_default()
+        ))
+    })?;
     let compiled = plan
         .compile(&station)
         .map_err(|e| ApiError::internal(format!("run {id}'s plan: {e}")))?;
-    let result = store
-        .results(id)?
+    let state = record.end.state;
+    let result = record
+        .results
         .into_iter()
         .find(|r| r.serial == serial)
         .ok_or_else(|| {
-            ApiError::not_found(format!(
-                "run {id} ({}) has no instrument '{serial}'",
-                run.state
-            ))
+            ApiError::not_found(format!("run {id} ({state}) has no instrument '{serial}'"))
         })?;
     // The body was well formed; the record's state refuses it (a level the
     // run does not have, one already out or not out, too few levels left).

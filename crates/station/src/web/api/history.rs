@@ -123,9 +123,9 @@ pub(super) struct ReportQuery {
     ),
     responses(
         (status = 200, description = "the report", content(
-            (Vec<u8> = "application/pdf"),
+            (super::schema::BinaryFile = "application/pdf"),
             (String = "text/html; charset=utf-8"),
-            (Vec<u8> = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"),
+            (super::schema::BinaryFile = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"),
             (String = "text/csv; charset=utf-8"),
         )),
         (status = 400, description = "an unknown format or language", body = ErrorBody),

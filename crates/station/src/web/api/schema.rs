@@ -9,6 +9,84 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use utoipa::ToSchema;
 
+/// A run's state on the station now, as `/api/status` and the event
+/// stream send it (the engine's [`spinbench_engine::RunState`]; this type
+/// only documents its names, a test holds the two together).
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum LiveRunState {
+    /// Created, nothing moved.
+    Idle,
+    /// Executing steps.
+    Running,
+    /// Waiting for the operator.
+    Prompting,
+    /// Held between steps by the operator.
+    Paused,
+    /// Bringing the hardware to the safe state.
+    Stopping,
+    /// Finished normally.
+    Completed,
+    /// Ended by a fault, in the safe state.
+    Faulted,
+    /// Ended by the operator, in the safe state.
+    Aborted,
+}
+
+/// A stored run's state ([`spinbench_store::StoredState`]; documentation
+/// of its names, held together with it by a test).
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum StoredRunState {
+    /// A process runs it.
+    Running,
+    /// Finished normally.
+    Completed,
+    /// Ended by a fault, in the safe state.
+    Faulted,
+    /// Ended by the operator, in the safe state.
+    Aborted,
+    /// Its process ended without finishing it (a crash, a power cut).
+    Interrupted,
+}
+
+/// An instrument's outcome ([`spinbench_engine::Outcome`]; documentation
+/// of its names, held together with it by a test).
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum OutcomeName {
+    /// Within the limit.
+    Pass,
+    /// Within the limit but close to it.
+    Marginal,
+    /// Outside the limit, dead, noisy or not measurable.
+    Fail,
+    /// The interval straddles the limit: neither pass nor fail.
+    Inconclusive,
+    /// Not graded: the run ended before the instrument's part was done.
+    Incomplete,
+}
+
+/// A station's state in the fleet.
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum FleetStationState {
+    /// No run.
+    Idle,
+    /// A run is active.
+    Running,
+    /// Its last run faulted (until the next starts).
+    Faulted,
+    /// No heartbeat for 10 s.
+    Offline,
+}
+
+/// A file's bytes (a PDF or XLSX report): documented as a string of
+/// format `binary`, so a generated client hands back the bytes as a file.
+#[derive(Debug, ToSchema)]
+#[schema(value_type = String, format = Binary)]
+pub struct BinaryFile(pub Vec<u8>);
+
 /// Every error: what went wrong and what to do.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct ErrorBody {
@@ -273,8 +351,9 @@ pub struct RunEntry {
     pub label: String,
     /// Station name.
     pub station: String,
-    /// `running`, `completed`, `faulted`, `aborted`, …
-    pub state: String,
+    /// Its state.
+    #[schema(value_type = StoredRunState)]
+    pub state: spinbench_store::StoredState,
     /// Why it ended, when not completed.
     pub reason: Option<String>,
     /// Unix time it started [s].
@@ -293,7 +372,7 @@ impl From<&spinbench_store::RunRow> for RunEntry {
             id: r.id.clone(),
             label: r.label(),
             station: r.station.clone(),
-            state: r.state.clone(),
+            state: r.state,
             reason: r.reason.clone(),
             started_at: r.started_at,
             units: r.units,
@@ -338,6 +417,7 @@ pub struct ResultRow {
     /// Hysteresis [µg].
     pub hysteresis_ug: Option<f64>,
     /// `pass`, `marginal`, `fail`, `inconclusive` or `incomplete`.
+    #[schema(value_type = OutcomeName)]
     pub outcome: String,
     /// Why, in the user's language.
     pub reasons: String,
@@ -367,6 +447,7 @@ pub struct UnitTest {
     /// Slot (1-based).
     pub slot: i64,
     /// Its outcome.
+    #[schema(value_type = OutcomeName)]
     pub outcome: String,
     /// k2_max [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
@@ -420,6 +501,7 @@ pub struct Excluded {
     /// The instrument.
     pub serial: String,
     /// Its new outcome.
+    #[schema(value_type = OutcomeName)]
     pub outcome: String,
     /// Its new k2_max [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
@@ -657,6 +739,7 @@ pub struct FleetStation {
     /// The station's id (its config's `station`).
     pub station: String,
     /// `idle`, `running`, `faulted` or `offline` (no heartbeat for 10 s).
+    #[schema(value_type = FleetStationState)]
     pub state: String,
     /// Its current or last run.
     pub run_id: Option<String>,
