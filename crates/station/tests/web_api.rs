@@ -293,6 +293,32 @@ fn roles_csrf_users_plans_and_the_audit_log_on(backend: Backend) {
             .status,
         400
     );
+    // A plan sent as a JSON object of its keys (a generated client's way)
+    // is kept as TOML; JSON that is not an object, or null, is refused.
+    let as_json = serde_json::json!({
+        "name": "from json", "range_g": 6, "levels": [0, 1, 2, 3, 4, 6],
+        "passes": ["P", "N"], "warmup_s": 0, "dwell": {"seconds": 3},
+        "stability": {"hold_s": 3}, "serials": {"1": "J-1"}
+    });
+    let r = engineer.send("PUT", "/api/plans/json", Some(&as_json.to_string()));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let kept = std::fs::read_to_string(dir.path().join("plans").join("json.toml")).expect("kept");
+    assert!(
+        spinbench_engine::TestPlan::from_toml(&kept).is_ok_and(|p| p.name == "from json"),
+        "{kept}"
+    );
+    assert_eq!(
+        engineer
+            .send("PUT", "/api/plans/json", Some("{\"range_g\": null}"))
+            .status,
+        400
+    );
+    assert_eq!(
+        engineer
+            .send("PUT", "/api/plans/json", Some("{\"levels\": [0, 1]"))
+            .status,
+        400
+    );
     let plans = op.get_json("/api/plans", 200);
     assert!(
         plans["plans"]

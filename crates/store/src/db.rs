@@ -7,7 +7,7 @@
 //! over both rusqlite and the `postgres` client without an async runtime or a
 //! build-time database (sqlx's macros); this layer is a thin translation.
 
-use postgres::types::{ToSql, Type};
+use postgres::types::{IsNull, ToSql, Type};
 use rusqlite::types::ValueRef;
 use std::collections::HashMap;
 
@@ -168,17 +168,130 @@ fn sqlite_params(params: &[Value]) -> Vec<rusqlite::types::Value> {
         .collect()
 }
 
-fn pg_params(params: &[Value]) -> Vec<Box<dyn ToSql + Sync>> {
-    params
-        .iter()
-        .map(|p| -> Box<dyn ToSql + Sync> {
-            match p {
-                Value::Int(v) => Box::new(*v),
-                Value::Real(v) => Box::new(*v),
-                Value::Text(v) => Box::new(v.clone()),
+/// A value bound to a PostgreSQL parameter of whatever type its column
+/// has: the store's code writes times as Unix seconds, dates as
+/// YYYY-MM-DD, flags as 0/1 and JSON as text, on both back ends; here
+/// they become `timestamptz`, `date`, `boolean` and `jsonb` where the
+/// PostgreSQL column is one (migration 15). Written by hand: the
+/// conversions are the store's own conventions, not a general mapping a
+/// crate could know.
+#[derive(Debug)]
+struct PgParam<'a>(&'a Value);
+
+/// Days from 1970-01-01 to PostgreSQL's epoch, 2000-01-01.
+const PG_EPOCH_DAYS: i64 = 10_957;
+
+impl ToSql for PgParam<'_> {
+    fn to_sql(
+        &self,
+        ty: &Type,
+        out: &mut postgres::types::private::BytesMut,
+    ) -> Result<IsNull, Box<dyn std::error::Error + Sync + Send>> {
+        match self.0 {
+            Value::Int(None) | Value::Real(None) | Value::Text(None) => Ok(IsNull::Yes),
+            Value::Int(Some(v)) => match *ty {
+                Type::INT4 => i32::try_from(*v)?.to_sql(ty, out),
+                Type::INT2 => i16::try_from(*v)?.to_sql(ty, out),
+                Type::FLOAT8 => (*v as f64).to_sql(ty, out),
+                Type::BOOL => (*v != 0).to_sql(ty, out),
+                Type::TIMESTAMPTZ | Type::TIMESTAMP => unix_time(*v).to_sql(ty, out),
+                _ => v.to_sql(ty, out),
+            },
+            Value::Real(Some(v)) => match *ty {
+                Type::FLOAT4 => (*v as f32).to_sql(ty, out),
+                _ => v.to_sql(ty, out),
+            },
+            Value::Text(Some(t)) => match *ty {
+                Type::JSONB => {
+                    // jsonb's binary form: version 1, then the text.
+                    out.extend_from_slice(&[1]);
+                    out.extend_from_slice(jsonb_safe(t).as_bytes());
+                    Ok(IsNull::No)
+                }
+                Type::JSON => {
+                    out.extend_from_slice(t.as_bytes());
+                    Ok(IsNull::No)
+                }
+                Type::DATE => {
+                    let days = crate::equipment::parse_date(t)
+                        .ok_or_else(|| format!("'{t}' is not a date (YYYY-MM-DD)"))?;
+                    i32::try_from(days - PG_EPOCH_DAYS)?.to_sql(&Type::INT4, out)
+                }
+                // PostgreSQL's text cannot hold a NUL (a device's reply
+                // may): it is kept as U+FFFD rather than the write refused.
+                _ if t.contains('\0') => t.replace('\0', "\u{fffd}").as_str().to_sql(ty, out),
+                _ => t.as_str().to_sql(ty, out),
+            },
+        }
+    }
+
+    fn accepts(_ty: &Type) -> bool {
+        true
+    }
+
+    postgres::types::to_sql_checked!();
+}
+
+/// Unix seconds as a time.
+fn unix_time(seconds: i64) -> std::time::SystemTime {
+    let d = std::time::Duration::from_secs(seconds.unsigned_abs());
+    if seconds >= 0 {
+        std::time::UNIX_EPOCH + d
+    } else {
+        std::time::UNIX_EPOCH - d
+    }
+}
+
+/// JSON text jsonb takes: a NUL escape (`\u0000`, which jsonb cannot
+/// hold) becomes U+FFFD; an escaped backslash before `u0000` is left alone.
+fn jsonb_safe(text: &str) -> std::borrow::Cow<'_, str> {
+    if !text.contains("\\u0000") {
+        return std::borrow::Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len());
+    let mut backslashes = 0usize;
+    let mut rest = text;
+    while let Some(c) = rest.chars().next() {
+        if c == '\\' && backslashes.is_multiple_of(2) && rest.starts_with("\\u0000") {
+            out.push_str("\\ufffd");
+            rest = &rest[6..];
+            backslashes = 0;
+            continue;
+        }
+        backslashes = if c == '\\' { backslashes + 1 } else { 0 };
+        out.push(c);
+        rest = &rest[c.len_utf8()..];
+    }
+    std::borrow::Cow::Owned(out)
+}
+
+/// A `jsonb`, `json` or `date` column read as the text the store's code
+/// reads (JSON; YYYY-MM-DD).
+struct PgText(String);
+
+impl<'a> postgres::types::FromSql<'a> for PgText {
+    fn from_sql(
+        ty: &Type,
+        raw: &'a [u8],
+    ) -> Result<PgText, Box<dyn std::error::Error + Sync + Send>> {
+        match *ty {
+            Type::JSONB => match raw.split_first() {
+                Some((1, text)) => Ok(PgText(std::str::from_utf8(text)?.to_string())),
+                _ => Err("a jsonb value of an unknown version".into()),
+            },
+            Type::DATE => {
+                let days = i32::from_sql(&Type::INT4, raw)?;
+                Ok(PgText(crate::equipment::civil_date(
+                    (i64::from(days) + PG_EPOCH_DAYS) * 86_400,
+                )))
             }
-        })
-        .collect()
+            _ => Ok(PgText(std::str::from_utf8(raw)?.to_string())),
+        }
+    }
+
+    fn accepts(ty: &Type) -> bool {
+        matches!(*ty, Type::JSONB | Type::JSON | Type::DATE)
+    }
 }
 
 fn pg_row(row: &postgres::Row) -> Result<Row, DbError> {
@@ -197,6 +310,16 @@ fn pg_row(row: &postgres::Row) -> Result<Row, DbError> {
             Value::Real(row.try_get::<_, Option<f32>>(i)?.map(f64::from))
         } else if *ty == Type::BOOL {
             Value::Int(row.try_get::<_, Option<bool>>(i)?.map(i64::from))
+        } else if *ty == Type::TIMESTAMPTZ || *ty == Type::TIMESTAMP {
+            Value::Int(
+                row.try_get::<_, Option<std::time::SystemTime>>(i)?
+                    .map(|t| match t.duration_since(std::time::UNIX_EPOCH) {
+                        Ok(d) => d.as_secs() as i64,
+                        Err(e) => -(e.duration().as_secs_f64().ceil() as i64),
+                    }),
+            )
+        } else if matches!(*ty, Type::JSONB | Type::JSON | Type::DATE) {
+            Value::Text(row.try_get::<_, Option<PgText>>(i)?.map(|t| t.0))
         } else {
             Value::Text(row.try_get::<_, Option<String>>(i)?)
         });
@@ -231,8 +354,9 @@ impl Db {
                 Ok(n as u64)
             }
             Db::Postgres(c, cache) => {
-                let boxed = pg_params(params);
-                let refs: Vec<&(dyn ToSql + Sync)> = boxed.iter().map(|b| b.as_ref()).collect();
+                let bound: Vec<PgParam<'_>> = params.iter().map(PgParam).collect();
+                let refs: Vec<&(dyn ToSql + Sync)> =
+                    bound.iter().map(|b| b as &(dyn ToSql + Sync)).collect();
                 let stmt = pg_statement(c, cache, sql)?;
                 Ok(c.execute(&stmt, &refs)?)
             }
@@ -264,8 +388,9 @@ impl Db {
                 Ok(out)
             }
             Db::Postgres(c, cache) => {
-                let boxed = pg_params(params);
-                let refs: Vec<&(dyn ToSql + Sync)> = boxed.iter().map(|b| b.as_ref()).collect();
+                let bound: Vec<PgParam<'_>> = params.iter().map(PgParam).collect();
+                let refs: Vec<&(dyn ToSql + Sync)> =
+                    bound.iter().map(|b| b as &(dyn ToSql + Sync)).collect();
                 let stmt = pg_statement(c, cache, sql)?;
                 c.query(&stmt, &refs)?.iter().map(pg_row).collect()
             }
@@ -299,6 +424,21 @@ impl Db {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_nul_escape_becomes_a_replacement_character_for_jsonb_and_nothing_else_changes() {
+        assert_eq!(jsonb_safe(r#"{"a":"x\u0000y"}"#), r#"{"a":"x\ufffdy"}"#);
+        // An escaped backslash before `u0000` is text, not an escape.
+        assert_eq!(jsonb_safe(r#"{"a":"x\\u0000"}"#), r#"{"a":"x\\u0000"}"#);
+        assert_eq!(jsonb_safe(r#"{"a":"x\\\u0000"}"#), r#"{"a":"x\\\ufffd"}"#);
+        assert_eq!(jsonb_safe("{\"a\":\"中文\"}"), "{\"a\":\"中文\"}");
+        let text = serde_json::to_string("a\u{0}b").expect("json");
+        let safe = jsonb_safe(&text);
+        assert_eq!(
+            serde_json::from_str::<String>(&safe).expect("json"),
+            "a\u{fffd}b"
+        );
+    }
 
     #[test]
     fn placeholders_become_sqlite_numbered_parameters() {

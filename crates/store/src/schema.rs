@@ -286,7 +286,38 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: MIGRATION_14_SQLITE,
         postgres: MIGRATION_14_POSTGRES,
     },
+    Migration {
+        what: "PostgreSQL's own types: times as timestamptz, calibration dates as date, on-speed as boolean, plans, device lists, records and events as jsonb (SQLite keeps its types)",
+        // SQLite has no such types: nothing changes there.
+        sqlite: "SELECT 1;",
+        postgres: MIGRATION_15_POSTGRES,
+    },
 ];
+
+/// Migration 15 on PostgreSQL: each column to its own type. A JSON text
+/// that is not JSON (never written by the station) becomes NULL in a
+/// column that may be NULL; a NUL escape, which jsonb cannot hold, becomes
+/// U+FFFD. Times were Unix seconds.
+const MIGRATION_15_POSTGRES: &str = "CREATE OR REPLACE FUNCTION pg_temp.spinbench_jsonb(t TEXT) RETURNS jsonb LANGUAGE plpgsql AS
+        $f$ BEGIN RETURN replace(t, '\\u0000', '\\ufffd')::jsonb; EXCEPTION WHEN others THEN RETURN NULL; END $f$;
+    ALTER TABLE runs ALTER COLUMN started_at TYPE timestamptz USING to_timestamp(started_at),
+        ALTER COLUMN finished_at TYPE timestamptz USING to_timestamp(finished_at),
+        ALTER COLUMN plan_json TYPE jsonb USING coalesce(pg_temp.spinbench_jsonb(plan_json), 'null'::jsonb),
+        ALTER COLUMN devices_json TYPE jsonb USING pg_temp.spinbench_jsonb(devices_json),
+        ALTER COLUMN reason_wording TYPE jsonb USING pg_temp.spinbench_jsonb(reason_wording);
+    ALTER TABLE results ALTER COLUMN record_json TYPE jsonb USING coalesce(pg_temp.spinbench_jsonb(record_json), 'null'::jsonb);
+    ALTER TABLE events ALTER COLUMN at TYPE timestamptz USING to_timestamp(at),
+        ALTER COLUMN json TYPE jsonb USING coalesce(pg_temp.spinbench_jsonb(json), 'null'::jsonb);
+    ALTER TABLE operator_actions ALTER COLUMN at TYPE timestamptz USING to_timestamp(at);
+    ALTER TABLE values_1s ALTER COLUMN on_speed TYPE boolean USING on_speed <> 0;
+    ALTER TABLE stations ALTER COLUMN first_seen TYPE timestamptz USING to_timestamp(first_seen),
+        ALTER COLUMN last_seen TYPE timestamptz USING to_timestamp(last_seen);
+    ALTER TABLE users ALTER COLUMN created_at TYPE timestamptz USING to_timestamp(created_at);
+    ALTER TABLE audit ALTER COLUMN at TYPE timestamptz USING to_timestamp(at);
+    ALTER TABLE sessions ALTER COLUMN last_seen TYPE timestamptz USING to_timestamp(last_seen);
+    ALTER TABLE equipment ALTER COLUMN calibrated_on TYPE date USING calibrated_on::date,
+        ALTER COLUMN due_on TYPE date USING due_on::date,
+        ALTER COLUMN updated_at TYPE timestamptz USING to_timestamp(updated_at);";
 
 /// Migration 14 on SQLite. SQLite cannot add a foreign key to a table
 /// that exists (it would rebuild every large table): its references stay
@@ -324,9 +355,9 @@ const MIGRATION_14_POSTGRES: &str = "ALTER TABLE runs ADD COLUMN record_version 
     ALTER TABLE results ADD COLUMN instrument_k2_u95 DOUBLE PRECISION;
     ALTER TABLE results ADD COLUMN measurand TEXT;
     ALTER TABLE results ADD COLUMN limit_ug_per_g2 DOUBLE PRECISION;
-    CREATE FUNCTION pg_temp.spinbench_jsonb(t TEXT) RETURNS jsonb LANGUAGE plpgsql AS
+    CREATE OR REPLACE FUNCTION pg_temp.spinbench_jsonb(t TEXT) RETURNS jsonb LANGUAGE plpgsql AS
         $f$ BEGIN RETURN t::jsonb; EXCEPTION WHEN others THEN RETURN NULL; END $f$;
-    CREATE FUNCTION pg_temp.spinbench_number(j jsonb) RETURNS DOUBLE PRECISION LANGUAGE sql AS
+    CREATE OR REPLACE FUNCTION pg_temp.spinbench_number(j jsonb) RETURNS DOUBLE PRECISION LANGUAGE sql AS
         $f$ SELECT CASE WHEN jsonb_typeof(j) = 'number' THEN (j #>> '{}')::double precision END $f$;
     UPDATE results r SET
         k2_p_ug_per_g2 = pg_temp.spinbench_number(j #> '{analysis,fits,P,k2_ug_per_g2}'),
@@ -496,7 +527,8 @@ impl Store {
                                 Ok(())
                             })
                             .map_err(|e| -> DbError {
-                                format!("migration {v} ({}): {e}", m.what).into()
+                                format!("migration {v} ({}): {}", m.what, crate::whole_reason(&e))
+                                    .into()
                             })?;
                     }
                     Ok::<(), DbError>(())
@@ -523,7 +555,7 @@ impl Store {
                         }
                         Ok(())
                     })
-                    .map_err(|e| -> DbError { format!("migration {v} ({}): {e}", m.what).into() })?;
+                    .map_err(|e| -> DbError { format!("migration {v} ({}): {}", m.what, crate::whole_reason(&e)).into() })?;
                 }
                 Ok::<(), DbError>(())
             })(),

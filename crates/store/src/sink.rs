@@ -309,12 +309,13 @@ impl EventSink for StoreSink {
     fn emit(&mut self, event: &Event) -> Result<(), String> {
         self.write(event).map_err(|e| {
             format!(
-                "store {}: cannot record the {} event: {e}",
+                "store {}: cannot record the {} event: {}",
                 self.store.target,
                 serde_json::to_value(event)
                     .ok()
                     .and_then(|v| v["event"].as_str().map(str::to_string))
-                    .unwrap_or_default()
+                    .unwrap_or_default(),
+                crate::whole_reason(&e)
             )
         })
     }

@@ -381,11 +381,11 @@ fn a_runs_events_are_read_through_an_index_enumerations_are_checked_and_migratio
     for (sql, constraint) in [
         (
             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at) \
-             VALUES ('r', 's', '{}', 'v', 'finished-ish', 0)",
+             VALUES ('r', 's', '{}', 'v', 'finished-ish', to_timestamp(0))",
             "runs_state_known",
         ),
         (
-            "INSERT INTO users (name, role, password_hash, created_at) VALUES ('u', 'root', 'x', 0)",
+            "INSERT INTO users (name, role, password_hash, created_at) VALUES ('u', 'root', 'x', to_timestamp(0))",
             "users_role_known",
         ),
     ] {
@@ -395,6 +395,32 @@ fn a_runs_events_are_read_through_an_index_enumerations_are_checked_and_migratio
             Some(constraint),
             "{e:?}"
         );
+    }
+    // PostgreSQL's own types (migration 15).
+    for (table, column, wanted) in [
+        ("runs", "started_at", "timestamp with time zone"),
+        ("runs", "finished_at", "timestamp with time zone"),
+        ("runs", "plan_json", "jsonb"),
+        ("runs", "devices_json", "jsonb"),
+        ("results", "record_json", "jsonb"),
+        ("events", "at", "timestamp with time zone"),
+        ("events", "json", "jsonb"),
+        ("values_1s", "on_speed", "boolean"),
+        ("equipment", "due_on", "date"),
+        ("equipment", "calibrated_on", "date"),
+        ("users", "created_at", "timestamp with time zone"),
+        ("sessions", "last_seen", "timestamp with time zone"),
+        ("audit", "at", "timestamp with time zone"),
+        ("stations", "last_seen", "timestamp with time zone"),
+        ("operator_actions", "at", "timestamp with time zone"),
+    ] {
+        let row = pg
+            .query_one(
+                "SELECT data_type FROM information_schema.columns WHERE table_name = $1 AND column_name = $2",
+                &[&table, &column],
+            )
+            .expect("the column");
+        assert_eq!(row.get::<_, String>(0), wanted, "{table}.{column}");
     }
     let rows = pg
         .query(
@@ -466,7 +492,7 @@ fn a_results_figures_are_columns_and_a_runs_rows_belong_to_it() {
                 // A run's rows belong to a run: an event of no run is refused.
                 let e = pg
                     .batch_execute(
-                        "INSERT INTO events (run_id, at, kind, json) VALUES ('no such run', 0, 'x', '{}')",
+                        "INSERT INTO events (run_id, at, kind, json) VALUES ('no such run', to_timestamp(0), 'x', '{}')",
                     )
                     .expect_err("refused");
                 assert_eq!(
@@ -489,5 +515,40 @@ fn a_results_figures_are_columns_and_a_runs_rows_belong_to_it() {
             assert_eq!(measurand.as_deref(), Some("K2"), "{target}");
             assert_eq!(*limit, Some(20.0), "{target}");
         }
+    });
+}
+
+#[test]
+fn a_text_with_a_nul_is_stored_on_both_back_ends() {
+    // jsonb cannot hold a NUL escape: it is kept as U+FFFD, never a write
+    // refused (which would hold the run).
+    on_both(|target| {
+        let store = Store::connect(target).expect("open");
+        let mut sink = store.sink().expect("sink");
+        sink.emit(&Event::RunStarted {
+            run_id: "nul".into(),
+            station: "bench 1".into(),
+            plan: Box::new(plan(&["A1"])),
+            resumed: false,
+            station_config: String::new(),
+        })
+        .expect("start");
+        sink.emit(&Event::Prompt {
+            text: "a device said \u{0}\\u0000 here".into(),
+            fixtures: Vec::new(),
+        })
+        .unwrap_or_else(|e| panic!("{target}: {e}"));
+        sink.emit(&Event::PromptAnswered {
+            proceed: true,
+            by: "op".into(),
+        })
+        .expect("answer");
+        let record = store.run_record("nul").expect("read").expect("the run");
+        assert_eq!(record.operator_actions.len(), 1, "{target}");
+        assert!(record.operator_actions[0].action.contains("a device said"));
+        assert!(
+            !record.operator_actions[0].action.contains('\0')
+                || matches!(target, StoreTarget::File(_))
+        );
     });
 }

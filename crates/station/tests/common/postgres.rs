@@ -50,6 +50,12 @@ impl Cluster {
             .trim(),
         );
         let url = act("start", &dir);
+        // Its schema made as `spinbench migrate` makes it (`run` and
+        // `serve` never change a PostgreSQL schema).
+        let target = spinbench_store::StoreTarget::Postgres(url.clone());
+        if let Err(e) = spinbench_store::Store::migrate_target(&target) {
+            panic!("{url}: {e}");
+        }
         Some(Cluster { dir, url })
     }
     /// A fast restart (the server closes every connection; same port).

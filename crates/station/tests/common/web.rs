@@ -281,8 +281,18 @@ impl Client {
         if csrf && let Some(t) = &self.csrf {
             request = request.header("X-CSRF-Token", t);
         }
-        if body.is_some() {
-            request = request.header("Content-Type", "application/json");
+        if let Some(b) = body {
+            // A plan or station config is TOML text, as the web UI sends
+            // it, unless it is sent as a JSON object.
+            let toml = method == "PUT"
+                && (path.starts_with("/api/plans/") || path == "/api/station")
+                && !b.trim_start().starts_with('{');
+            let content_type = if toml {
+                "text/plain; charset=utf-8"
+            } else {
+                "application/json"
+            };
+            request = request.header("Content-Type", content_type);
         }
         let request = request
             .body(body.unwrap_or("").as_bytes().to_vec())

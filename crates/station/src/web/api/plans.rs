@@ -79,7 +79,8 @@ pub(super) async fn plans(
 #[utoipa::path(put, path = "/api/plans/{name}", tag = "plans",
     security(("session" = [], "csrf" = [])),
     params(("name" = String, Path, description = "1 to 64 letters, digits, `-` or `_`", pattern = "^[A-Za-z0-9_-]{1,64}$")),
-    request_body(content = String, content_type = "text/plain", description = "The plan as TOML (see the README's plan keys). At most 2 MiB (413 beyond)."),
+    request_body(description = "The plan as TOML (see the README's plan keys), or the same keys as a JSON object. At most 2 MiB (413 beyond).",
+        content((String = "text/plain"), (Object = "application/json"))),
     responses(
         (status = 200, description = "saved", body = PlanSaved),
         (status = 400, description = "not a plan, or one this station cannot run", body = ErrorBody),
@@ -99,8 +100,8 @@ pub(super) async fn save_plan(
             "plan name '{name}': 1 to 64 letters, digits, - or _"
         )));
     }
-    let text =
-        std::str::from_utf8(&body).map_err(|_| ApiError::bad("the plan is not UTF-8 text"))?;
+    let text = toml_body(&headers, &body, "the plan")?;
+    let text = text.as_str();
     let plan = TestPlan::from_toml(text).map_err(|e| ApiError::bad(e.to_string()))?;
     // A plan whose levels are designed when it runs is checked as designed
     // on the defaults (nothing is learned to save a plan).
@@ -213,7 +214,8 @@ pub(super) async fn station(
 /// Save the station config (an engineer; not on the virtual bench, nor during a run).
 #[utoipa::path(put, path = "/api/station", tag = "plans",
     security(("session" = [], "csrf" = [])),
-    request_body(content = String, content_type = "text/plain", description = "The station config as TOML. At most 2 MiB (413 beyond)."),
+    request_body(description = "The station config as TOML, or the same keys as a JSON object. At most 2 MiB (413 beyond).",
+        content((String = "text/plain"), (Object = "application/json"))),
     responses(
         (status = 200, description = "saved and in use", body = Saved),
         (status = 400, description = "not a station config", body = ErrorBody),
@@ -228,9 +230,8 @@ pub(super) async fn save_station(
     body: Bytes,
 ) -> ApiResult<Json<Saved>> {
     let session = authorize(&app, &headers, Role::Engineer, true).await?;
-    let text = std::str::from_utf8(&body)
-        .map_err(|_| ApiError::bad("the station config is not UTF-8 text"))?;
-    let config = spinbench_engine::StationConfig::from_toml(text)
+    let text = toml_body(&headers, &body, "the station config")?;
+    let config = spinbench_engine::StationConfig::from_toml(&text)
         .map_err(|e| ApiError::bad(e.to_string()))?;
     let Some(path) = app.station_path.clone() else {
         return Err(ApiError::conflict(
@@ -244,7 +245,6 @@ pub(super) async fn save_station(
     }
     // Written first, then applied, then audited (issue 27 item 7): a config
     // that cannot be kept is not used either.
-    let text = text.to_string();
     blocking(&app, move |app| {
         let old = std::fs::read_to_string(&path).ok();
         write_replacing(&path, &text).map_err(|e| {
@@ -283,4 +283,35 @@ fn write_replacing(path: &std::path::Path, text: &str) -> std::io::Result<()> {
     std::fs::rename(&temporary, path).inspect_err(|_| {
         let _ = std::fs::remove_file(&temporary);
     })
+}
+
+/// An uploaded plan or station config as TOML text: the body as sent
+/// (`text/plain`), or a JSON object of the same keys
+/// (`application/json`, for clients generated from the API document)
+/// written as TOML. `what` names it in errors.
+fn toml_body(headers: &HeaderMap, body: &[u8], what: &str) -> ApiResult<String> {
+    let json = headers
+        .get(axum::http::header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|t| {
+            t.trim_start()
+                .to_ascii_lowercase()
+                .starts_with("application/json")
+        });
+    if !json {
+        return std::str::from_utf8(body)
+            .map(str::to_string)
+            .map_err(|_| ApiError::bad(format!("{what} is not UTF-8 text")));
+    }
+    let value: toml::Value = serde_json::from_slice(body).map_err(|e| {
+        ApiError::bad(format!(
+            "{what} as JSON: {e} (an object of the TOML keys; null has no TOML form: leave the key out)"
+        ))
+    })?;
+    if !value.is_table() {
+        return Err(ApiError::bad(format!(
+            "{what} as JSON: an object of its keys"
+        )));
+    }
+    toml::to_string(&value).map_err(|e| ApiError::bad(format!("{what} as JSON: {e}")))
 }
