@@ -21,6 +21,7 @@ pub mod equipment;
 pub mod export;
 pub mod paths;
 pub mod points_file;
+pub mod prune;
 pub mod recovery;
 pub mod render;
 pub mod replay;

@@ -16,6 +16,7 @@
 //! | `schema` | the migrations and the schema's version and soundness |
 //! | `queries` | runs, typed results, points, values, radii read back |
 //! | `record` | [`RunRecord`]: a whole run, typed, in one call; the stored enumerations ([`StoredState`]) |
+//! | `retention` | an ended run's one-second values and events read out for an archive, then deleted in one transaction ([`Store::prunable_runs`], [`Store::delete_values_and_events`]) |
 //! | `sink` | [`StoreSink`]: the engine's events written as they happen |
 //! | [`outbox`] | the run's events queued and written on a thread of their own (the run never waits on the database), caught up after an outage or at the next start |
 //! | `csv` | points as CSV, text cells guarded against formula injection |
@@ -33,6 +34,7 @@ mod label;
 pub mod outbox;
 mod queries;
 mod record;
+mod retention;
 mod schema;
 mod sink;
 pub mod testing;
@@ -45,6 +47,7 @@ pub use record::{
     DeviceEntry, OperatorAction, RECORD_VERSION, ResultFigures, RunEnd, RunRecord, RunStart,
     StoredPlan, StoredState,
 };
+pub use retention::{EventRow, PrunableRun};
 pub use schema::{MIGRATIONS, Migration, MigrationApplied};
 pub use sink::StoreSink;
 pub use users::{AuditRow, UserRow};

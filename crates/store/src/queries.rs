@@ -91,6 +91,8 @@ pub struct ValueRow {
     pub output_hz: Option<f64>,
     /// Measured rate [deg/s].
     pub rate_deg_s: f64,
+    /// Whether the table was on speed.
+    pub on_speed: bool,
     /// The instrument's temperature [°C], when its module reported one.
     pub temperature_c: Option<f64>,
 }
@@ -255,7 +257,7 @@ impl Store {
     pub fn values(&self, run_id: &str) -> Result<Vec<ValueRow>, StoreError> {
         let rows = self.query(
             "read one-second values",
-            "SELECT t_s, slot, output_hz, rate_deg_s, temperature_c FROM values_1s WHERE run_id = $1 ORDER BY t_s, slot",
+            "SELECT t_s, slot, output_hz, rate_deg_s, temperature_c, on_speed FROM values_1s WHERE run_id = $1 ORDER BY t_s, slot",
             &[run_id.into()],
         )?;
         Ok(rows
@@ -265,6 +267,7 @@ impl Store {
                 slot: r.int(1),
                 output_hz: r.opt_real(2),
                 rate_deg_s: r.real(3),
+                on_speed: r.int(5) != 0,
                 temperature_c: r.opt_real(4),
             })
             .collect())

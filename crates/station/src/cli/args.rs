@@ -335,6 +335,25 @@ pub enum Command {
         #[arg(long)]
         history: bool,
     },
+    /// Retention: for each run that ended and started more than DAYS ago,
+    /// archive its one-second values and events to Parquet files in the
+    /// archive directory, read them back, then delete those rows from the
+    /// store. The run's record (plan, devices, points, results, actions)
+    /// stays: its reports and exports are unchanged.
+    Prune {
+        /// Age of the runs to prune [days]: 0 (every ended run) to 36500.
+        #[arg(long, default_value_t = crate::prune::DEFAULT_RETENTION_DAYS, value_parser = crate::prune::parse_days, allow_hyphen_values = true)]
+        older_than: f64,
+        /// Where the Parquet files go (created if missing).
+        #[arg(long, default_value = "spinbench-data/archive")]
+        archive: PathBuf,
+        /// Only say what would be pruned.
+        #[arg(long)]
+        dry_run: bool,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
     /// Restore a backup made by `spinbench backup` into a store file that
     /// does not exist yet (move the old one aside first).
     Restore {

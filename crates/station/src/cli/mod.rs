@@ -299,6 +299,12 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
         Command::Migrate { db, history } => backup::migrate(&db, history, out),
+        Command::Prune {
+            older_than,
+            archive,
+            dry_run,
+            db,
+        } => crate::prune::prune(&db, older_than, &archive, dry_run, out).map(|_| ()),
         Command::Equipment { action } => match action {
             EquipmentAction::List { db } => equipment::list(&db, out),
             EquipmentAction::Set {

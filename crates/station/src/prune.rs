@@ -1,0 +1,304 @@
+//! `spinbench prune --older-than DAYS --archive DIR`: retention of the
+//! store's bulk rows. For each run that ended and started more than DAYS
+//! ago, its one-second values and its event log are written to Parquet
+//! files in DIR (`<run>-values.parquet`, `<run>-events.parquet`), synced
+//! and read back; only when the files hold every row are the rows deleted
+//! from the store, in one transaction that refuses if the run gained rows
+//! meanwhile. The run's record (plan, devices, radii, points, results,
+//! operator actions, end) stays, so its reports, exports and history are
+//! unchanged; `replay` of a pruned run has no values to check against.
+
+use anyhow::{Context, Result, bail};
+use parquet::basic::Compression;
+use parquet::data_type::{BoolType, ByteArray, ByteArrayType, DoubleType, Int64Type};
+use parquet::file::properties::WriterProperties;
+use parquet::file::reader::{FileReader, SerializedFileReader};
+use parquet::file::writer::SerializedFileWriter;
+use parquet::schema::parser::parse_message_type;
+use spinbench_store::{EventRow, Store, StoreTarget, ValueRow};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The retention `prune` keeps when not told otherwise [days].
+pub const DEFAULT_RETENTION_DAYS: f64 = 365.0;
+
+/// The longest retention `--older-than` takes [days] (a hundred years).
+pub const MAX_RETENTION_DAYS: f64 = 36_500.0;
+
+/// Parse `--older-than`: days, finite, from 0 (every ended run) to
+/// [`MAX_RETENTION_DAYS`].
+pub fn parse_days(text: &str) -> Result<f64, String> {
+    let days: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{text}' is not a number of days"))?;
+    if !days.is_finite() || !(0.0..=MAX_RETENTION_DAYS).contains(&days) {
+        return Err(format!(
+            "{text} days: from 0 (every ended run) to {MAX_RETENTION_DAYS} days"
+        ));
+    }
+    Ok(days)
+}
+
+/// What `prune` did (or, with `dry_run`, would do).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Pruned {
+    /// Runs pruned.
+    pub runs: usize,
+    /// One-second value rows archived and deleted.
+    pub values: u64,
+    /// Event rows archived and deleted.
+    pub events: u64,
+}
+
+/// Prune `db`'s ended runs started more than `days` ago into `archive`,
+/// saying each run on `out`.
+pub fn prune(
+    db: &StoreTarget,
+    days: f64,
+    archive: &Path,
+    dry_run: bool,
+    out: &mut dyn Write,
+) -> Result<Pruned> {
+    let store = Store::connect(db)?;
+    let before = spinbench_store::now_s() - (days * 86_400.0).round() as i64;
+    let runs = store.prunable_runs(before)?;
+    let mut done = Pruned::default();
+    if runs.is_empty() {
+        writeln!(
+            out,
+            "{db}: no ended run older than {days} days has values or events left; nothing to do"
+        )?;
+        return Ok(done);
+    }
+    if !dry_run {
+        std::fs::create_dir_all(archive)
+            .with_context(|| format!("{}: cannot make the archive directory", archive.display()))?;
+    }
+    for (i, p) in runs.iter().enumerate() {
+        let id = &p.run.id;
+        write!(
+            out,
+            "[{}/{}] {} ({}): {} values, {} events",
+            i + 1,
+            runs.len(),
+            p.run.label(),
+            id,
+            p.values,
+            p.events
+        )?;
+        if dry_run {
+            writeln!(out, " (dry run: kept)")?;
+            continue;
+        }
+        let values = store.values(id)?;
+        let events = store.events(id)?;
+        if values.len() as i64 != p.values || events.len() as i64 != p.events {
+            writeln!(out, " — changed while read; left for the next prune")?;
+            continue;
+        }
+        let values_file = archive.join(format!("{id}-values.parquet"));
+        let events_file = archive.join(format!("{id}-events.parquet"));
+        write_values(&values, id, &values_file)?;
+        write_events(&events, id, &events_file)?;
+        // Only what the files are read back to hold is deleted.
+        let (in_values, in_events) = (rows_in(&values_file)?, rows_in(&events_file)?);
+        if in_values != values.len() as i64 || in_events != events.len() as i64 {
+            bail!(
+                "{}: the archive holds {in_values} values and {in_events} events of {} and {}; nothing deleted",
+                archive.display(),
+                values.len(),
+                events.len()
+            );
+        }
+        let (v, e) = store.delete_values_and_events(id, p.values, p.events)?;
+        writeln!(
+            out,
+            " → {}, {}; deleted",
+            values_file.display(),
+            events_file.display()
+        )?;
+        done.runs += 1;
+        done.values += v;
+        done.events += e;
+    }
+    writeln!(
+        out,
+        "pruned {} runs: {} values and {} events archived in {} and deleted from {db}",
+        done.runs,
+        done.values,
+        done.events,
+        archive.display()
+    )?;
+    Ok(done)
+}
+
+/// A new Parquet file at `path` (written beside it, synced, then renamed:
+/// a crash leaves no half file under the final name).
+fn write_parquet(
+    path: &Path,
+    schema: &str,
+    write: impl FnOnce(&mut SerializedFileWriter<std::fs::File>) -> Result<()>,
+) -> Result<()> {
+    if path.exists() {
+        bail!(
+            "{}: exists already (a run is archived once); move it aside to archive the run again",
+            path.display()
+        );
+    }
+    let partial = PathBuf::from(format!("{}.partial", path.display()));
+    let file = std::fs::File::create(&partial)
+        .with_context(|| format!("{}: cannot create", partial.display()))?;
+    let props = Arc::new(
+        WriterProperties::builder()
+            .set_compression(Compression::SNAPPY)
+            .build(),
+    );
+    let mut writer = SerializedFileWriter::new(file, Arc::new(parse_message_type(schema)?), props)?;
+    write(&mut writer)?;
+    let file = writer.into_inner()?;
+    file.sync_all()
+        .with_context(|| format!("{}: cannot sync", partial.display()))?;
+    std::fs::rename(&partial, path)
+        .with_context(|| format!("{}: cannot rename to {}", partial.display(), path.display()))?;
+    Ok(())
+}
+
+/// Rows in a Parquet file.
+fn rows_in(path: &Path) -> Result<i64> {
+    let file =
+        std::fs::File::open(path).with_context(|| format!("{}: cannot open", path.display()))?;
+    Ok(SerializedFileReader::new(file)?
+        .metadata()
+        .file_metadata()
+        .num_rows())
+}
+
+/// Definition levels of an optional column: 1 present, 0 missing.
+fn present<T: Copy>(values: impl Iterator<Item = Option<T>>) -> (Vec<T>, Vec<i16>) {
+    let mut kept = Vec::new();
+    let mut levels = Vec::new();
+    for v in values {
+        levels.push(i16::from(v.is_some()));
+        kept.extend(v);
+    }
+    (kept, levels)
+}
+
+fn write_values(values: &[ValueRow], run_id: &str, path: &Path) -> Result<()> {
+    write_parquet(
+        path,
+        "message values_1s {
+            REQUIRED BYTE_ARRAY run (UTF8);
+            REQUIRED DOUBLE t_s;
+            REQUIRED INT64 slot;
+            OPTIONAL DOUBLE output_hz;
+            REQUIRED DOUBLE rate_deg_s;
+            REQUIRED BOOLEAN on_speed;
+            OPTIONAL DOUBLE temperature_c;
+        }",
+        |writer| {
+            let mut group = writer.next_row_group()?;
+            let mut column = 0;
+            while let Some(mut c) = group.next_column()? {
+                match column {
+                    0 => {
+                        let run: Vec<ByteArray> =
+                            values.iter().map(|_| ByteArray::from(run_id)).collect();
+                        c.typed::<ByteArrayType>().write_batch(&run, None, None)?;
+                    }
+                    1 | 4 => {
+                        let v: Vec<f64> = values
+                            .iter()
+                            .map(|v| if column == 1 { v.t_s } else { v.rate_deg_s })
+                            .collect();
+                        c.typed::<DoubleType>().write_batch(&v, None, None)?;
+                    }
+                    2 => {
+                        let v: Vec<i64> = values.iter().map(|v| v.slot).collect();
+                        c.typed::<Int64Type>().write_batch(&v, None, None)?;
+                    }
+                    3 | 6 => {
+                        let (kept, levels) = present(values.iter().map(|v| {
+                            if column == 3 {
+                                v.output_hz
+                            } else {
+                                v.temperature_c
+                            }
+                        }));
+                        c.typed::<DoubleType>()
+                            .write_batch(&kept, Some(&levels), None)?;
+                    }
+                    _ => {
+                        let v: Vec<bool> = values.iter().map(|v| v.on_speed).collect();
+                        c.typed::<BoolType>().write_batch(&v, None, None)?;
+                    }
+                }
+                c.close()?;
+                column += 1;
+            }
+            group.close()?;
+            Ok(())
+        },
+    )
+}
+
+fn write_events(events: &[EventRow], run_id: &str, path: &Path) -> Result<()> {
+    write_parquet(
+        path,
+        "message events {
+            REQUIRED BYTE_ARRAY run (UTF8);
+            REQUIRED INT64 seq;
+            REQUIRED INT64 at_unix_s;
+            REQUIRED BYTE_ARRAY kind (UTF8);
+            REQUIRED BYTE_ARRAY json (UTF8);
+        }",
+        |writer| {
+            let mut group = writer.next_row_group()?;
+            let mut column = 0;
+            while let Some(mut c) = group.next_column()? {
+                match column {
+                    1 | 2 => {
+                        let v: Vec<i64> = events
+                            .iter()
+                            .map(|e| if column == 1 { e.seq } else { e.at })
+                            .collect();
+                        c.typed::<Int64Type>().write_batch(&v, None, None)?;
+                    }
+                    _ => {
+                        let v: Vec<ByteArray> = events
+                            .iter()
+                            .map(|e| {
+                                ByteArray::from(match column {
+                                    0 => run_id,
+                                    3 => e.kind.as_str(),
+                                    _ => e.json.as_str(),
+                                })
+                            })
+                            .collect();
+                        c.typed::<ByteArrayType>().write_batch(&v, None, None)?;
+                    }
+                }
+                c.close()?;
+                column += 1;
+            }
+            group.close()?;
+            Ok(())
+        },
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn days_are_checked_before_anything_is_read() {
+        assert_eq!(parse_days("0"), Ok(0.0));
+        assert_eq!(parse_days(" 90 "), Ok(90.0));
+        for bad in ["-1", "NaN", "inf", "1e9", "ninety", ""] {
+            assert!(parse_days(bad).is_err(), "{bad}");
+        }
+    }
+}

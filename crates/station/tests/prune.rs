@@ -1,0 +1,123 @@
+//! `spinbench prune` (issue 38): an ended run's one-second values and
+//! events archived to Parquet, read back, then deleted; its record, reports
+//! and exports unchanged; on SQLite and PostgreSQL.
+
+mod common;
+
+use common::spinbench;
+use parquet::file::reader::{FileReader, SerializedFileReader};
+use parquet::record::RowAccessor;
+use spinbench_store::{Store, StoreTarget};
+
+fn rows(path: &std::path::Path) -> Vec<parquet::record::Row> {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let reader = SerializedFileReader::new(file).expect("parquet");
+    reader
+        .get_row_iter(None)
+        .expect("rows")
+        .map(|r| r.expect("row"))
+        .collect()
+}
+
+fn prune_on(db_arg: Option<String>) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("PR-")).expect("plan");
+    let db = db_arg.unwrap_or_else(|| data.join("spinbench.db").display().to_string());
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--data",
+        data.to_str().expect("utf-8"),
+        plan.to_str().expect("utf-8"),
+        "--db",
+        &db,
+    ]);
+    assert!(ok, "{err}");
+    let target = StoreTarget::parse(&db);
+    let store = Store::connect(&target).expect("store");
+    let id = store.runs().expect("runs")[0].id.clone();
+    let values = store.values(&id).expect("values");
+    let events = store.events(&id).expect("events");
+    assert!(values.len() > 100 && events.len() > 10);
+    let before = store.run_record(&id).expect("read").expect("run");
+    let (ok, csv_before, _) = spinbench(&["export", &id, "--db", &db]);
+    assert!(ok);
+
+    // Checked before anything is read.
+    for bad in ["-1", "NaN", "1e9"] {
+        let (ok, _, err) = spinbench(&["prune", "--older-than", bad, "--db", &db]);
+        assert!(!ok && err.contains("--older-than"), "{bad}: {err}");
+    }
+    // The run is minutes old: the default retention keeps it.
+    let archive = dir.path().join("archive");
+    let a = archive.to_str().expect("utf-8");
+    let (ok, said, err) = spinbench(&["prune", "--archive", a, "--db", &db]);
+    assert!(ok && said.contains("nothing to do"), "{said}{err}");
+    // A dry run says and keeps.
+    let (ok, said, _) = spinbench(&[
+        "prune",
+        "--older-than",
+        "0",
+        "--dry-run",
+        "--archive",
+        a,
+        "--db",
+        &db,
+    ]);
+    assert!(ok && said.contains("dry run"), "{said}");
+    assert_eq!(store.value_count(&id).expect("count"), values.len() as i64);
+
+    let (ok, said, err) = spinbench(&["prune", "--older-than", "0", "--archive", a, "--db", &db]);
+    assert!(ok && said.contains("pruned 1 runs"), "{said}{err}");
+    // The archive holds every row, as stored.
+    let archived = rows(&archive.join(format!("{id}-values.parquet")));
+    assert_eq!(archived.len(), values.len());
+    for (row, v) in archived.iter().zip(&values) {
+        assert_eq!(row.get_double(1).expect("t_s"), v.t_s);
+        assert_eq!(row.get_long(2).expect("slot"), v.slot);
+        assert_eq!(row.get_double(3).ok(), v.output_hz);
+        assert_eq!(row.get_bool(5).expect("on_speed"), v.on_speed);
+    }
+    let archived = rows(&archive.join(format!("{id}-events.parquet")));
+    assert_eq!(archived.len(), events.len());
+    for (row, e) in archived.iter().zip(&events) {
+        assert_eq!(row.get_long(1).expect("seq"), e.seq);
+        assert_eq!(row.get_string(4).expect("json"), &e.json);
+    }
+    // Deleted from the store; the record, the export and the report unchanged.
+    assert_eq!(store.value_count(&id).expect("count"), 0);
+    assert_eq!(store.event_count(&id).expect("count"), 0);
+    assert_eq!(store.run_record(&id).expect("read").expect("run"), before);
+    let (ok, csv_after, _) = spinbench(&["export", &id, "--db", &db]);
+    assert!(ok && csv_after == csv_before);
+    let reports = dir.path().join("reports");
+    let (ok, _, err) = spinbench(&[
+        "report",
+        &id,
+        "--format",
+        "pdf",
+        "--out",
+        reports.to_str().expect("utf-8"),
+        "--db",
+        &db,
+    ]);
+    assert!(ok, "{err}");
+    // Once: nothing left to prune, and an archive is never overwritten.
+    let (ok, said, _) = spinbench(&["prune", "--older-than", "0", "--archive", a, "--db", &db]);
+    assert!(ok && said.contains("nothing to do"), "{said}");
+}
+
+#[test]
+fn an_old_runs_values_and_events_are_archived_then_deleted() {
+    prune_on(None);
+}
+
+#[test]
+fn postgres_an_old_runs_values_and_events_are_archived_then_deleted() {
+    let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
+    prune_on(Some(url));
+}
