@@ -539,6 +539,12 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     }
     assert!(prompts >= 3, "tumble up, tumble down, remount: {prompts}");
     let end = op.get_json("/api/status", 200);
+    // Every JSON answer so far was held to the document (common/web.rs).
+    assert!(
+        web::CHECKED.load(std::sync::atomic::Ordering::Relaxed) > 20,
+        "answers checked against the document: {}",
+        web::CHECKED.load(std::sync::atomic::Ordering::Relaxed)
+    );
     web::matches_document(&mut op, "StatusReply", &end, "GET /api/status at the end");
     // The check can fail: the step as the tuple it once was sent as.
     let mut tuple = end.clone();

@@ -318,13 +318,73 @@ impl Client {
             .limit(200_000_000)
             .read_to_vec()
             .unwrap_or_default();
-        Reply {
+        let reply = Reply {
             status,
             set_cookie,
             content_type,
             retry_after,
             body,
+        };
+        // Every JSON answer of every web test is held to the document
+        // (issue 38): the schema of its operation and status.
+        if reply.content_type.starts_with("application/json") && path != "/api/openapi.json" {
+            self.check_against_document(method, path, &reply);
         }
+        reply
+    }
+
+    /// Panic unless `reply`, a JSON answer to `method path`, matches the
+    /// schema the server's OpenAPI document gives that operation and
+    /// status (an operation or status the document does not list is not
+    /// checked here; Schemathesis checks those).
+    fn check_against_document(&mut self, method: &str, path: &str, reply: &Reply) {
+        let doc = DOCUMENT.get_or_init(|| {
+            let r = self
+                .agent
+                .get(format!("{}/api/openapi.json", self.base))
+                .call()
+                .and_then(|mut r| r.body_mut().read_to_string())
+                .unwrap_or_else(|e| panic!("the OpenAPI document: {e}"));
+            serde_json::from_str(&r).expect("the document is JSON")
+        });
+        let path = path.split('?').next().unwrap_or(path);
+        let Some(template) = template_of(doc, path) else {
+            return;
+        };
+        let method = method.to_ascii_lowercase();
+        let status = reply.status.to_string();
+        let schema = &doc["paths"][template.as_str()][method.as_str()]["responses"]
+            [status.as_str()]["content"]["application/json"]["schema"];
+        if schema.is_null() {
+            return;
+        }
+        let key = format!("{method} {template} {status}");
+        let validator = {
+            let mut cache = VALIDATORS.lock().unwrap_or_else(|e| e.into_inner());
+            cache
+                .entry(key.clone())
+                .or_insert_with(|| {
+                    let mut whole = schema.clone();
+                    whole["$schema"] = "https://json-schema.org/draft/2020-12/schema".into();
+                    whole["components"] = doc["components"].clone();
+                    std::sync::Arc::new(
+                        jsonschema::validator_for(&whole).expect("the document's schema compiles"),
+                    )
+                })
+                .clone()
+        };
+        let value: Value = serde_json::from_slice(&reply.body)
+            .unwrap_or_else(|e| panic!("{key}: a JSON answer that is not JSON: {e}"));
+        let errors: Vec<String> = validator
+            .iter_errors(&value)
+            .map(|e| format!("{e} at {}", e.instance_path))
+            .collect();
+        assert!(
+            errors.is_empty(),
+            "{key}: the answer does not match the document:\n{}\n{value}",
+            errors.join("\n")
+        );
+        CHECKED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// GET and the JSON body (asserting the status).
@@ -349,6 +409,43 @@ impl Client {
             std::thread::sleep(std::time::Duration::from_millis(100));
         }
     }
+}
+
+/// The server's OpenAPI document, fetched once per test process.
+static DOCUMENT: std::sync::OnceLock<Value> = std::sync::OnceLock::new();
+
+/// Each operation's answer schema, compiled once.
+static VALIDATORS: std::sync::Mutex<
+    std::collections::BTreeMap<String, std::sync::Arc<jsonschema::Validator>>,
+> = std::sync::Mutex::new(std::collections::BTreeMap::new());
+
+/// How many answers were checked against the document.
+pub static CHECKED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// The document's path template `path` is an instance of (`/api/runs/x` →
+/// `/api/runs/{id}`), literal segments before parameters.
+fn template_of(doc: &Value, path: &str) -> Option<String> {
+    let parts: Vec<&str> = path.split('/').collect();
+    let mut best: Option<(usize, &String)> = None;
+    for template in doc["paths"].as_object()?.keys() {
+        let t: Vec<&str> = template.split('/').collect();
+        if t.len() != parts.len() {
+            continue;
+        }
+        let mut literal = 0;
+        let fits = t.iter().zip(&parts).all(|(a, b)| {
+            if a.starts_with('{') && a.ends_with('}') {
+                !b.is_empty()
+            } else {
+                literal += 1;
+                a == b
+            }
+        });
+        if fits && best.is_none_or(|(l, _)| literal > l) {
+            best = Some((literal, template));
+        }
+    }
+    best.map(|(_, t)| t.clone())
 }
 
 /// Check `value` against the schema `name` of the server's own OpenAPI

@@ -167,15 +167,30 @@ impl Browser {
         self.call("POST", "/alert/accept", json!({}));
     }
 
-    /// Type `text` into the element `css`, after clearing it.
+    /// Type `text` into the element `css`, after clearing it. As with
+    /// [`Browser::click`], an element the page drew again meanwhile is
+    /// found again, for at most 5 s.
     pub fn type_into(&self, css: &str, text: &str) {
-        let id = self.element(css);
-        self.call("POST", &format!("/element/{id}/clear"), json!({}));
-        self.call(
-            "POST",
-            &format!("/element/{id}/value"),
-            json!({ "text": text }),
-        );
+        let until = Instant::now() + Duration::from_secs(5);
+        loop {
+            let id = self.element(css);
+            let typed = self
+                .try_call("POST", &format!("/element/{id}/clear"), json!({}))
+                .and_then(|_| {
+                    self.try_call(
+                        "POST",
+                        &format!("/element/{id}/value"),
+                        json!({ "text": text }),
+                    )
+                });
+            match typed {
+                Ok(_) => return,
+                Err(e) if e["error"] == "stale element reference" && Instant::now() < until => {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => panic!("webdriver type into {css}: {e}"),
+            }
+        }
     }
 
     /// Wait (at most `seconds`) until `script` returns true.
