@@ -216,7 +216,8 @@ fn write_values(values: &[ValueRow], run_id: &str, path: &Path) -> Result<()> {
                         c.typed::<DoubleType>().write_batch(&v, None, None)?;
                     }
                     2 => {
-                        let v: Vec<i64> = values.iter().map(|v| v.slot).collect();
+                        // Numbered from 1, as the store and people number slots.
+                        let v: Vec<i64> = values.iter().map(|v| v.slot + 1).collect();
                         c.typed::<Int64Type>().write_batch(&v, None, None)?;
                     }
                     3 | 6 => {

@@ -77,7 +77,11 @@ fn prune_on(db_arg: Option<String>) {
     assert_eq!(archived.len(), values.len());
     for (row, v) in archived.iter().zip(&values) {
         assert_eq!(row.get_double(1).expect("t_s"), v.t_s);
-        assert_eq!(row.get_long(2).expect("slot"), v.slot);
+        assert_eq!(
+            row.get_long(2).expect("slot"),
+            v.slot + 1,
+            "numbered from 1"
+        );
         assert_eq!(row.get_double(3).ok(), v.output_hz);
         assert_eq!(row.get_bool(5).expect("on_speed"), v.on_speed);
     }

@@ -2,7 +2,7 @@
 //! one-second values, radii.
 
 use super::*;
-use crate::record::{parse_column, stored_direction, stored_mount};
+use crate::record::{parse_column, slot_index, stored_direction, stored_mount};
 use spinbench_analysis::{Direction, Mount};
 
 /// One run in a listing.
@@ -201,7 +201,7 @@ impl Store {
                     .map_err(|e| unreadable(format!("the stored record: {e}")))?;
                 Ok(ResultRow {
                     run_id,
-                    slot: r.int(1),
+                    slot: slot_index(r.int(1)),
                     serial,
                     outcome,
                     k2_max_ug_per_g2: r.opt_real(4),
@@ -235,7 +235,7 @@ impl Store {
             .map(|r| {
                 Ok(PointRow {
                     step: r.int(0),
-                    slot: r.int(1),
+                    slot: slot_index(r.int(1)),
                     serial: r.text(2),
                     mount: stored_mount(&r.text(3)).map_err(&bad)?,
                     g_nominal: r.real(4),
@@ -264,7 +264,7 @@ impl Store {
             .iter()
             .map(|r| ValueRow {
                 t_s: r.real(0),
-                slot: r.int(1),
+                slot: slot_index(r.int(1)),
                 output_hz: r.opt_real(2),
                 rate_deg_s: r.real(3),
                 on_speed: r.int(5) != 0,
@@ -317,7 +317,7 @@ impl Store {
         rows.iter()
             .map(|r| {
                 Ok(UnitRow {
-                    slot: r.int(0),
+                    slot: slot_index(r.int(0)),
                     mount: stored_mount(&r.text(1)).map_err(&bad)?,
                     serial: r.text(2),
                     drawing_radius_m: r.real(3),

@@ -333,6 +333,17 @@ impl ResultFigures {
     }
 }
 
+/// A slot as the store keeps it: numbered from 1, as people number them
+/// (migration 16); the engine's and the rows' `slot` is an index from 0.
+pub(crate) fn stored_slot(index: usize) -> i64 {
+    index as i64 + 1
+}
+
+/// The index (from 0) of a slot the store keeps numbered from 1.
+pub(crate) fn slot_index(stored: i64) -> i64 {
+    stored - 1
+}
+
 /// Read a stored enumeration column: `what` names it in the error.
 pub(crate) fn parse_column<T: std::str::FromStr>(text: &str, what: &str) -> Result<T, DbError> {
     text.parse::<T>()

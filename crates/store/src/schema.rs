@@ -292,7 +292,24 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: "SELECT 1;",
         postgres: MIGRATION_15_POSTGRES,
     },
+    Migration {
+        what: "slots numbered as people number them (1, 2, …, as on the fixtures, the API, the reports and /metrics) in points, results, units and values_1s",
+        sqlite: MIGRATION_16,
+        postgres: MIGRATION_16,
+    },
 ];
+
+/// Migration 16: every stored slot one up. In two steps (through the
+/// negative numbers), since a key is checked row by row and `slot + 1`
+/// would meet the next row's slot on the way.
+const MIGRATION_16: &str = "UPDATE points SET slot = -(slot + 1);
+    UPDATE points SET slot = -slot;
+    UPDATE results SET slot = -(slot + 1);
+    UPDATE results SET slot = -slot;
+    UPDATE units SET slot = -(slot + 1);
+    UPDATE units SET slot = -slot;
+    UPDATE values_1s SET slot = -(slot + 1);
+    UPDATE values_1s SET slot = -slot;";
 
 /// Migration 15 on PostgreSQL: each column to its own type. A JSON text
 /// that is not JSON (never written by the station) becomes NULL in a

@@ -3,7 +3,7 @@
 //! the run (nothing is dropped).
 
 use super::*;
-use crate::record::{DeviceEntry, ResultFigures, StoredState};
+use crate::record::{DeviceEntry, ResultFigures, StoredState, stored_slot};
 
 /// Writes a run's events as they happen. A failed write is an error the
 /// engine answers by holding the run and offering the same event again
@@ -53,7 +53,7 @@ impl StoreSink {
                                 &[
                                     run_id.as_str().into(),
                                     (*time_s).into(),
-                                    (slot as i64).into(),
+                                    stored_slot(slot).into(),
                                     (*v).into(),
                                     (*rate_deg_s).into(),
                                     i64::from(*on_speed).into(),
@@ -171,7 +171,7 @@ impl StoreSink {
                      ON CONFLICT (run_id, slot, mount) DO UPDATE SET radius_m = excluded.radius_m",
                     &[
                         run_id.as_str().into(),
-                        (*slot as i64).into(),
+                        stored_slot(*slot).into(),
                         mount.to_string().into(),
                         serial.into(),
                         (*drawing_radius_m).into(),
@@ -212,7 +212,7 @@ impl StoreSink {
                             &[
                                 run_id.as_str().into(),
                                 (*step as i64).into(),
-                                (p.slot as i64).into(),
+                                stored_slot(p.slot).into(),
                                 serial.into(),
                                 p.mount.to_string().into(),
                                 p.g_nominal.into(),
@@ -251,7 +251,7 @@ impl StoreSink {
                        measurand = excluded.measurand, limit_ug_per_g2 = excluded.limit_ug_per_g2",
                     &[
                         run_id.as_str().into(),
-                        (record.slot as i64).into(),
+                        stored_slot(record.slot).into(),
                         record.serial.as_str().into(),
                         record.outcome.as_str().into(),
                         record.k2_max_ug_per_g2.into(),
