@@ -162,9 +162,20 @@ impl Browser {
         }
     }
 
-    /// Accept the page's open `confirm()` (or `alert()`) dialog.
+    /// Accept the page's `confirm()` (or `alert()`) dialog, waiting up to
+    /// 5 s for the page to open it (the click that opens it may land a
+    /// moment after the driver answered).
     pub fn accept_dialog(&self) {
-        self.call("POST", "/alert/accept", json!({}));
+        let until = Instant::now() + Duration::from_secs(5);
+        loop {
+            match self.try_call("POST", "/alert/accept", json!({})) {
+                Ok(_) => return,
+                Err(e) if e["error"] == "no such alert" && Instant::now() < until => {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => panic!("webdriver accept the dialog: {e}"),
+            }
+        }
     }
 
     /// Type `text` into the element `css`, after clearing it. As with
