@@ -344,6 +344,33 @@ pub(crate) fn slot_index(stored: i64) -> i64 {
     stored - 1
 }
 
+/// The parameters of a `results` row, in the order the sink's insert and
+/// `Store::replace_result`'s update both take them: run, slot, serial,
+/// outcome, k2_max, the record (JSON), then its [`ResultFigures`].
+pub(crate) fn result_row_values(
+    run_id: &str,
+    record: &spinbench_engine::UnitRecord,
+    json: &str,
+) -> Vec<Value> {
+    let f = ResultFigures::of(record);
+    vec![
+        run_id.into(),
+        stored_slot(record.slot).into(),
+        record.serial.as_str().into(),
+        record.outcome.as_str().into(),
+        record.k2_max_ug_per_g2.into(),
+        json.into(),
+        f.k2_p.into(),
+        f.k2_p_u95.into(),
+        f.k2_n.into(),
+        f.k2_n_u95.into(),
+        f.instrument_k2.into(),
+        f.instrument_k2_u95.into(),
+        f.measurand.map(str::to_string).into(),
+        f.limit.into(),
+    ]
+}
+
 /// Read a stored enumeration column: `what` names it in the error.
 pub(crate) fn parse_column<T: std::str::FromStr>(text: &str, what: &str) -> Result<T, DbError> {
     text.parse::<T>()

@@ -3,7 +3,7 @@
 //! the run (nothing is dropped).
 
 use super::*;
-use crate::record::{DeviceEntry, ResultFigures, StoredState, stored_slot};
+use crate::record::{DeviceEntry, StoredState, result_row_values, stored_slot};
 
 /// Writes a run's events as they happen. A failed write is an error the
 /// engine answers by holding the run and offering the same event again
@@ -235,7 +235,6 @@ impl StoreSink {
             Event::UnitResult { record } => {
                 let json = serde_json::to_string(record)
                     .map_err(|e| -> DbError { format!("the unit's record: {e}").into() })?;
-                let f = ResultFigures::of(record);
                 db.execute(
                     "INSERT INTO results (run_id, slot, serial, outcome, k2_max_ug_per_g2, record_json,
                        k2_p_ug_per_g2, k2_p_u95, k2_n_ug_per_g2, k2_n_u95,
@@ -249,22 +248,7 @@ impl StoreSink {
                        instrument_k2_ug_per_g2 = excluded.instrument_k2_ug_per_g2,
                        instrument_k2_u95 = excluded.instrument_k2_u95,
                        measurand = excluded.measurand, limit_ug_per_g2 = excluded.limit_ug_per_g2",
-                    &[
-                        run_id.as_str().into(),
-                        stored_slot(record.slot).into(),
-                        record.serial.as_str().into(),
-                        record.outcome.as_str().into(),
-                        record.k2_max_ug_per_g2.into(),
-                        json.into(),
-                        f.k2_p.into(),
-                        f.k2_p_u95.into(),
-                        f.k2_n.into(),
-                        f.k2_n_u95.into(),
-                        f.instrument_k2.into(),
-                        f.instrument_k2_u95.into(),
-                        f.measurand.map(str::to_string).into(),
-                        f.limit.into(),
-                    ],
+                    &result_row_values(&run_id, record, &json),
                 )?;
             }
             Event::RunFinished {

@@ -152,28 +152,13 @@ impl Store {
             serde_json::to_string(record).map_err(|e| self.err("encode a result")(Box::new(e)))?;
         self.db()
             .transaction(|db| {
-                let f = crate::record::ResultFigures::of(record);
                 let changed = db.execute(
-                    "UPDATE results SET outcome = $3, k2_max_ug_per_g2 = $4, record_json = $5,
-                       k2_p_ug_per_g2 = $6, k2_p_u95 = $7, k2_n_ug_per_g2 = $8, k2_n_u95 = $9,
-                       instrument_k2_ug_per_g2 = $10, instrument_k2_u95 = $11,
-                       measurand = $12, limit_ug_per_g2 = $13
+                    "UPDATE results SET serial = $3, outcome = $4, k2_max_ug_per_g2 = $5, record_json = $6,
+                       k2_p_ug_per_g2 = $7, k2_p_u95 = $8, k2_n_ug_per_g2 = $9, k2_n_u95 = $10,
+                       instrument_k2_ug_per_g2 = $11, instrument_k2_u95 = $12,
+                       measurand = $13, limit_ug_per_g2 = $14
                      WHERE run_id = $1 AND slot = $2",
-                    &[
-                        run_id.into(),
-                        crate::record::stored_slot(record.slot).into(),
-                        record.outcome.as_str().into(),
-                        record.k2_max_ug_per_g2.into(),
-                        json.as_str().into(),
-                        f.k2_p.into(),
-                        f.k2_p_u95.into(),
-                        f.k2_n.into(),
-                        f.k2_n_u95.into(),
-                        f.instrument_k2.into(),
-                        f.instrument_k2_u95.into(),
-                        f.measurand.map(str::to_string).into(),
-                        f.limit.into(),
-                    ],
+                    &crate::record::result_row_values(run_id, record, &json),
                 )?;
                 if changed != 1 {
                     return Err(
