@@ -353,6 +353,15 @@ impl StationConfig {
                 ),
             );
         }
+        // A name with a right-to-left override or a zero-width character
+        // would let one station look like another (issue 39 item 7).
+        match person_text(&self.station) {
+            Ok(name) if name.is_empty() => {
+                return err("station", "empty: give the station a name".into());
+            }
+            Ok(_) => {}
+            Err(why) => return err("station", why),
+        }
         check_positive(self.arm.radius_m, MAX_ARM_RADIUS_M, "m", "MAX_ARM_RADIUS_M")
             .map_err(at("arm.radius_m"))?;
         check_positive(self.arm.max_g, MAX_ARM_G, "g", "MAX_ARM_G").map_err(at("arm.max_g"))?;

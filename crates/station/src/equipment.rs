@@ -12,7 +12,7 @@ pub fn station_equipment(
     store: &Store,
     station: &StationConfig,
 ) -> Result<Vec<(String, Option<EquipmentRow>, CalibrationStatus)>, spinbench_store::StoreError> {
-    let register = store.equipment()?;
+    let register = store.equipment(Some(&station.station))?;
     let today = today();
     Ok(station
         .device_roles()
@@ -39,7 +39,7 @@ pub fn overdue(
         .iter()
         .filter_map(|(role, row, status)| match status {
             CalibrationStatus::Overdue => Some(format!(
-                "{role} (due {})",
+                "{role} (due {}, overdue)",
                 row.as_ref().map_or("?", |r| r.due_on.as_str())
             )),
             CalibrationStatus::Unregistered if require_registered => Some(format!(

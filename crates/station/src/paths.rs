@@ -48,3 +48,35 @@ pub fn parse_store(text: &str) -> Result<StoreTarget, String> {
     }
     Ok(target)
 }
+
+/// The station's identity inside the data directory.
+pub const STATION_ID_FILE: &str = "station-id";
+
+/// The station's identity (issue 39 item 2): made at its first start and
+/// kept in `DATA/station-id`, apart from its display name, so two installs
+/// left with one name are still two stations to the fleet. 32 hex digits.
+pub fn station_identity(data: &Path) -> anyhow::Result<String> {
+    use anyhow::Context;
+    let path = data.join(STATION_ID_FILE);
+    match std::fs::read_to_string(&path) {
+        Ok(text) => {
+            let id = text.trim();
+            anyhow::ensure!(
+                id.len() == 32 && id.chars().all(|c| c.is_ascii_hexdigit()),
+                "{}: not a station identity (32 hex digits); remove the file and a new one is made at the next start",
+                path.display()
+            );
+            Ok(id.to_ascii_lowercase())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let bytes: [u8; 16] = rand::random();
+            let id: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+            std::fs::write(&path, format!("{id}\n")).with_context(|| {
+                format!("{}: cannot keep the station's identity", path.display())
+            })?;
+            Ok(id)
+        }
+        Err(e) => Err(e)
+            .with_context(|| format!("{}: cannot read the station's identity", path.display())),
+    }
+}

@@ -31,6 +31,8 @@ fn an_overdue_device_stops_a_run_unless_overridden_with_a_reason() {
             "2025-01-01",
             "--due",
             due,
+            "--station",
+            "spinbench virtual bench",
             "--db",
             db_s,
         ])
@@ -54,7 +56,7 @@ fn an_overdue_device_stops_a_run_unless_overridden_with_a_reason() {
     };
     let (ok, _, err) = run(&[]);
     assert!(
-        !ok && err.contains("fmu 1 (due 2026-01-01) overdue"),
+        !ok && err.contains("fmu 1 (due 2026-01-01, overdue)"),
         "{err}"
     );
     let store = Store::connect(&StoreTarget::File(db.clone())).expect("store");
@@ -72,5 +74,53 @@ fn an_overdue_device_stops_a_run_unless_overridden_with_a_reason() {
         log.iter()
             .any(|l| l.starts_with("override overdue calibration") && l.contains("renewal")),
         "{log:?}"
+    );
+}
+
+/// Issue 39 item 1: the register is per station: an entry of one station
+/// is not another's; with two stations known, `--station` is asked for.
+#[test]
+fn the_register_is_kept_per_station() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let db = dir.path().join("spinbench.db");
+    let db_s = db.to_str().expect("utf-8");
+    let set = |station: Option<&str>| {
+        let mut args = vec![
+            "equipment",
+            "set",
+            "centrifuge",
+            "--identity",
+            "CT 1",
+            "--certificate",
+            "K-1",
+            "--calibrated",
+            "2025-01-01",
+            "--due",
+            "2099-01-01",
+            "--db",
+            db_s,
+        ];
+        if let Some(s) = station {
+            args.extend(["--station", s]);
+        }
+        spinbench(&args)
+    };
+    // No station known yet: the command asks which.
+    let (ok, _, err) = set(None);
+    assert!(!ok && err.contains("--station NAME is needed"), "{err}");
+    let (ok, said, err) = set(Some("A"));
+    assert!(ok && said.contains("of station 'A'"), "{said}{err}");
+    let store = Store::connect(&StoreTarget::File(db.clone())).expect("store");
+    assert_eq!(store.equipment(Some("A")).expect("A").len(), 1);
+    assert!(
+        store.equipment(Some("B")).expect("B").is_empty(),
+        "station A's centrifuge is station B's"
+    );
+    let (ok, listed, _) = spinbench(&["equipment", "list", "--station", "B", "--db", db_s]);
+    assert!(ok && !listed.contains("K-1"), "{listed}");
+    let (ok, listed, _) = spinbench(&["equipment", "list", "--db", db_s]);
+    assert!(
+        ok && listed.contains("A ") && listed.contains("K-1"),
+        "{listed}"
     );
 }

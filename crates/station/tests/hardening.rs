@@ -309,6 +309,8 @@ fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
             calibrated,
             "--due",
             due,
+            "--station",
+            "A",
             "--db",
             db_s,
         ])
@@ -334,6 +336,8 @@ fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
         "2025-01-01",
         "--due",
         "2027-01-01",
+        "--station",
+        "A",
         "--db",
         db_s,
     ]);

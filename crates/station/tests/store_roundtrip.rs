@@ -744,3 +744,41 @@ fn a_store_written_by_the_previous_release_migrates_and_reads_back_the_same_reco
         );
     }
 }
+
+/// Issue 39 item 1: the one register of an earlier release becomes each
+/// known station's at the upgrade (migration 17): nothing is lost, and each
+/// station's entries are its own from then on.
+#[test]
+fn the_shared_register_of_the_previous_release_is_copied_to_each_station() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let db = dir.path().join("spinbench.db");
+    std::fs::copy(format!("{PREVIOUS_RELEASE}/spinbench.db"), &db).expect("the fixture");
+    {
+        let c = rusqlite::Connection::open(&db).expect("the fixture");
+        c.execute_batch(
+            "INSERT INTO equipment VALUES ('centrifuge', 'CT 9', 'K-9', '2025-01-01', '2099-01-01', 'eng', 0);
+             INSERT INTO stations (name, first_seen, last_seen) VALUES ('second station', 0, 0);",
+        )
+        .expect("an entry and a second station");
+    }
+    let store = Store::connect(&StoreTarget::File(db.clone())).expect("migrates");
+    for station in ["spinbench virtual bench", "second station"] {
+        let rows = store.equipment(Some(station)).expect("register");
+        assert_eq!(rows.len(), 1, "{station}: {rows:?}");
+        assert_eq!(
+            (rows[0].role.as_str(), rows[0].certificate.as_str()),
+            ("centrifuge", "K-9")
+        );
+    }
+    // From now on, one station's change is not the other's.
+    let mut changed = store.equipment(Some("second station")).expect("register")[0].clone();
+    changed.certificate = "K-10".into();
+    store.set_equipment(&changed, "eng").expect("set");
+    assert_eq!(
+        store
+            .equipment(Some("spinbench virtual bench"))
+            .expect("register")[0]
+            .certificate,
+        "K-9"
+    );
+}

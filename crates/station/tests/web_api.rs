@@ -978,7 +978,7 @@ fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(b
     assert!(
         r.json()["error"]
             .as_str()
-            .is_some_and(|e| e.contains("centrifuge (due 2026-01-01) overdue")),
+            .is_some_and(|e| e.contains("centrifuge (due 2026-01-01, overdue)")),
         "{:?}",
         r.json()
     );

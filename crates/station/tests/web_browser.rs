@@ -683,7 +683,7 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     b.wait_for(
         10,
         "the refusal naming the device",
-        "return document.getElementById('message').textContent.includes('centrifuge (due 2026-01-01) overdue')",
+        "return document.getElementById('message').textContent.includes('centrifuge (due 2026-01-01, overdue)')",
     );
     b.screenshot(&shots.join("10b-run-refused.png"));
 }

@@ -84,9 +84,14 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         assert_eq!(r.status, 201, "{:?}", r.json());
         runs.push(r.json()["run_id"].as_str().expect("run id").to_string());
     }
+    // Running, or waiting for the operator at a prompt (issue 39 item 2:
+    // a station waiting is shown as waiting, not running).
+    let busy = |s: Option<&String>| matches!(s.map(String::as_str), Some("running" | "waiting"));
     wait_fleet(&mut op_a, 20, "both running", |f| {
-        f.get("station-a").map(String::as_str) == Some("running")
-            && f.get("station-b").map(String::as_str) == Some("running")
+        busy(f.get("station-a")) && busy(f.get("station-b"))
+    });
+    wait_fleet(&mut op_a, 20, "A waiting at its first prompt", |f| {
+        f.get("station-a").map(String::as_str) == Some("waiting")
     });
     // Answer both stations' prompts until both runs end.
     let until = Instant::now() + Duration::from_secs(300);
@@ -250,4 +255,129 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         let text = std::fs::read_to_string(log).unwrap_or_default();
         assert!(!text.contains("panicked"), "{}:\n{text}", log.display());
     }
+}
+
+/// `spinbench serve` that is expected not to start: its exit status and
+/// standard error (it must end by itself within 60 s).
+fn serve_refused(data: &std::path::Path, extra: &[&str]) -> (bool, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["serve", "--simulate", "--bind", "127.0.0.1:0", "--data"])
+        .arg(data)
+        .arg("--db")
+        .arg(web::store_of(data))
+        .args(extra)
+        .output()
+        .expect("spinbench serve");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn item_1_and_2_stations_of_one_store_keep_their_names_and_registers() {
+    stations_keep_their_names_and_registers_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_item_1_and_2_stations_of_one_store_keep_their_names_and_registers() {
+    stations_keep_their_names_and_registers_on(Backend::Postgres);
+}
+
+/// Issue 39 items 1 and 2: station B's register is not station A's (A's
+/// overdue centrifuge neither blocks B nor counts as B's calibration); a
+/// second install under a live station's name is refused at start, naming
+/// the holder and how to rename; the first keeps its fleet row.
+fn stations_keep_their_names_and_registers_on(backend: Backend) {
+    let a_dir = tempfile::tempdir().expect("tempdir");
+    let b_dir = tempfile::tempdir().expect("tempdir");
+    let c_dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(a_dir.path());
+    share_store(a_dir.path(), b_dir.path());
+    share_store(a_dir.path(), c_dir.path());
+    add_user(a_dir.path(), "eng", "engineer", "eng-password");
+    let logs = tempfile::tempdir().expect("tempdir");
+    let a = serve_logged(
+        a_dir.path(),
+        "0",
+        &["--name", "station-a"],
+        &logs.path().join("a.log"),
+    );
+    let b = serve_logged(
+        b_dir.path(),
+        "0",
+        &["--name", "station-b"],
+        &logs.path().join("b.log"),
+    );
+    let mut eng_a = Client::login(&a, "eng", "eng-password");
+    let mut eng_b = Client::login(&b, "eng", "eng-password");
+
+    // Item 1: A's centrifuge registered overdue is A's alone.
+    let overdue = json!({"identity": "CT-A", "certificate": "K-A", "calibrated_on": "2020-01-01", "due_on": "2021-01-01"});
+    let r = eng_a.send(
+        "PUT",
+        "/api/equipment/centrifuge",
+        Some(&overdue.to_string()),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let status_of = |c: &mut Client| -> (String, String, Option<String>) {
+        let list = c.get_json("/api/equipment", 200);
+        let centrifuge = list
+            .as_array()
+            .expect("a list")
+            .iter()
+            .find(|e| e["role"] == "centrifuge")
+            .cloned()
+            .expect("the centrifuge");
+        (
+            centrifuge["station"].as_str().unwrap_or("").to_string(),
+            centrifuge["status"].as_str().unwrap_or("").to_string(),
+            centrifuge["certificate"].as_str().map(str::to_string),
+        )
+    };
+    assert_eq!(
+        status_of(&mut eng_a),
+        ("station-a".into(), "overdue".into(), Some("K-A".into()))
+    );
+    assert_eq!(
+        status_of(&mut eng_b),
+        ("station-b".into(), "not in the register".into(), None),
+        "station B shows station A's centrifuge"
+    );
+    // B registers its own; A's stays overdue.
+    let valid = json!({"identity": "CT-B", "certificate": "K-B", "calibrated_on": "2025-01-01", "due_on": "2099-01-01"});
+    let r = eng_b.send("PUT", "/api/equipment/centrifuge", Some(&valid.to_string()));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    assert_eq!(status_of(&mut eng_a).1, "overdue");
+    assert_eq!(status_of(&mut eng_b).1, "valid");
+
+    // Item 2: a second install under A's name does not start, and says
+    // who holds the name and how to rename.
+    let (ok, err) = serve_refused(c_dir.path(), &["--name", "station-a"]);
+    assert!(!ok, "a second 'station-a' started");
+    assert!(
+        err.contains("already holds the name 'station-a'") && err.contains("--name"),
+        "{err}"
+    );
+    // A keeps its fleet row.
+    let rows = eng_b.get_json("/api/fleet", 200);
+    let a_row = rows
+        .as_array()
+        .expect("a list")
+        .iter()
+        .find(|s| s["station"] == "station-a")
+        .cloned()
+        .expect("station-a in the fleet");
+    assert_eq!(a_row["state"], "idle", "{a_row}");
+    assert_eq!(a_row["kind"], "server", "{a_row}");
+    assert!(
+        a_row["address"]
+            .as_str()
+            .is_some_and(|addr| addr.starts_with(&a.base)),
+        "{a_row}"
+    );
+    // A name with an invisible character is refused (item 7).
+    let (ok, err) = serve_refused(c_dir.path(), &["--name", "station\u{200B}-a"]);
+    assert!(!ok && err.contains("invisible character"), "{err}");
+    drop((a, b));
 }

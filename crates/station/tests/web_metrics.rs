@@ -96,6 +96,11 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
         "{idle}"
     );
     assert_eq!(sample(&idle, "spinbench_login_failures_total"), Some(1.0));
+    // No run has read the table: its rate is not known (NaN), not 0.
+    assert!(
+        sample(&idle, "spinbench_table_rate_degrees_per_second").is_some_and(f64::is_nan),
+        "{idle}"
+    );
     assert_eq!(
         sample(
             &idle,
@@ -127,6 +132,10 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
             let p = sample(&m, "spinbench_run_progress_ratio").unwrap_or(-1.0);
             assert!(p > 0.0 && p <= 1.0, "{m}");
             assert_eq!(sample(&m, "spinbench_instruments_live"), Some(2.0), "{m}");
+            assert!(
+                m.contains("spinbench_slot_temperature_celsius{slot=\"1\"}"),
+                "{m}"
+            );
             let (ok, said) = promtool(&m);
             assert!(ok, "promtool: {said}\n{m}");
             seen_turning = true;
@@ -154,8 +163,15 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
         sample(&after, "spinbench_store_write_seconds_count").unwrap_or(0.0) >= 1.0,
         "{after}"
     );
+    // Issue 39 item 10: after the run no instrument is live and no slot's
+    // temperature is current.
     assert!(
-        after.contains("spinbench_slot_temperature_celsius{slot=\"1\"}"),
+        !after.contains("spinbench_slot_temperature_celsius{slot="),
+        "{after}"
+    );
+    assert_eq!(
+        sample(&after, "spinbench_instruments_live"),
+        Some(0.0),
         "{after}"
     );
     assert!(

@@ -1,5 +1,5 @@
-//! The equipment register (issue 16, part 4): each device of the station by
-//! its role in a run (`centrifuge`, `fmu 1`, `instrument supply`, …), its
+//! The equipment register (issue 16, part 4; per station since issue 39):
+//! each device of each station by its station and its role in a run (`centrifuge`, `fmu 1`, `instrument supply`, …), its
 //! identity, calibration certificate, the date it was calibrated and the date
 //! it is due. Engineers keep it; every change is in the audit log.
 
@@ -9,6 +9,9 @@ use crate::{Store, StoreError, now_s};
 /// One device in the register.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct EquipmentRow {
+    /// The station it belongs to (its config's `station`; '' for an entry
+    /// kept from before the register was per station, used by none).
+    pub station: String,
     /// Its role in a run, as the run's device list names it.
     pub role: String,
     /// What it is (the identity it answers with, or a description).
@@ -156,24 +159,35 @@ pub fn today() -> i64 {
 }
 
 impl Store {
-    /// The register, by role.
-    pub fn equipment(&self) -> Result<Vec<EquipmentRow>, StoreError> {
-        Ok(self
-            .query(
+    /// The register of `station` by role, or with `None` every station's
+    /// (by station, then role). A station sees only its own devices: two
+    /// stations of a fleet each have a centrifuge of their own.
+    pub fn equipment(&self, station: Option<&str>) -> Result<Vec<EquipmentRow>, StoreError> {
+        let columns = "SELECT station, role, identity, certificate, calibrated_on, due_on, updated_by, updated_at
+                 FROM equipment";
+        let rows = match station {
+            Some(name) => self.query(
                 "read the equipment register",
-                "SELECT role, identity, certificate, calibrated_on, due_on, updated_by, updated_at
-                 FROM equipment ORDER BY role",
+                &format!("{columns} WHERE station = $1 ORDER BY role"),
+                &[name.into()],
+            )?,
+            None => self.query(
+                "read the equipment register",
+                &format!("{columns} ORDER BY station, role"),
                 &[],
-            )?
+            )?,
+        };
+        Ok(rows
             .iter()
             .map(|r| EquipmentRow {
-                role: r.text(0),
-                identity: r.text(1),
-                certificate: r.text(2),
-                calibrated_on: r.text(3),
-                due_on: r.text(4),
-                updated_by: r.text(5),
-                updated_at: r.int(6),
+                station: r.text(0),
+                role: r.text(1),
+                identity: r.text(2),
+                certificate: r.text(3),
+                calibrated_on: r.text(4),
+                due_on: r.text(5),
+                updated_by: r.text(6),
+                updated_at: r.int(7),
             })
             .collect())
     }
@@ -183,15 +197,15 @@ impl Store {
     /// the caller, who names the field).
     pub fn set_equipment(&self, row: &EquipmentRow, who: &str) -> Result<(), StoreError> {
         let detail = format!(
-            "{}: {}, certificate {}, calibrated {}, due {}",
-            row.role, row.identity, row.certificate, row.calibrated_on, row.due_on
+            "station '{}', {}: {}, certificate {}, calibrated {}, due {}",
+            row.station, row.role, row.identity, row.certificate, row.calibrated_on, row.due_on
         );
         self.db()
             .transaction(|db| {
                 db.execute(
-                    "INSERT INTO equipment (role, identity, certificate, calibrated_on, due_on, updated_by, updated_at)
-                     VALUES ($1, $2, $3, $4, $5, $6, $7)
-                     ON CONFLICT (role) DO UPDATE SET identity = excluded.identity,
+                    "INSERT INTO equipment (role, identity, certificate, calibrated_on, due_on, updated_by, updated_at, station)
+                     VALUES ($1, $2, $3, $4, $5, $6, $7, $8)
+                     ON CONFLICT (station, role) DO UPDATE SET identity = excluded.identity,
                        certificate = excluded.certificate, calibrated_on = excluded.calibrated_on,
                        due_on = excluded.due_on, updated_by = excluded.updated_by,
                        updated_at = excluded.updated_at",
@@ -203,6 +217,7 @@ impl Store {
                         row.due_on.as_str().into(),
                         who.into(),
                         Value::Int(Some(now_s())),
+                        row.station.as_str().into(),
                     ],
                 )?;
                 crate::users::insert_audit(db, who, "set equipment", &detail)
@@ -241,6 +256,7 @@ mod tests {
     #[test]
     fn status_by_due_date() {
         let row = |due: &str| EquipmentRow {
+            station: "A".into(),
             role: "centrifuge".into(),
             identity: String::new(),
             certificate: String::new(),

@@ -12,9 +12,13 @@ pub const OFFLINE_AFTER_S: i64 = 10;
 /// What a station says of itself in a heartbeat.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Heartbeat {
-    /// The station's id (its config's `station`).
+    /// The station's name (its config's `station`).
     pub station: String,
-    /// `idle`, `running` or `faulted`.
+    /// Its identity: made at its first start and kept in its data
+    /// directory, apart from the name (two installs left with one name are
+    /// two identities). Empty for a station seen only through its runs.
+    pub instance: String,
+    /// `idle`, `running`, `waiting` (for the operator) or `faulted`.
     pub state: String,
     /// Its current (or last) run.
     pub run_id: Option<String>,
@@ -22,6 +26,31 @@ pub struct Heartbeat {
     pub progress: Option<(i64, i64)>,
     /// Where its web UI answers (for a link), if it serves one.
     pub address: Option<String>,
+}
+
+/// Who holds a station's name in the fleet.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Holder {
+    /// Its identity ('' for a station seen only through its runs).
+    pub instance: String,
+    /// Where its web UI answered.
+    pub address: Option<String>,
+    /// When it was last heard [Unix s].
+    pub last_seen: i64,
+}
+
+/// The answer to a station's claim of its name at start.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Claim {
+    /// The name is this station's; `previous` is another identity that
+    /// held it before (offline now), if one did.
+    Taken {
+        /// The identity that held the name before, if another.
+        previous: Option<Holder>,
+    },
+    /// Another identity holds the name and is live: this station must not
+    /// start under it.
+    HeldBy(Holder),
 }
 
 /// One station of the fleet as the store knows it.
@@ -33,6 +62,9 @@ pub struct StationRow {
     pub first_seen: i64,
     /// When it was last heard [Unix s].
     pub last_seen: i64,
+    /// `server` (a `spinbench serve`, with a heartbeat) or `command line`
+    /// (seen only through the runs of `spinbench run`).
+    pub kind: String,
     /// Instruments graded today (UTC) in first tests (not retests), each
     /// serial of a run once.
     pub tested_today: i64,
@@ -41,19 +73,78 @@ pub struct StationRow {
 }
 
 impl Store {
-    /// Record a station's heartbeat (and the station, if new).
+    /// Take `name` for the station `instance` at its start (and record
+    /// its first heartbeat): refused while another identity holds the name
+    /// and is live (heard within [`OFFLINE_AFTER_S`]). A name last held by
+    /// another identity that is offline is taken over; the answer says by
+    /// whom it was held, so the start can warn.
+    pub fn claim_station(&self, beat: &Heartbeat) -> Result<Claim, StoreError> {
+        let before = self.station_holder(&beat.station)?;
+        if self.write_beat(beat)? {
+            return Ok(Claim::Taken {
+                previous: before.filter(|h| !h.instance.is_empty() && h.instance != beat.instance),
+            });
+        }
+        // Refused by the store: someone live holds it.
+        let holder = self.station_holder(&beat.station)?.unwrap_or(Holder {
+            instance: String::new(),
+            address: None,
+            last_seen: now_s(),
+        });
+        Ok(Claim::HeldBy(holder))
+    }
+
+    /// Who holds the name `station` in the fleet, if anyone has.
+    pub fn station_holder(&self, station: &str) -> Result<Option<Holder>, StoreError> {
+        Ok(self
+            .query(
+                "read the fleet's station",
+                "SELECT instance_id, address, last_seen FROM stations WHERE name = $1",
+                &[station.into()],
+            )?
+            .first()
+            .map(|r| Holder {
+                instance: r.opt_text(0).unwrap_or_default(),
+                address: r.opt_text(1),
+                last_seen: r.int(2),
+            }))
+    }
+
+    /// Record a station's heartbeat (and the station, if new). A beat of
+    /// an identity that does not hold the name changes nothing and is an
+    /// error: the fleet row of one station never flips to another's.
     pub fn heartbeat(&self, beat: &Heartbeat) -> Result<(), StoreError> {
+        if self.write_beat(beat)? {
+            return Ok(());
+        }
+        Err(StoreError::message(
+            self.target(),
+            &format!("record the heartbeat of station '{}'", beat.station),
+            format!(
+                "another live station holds the name '{}'; give this one its own name (`station` in its station.toml, or serve --name)",
+                beat.station
+            ),
+        ))
+    }
+
+    /// Write a beat unless another identity live holds the name; whether
+    /// it was written.
+    fn write_beat(&self, beat: &Heartbeat) -> Result<bool, StoreError> {
         let now = now_s();
         let (done, of) = beat
             .progress
             .map_or((None, None), |(d, o)| (Some(d), Some(o)));
         self.db()
             .execute(
-                "INSERT INTO stations (name, first_seen, last_seen, state, run_id, steps_done, steps_total, address)
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)
+                "INSERT INTO stations (name, first_seen, last_seen, state, run_id, steps_done, steps_total, address,
+                   instance_id, kind)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, 'server')
                  ON CONFLICT (name) DO UPDATE SET last_seen = excluded.last_seen, state = excluded.state,
                    run_id = excluded.run_id, steps_done = excluded.steps_done,
-                   steps_total = excluded.steps_total, address = excluded.address",
+                   steps_total = excluded.steps_total, address = excluded.address,
+                   instance_id = excluded.instance_id, kind = 'server', retired_at = NULL
+                 WHERE stations.instance_id IS NULL OR stations.instance_id = excluded.instance_id
+                   OR stations.state IS NULL OR stations.last_seen < $10",
                 &[
                     beat.station.as_str().into(),
                     now.into(),
@@ -63,10 +154,31 @@ impl Store {
                     Value::Int(done),
                     Value::Int(of),
                     beat.address.clone().into(),
+                    beat.instance.as_str().into(),
+                    (now - OFFLINE_AFTER_S).into(),
                 ],
             )
-            .map(|_| ())
+            .map(|n| n > 0)
             .map_err(self.err(&format!("record the heartbeat of station '{}'", beat.station)))
+    }
+
+    /// Take a station out of the Fleet list (an admin; audited by the
+    /// caller): refused while it is live. It comes back when it runs again.
+    pub fn retire_station(&self, station: &str, who: &str) -> Result<bool, StoreError> {
+        let now = now_s();
+        self.db()
+            .transaction(|db| {
+                let n = db.execute(
+                    "UPDATE stations SET retired_at = $2, state = NULL, run_id = NULL, steps_done = NULL, steps_total = NULL
+                     WHERE name = $1 AND retired_at IS NULL AND (state IS NULL OR last_seen < $3)",
+                    &[station.into(), now.into(), (now - OFFLINE_AFTER_S).into()],
+                )?;
+                if n > 0 {
+                    crate::users::insert_audit(db, who, "retire station", station)?;
+                }
+                Ok(n > 0)
+            })
+            .map_err(self.err(&format!("retire station '{station}'")))
     }
 
     /// Every station, by name, with its state now (offline when its last
@@ -77,8 +189,9 @@ impl Store {
         let midnight = now - now.rem_euclid(86_400);
         let rows = self.query(
             "list the stations",
-            "SELECT name, first_seen, last_seen, state, run_id, steps_done, steps_total, address
-             FROM stations ORDER BY name",
+            "SELECT name, first_seen, last_seen, state, run_id, steps_done, steps_total, address,
+               instance_id, kind
+             FROM stations WHERE retired_at IS NULL ORDER BY name",
             &[],
         )?;
         let mut out = Vec::with_capacity(rows.len());
@@ -86,12 +199,15 @@ impl Store {
             let name = r.text(0);
             let last_seen = r.int(2);
             let beat_state = r.opt_text(3);
+            let live = beat_state.is_some() && now - last_seen <= OFFLINE_AFTER_S;
             let state = match beat_state {
-                Some(s) if now - last_seen <= OFFLINE_AFTER_S => s,
+                Some(s) if live => s,
                 _ => "offline".to_string(),
             };
+            // An offline station's last run and progress are not what it
+            // does now: not shown.
             let progress = match (r.0.get(5), r.0.get(6)) {
-                (Some(Value::Int(Some(d))), Some(Value::Int(Some(o)))) => Some((*d, *o)),
+                (Some(Value::Int(Some(d))), Some(Value::Int(Some(o)))) if live => Some((*d, *o)),
                 _ => None,
             };
             let yield_rows = self.query(
@@ -109,13 +225,15 @@ impl Store {
             out.push(StationRow {
                 beat: Heartbeat {
                     station: name,
+                    instance: r.opt_text(8).unwrap_or_default(),
                     state,
-                    run_id: r.opt_text(4),
+                    run_id: r.opt_text(4).filter(|_| live),
                     progress,
                     address: r.opt_text(7),
                 },
                 first_seen: r.int(1),
                 last_seen,
+                kind: r.opt_text(9).unwrap_or_else(|| "server".into()),
                 tested_today,
                 passed_today,
             });

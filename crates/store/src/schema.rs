@@ -297,7 +297,57 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: MIGRATION_16,
         postgres: MIGRATION_16,
     },
+    Migration {
+        what: "the equipment register kept per station (station, role); a station's identity, kind (server or command line) and retirement in the fleet",
+        sqlite: MIGRATION_17_SQLITE,
+        postgres: MIGRATION_17_POSTGRES,
+    },
 ];
+
+/// Migration 17 on SQLite: the register's key changes, so its table is
+/// made again (it holds one row per device). Each station the store knew
+/// (in `stations` or a run) gets a copy of the one shared register (an
+/// engineer then corrects each station's entries); a store that knew none
+/// keeps its entries under the station '' (listed by `spinbench equipment
+/// list`, used by no station).
+const MIGRATION_17_SQLITE: &str = "CREATE TABLE equipment_by_station (
+        station TEXT NOT NULL,
+        role TEXT NOT NULL,
+        identity TEXT NOT NULL,
+        certificate TEXT NOT NULL,
+        calibrated_on TEXT NOT NULL,
+        due_on TEXT NOT NULL,
+        updated_by TEXT NOT NULL,
+        updated_at INTEGER NOT NULL,
+        PRIMARY KEY (station, role)
+    );
+    INSERT INTO equipment_by_station
+        SELECT s.name, e.role, e.identity, e.certificate, e.calibrated_on, e.due_on, e.updated_by, e.updated_at
+        FROM equipment e, (SELECT name FROM stations UNION SELECT station FROM runs) s;
+    INSERT INTO equipment_by_station
+        SELECT '', role, identity, certificate, calibrated_on, due_on, updated_by, updated_at FROM equipment
+        WHERE NOT EXISTS (SELECT 1 FROM stations) AND NOT EXISTS (SELECT 1 FROM runs);
+    DROP TABLE equipment;
+    ALTER TABLE equipment_by_station RENAME TO equipment;
+    ALTER TABLE stations ADD COLUMN instance_id TEXT;
+    ALTER TABLE stations ADD COLUMN kind TEXT;
+    ALTER TABLE stations ADD COLUMN retired_at INTEGER;";
+
+/// Migration 17 on PostgreSQL: the key changes in place; the role and the
+/// station's kind are checked (NOT VALID, as migration 13's checks).
+const MIGRATION_17_POSTGRES: &str = "ALTER TABLE equipment ADD COLUMN station TEXT NOT NULL DEFAULT '';
+    ALTER TABLE equipment DROP CONSTRAINT equipment_pkey;
+    INSERT INTO equipment (station, role, identity, certificate, calibrated_on, due_on, updated_by, updated_at)
+        SELECT s.name, e.role, e.identity, e.certificate, e.calibrated_on, e.due_on, e.updated_by, e.updated_at
+        FROM equipment e CROSS JOIN (SELECT name FROM stations UNION SELECT station FROM runs) s
+        WHERE e.station = '';
+    DELETE FROM equipment WHERE station = '' AND (EXISTS (SELECT 1 FROM stations) OR EXISTS (SELECT 1 FROM runs));
+    ALTER TABLE equipment ALTER COLUMN station DROP DEFAULT;
+    ALTER TABLE equipment ADD PRIMARY KEY (station, role);
+    ALTER TABLE equipment ADD CONSTRAINT equipment_role_known CHECK (role IN ('centrifuge', 'instrument supply', 'module supply')
+        OR role ~ '^fmu [1-9][0-9]?$') NOT VALID;
+    ALTER TABLE stations ADD COLUMN instance_id TEXT, ADD COLUMN kind TEXT, ADD COLUMN retired_at timestamptz;
+    ALTER TABLE stations ADD CONSTRAINT stations_kind_known CHECK (kind IN ('server', 'command line')) NOT VALID;";
 
 /// Migration 16: every stored slot one up. In two steps (through the
 /// negative numbers), since a key is checked row by row and `slot + 1`

@@ -13,6 +13,8 @@ pub struct StoreSink {
     pub(crate) store: Store,
     serials: Vec<Option<String>>,
     run_id: String,
+    /// The run's station (its devices' register entries are its own).
+    station: String,
     /// The last prompt, recorded with the operator's answer.
     prompt: String,
 }
@@ -21,8 +23,15 @@ impl StoreSink {
     /// Take the run's identity from its start (`RunStarted`) without
     /// writing it: for events of a run already started, written later.
     pub(crate) fn prime(&mut self, started: &Event) {
-        if let Event::RunStarted { run_id, plan, .. } = started {
+        if let Event::RunStarted {
+            run_id,
+            plan,
+            station,
+            ..
+        } = started
+        {
             self.run_id = run_id.clone();
+            self.station = station.clone();
             self.serials = plan.serials.clone();
         }
     }
@@ -73,13 +82,18 @@ impl StoreSink {
                 station_config,
             } => {
                 self.run_id = run_id.clone();
+                self.station = station.clone();
                 self.serials = plan.serials.clone();
                 let plan_json = serde_json::to_string(&plan.plan).unwrap_or_default();
                 let now = now_s();
                 db.transaction(|db| {
                     db.execute(
-                        "INSERT INTO stations (name, first_seen, last_seen) VALUES ($1, $2, $3)
-                         ON CONFLICT (name) DO UPDATE SET last_seen = excluded.last_seen",
+                        // A station first seen through a run (not a server's
+                        // heartbeat) is a command-line station; a retired one
+                        // that runs again is back in the fleet.
+                        "INSERT INTO stations (name, first_seen, last_seen, kind) VALUES ($1, $2, $3, 'command line')
+                         ON CONFLICT (name) DO UPDATE SET last_seen = excluded.last_seen,
+                           kind = COALESCE(stations.kind, excluded.kind), retired_at = NULL",
                         &[station.into(), now.into(), now.into()],
                     )?;
                     let existing = db.query_one("SELECT id FROM runs WHERE id = $1", &[run_id.into()])?;
@@ -125,8 +139,8 @@ impl StoreSink {
                 let mut listed = Vec::new();
                 for d in devices {
                     let row = db.query_one(
-                        "SELECT certificate, calibrated_on, due_on FROM equipment WHERE role = $1",
-                        &[d.role.name().into()],
+                        "SELECT certificate, calibrated_on, due_on FROM equipment WHERE station = $1 AND role = $2",
+                        &[self.station.as_str().into(), d.role.name().into()],
                     )?;
                     let mut entry = DeviceEntry {
                         role: d.role,
@@ -312,6 +326,7 @@ impl Store {
             store: Store::connect(&self.target)?,
             serials: Vec::new(),
             run_id: String::new(),
+            station: String::new(),
             prompt: String::new(),
         })
     }

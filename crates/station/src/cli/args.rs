@@ -376,8 +376,11 @@ pub enum Command {
 /// Actions of `spinbench equipment`.
 #[derive(Debug, Subcommand)]
 pub enum EquipmentAction {
-    /// Every device in the register with its status today.
+    /// Every device in the register with its station and status today.
     List {
+        /// Only this station's devices (its config's `station`).
+        #[arg(long)]
+        station: Option<String>,
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,
@@ -398,6 +401,10 @@ pub enum EquipmentAction {
         /// Due on (YYYY-MM-DD).
         #[arg(long)]
         due: String,
+        /// The station the device belongs to (its config's `station`);
+        /// needed unless the store knows only one station.
+        #[arg(long)]
+        station: Option<String>,
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
         db: StoreTarget,

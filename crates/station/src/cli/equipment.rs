@@ -7,19 +7,24 @@ use spinbench_store::StoreTarget;
 use spinbench_store::equipment::{EquipmentRow, parse_date, today};
 use std::io::Write;
 
-/// `spinbench equipment list`.
-pub(super) fn list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+/// `spinbench equipment list [--station NAME]`.
+pub(super) fn list(station: Option<&str>, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     let store = open_store(db)?;
     let today = today();
     writeln!(
         out,
-        "{:<18} {:<28} {:<16} {:<11} {:<11} status",
-        "role", "identity", "certificate", "calibrated", "due"
+        "{:<24} {:<18} {:<28} {:<16} {:<11} {:<11} status",
+        "station", "role", "identity", "certificate", "calibrated", "due"
     )?;
-    for r in store.equipment()? {
+    for r in store.equipment(station)? {
         writeln!(
             out,
-            "{:<18} {:<28} {:<16} {:<11} {:<11} {}",
+            "{:<24} {:<18} {:<28} {:<16} {:<11} {:<11} {}",
+            if r.station.is_empty() {
+                "(none: set again with --station)"
+            } else {
+                r.station.as_str()
+            },
             r.role,
             r.identity,
             r.certificate,
@@ -31,16 +36,63 @@ pub(super) fn list(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     Ok(())
 }
 
+/// One entry of `spinbench equipment set`, as typed.
+pub(super) struct Entry<'a> {
+    /// ROLE.
+    pub role: &'a str,
+    /// --identity.
+    pub identity: &'a str,
+    /// --certificate.
+    pub certificate: &'a str,
+    /// --calibrated.
+    pub calibrated: &'a str,
+    /// --due.
+    pub due: &'a str,
+    /// --station, if given.
+    pub station: Option<&'a str>,
+}
+
+/// The station an entry is for: `--station` as given (checked as every
+/// name from outside), or the only station the store knows.
+fn station_of(store: &spinbench_store::Store, given: Option<&str>) -> Result<String> {
+    if let Some(name) = given {
+        let name = spinbench_engine::bounds::person_text(name)
+            .map_err(|why| anyhow::anyhow!("--station: {why}"))?;
+        anyhow::ensure!(
+            !name.is_empty() && name.chars().count() <= spinbench_engine::bounds::MAX_NAME_CHARS,
+            "--station: 1 to {} characters",
+            spinbench_engine::bounds::MAX_NAME_CHARS
+        );
+        return Ok(name);
+    }
+    let known: Vec<String> = store
+        .stations()?
+        .into_iter()
+        .map(|s| s.beat.station)
+        .collect();
+    match known.as_slice() {
+        [only] => Ok(only.clone()),
+        [] => anyhow::bail!(
+            "--station NAME is needed: this store knows no station yet (give the `station` of its station.toml)"
+        ),
+        many => anyhow::bail!(
+            "--station NAME is needed: this store keeps the register of {} stations ({})",
+            many.len(),
+            many.join(", ")
+        ),
+    }
+}
+
 /// `spinbench equipment set ROLE …`.
-pub(super) fn set(
-    role: &str,
-    identity: &str,
-    certificate: &str,
-    calibrated: &str,
-    due: &str,
-    db: &StoreTarget,
-    out: &mut dyn Write,
-) -> Result<()> {
+pub(super) fn set(entry: &Entry<'_>, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let Entry {
+        role,
+        identity,
+        certificate,
+        calibrated,
+        due,
+        station,
+    } = *entry;
     let text_ok = |t: &str| {
         !t.trim().is_empty() && t.chars().count() <= 200 && !t.chars().any(char::is_control)
     };
@@ -67,8 +119,10 @@ pub(super) fn set(
     spinbench_store::equipment::check_calibration_dates(c, d, today_days)
         .map_err(|why| anyhow::anyhow!("--calibrated {calibrated} --due {due}: {why}"))?;
     let store = spinbench_store::Store::connect(db)?;
+    let station = station_of(&store, station)?;
     let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
     let row = EquipmentRow {
+        station,
         role: role.trim().to_string(),
         identity: spinbench_engine::bounds::person_text(identity)
             .map_err(|why| anyhow::anyhow!("--identity: {why}"))?,
@@ -82,8 +136,9 @@ pub(super) fn set(
     store.set_equipment(&row, &format!("{who} (command line)"))?;
     writeln!(
         out,
-        "{}: certificate {}, due {} ({})",
+        "{} of station '{}': certificate {}, due {} ({})",
         row.role,
+        row.station,
         row.certificate,
         row.due_on,
         row.status_on(today()).as_str()

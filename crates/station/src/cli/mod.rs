@@ -306,15 +306,27 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             db,
         } => crate::prune::prune(&db, older_than, &archive, dry_run, out).map(|_| ()),
         Command::Equipment { action } => match action {
-            EquipmentAction::List { db } => equipment::list(&db, out),
+            EquipmentAction::List { station, db } => equipment::list(station.as_deref(), &db, out),
             EquipmentAction::Set {
                 role,
                 identity,
                 certificate,
                 calibrated,
                 due,
+                station,
                 db,
-            } => equipment::set(&role, &identity, &certificate, &calibrated, &due, &db, out),
+            } => equipment::set(
+                &equipment::Entry {
+                    role: &role,
+                    identity: &identity,
+                    certificate: &certificate,
+                    calibrated: &calibrated,
+                    due: &due,
+                    station: station.as_deref(),
+                },
+                &db,
+                out,
+            ),
         },
         Command::User { action } => match action {
             UserAction::Add { name, role, db } => user::add(&name, &role, &db, out),

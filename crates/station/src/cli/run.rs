@@ -119,7 +119,7 @@ pub(super) fn run_plan(
         if let Some(late) = crate::equipment::overdue(&list, station.equipment.require_registered) {
             match override_overdue.map(str::trim).filter(|r| !r.is_empty()) {
                 None => anyhow::bail!(
-                    "{late} overdue for calibration: calibrate it and update the register \
+                    "{late}: calibration not cleared; calibrate it and update the register \
                      (`spinbench equipment set`), or start anyway with --override-overdue REASON"
                 ),
                 Some(reason) => {
@@ -127,11 +127,11 @@ pub(super) fn run_plan(
                     store.audit(
                         &who,
                         "override overdue calibration",
-                        &format!("a run started with {late} overdue: {reason}"),
+                        &format!("a run started with {late}: {reason}"),
                     )?;
                     writeln!(
                         out,
-                        "warning: {late} overdue for calibration; started anyway: {reason}"
+                        "warning: {late}: calibration not cleared; started anyway: {reason}"
                     )?;
                 }
             }

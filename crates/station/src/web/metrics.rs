@@ -37,7 +37,7 @@ pub struct Metrics {
 }
 
 /// The run states the state gauge has a series for (1 for the one now).
-const STATES: [&str; 3] = ["idle", "running", "faulted"];
+const STATES: [&str; 4] = ["idle", "running", "waiting", "faulted"];
 
 impl Metrics {
     /// Every metric, registered; names as the README lists them.
@@ -46,7 +46,7 @@ impl Metrics {
         let state = GaugeVec::new(
             Opts::new(
                 "spinbench_station_state",
-                "1 for the station's state now (idle, running, faulted)",
+                "1 for the station's state now (idle, running, waiting, faulted)",
             ),
             &["state"],
         )?;
@@ -179,10 +179,16 @@ impl Metrics {
                 .with_label_values(&[s])
                 .set(if s == state { 1.0 } else { 0.0 });
         }
-        self.rate_deg_s.set(status.rate_deg_s.unwrap_or(0.0));
-        self.demand_deg_s.set(status.demand_deg_s.unwrap_or(0.0));
-        let progress = match (&status.step, state) {
-            (Some(step), "running") if step.of > 0 => {
+        // A rate not known (no run has read the table) is NaN, not 0: a
+        // table at rest and a table not read are two things (issue 39 item 10).
+        self.rate_deg_s.set(status.rate_deg_s.unwrap_or(f64::NAN));
+        self.demand_deg_s
+            .set(status.demand_deg_s.unwrap_or(f64::NAN));
+        // The instruments and their temperatures are a run's: after it
+        // ends none are live and no slot's temperature is current.
+        let active = matches!(state, "running" | "waiting");
+        let progress = match (&status.step, active) {
+            (Some(step), true) if step.of > 0 => {
                 (step.index as f64 + 1.0).min(step.of as f64) / step.of as f64
             }
             _ => 0.0,
@@ -195,8 +201,10 @@ impl Metrics {
                 !s.serial.is_empty() && s.phase != spinbench_engine::board::SlotPhase::Failed
             })
             .count();
-        self.instruments_live.set(live as i64);
-        for s in &status.board {
+        self.instruments_live
+            .set(if active { live as i64 } else { 0 });
+        self.slot_temperature_c.reset();
+        for s in status.board.iter().filter(|_| active) {
             if let Some(t) = s.temperature_c.filter(|t| t.is_finite()) {
                 self.slot_temperature_c
                     .with_label_values(&[&s.slot.to_string()])

@@ -185,6 +185,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         None => station_toml,
     };
     let station = StationConfig::from_toml(&station_toml).context("the station config")?;
+    let identity = crate::paths::station_identity(&args.data)?;
     let plans_dir = args.data.join("plans");
     std::fs::create_dir_all(&plans_dir)
         .with_context(|| format!("{}: cannot create the plans directory", plans_dir.display()))?;
@@ -257,6 +258,13 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         .block_on(tokio::net::TcpListener::bind(args.bind))
         .with_context(|| format!("cannot listen on {} (in use? use --bind)", args.bind))?;
     let local = listener.local_addr()?;
+    let address = format!(
+        "{}://{local}/",
+        if tls.is_some() { "https" } else { "http" }
+    );
+    // The station's name is its own in the fleet (issue 39 item 2): not
+    // while another live station holds it.
+    claim_name(&state, &address, &identity, out)?;
     writeln!(
         out,
         "spinbench serve: {}://{local}/ ({}; data in {}, store {})",
@@ -277,14 +285,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         termination_signals()
             .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
     };
-    let heartbeat = spawn_heartbeat(
-        state.clone(),
-        db.clone(),
-        format!(
-            "{}://{local}/",
-            if tls.is_some() { "https" } else { "http" }
-        ),
-    )?;
+    let heartbeat = spawn_heartbeat(state.clone(), db.clone(), address, identity)?;
     let stopping = state.clone();
     runtime.block_on(server::serve(listener, app, limits, tls, async move {
         let reason = signals.await;
@@ -329,16 +330,62 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
 
 /// The station config with its `station` (the fleet id) set to `name`.
 fn renamed(station_toml: &str, name: &str) -> Result<String> {
-    let name = name.trim();
-    if name.is_empty() || name.chars().count() > 64 || name.chars().any(char::is_control) {
+    let name = spinbench_engine::bounds::person_text(name)
+        .map_err(|why| anyhow::anyhow!("--name: {why}"))?;
+    if name.is_empty() || name.chars().count() > 64 {
         anyhow::bail!(
-            "--name '{}': 1 to 64 characters, no control characters",
-            spinbench_engine::bounds::shown(name)
+            "--name '{}': 1 to 64 characters",
+            spinbench_engine::bounds::shown(&name)
         );
     }
     let mut table: toml::Table = station_toml.parse().context("the station config")?;
-    table.insert("station".into(), toml::Value::String(name.to_string()));
+    table.insert("station".into(), toml::Value::String(name));
     toml::to_string(&table).context("the station config")
+}
+
+/// Claim the station's name in the fleet for this identity; refused
+/// (naming the holder and how to rename) while another live station holds
+/// it, warned when another identity held it before.
+fn claim_name(
+    state: &AppState,
+    address: &str,
+    identity: &str,
+    out: &mut dyn std::io::Write,
+) -> Result<()> {
+    let station = state.runner.station().0.station;
+    let beat = heartbeat_now(state, &station, address, identity);
+    let claim = state
+        .store
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .claim_station(&beat)?;
+    match claim {
+        spinbench_store::fleet::Claim::Taken { previous: None } => Ok(()),
+        spinbench_store::fleet::Claim::Taken {
+            previous: Some(before),
+        } => {
+            writeln!(
+                out,
+                "warning: the name '{station}' was last used by another station (identity {}, at {}, last heard {}); this one (identity {identity}) takes it over. If that is another centrifuge, give this one its own name (`station` in its station.toml, or --name)",
+                before.instance,
+                before.address.as_deref().unwrap_or("no address"),
+                spinbench_store::equipment::civil_date(before.last_seen)
+            )?;
+            Ok(())
+        }
+        spinbench_store::fleet::Claim::HeldBy(holder) => anyhow::bail!(
+            "another live station already holds the name '{station}' (identity {}, at {}, heard {} s ago): \
+             two stations with one name would merge in the fleet, its yield and its run numbers. \
+             Give this station its own name: `station = \"…\"` in its station.toml, or `serve --name NAME`",
+            if holder.instance.is_empty() {
+                "unknown"
+            } else {
+                holder.instance.as_str()
+            },
+            holder.address.as_deref().unwrap_or("no address"),
+            (spinbench_store::now_s() - holder.last_seen).max(0)
+        ),
+    }
 }
 
 /// How long a stopping server waits for the store's last writes.
@@ -355,6 +402,7 @@ fn spawn_heartbeat(
     state: Arc<AppState>,
     db: StoreTarget,
     address: String,
+    identity: String,
 ) -> Result<std::thread::JoinHandle<()>> {
     let station = state.runner.station().0.station;
     std::thread::Builder::new()
@@ -367,7 +415,7 @@ fn spawn_heartbeat(
                 if store.is_none() {
                     store = Store::connect(&db).ok();
                 }
-                let beat = heartbeat_now(&state, &station, &address);
+                let beat = heartbeat_now(&state, &station, &address, &identity);
                 let started = std::time::Instant::now();
                 *state
                     .metrics
@@ -420,11 +468,13 @@ fn spawn_heartbeat(
 }
 
 /// The station's state for the fleet and the monitoring: `faulted` (the
-/// last run faulted, until the next starts), `running` (a run is active),
-/// else `idle`.
+/// last run faulted, until the next starts), `waiting` (a run waits for the
+/// operator's answer to a prompt), `running` (a run is active), else `idle`.
 pub(crate) fn station_state(state: &AppState, status: &hub::StatusSnapshot) -> &'static str {
+    use spinbench_engine::RunState;
     match (state.runner.active().is_some(), status.state) {
-        (_, Some(spinbench_engine::RunState::Faulted)) => "faulted",
+        (_, Some(RunState::Faulted)) => "faulted",
+        (true, Some(RunState::Prompting)) => "waiting",
         (true, _) => "running",
         _ => "idle",
     }
@@ -435,12 +485,14 @@ fn heartbeat_now(
     state: &AppState,
     station: &str,
     address: &str,
+    identity: &str,
 ) -> spinbench_store::fleet::Heartbeat {
     let status = state.hub.status();
     let active = state.runner.active().is_some();
     let what = station_state(state, &status);
     spinbench_store::fleet::Heartbeat {
         station: station.to_string(),
+        instance: identity.to_string(),
         state: what.to_string(),
         run_id: status.run_id.clone(),
         progress: status

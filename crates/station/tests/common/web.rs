@@ -89,11 +89,12 @@ impl Backend {
     }
 }
 
-/// Let `other` keep the same store as `data` (two servers of a fleet).
+/// Let `other` keep the same store as `data` (two servers of a fleet): its
+/// PostgreSQL database, or its SQLite file.
 pub fn share_store(data: &Path, other: &Path) {
-    if let Ok(url) = std::fs::read_to_string(data.join(STORE_URL_FILE)) {
-        std::fs::write(other.join(STORE_URL_FILE), url).expect("write the store's URL");
-    }
+    let url = std::fs::read_to_string(data.join(STORE_URL_FILE))
+        .unwrap_or_else(|_| data.join("spinbench.db").display().to_string());
+    std::fs::write(other.join(STORE_URL_FILE), url).expect("write the store's URL");
 }
 
 /// The store `data`'s server keeps: the `--db` argument.

@@ -73,6 +73,7 @@ pub(super) async fn equipment(
 ) -> ApiResult<Json<Vec<EquipmentEntry>>> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let station = app.runner.station().0;
+    let name = station.station.clone();
     let list = blocking(&app, move |app| {
         Ok(crate::equipment::station_equipment(
             &*store(app)?,
@@ -83,6 +84,7 @@ pub(super) async fn equipment(
     Ok(Json(
         list.iter()
             .map(|(role, row, status)| EquipmentEntry {
+                station: name.clone(),
                 role: role.clone(),
                 identity: row.as_ref().map(|r| r.identity.clone()),
                 certificate: row.as_ref().map(|r| r.certificate.clone()),
@@ -149,6 +151,7 @@ pub(super) async fn set_equipment(
     spinbench_store::equipment::check_calibration_dates(calibrated, due, today)
         .map_err(ApiError::bad)?;
     let row = EquipmentRow {
+        station: app.runner.station().0.station,
         role: role.clone(),
         identity: person_text(&set.identity)
             .map_err(|why| ApiError::bad(format!("identity: {why}")))?,

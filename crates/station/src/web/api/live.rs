@@ -175,6 +175,7 @@ pub(super) async fn fleet(
                 this_station: r.beat.station == this,
                 station: r.beat.station,
                 state: r.beat.state,
+                kind: r.kind,
                 run_id: r.beat.run_id,
                 steps_done: r.beat.progress.map(|p| p.0),
                 steps_total: r.beat.progress.map(|p| p.1),

@@ -58,7 +58,7 @@ pub(super) async fn start_run(
             &session.user,
             "override overdue calibration",
             &format!(
-                "{run_id} started with {devices} overdue: {}",
+                "{run_id} started with {devices}: {}",
                 start.override_overdue.as_deref().unwrap_or_default()
             ),
         )
@@ -113,11 +113,11 @@ async fn check_equipment(
         }
         Some(_) if session.role < Role::Admin => Err(ApiError::new(
             StatusCode::FORBIDDEN,
-            format!("{late} overdue for calibration: only an admin may start a run anyway"),
+            format!("{late}: calibration not cleared; only an admin may start a run anyway"),
         )
         .worded(Wording::new("error.overdue_admin_only").with("devices", &late))),
         _ => Err(ApiError::conflict(format!(
-            "{late} overdue for calibration: calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
+            "{late}: calibration not cleared; calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
         ))
         .worded(Wording::new("error.overdue").with("devices", &late))),
     }
@@ -273,7 +273,7 @@ pub(super) async fn retest(
             &session.user,
             "override overdue calibration",
             &format!(
-                "{run_id} (retest of {id}) started with {devices} overdue: {}",
+                "{run_id} (retest of {id}) started with {devices}: {}",
                 ask.override_overdue.as_deref().unwrap_or_default()
             ),
         )

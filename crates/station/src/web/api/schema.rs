@@ -75,6 +75,8 @@ pub enum FleetStationState {
     Idle,
     /// A run is active.
     Running,
+    /// A run waits for the operator's answer to a prompt.
+    Waiting,
     /// Its last run faulted (until the next starts).
     Faulted,
     /// No heartbeat for 10 s.
@@ -617,6 +619,9 @@ pub struct SignatureSpike {
 /// One device of the equipment register.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct EquipmentEntry {
+    /// The station it belongs to (this server's: each station of a fleet
+    /// keeps its own register).
+    pub station: String,
     /// Its role (`centrifuge`, `fmu 1`, `instrument supply`, …).
     pub role: String,
     /// Identity as registered.
@@ -738,10 +743,14 @@ pub struct AuditEntry {
 pub struct FleetStation {
     /// The station's id (its config's `station`).
     pub station: String,
-    /// `idle`, `running`, `faulted` or `offline` (no heartbeat for 10 s).
+    /// `idle`, `running`, `waiting`, `faulted` or `offline` (no heartbeat
+    /// for 10 s).
     #[schema(value_type = FleetStationState)]
     pub state: String,
-    /// Its current or last run.
+    /// `server` (a `spinbench serve`) or `command line` (seen only through
+    /// the runs of `spinbench run`, so never heard between runs).
+    pub kind: String,
+    /// Its current run (absent when offline).
     pub run_id: Option<String>,
     /// Steps done of the current run.
     pub steps_done: Option<i64>,

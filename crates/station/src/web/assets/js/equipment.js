@@ -1,6 +1,6 @@
 // The Equipment page: the register of the station's devices.
 import { $, api, show, state } from "./core.js";
-import { deviceWord, word } from "./i18n.js";
+import { deviceWord, fill, word } from "./i18n.js";
 
 export async function loadEquipment() {
   try {
@@ -9,6 +9,10 @@ export async function loadEquipment() {
     body.textContent = "";
     const roles = $("eq-role");
     roles.textContent = "";
+    // Whose register this is: each station of a fleet keeps its own.
+    const station = list.length ? list[0].station : "";
+    $("equipment-station").textContent = fill("web.equipment.of_station",
+      "Station " + station + ": its own devices (each station of a fleet keeps its own register).", { station });
     for (const d of list) {
       const tr = body.insertRow();
       tr.dataset.role = d.role;
