@@ -59,6 +59,11 @@ pub struct StationConfig {
     /// How the equipment register holds runs back.
     #[serde(default)]
     pub equipment: EquipmentPolicy,
+    /// True in the config of the virtual bench, as spinbench writes it
+    /// (not by hand): a run recorded with it is continued only on the
+    /// virtual bench, and a run on hardware never is (issue 39 item 5).
+    #[serde(default)]
+    pub simulated: bool,
 }
 
 /// `[equipment]`: what the equipment register asks before a run starts.

@@ -43,7 +43,7 @@ pub fn station_toml(bench: &RunningBench, power_extra: &str) -> String {
         limit.push_str(&format!("instrument_current_a = {current_a}\n"));
     }
     format!(
-        "station = \"spinbench virtual bench\"\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n{latitude}\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{uncertainty}{}",
+        "station = \"spinbench virtual bench\"\nsimulated = true\n\n[arm]\nradius_m = {r0}\nmax_g = 100\n{latitude}\n[power]\ninstrument_supply = \"rails\"\nmodule_supply = \"logic\"\n{limit}{power_extra}\n{uncertainty}{}",
         bench.station_config_toml()
     )
 }

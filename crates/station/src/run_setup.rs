@@ -16,6 +16,25 @@ pub use crate::paths::{
     DB_FILE, DEFAULT_DATA_DIR, PLAN_FILE, RAW_DIR, RUNS_DIR, STATION_FILE, default_store,
 };
 
+/// The device sections of a station config (`[centrifuge]`, `[[fmu]]`,
+/// `[[power_supply]]`, `[power]`, which names the supplies, and
+/// `[chamber]`).
+pub const DEVICE_SECTIONS: [&str; 5] = ["centrifuge", "fmu", "power_supply", "power", "chamber"];
+
+/// Whether a station config is the virtual bench's: marked `simulated`,
+/// or (a run of a release before the mark) its centrifuge named as the
+/// virtual bench names its own (`sim-table`).
+fn simulated(config: &toml::Table) -> bool {
+    if let Some(flag) = config.get("simulated").and_then(toml::Value::as_bool) {
+        return flag;
+    }
+    config
+        .get("centrifuge")
+        .and_then(|c| c.get("name"))
+        .and_then(toml::Value::as_str)
+        == Some("sim-table")
+}
+
 /// A new run identifier: the clock and 48 random bits, so that stations
 /// sharing one database never pick the same one.
 pub fn new_run_id() -> String {
@@ -135,6 +154,71 @@ impl RunDir {
             new: false,
             _lock: lock,
         })
+    }
+
+    /// The directory.
+    /// Refuse to continue this run on another station than its own
+    /// (issue 39 item 5): `station_toml` (the config it would go on with)
+    /// must have the run's station name, be the virtual bench exactly when
+    /// the run was recorded on it, and (on hardware) have the same device
+    /// sections as the config the run recorded.
+    pub fn check_same_station(&self, station_toml: &str) -> Result<()> {
+        let recorded_path = self.path.join(STATION_FILE);
+        let Ok(recorded_text) = std::fs::read_to_string(&recorded_path) else {
+            // A run directory of a release that kept no station config:
+            // nothing to compare with.
+            return Ok(());
+        };
+        let parse = |text: &str, what: &str| -> Result<toml::Table> {
+            text.parse::<toml::Table>()
+                .with_context(|| format!("{what}: not a station config"))
+        };
+        let recorded = parse(&recorded_text, &recorded_path.display().to_string())?;
+        let now = parse(station_toml, "the station config")?;
+        let name = |t: &toml::Table| {
+            t.get("station")
+                .and_then(toml::Value::as_str)
+                .unwrap_or("spinbench")
+                .to_string()
+        };
+        let path = self.path.display();
+        if name(&recorded) != name(&now) {
+            bail!(
+                "--resume {path}: the run was recorded on station '{}', this is station '{}': continue it on its own station",
+                name(&recorded),
+                name(&now)
+            );
+        }
+        let (was_sim, is_sim) = (simulated(&recorded), simulated(&now));
+        if was_sim != is_sim {
+            bail!(
+                "--resume {path}: the run was recorded on {}; it cannot be continued on {} (its points would mix two benches): start a new run",
+                if was_sim {
+                    "the virtual bench"
+                } else {
+                    "station hardware"
+                },
+                if is_sim {
+                    "the virtual bench (--simulate)"
+                } else {
+                    "station hardware"
+                },
+            );
+        }
+        if !is_sim {
+            let differ: Vec<&str> = DEVICE_SECTIONS
+                .into_iter()
+                .filter(|key| recorded.get(*key) != now.get(*key))
+                .collect();
+            if !differ.is_empty() {
+                bail!(
+                    "--resume {path}: the station's devices are not those the run was recorded with ([{}] differ from {}): continue it with the station config it used, or start a new run",
+                    differ.join("], ["),
+                    recorded_path.display()
+                );
+            }
+        }
+        Ok(())
     }
 
     /// The directory.

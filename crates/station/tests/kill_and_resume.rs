@@ -319,3 +319,92 @@ fn a_run_being_run_cannot_be_resumed_by_another_process() {
         String::from_utf8_lossy(&third.stderr)
     );
 }
+
+/// Issue 39 item 5: a run is continued only on its own station: not under
+/// another station's name, and never on the virtual bench when it was
+/// recorded on hardware (nor the other way round). Nothing is run.
+#[test]
+fn a_run_is_resumed_only_on_its_own_station_and_bench() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("R")).expect("plan");
+    let data = dir.path().join("data");
+    let mut child = spinbench()
+        .args(["run", "--simulate", "--quiet", "--seed", "5", "--data"])
+        .arg(&data)
+        .arg(&plan)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn");
+    // Killed once its journal has started the run.
+    let until = Instant::now() + std::time::Duration::from_secs(60);
+    let run_dir = loop {
+        if let Some(d) = the_run_dir(&data).filter(|d| {
+            std::fs::read_to_string(d.join("journal.jsonl"))
+                .is_ok_and(|j| j.contains("run_started"))
+        }) {
+            break d;
+        }
+        assert!(Instant::now() < until, "no run started in 60 s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let _ = child.kill();
+    let _ = child.wait();
+    let recorded = std::fs::read_to_string(run_dir.join("station.toml")).expect("station.toml");
+    assert!(recorded.contains("simulated = true"), "{recorded}");
+    let journal_before = std::fs::read(run_dir.join("journal.jsonl")).expect("journal");
+    let resume = |extra: &[&str]| {
+        let out = spinbench()
+            .args(["run", "--quiet", "--data"])
+            .arg(&data)
+            .arg("--resume")
+            .arg(&run_dir)
+            .args(extra)
+            .arg(&plan)
+            .output()
+            .expect("resume");
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).into_owned(),
+        )
+    };
+    // Another station's name (its own config, the bench's devices).
+    let other = dir.path().join("other.toml");
+    std::fs::write(
+        &other,
+        recorded.replace(
+            "station = \"spinbench virtual bench\"",
+            "station = \"line 2\"",
+        ),
+    )
+    .expect("other station");
+    let (ok, err) = resume(&["--simulate", "--station", other.to_str().expect("utf-8")]);
+    assert!(
+        !ok && err
+            .contains("recorded on station 'spinbench virtual bench', this is station 'line 2'"),
+        "{err}"
+    );
+    // A run recorded on hardware is not continued on the virtual bench.
+    std::fs::write(
+        run_dir.join("station.toml"),
+        recorded.replace("simulated = true\n", ""),
+    )
+    .expect("as if recorded on hardware");
+    let recorded_hw = std::fs::read_to_string(run_dir.join("station.toml")).expect("toml");
+    std::fs::write(
+        run_dir.join("station.toml"),
+        recorded_hw.replace("name = \"sim-table\"", "name = \"CT-500\""),
+    )
+    .expect("a hardware centrifuge");
+    let (ok, err) = resume(&["--simulate"]);
+    assert!(
+        !ok && err.contains("recorded on station hardware") && err.contains("virtual bench"),
+        "{err}"
+    );
+    // Nothing was run: the journal is as the kill left it.
+    assert_eq!(
+        std::fs::read(run_dir.join("journal.jsonl")).expect("journal"),
+        journal_before
+    );
+}

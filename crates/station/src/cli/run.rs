@@ -25,11 +25,6 @@ impl Source {
     }
 }
 
-/// The device sections of a station config (`[centrifuge]`, `[[fmu]]`,
-/// `[[power_supply]]`, `[power]`, which names the supplies, and
-/// `[chamber]`).
-const DEVICE_SECTIONS: [&str; 5] = ["centrifuge", "fmu", "power_supply", "power", "chamber"];
-
 /// Station config `own` with its device sections replaced by `devices`'s
 /// (those `devices` lacks are removed), everything else kept.
 fn with_devices_of(own: &str, devices: &str) -> Result<String> {
@@ -37,7 +32,11 @@ fn with_devices_of(own: &str, devices: &str) -> Result<String> {
     let devices: toml::Table = devices
         .parse()
         .context("the virtual bench's station config")?;
-    for key in DEVICE_SECTIONS {
+    for key in crate::run_setup::DEVICE_SECTIONS
+        .iter()
+        .copied()
+        .chain(["simulated"])
+    {
         match devices.get(key) {
             Some(v) => table.insert(key.to_string(), v.clone()),
             None => table.remove(key),
@@ -138,7 +137,10 @@ pub(super) fn run_plan(
         }
     }
     let dir = match resumed {
-        Some(dir) => dir,
+        Some(dir) => {
+            dir.check_same_station(&station_toml)?;
+            dir
+        }
         None => RunDir::create(data)?,
     };
     // Refuse a plan that cannot run before anything is switched on.

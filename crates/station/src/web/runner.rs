@@ -264,6 +264,8 @@ impl Runner {
             .map_err(|e| StartError::Files(format!("{}: {e}", plan_path.display())))?;
         let dir =
             RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
+        dir.check_same_station(&self.station().1)
+            .map_err(|e| StartError::Refused(format!("{e:#}")))?;
         self.launch(&mut active, dir, plan, &plan_text, by)
     }
 
