@@ -50,7 +50,7 @@ pub use record::{
 pub use retention::{EventRow, PrunableRun};
 pub use schema::{MIGRATIONS, Migration, MigrationApplied};
 pub use sink::StoreSink;
-pub use users::{AuditRow, UserRow};
+pub use users::{AuditRow, Replaced, UserRow};
 
 use db::{Db, DbError, Dialect, Row, Value};
 use spinbench_engine::event::{Event, EventSink};

@@ -45,6 +45,10 @@ pub struct ResultRow {
     pub k2_max_ug_per_g2: Option<f64>,
     /// The whole record, read back as the type the engine wrote.
     pub record: UnitRecord,
+    /// How many times engineers changed it after the run (0 as the run
+    /// wrote it): a change names the revision it was made from, so two
+    /// changes made at once from one revision cannot both land.
+    pub revision: i64,
 }
 
 /// One stored point (a row of the `points` table).
@@ -180,7 +184,7 @@ impl Store {
         let rows = self.query(
             "query results",
             &format!(
-                "SELECT s.run_id, s.slot, s.serial, s.outcome, s.k2_max_ug_per_g2, s.record_json
+                "SELECT s.run_id, s.slot, s.serial, s.outcome, s.k2_max_ug_per_g2, s.record_json, s.revision
                  FROM results s JOIN runs r ON r.id = s.run_id WHERE {clause}
                  ORDER BY r.started_at, s.run_id, s.slot"
             ),
@@ -206,6 +210,7 @@ impl Store {
                     outcome,
                     k2_max_ug_per_g2: r.opt_real(4),
                     record,
+                    revision: r.int(6),
                 })
             })
             .collect()

@@ -298,7 +298,7 @@ pub const MIGRATIONS: &[Migration] = &[
         postgres: MIGRATION_16,
     },
     Migration {
-        what: "the equipment register kept per station (station, role); a station's identity, kind (server or command line) and retirement in the fleet",
+        what: "the equipment register kept per station (station, role); a station's identity, kind (server or command line) and retirement in the fleet; a result's revision (each engineer's change after the run counts one)",
         sqlite: MIGRATION_17_SQLITE,
         postgres: MIGRATION_17_POSTGRES,
     },
@@ -331,7 +331,8 @@ const MIGRATION_17_SQLITE: &str = "CREATE TABLE equipment_by_station (
     ALTER TABLE equipment_by_station RENAME TO equipment;
     ALTER TABLE stations ADD COLUMN instance_id TEXT;
     ALTER TABLE stations ADD COLUMN kind TEXT;
-    ALTER TABLE stations ADD COLUMN retired_at INTEGER;";
+    ALTER TABLE stations ADD COLUMN retired_at INTEGER;
+    ALTER TABLE results ADD COLUMN revision INTEGER NOT NULL DEFAULT 0;";
 
 /// Migration 17 on PostgreSQL: the key changes in place; the role and the
 /// station's kind are checked (NOT VALID, as migration 13's checks).
@@ -347,7 +348,8 @@ const MIGRATION_17_POSTGRES: &str = "ALTER TABLE equipment ADD COLUMN station TE
     ALTER TABLE equipment ADD CONSTRAINT equipment_role_known CHECK (role IN ('centrifuge', 'instrument supply', 'module supply')
         OR role ~ '^fmu [1-9][0-9]?$') NOT VALID;
     ALTER TABLE stations ADD COLUMN instance_id TEXT, ADD COLUMN kind TEXT, ADD COLUMN retired_at timestamptz;
-    ALTER TABLE stations ADD CONSTRAINT stations_kind_known CHECK (kind IN ('server', 'command line')) NOT VALID;";
+    ALTER TABLE stations ADD CONSTRAINT stations_kind_known CHECK (kind IN ('server', 'command line')) NOT VALID;
+    ALTER TABLE results ADD COLUMN revision BIGINT NOT NULL DEFAULT 0;";
 
 /// Migration 16: every stored slot one up. In two steps (through the
 /// negative numbers), since a key is checked row by row and `slot + 1`

@@ -52,6 +52,15 @@ pub struct AuditRow {
     pub detail: String,
 }
 
+/// What [`Store::replace_result`] did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Replaced {
+    /// The result was replaced and the change audited.
+    Done,
+    /// Another change landed since the result was read: nothing written.
+    ChangedMeanwhile,
+}
+
 impl Store {
     /// Add a user; an error when the name is taken.
     pub fn add_user(&self, name: &str, role: &str, password_hash: &str) -> Result<(), StoreError> {
@@ -137,35 +146,53 @@ impl Store {
     }
 
     /// Replace one instrument's stored result with `record` (an engineer's
-    /// change after the run, such as a level left out) and record that
-    /// `who` did `action` in the audit log, in one transaction: both or
-    /// neither. The points and one-second values are untouched.
+    /// change after the run, such as a level left out), made from the
+    /// stored revision `from_revision`, and record that `who` did `action`
+    /// in the audit log, in one transaction: both or neither. When the
+    /// result is no longer at `from_revision` (another change landed in
+    /// between), nothing is written: [`Replaced::ChangedMeanwhile`]. The
+    /// points and one-second values are untouched.
     pub fn replace_result(
         &self,
         run_id: &str,
         record: &spinbench_engine::UnitRecord,
+        from_revision: i64,
         who: &str,
         action: &str,
         detail: &str,
-    ) -> Result<(), StoreError> {
+    ) -> Result<Replaced, StoreError> {
         let json =
             serde_json::to_string(record).map_err(|e| self.err("encode a result")(Box::new(e)))?;
+        let mut values = crate::record::result_row_values(run_id, record, &json);
+        values.push(from_revision.into());
         self.db()
             .transaction(|db| {
+                // Compare and set in one statement: of two changes made from
+                // one revision, the second finds it moved on.
                 let changed = db.execute(
                     "UPDATE results SET serial = $3, outcome = $4, k2_max_ug_per_g2 = $5, record_json = $6,
                        k2_p_ug_per_g2 = $7, k2_p_u95 = $8, k2_n_ug_per_g2 = $9, k2_n_u95 = $10,
                        instrument_k2_ug_per_g2 = $11, instrument_k2_u95 = $12,
-                       measurand = $13, limit_ug_per_g2 = $14
-                     WHERE run_id = $1 AND slot = $2",
-                    &crate::record::result_row_values(run_id, record, &json),
+                       measurand = $13, limit_ug_per_g2 = $14, revision = revision + 1
+                     WHERE run_id = $1 AND slot = $2 AND revision = $15",
+                    &values,
                 )?;
-                if changed != 1 {
-                    return Err(
-                        format!("run {run_id} has no result for slot {}", record.slot + 1).into(),
-                    );
+                if changed == 1 {
+                    insert_audit(db, who, action, detail)?;
+                    return Ok(Replaced::Done);
                 }
-                insert_audit(db, who, action, detail)
+                let exists = db.query_one(
+                    "SELECT revision FROM results WHERE run_id = $1 AND slot = $2",
+                    &[run_id.into(), crate::record::stored_slot(record.slot).into()],
+                )?;
+                match exists {
+                    Some(_) => Ok(Replaced::ChangedMeanwhile),
+                    None => Err(format!(
+                        "run {run_id} has no result for slot {}",
+                        record.slot + 1
+                    )
+                    .into()),
+                }
             })
             .map_err(self.err("replace a result"))
     }

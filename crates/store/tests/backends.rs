@@ -552,3 +552,65 @@ fn a_text_with_a_nul_is_stored_on_both_back_ends() {
         );
     });
 }
+
+/// Issue 39 item 4: two engineers change one instrument's result at once,
+/// each from the revision they read (on two connections, as two servers):
+/// one change lands, the other is told the result changed meanwhile and
+/// writes nothing — never both answered done with one of them lost.
+#[test]
+fn two_changes_of_one_result_from_one_revision_do_not_both_land() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        write_run(&store, "R-CAS", &["CAS-1", "CAS-2"]);
+        for round in 0..10 {
+            let read = store.results("R-CAS").expect("results");
+            let from = read[0].revision;
+            assert_eq!(from, round, "one revision per landed change");
+            let barrier = std::sync::Barrier::new(2);
+            let outcomes: Vec<spinbench_store::Replaced> = std::thread::scope(|s| {
+                let handles: Vec<_> = [10.0, 20.0]
+                    .into_iter()
+                    .map(|k2| {
+                        let (barrier, target) = (&barrier, target.clone());
+                        let mut changed = read[0].record.clone();
+                        changed.k2_max_ug_per_g2 = Some(k2 + round as f64);
+                        s.spawn(move || {
+                            let other = Store::connect(&target).expect("second connection");
+                            barrier.wait();
+                            other
+                                .replace_result(
+                                    "R-CAS",
+                                    &changed,
+                                    from,
+                                    "eng",
+                                    "exclude level",
+                                    "x",
+                                )
+                                .expect("no store error")
+                        })
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("thread"))
+                    .collect()
+            });
+            let done = outcomes
+                .iter()
+                .filter(|o| **o == spinbench_store::Replaced::Done)
+                .count();
+            assert_eq!(done, 1, "{target}: round {round}: {outcomes:?}");
+            let audited = store
+                .audit_log(100)
+                .expect("audit")
+                .iter()
+                .filter(|a| a.action == "exclude level")
+                .count();
+            assert_eq!(
+                audited as i64,
+                round + 1,
+                "one audit entry per landed change"
+            );
+        }
+    });
+}

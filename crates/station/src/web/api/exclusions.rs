@@ -83,7 +83,7 @@ async fn change_level(
     check_exclusion_ask(&app, &id, &ask)?;
     blocking(&app, move |app| {
         let store = store(app)?;
-        let (before, after) =
+        let (before, after, revision) =
             change_record(
                 &store,
                 &id,
@@ -124,7 +124,14 @@ async fn change_level(
             before.outcome,
             after.outcome
         );
-        store.replace_result(&id, &after, &session.user, action, &detail)?;
+        if store.replace_result(&id, &after, revision, &session.user, action, &detail)?
+            == spinbench_store::Replaced::ChangedMeanwhile
+        {
+            return Err(ApiError::conflict(format!(
+                "{}'s result in run {id} was changed by someone else while this change was made; nothing was changed: reload the run and try again",
+                ask.serial
+            )));
+        }
         Ok(Json(Excluded {
             run_id: id,
             exclusions: json!(after.exclusions),
@@ -171,8 +178,8 @@ fn check_exclusion_ask(app: &App, id: &str, ask: &ExcludeLevel) -> ApiResult<()>
 }
 
 /// Instrument `serial` of finished run `id` changed by `change` under the
-/// run's own plan and station config: its record before and after (a
-/// refusal of `change` is a 400).
+/// run's own plan and station config: its record before and after, and
+/// the stored revision it was read at (a refusal of `change` is a 409).
 fn change_record(
     store: &spinbench_store::Store,
     id: &str,
@@ -182,7 +189,11 @@ fn change_record(
         &spinbench_engine::CompiledPlan,
         &spinbench_engine::StationConfig,
     ) -> Result<spinbench_engine::UnitRecord, String>,
-) -> ApiResult<(spinbench_engine::UnitRecord, spinbench_engine::UnitRecord)> {
+) -> ApiResult<(
+    spinbench_engine::UnitRecord,
+    spinbench_engine::UnitRecord,
+    i64,
+)> {
     let record = store
         .run_record(id)?
         .ok_or_else(|| ApiError::not_found(format!("no run '{id}' (GET /api/runs)")))?;
@@ -214,5 +225,5 @@ fn change_record(
     // The body was well formed; the record's state refuses it (a level the
     // run does not have, one already out or not out, too few levels left).
     let after = change(&result.record, &compiled, &station).map_err(ApiError::conflict)?;
-    Ok((result.record, after))
+    Ok((result.record, after, result.revision))
 }
