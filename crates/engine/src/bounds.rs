@@ -79,11 +79,30 @@ pub fn check_positive(value: f64, max: f64, unit: &str, bound: &str) -> Result<(
     Ok(())
 }
 
-/// A name from outside shortened for an error message (at most 60 characters).
+/// Whether `c` is a control or format character (a line break, a NUL, a
+/// zero-width space, a right-to-left override): never shown or kept as is.
+pub fn is_invisible(c: char) -> bool {
+    use unicode_general_category::{GeneralCategory, get_general_category};
+    c.is_control() || get_general_category(c) == GeneralCategory::Format
+}
+
+/// A name from outside shortened for an error message or the audit log
+/// (at most 60 characters), its control and format characters written as
+/// escapes (`adm\u{a}FORGED`), so it cannot forge a line or reorder text.
 pub fn shown(name: &str) -> String {
     const SHOWN: usize = 60;
     let mut chars = name.chars();
-    let head: String = chars.by_ref().take(SHOWN).collect();
+    let head: String = chars
+        .by_ref()
+        .take(SHOWN)
+        .map(|c| {
+            if is_invisible(c) {
+                c.escape_unicode().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect();
     if chars.next().is_some() {
         format!("{head}… ({} characters)", name.chars().count())
     } else {
@@ -97,12 +116,8 @@ pub fn shown(name: &str) -> String {
 /// character (a zero-width space, a right-to-left override) or a control
 /// character, which would let two look-alike names sit side by side.
 pub fn person_text(text: &str) -> Result<String, String> {
-    use unicode_general_category::{GeneralCategory, get_general_category};
     use unicode_normalization::UnicodeNormalization;
-    if let Some(c) = text
-        .chars()
-        .find(|&c| c.is_control() || get_general_category(c) == GeneralCategory::Format)
-    {
+    if let Some(c) = text.chars().find(|&c| is_invisible(c)) {
         return Err(format!(
             "'{}' holds an invisible character U+{:04X}; type it again without it",
             shown(text),
@@ -110,6 +125,56 @@ pub fn person_text(text: &str) -> Result<String, String> {
         ));
     }
     Ok(text.nfkc().collect::<String>().trim().to_string())
+}
+
+/// A reason typed by a person (an exclusion, an override) as kept: 1 to
+/// `max_chars` characters once trimmed, no control or format character.
+pub fn reason_text(text: &str, max_chars: usize) -> Result<String, String> {
+    let trimmed = text.trim();
+    if trimmed.is_empty() || trimmed.chars().count() > max_chars {
+        return Err(format!("say why in 1 to {max_chars} characters"));
+    }
+    if let Some(c) = trimmed.chars().find(|&c| is_invisible(c)) {
+        return Err(format!(
+            "'{}' holds a control or invisible character U+{:04X}; type it again without it",
+            shown(trimmed),
+            u32::from(c)
+        ));
+    }
+    Ok(trimmed.to_string())
+}
+
+/// Why a serial is refused for mixing scripts (Latin with Cyrillic or
+/// Greek letters, as `SN-А1` with a Cyrillic А), if it does (UTS #39's
+/// single-script rule, by the `unicode-security` crate).
+pub fn mixed_script(serial: &str) -> Option<String> {
+    use unicode_security::MixedScript;
+    (!serial.is_single_script()).then(|| {
+        format!(
+            "'{serial}' mixes letters of several scripts ({}); type it again from its label",
+            non_ascii(serial)
+        )
+    })
+}
+
+/// Whether two different texts look alike (the same UTS #39 skeleton, as
+/// `SN-A1` and `SN-А1`).
+pub fn look_alike(a: &str, b: &str) -> bool {
+    a != b && unicode_security::skeleton(a).eq(unicode_security::skeleton(b))
+}
+
+/// The characters of `text` beyond ASCII, named by code point (`А U+0410`).
+pub fn non_ascii(text: &str) -> String {
+    let named: Vec<String> = text
+        .chars()
+        .filter(|c| !c.is_ascii())
+        .map(|c| format!("{c} U+{:04X}", u32::from(c)))
+        .collect();
+    if named.is_empty() {
+        "ASCII only".into()
+    } else {
+        named.join(", ")
+    }
 }
 
 /// True for a run identifier as runs are named: 1 to 64 ASCII letters,
@@ -134,6 +199,16 @@ mod tests {
         assert!(check_positive(0.0, 1.0, "A", "B").is_err());
         assert!(check_positive(0.5, 1.0, "A", "B").is_ok());
         assert_eq!(shown("abc"), "abc");
+        assert_eq!(shown("adm\nFORGED"), "adm\\u{a}FORGED");
+        assert!(shown("station\u{202E}A").contains("\\u{202e}"));
+        assert!(reason_text("ok\u{200B}", 10).is_err());
+        assert!(reason_text("  ", 10).is_err());
+        assert_eq!(reason_text(" ok ", 10).as_deref(), Ok("ok"));
+        assert!(mixed_script("SN-\u{0410}1").is_some());
+        assert!(mixed_script("SN-A1").is_none());
+        assert!(mixed_script("批次-7").is_none());
+        assert!(look_alike("SN-A1", "SN-\u{0410}1"));
+        assert!(!look_alike("SN-A1", "SN-A2"));
         assert!(shown(&"x".repeat(1000)).ends_with("(1000 characters)"));
     }
 }

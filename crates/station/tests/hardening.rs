@@ -160,6 +160,11 @@ fn items_18_20_21_login_only_as_json_retest_reads_its_body_and_reasons_are_chara
         Some(&ask(&"振".repeat(501))),
     );
     assert_eq!(r.status, 400);
+    // Issue 39 item 7: nor a right-to-left override or a zero-width space.
+    for odd in ["level \u{202E}01", "noisy\u{200B}"] {
+        let r = eng.send("POST", "/api/runs/no-such-run/exclusions", Some(&ask(odd)));
+        assert_eq!(r.status, 400, "{odd:?}: {:?}", r.json());
+    }
 }
 
 #[test]

@@ -224,6 +224,26 @@ impl TestPlan {
                     ),
                 );
             }
+            // Issue 39 item 7: Latin and Cyrillic (or Greek) letters in one
+            // serial, or two serials that look alike (`SN-A1`, `SN-А1`), are
+            // a typing slip or a forgery, never two instruments.
+            if let Some(why) = crate::bounds::mixed_script(bare) {
+                return err(&format!("serials.{key}"), why);
+            }
+            if let Some(other) = serials.iter().position(|s| {
+                s.as_deref()
+                    .is_some_and(|s| crate::bounds::look_alike(s, bare))
+            }) {
+                return err(
+                    &format!("serials.{key}"),
+                    format!(
+                        "'{bare}' looks like '{}' in slot {} but is written with other characters ({}); type both serials again from their labels",
+                        serials[other].as_deref().unwrap_or_default(),
+                        other + 1,
+                        crate::bounds::non_ascii(bare)
+                    ),
+                );
+            }
             serials[slot - 1] = Some(bare.to_string());
             fixed[slot - 1] = mount;
         }

@@ -275,6 +275,11 @@ fn look_alike_serials_are_one_serial_and_invisible_characters_are_refused() {
         let e = plan.compile(&station).expect_err(odd);
         assert!(e.to_string().contains("invisible character"), "{e}");
     }
+    // Issue 39 item 7: a Cyrillic А in a serial is refused, naming it.
+    let plan =
+        TestPlan::from_toml("[serials]\n1 = \"SN-A1\"\n2 = \"SN-\u{0410}1\"\n").expect("plan");
+    let e = plan.compile(&station).expect_err("a look-alike");
+    assert!(e.to_string().contains("U+0410"), "{e}");
     let plan = TestPlan::from_toml("[serials]\n1 = \"\u{FF21}7\"\n").expect("plan");
     assert_eq!(
         plan.compile(&station).expect("plan").serials[0].as_deref(),

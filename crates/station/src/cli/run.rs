@@ -122,6 +122,9 @@ pub(super) fn run_plan(
                      (`spinbench equipment set`), or start anyway with --override-overdue REASON"
                 ),
                 Some(reason) => {
+                    // The web's rule for an override's reason (issue 41 item 3).
+                    let reason = spinbench_engine::bounds::reason_text(reason, 500)
+                        .map_err(|why| anyhow::anyhow!("--override-overdue: {why}"))?;
                     let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
                     store.audit(
                         &who,

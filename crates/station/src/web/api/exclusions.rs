@@ -161,14 +161,10 @@ fn check_exclusion_ask(app: &App, id: &str, ask: &ExcludeLevel) -> ApiResult<()>
     }
     // Characters, not bytes (200 Chinese characters are 600 bytes); no
     // control characters into the record and the audit log.
-    if ask.reason.trim().is_empty()
-        || ask.reason.chars().count() > 500
-        || ask.reason.chars().any(char::is_control)
-    {
-        return Err(ApiError::bad(
-            "reason: say why (1 to 500 characters, no control characters)",
-        ));
-    }
+    // Nor a right-to-left override or a zero-width character (issue 39
+    // item 7): the one rule for every reason typed from outside.
+    spinbench_engine::bounds::reason_text(&ask.reason, 500)
+        .map_err(|why| ApiError::bad(format!("reason: {why}")))?;
     if app.runner.active().as_deref() == Some(id) {
         return Err(ApiError::conflict(format!(
             "run {id} is still going; change its records once it has ended"

@@ -104,11 +104,8 @@ async fn check_equipment(
     };
     match override_reason.map(str::trim) {
         Some(reason) if !reason.is_empty() && session.role >= Role::Admin => {
-            if reason.chars().count() > 500 || reason.chars().any(char::is_control) {
-                return Err(ApiError::bad(
-                    "override_overdue: at most 500 characters, no control characters",
-                ));
-            }
+            spinbench_engine::bounds::reason_text(reason, 500)
+                .map_err(|why| ApiError::bad(format!("override_overdue: {why}")))?;
             Ok(Some(late))
         }
         Some(_) if session.role < Role::Admin => Err(ApiError::new(
