@@ -568,6 +568,15 @@ fn run_with_refusing_sink(
     refusals: u32,
     hold_limit: Duration,
 ) -> (RunSummary, Vec<Event>, Vec<Event>) {
+    run_with_refusing_sink_and(refusals, hold_limit, spinbench_engine::AbortFlag::new())
+}
+
+/// As [`run_with_refusing_sink`], watching `abort`.
+fn run_with_refusing_sink_and(
+    refusals: u32,
+    hold_limit: Duration,
+    abort: spinbench_engine::AbortFlag,
+) -> (RunSummary, Vec<Event>, Vec<Event>) {
     let bench = RunningBench::start(
         SimConfig {
             speed: 0.0,
@@ -580,7 +589,7 @@ fn run_with_refusing_sink(
     let compiled = small_plan().compile(&station).expect("plan");
     let options = RunOptions {
         run_id: "refused".into(),
-        abort: spinbench_engine::AbortFlag::new(),
+        abort,
         pause: Arc::new(AtomicBool::new(false)),
         module_silence: Duration::from_secs(2),
         station_config_toml: String::new(),
@@ -669,6 +678,27 @@ fn a_write_that_keeps_failing_faults_into_the_safe_state_after_the_hold_limit() 
             ..
         }
     )));
+}
+
+/// Issue 39 item 10: a signal that aborts a run held on a failing write is
+/// named in the run's reason as the signal, not as "the operator".
+#[test]
+fn a_signal_during_a_held_write_is_recorded_as_the_signal() {
+    let abort = spinbench_engine::AbortFlag::new();
+    let later = abort.clone();
+    let setter = std::thread::spawn(move || {
+        std::thread::sleep(Duration::from_millis(1500));
+        later.request("signal SIGTERM");
+    });
+    let (summary, _, _) = run_with_refusing_sink_and(u32::MAX, Duration::from_secs(600), abort);
+    let _ = setter.join();
+    assert_eq!(summary.state, RunState::Aborted, "{}", reason(&summary));
+    assert!(
+        reason(&summary).contains("signal SIGTERM while a write was failing")
+            && !reason(&summary).contains("the operator"),
+        "{}",
+        reason(&summary)
+    );
 }
 
 #[test]

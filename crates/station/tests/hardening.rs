@@ -792,3 +792,95 @@ fn items_23_17_a_station_may_require_registered_devices_and_an_unreachable_one_l
         "raw files started in a completed run"
     );
 }
+
+/// Run `sql` on the store `data`'s server keeps (an SQLite file or a
+/// PostgreSQL database), as a DBA or a fault would.
+fn store_sql(data: &std::path::Path, sqlite: &str, postgres: &str) {
+    let target = web::store_of(data);
+    let target = target.to_str().expect("utf-8");
+    if target.starts_with("postgres") {
+        let mut c = postgres::Client::connect(target, postgres::NoTls).expect("PostgreSQL");
+        c.batch_execute(postgres).expect("the SQL");
+    } else {
+        let c = rusqlite::Connection::open(target).expect("SQLite");
+        c.execute_batch(sqlite).expect("the SQL");
+    }
+}
+
+#[test]
+fn issue_39_item_6_nothing_is_done_that_cannot_be_audited() {
+    nothing_is_done_that_cannot_be_audited_on(web::Backend::Sqlite);
+}
+
+#[test]
+fn postgres_issue_39_item_6_nothing_is_done_that_cannot_be_audited() {
+    nothing_is_done_that_cannot_be_audited_on(web::Backend::Postgres);
+}
+
+/// Issue 39 item 6: while the audit log refuses every entry (a trigger, as
+/// a full or broken table would), a plan is not saved, a run is not
+/// started and a prompt is not answered; each answer says nothing was
+/// done. Once the log takes entries again, the same requests succeed and
+/// are audited.
+fn nothing_is_done_that_cannot_be_audited_on(backend: web::Backend) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    let server = serve(dir.path(), "0");
+    let mut eng = Client::login(&server, "eng", "eng-password");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    store_sql(
+        dir.path(),
+        "CREATE TRIGGER audit_refused BEFORE INSERT ON audit BEGIN SELECT RAISE(ABORT, 'audit refused'); END;",
+        "CREATE FUNCTION audit_refused() RETURNS trigger LANGUAGE plpgsql AS $$ BEGIN RAISE EXCEPTION 'audit refused'; END $$;
+         CREATE TRIGGER audit_refused BEFORE INSERT ON audit FOR EACH ROW EXECUTE FUNCTION audit_refused();",
+    );
+    let plan = web::short_plan("audited", &["AU-1"]);
+    let r = eng.send("PUT", "/api/plans/audited", Some(&plan));
+    assert!(r.status >= 500, "{} {:?}", r.status, r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("nothing was saved")),
+        "{:?}",
+        r.json()
+    );
+    let plans = dir.path().join("plans");
+    assert!(
+        !plans.join("audited.toml").exists(),
+        "the plan was saved unaudited"
+    );
+    let r = eng.send("POST", "/api/runs", Some(r#"{"plan": "short"}"#));
+    assert_eq!(r.status, 503, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("nothing was started")),
+        "{:?}",
+        r.json()
+    );
+    assert!(
+        eng.get_json("/api/status", 200)["active"].is_null(),
+        "a run started unaudited"
+    );
+    let runs = dir.path().join("runs");
+    assert_eq!(std::fs::read_dir(&runs).map_or(0, |d| d.count()), 0);
+    // The log takes entries again: the same requests succeed, audited.
+    store_sql(
+        dir.path(),
+        "DROP TRIGGER audit_refused;",
+        "DROP TRIGGER audit_refused ON audit;",
+    );
+    let r = eng.send("PUT", "/api/plans/audited", Some(&plan));
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    assert!(plans.join("audited.toml").exists());
+    let log = admin.get_json("/api/audit", 200);
+    assert!(
+        log.as_array()
+            .expect("rows")
+            .iter()
+            .any(|a| a["action"] == "save plan" && a["detail"] == "audited"),
+        "{log}"
+    );
+}

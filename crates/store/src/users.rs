@@ -145,6 +145,19 @@ impl Store {
         insert_audit(&mut self.db(), who, action, detail).map_err(self.err("write the audit log"))
     }
 
+    /// Several entries (action, detail) of `who` in one transaction: all
+    /// or none.
+    pub fn audit_all(&self, who: &str, entries: &[(String, String)]) -> Result<(), StoreError> {
+        self.db()
+            .transaction(|db| {
+                for (action, detail) in entries {
+                    insert_audit(db, who, action, detail)?;
+                }
+                Ok(())
+            })
+            .map_err(self.err("write the audit log"))
+    }
+
     /// Replace one instrument's stored result with `record` (an engineer's
     /// change after the run, such as a level left out), made from the
     /// stored revision `from_revision`, and record that `who` did `action`

@@ -54,8 +54,11 @@ impl Executor<'_> {
         let mut last = problem;
         loop {
             let gave_up = if self.options.abort.is_set() {
+                // Whoever set the abort (a user, a signal), named as the
+                // flag has it (issue 39 item 10: a SIGTERM is not "the operator").
                 Some(EngineError::Aborted(format!(
-                    "the operator while a write was failing ({last})"
+                    "{} while a write was failing ({last})",
+                    self.options.abort.by()
                 )))
             } else if held.elapsed() > self.options.sink_hold_limit {
                 Some(EngineError::Sink(format!(

@@ -150,6 +150,17 @@ pub struct Sessions {
     by_token: Mutex<HashMap<String, Session>>,
 }
 
+/// What the store said of a cached session ([`Sessions::confirm`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Confirmation {
+    /// Open, as cached.
+    Open,
+    /// Ended elsewhere, or its role changed: over here too.
+    Ended,
+    /// The store did not answer: not known.
+    Unknown,
+}
+
 /// What the cache holds for a request's token ([`Sessions::from_cache`]).
 pub enum CacheHit {
     /// Not cached: the store may have it.
@@ -221,8 +232,7 @@ impl Sessions {
                 session,
                 recheck,
                 keep,
-            } => self
-                .confirm(store, token, &session, recheck, keep)
+            } => (self.confirm(store, token, &session, recheck, keep) != Confirmation::Ended)
                 .then_some(session),
             CacheHit::Miss => self.load(store, token),
         }
@@ -265,9 +275,11 @@ impl Sessions {
 
     /// The store's part of a cached session's use: with `recheck`, whether
     /// it was ended elsewhere (logout, the user removed) or its role
-    /// changed (then it is over here too: false); with `keep`, its use
-    /// written. A store that cannot answer (its connection held by a call
-    /// that does not come back) leaves the cached session standing.
+    /// changed (then it is over here too); with `keep`, its use written. A
+    /// store that cannot answer (down, or its connection held by a call
+    /// that does not come back) leaves the cached session standing for
+    /// reading and the safety controls, [`Confirmation::Unknown`]: a change
+    /// is refused on it (issue 39 item 6).
     pub fn confirm(
         &self,
         store: &Mutex<Store>,
@@ -275,14 +287,19 @@ impl Sessions {
         found: &Session,
         recheck: bool,
         keep: bool,
-    ) -> bool {
+    ) -> Confirmation {
         let store = || crate::web::lock_within(store, SESSION_STORE_WAIT);
+        let mut answer = Confirmation::Open;
         if recheck {
             let kept = store().map(|s| s.session(&token_hash(token)));
             let over = match &kept {
                 Some(Ok(None)) => true,
                 Some(Ok(Some((_, role, _, _)))) => Role::parse(role) != Some(found.role),
-                _ => false,
+                _ => {
+                    answer = Confirmation::Unknown;
+                    self.recheck_soon(token);
+                    false
+                }
             };
             if over {
                 self.by_token
@@ -292,13 +309,24 @@ impl Sessions {
                 if let Some(s) = store() {
                     let _ = s.delete_session(&token_hash(token));
                 }
-                return false;
+                return Confirmation::Ended;
             }
         }
         if keep && let Some(s) = store() {
             let _ = s.save_session(&token_hash(token), &found.user, &found.csrf);
         }
-        true
+        answer
+    }
+
+    /// Confirm the session against the store at its next use (the last
+    /// check could not reach it).
+    pub fn recheck_soon(&self, token: &str) {
+        let mut map = self.by_token.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(s) = map.get_mut(token) {
+            s.checked = Instant::now()
+                .checked_sub(RECHECK)
+                .unwrap_or_else(Instant::now);
+        }
     }
 
     /// A session the cache does not have, read from the store (one from

@@ -134,7 +134,13 @@ pub enum StartError {
     NotHere(String),
     /// The run cannot be continued (completed, or run by another process now).
     Refused(String),
+    /// Its audit entry could not be written: nothing was started.
+    NotAudited(String),
 }
+
+/// Writes a run's audit entries once its id is known and before anything
+/// is switched on (issue 39 item 6): an error leaves the run unstarted.
+pub type Admit<'a> = &'a dyn Fn(&str) -> Result<(), String>;
 
 /// Starts and steers the web's runs.
 pub struct Runner {
@@ -221,7 +227,13 @@ impl Runner {
     }
 
     /// Start `plan` (checked against the station first); returns the run id.
-    pub fn start(&self, plan: TestPlan, plan_text: &str, by: &str) -> Result<String, StartError> {
+    pub fn start(
+        &self,
+        plan: TestPlan,
+        plan_text: &str,
+        by: &str,
+        admit: Admit<'_>,
+    ) -> Result<String, StartError> {
         let mut active = self.lock();
         if let Some(a) = active.as_ref()
             && !a.finished.load(Ordering::Relaxed)
@@ -230,13 +242,17 @@ impl Runner {
         }
         let dir =
             RunDir::create(&self.data_dir).map_err(|e| StartError::Files(format!("{e:#}")))?;
+        if let Err(why) = admit(dir.id()) {
+            dir.discard();
+            return Err(StartError::NotAudited(why));
+        }
         self.launch(&mut active, dir, plan, plan_text, by)
     }
 
     /// Continue run `run_id` of this data directory, left interrupted (its
     /// process ended without finishing it) or ended aborted or faulted,
     /// with its own plan, from its journal (its completed steps kept).
-    pub fn resume(&self, run_id: &str, by: &str) -> Result<String, StartError> {
+    pub fn resume(&self, run_id: &str, by: &str, admit: Admit<'_>) -> Result<String, StartError> {
         let mut active = self.lock();
         if let Some(a) = active.as_ref()
             && !a.finished.load(Ordering::Relaxed)
@@ -266,6 +282,7 @@ impl Runner {
             RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
         dir.check_same_station(&self.station().1)
             .map_err(|e| StartError::Refused(format!("{e:#}")))?;
+        admit(run_id).map_err(StartError::NotAudited)?;
         self.launch(&mut active, dir, plan, &plan_text, by)
     }
 

@@ -62,6 +62,13 @@ impl ApiError {
             retry_after_s: None,
         }
     }
+    /// The same error, its message led by what did not happen because of
+    /// it ("nothing was saved: …").
+    pub(super) fn prefixed(mut self, what: &str) -> ApiError {
+        self.message = format!("{what}: {}", self.message);
+        self
+    }
+
     /// The store cannot answer now (down, restarting, stalled): 503 with
     /// `Retry-After`, and what to do.
     fn store_unavailable(problem: impl std::fmt::Display) -> ApiError {
@@ -144,6 +151,27 @@ pub(super) async fn authorize(
     min: Role,
     changes: bool,
 ) -> ApiResult<Session> {
+    authorize_as(app, headers, min, changes, changes).await
+}
+
+/// As [`authorize`] for a safety control (abort, pause, go on): a known
+/// session from the cache, whatever the store does, so that a store that
+/// does not answer never holds an abort.
+pub(super) async fn authorize_control(app: &App, headers: &HeaderMap) -> ApiResult<Session> {
+    authorize_as(app, headers, Role::Operator, true, false).await
+}
+
+/// The session of a request; with `confirm`, a cached session due for a
+/// check is confirmed against the store first, and refused (503) when the
+/// store cannot say (issue 39 item 6: a change on a session that may have
+/// ended elsewhere is not made).
+async fn authorize_as(
+    app: &App,
+    headers: &HeaderMap,
+    min: Role,
+    changes: bool,
+    confirm: bool,
+) -> ApiResult<Session> {
     let token = headers
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
@@ -156,6 +184,26 @@ pub(super) async fn authorize(
         // logout, a removal or a role change elsewhere ends it within
         // auth::RECHECK) on a thread of its own, so that a database that
         // stops answering never holds a request of a known session.
+        auth::CacheHit::Hit {
+            session,
+            recheck,
+            keep,
+        } if confirm && recheck => {
+            let (found, token) = (session.clone(), token.clone());
+            let said = blocking(app, move |app| {
+                Ok(app.sessions.confirm(&app.store, &token, &found, true, keep))
+            })
+            .await?;
+            match said {
+                auth::Confirmation::Open => Some(session),
+                auth::Confirmation::Ended => None,
+                auth::Confirmation::Unknown => {
+                    return Err(ApiError::store_unavailable(
+                        "your session cannot be confirmed, so nothing was changed (abort and pause still work)",
+                    ));
+                }
+            }
+        }
         auth::CacheHit::Hit {
             session,
             recheck,
@@ -296,6 +344,20 @@ pub(super) fn store(
 pub(super) async fn audit(app: &App, who: &str, action: &str, detail: &str) -> ApiResult<()> {
     let (who, action, detail) = (who.to_string(), action.to_string(), detail.to_string());
     blocking(app, move |app| audit_now(app, &who, &action, &detail)).await
+}
+
+/// Write entries of the audit log in one transaction (all or none), the
+/// problem in words: only inside [`blocking`]. An action whose entries
+/// cannot be written is not done (issue 39 item 6).
+pub(super) fn audit_all(
+    app: &AppState,
+    who: &str,
+    entries: &[(String, String)],
+) -> Result<(), String> {
+    store(app)
+        .map_err(|e| e.message)?
+        .audit_all(who, entries)
+        .map_err(|e| e.to_string())
 }
 
 /// Write an entry of the audit log: only inside [`blocking`].

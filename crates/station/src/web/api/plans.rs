@@ -111,10 +111,28 @@ pub(super) async fn save_plan(
     checked
         .compile(&app.runner.station().0)
         .map_err(|e| ApiError::bad(format!("the plan cannot run on this station: {e}")))?;
+    // Written beside, audited, then put in place (issue 39 item 6): a plan
+    // whose audit entry cannot be written is not saved.
     let path = app.plans_dir.join(format!("{name}.toml"));
-    std::fs::write(&path, text)
-        .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
-    audit(&app, &session.user, "save plan", &name).await?;
+    let saving = app.plans_dir.join(format!("{name}.toml.saving"));
+    std::fs::write(&saving, text)
+        .map_err(|e| ApiError::internal(format!("{}: {e}", saving.display())))?;
+    if let Err(e) = audit(&app, &session.user, "save plan", &name).await {
+        let _ = std::fs::remove_file(&saving);
+        return Err(e.prefixed("nothing was saved"));
+    }
+    if let Err(e) = std::fs::rename(&saving, &path) {
+        let _ = std::fs::remove_file(&saving);
+        let why = format!("{}: {e}", path.display());
+        let _ = audit(
+            &app,
+            &session.user,
+            "save plan failed",
+            &format!("{name}: {why}"),
+        )
+        .await;
+        return Err(ApiError::internal(why));
+    }
     Ok(Json(PlanSaved { name, saved: true }))
 }
 
@@ -243,11 +261,23 @@ pub(super) async fn save_station(
             "run {run} is active; change the station after it"
         )));
     }
-    // Written first, then applied, then audited (issue 27 item 7): a config
-    // that cannot be kept is not used either.
+    // Audited first (issue 39 item 6: no change without its entry), then
+    // written, then applied (issue 27 item 7): a config that cannot be
+    // kept is not used either, and its entry is followed by the failure.
     blocking(&app, move |app| {
+        let shown = path.display().to_string();
+        audit_now(app, &session.user, "save station config", &shown)
+            .map_err(|e| e.prefixed("nothing was changed"))?;
+        let failed = |why: &str| {
+            let _ = audit_now(
+                app,
+                &session.user,
+                "save station config failed",
+                &format!("{shown}: {why}"),
+            );
+        };
         let old = std::fs::read_to_string(&path).ok();
-        write_replacing(&path, &text).map_err(|e| {
+        write_replacing(&path, &text).inspect_err(|e| failed(&e.to_string())).map_err(|e| {
             ApiError::conflict(format!(
                 "{}: cannot write the station config ({e}); nothing was changed. Under the packaged service \
                  the config in /etc/spinbench is read-only to the service: edit it there as root, then \
@@ -260,14 +290,10 @@ pub(super) async fn save_station(
             if let Some(old) = old {
                 let _ = write_replacing(&path, &old);
             }
+            failed(&why);
             return Err(ApiError::conflict(why));
         }
-        audit_now(
-            app,
-            &session.user,
-            "save station config",
-            &path.display().to_string(),
-        )
+        Ok(())
     })
     .await?;
     Ok(Json(Saved { saved: true }))

@@ -51,34 +51,32 @@ pub(super) async fn start_run(
         .await?;
     }
     let overridden = check_equipment(&app, &session, start.override_overdue.as_deref()).await?;
-    let run_id = start_plan(&app, &plan, &session.user).await?;
-    if let Some(devices) = overridden {
-        audit(
-            &app,
-            &session.user,
-            "override overdue calibration",
-            &format!(
-                "{run_id} started with {devices}: {}",
-                start.override_overdue.as_deref().unwrap_or_default()
-            ),
-        )
-        .await?;
-    }
     let serial_list: Vec<String> = plan
         .serials
         .iter()
         .map(|(k, v)| format!("{k}={v}"))
         .collect();
-    audit(
-        &app,
-        &session.user,
-        "start run",
-        &format!(
-            "{run_id} plan {} serials {}",
-            start.plan,
-            serial_list.join(" ")
-        ),
-    )
+    let (plan_name, reason) = (start.plan.clone(), start.override_overdue.clone());
+    let run_id = start_plan(&app, &plan, &session.user, move |run_id| {
+        let mut entries = Vec::new();
+        if let Some(devices) = &overridden {
+            entries.push((
+                "override overdue calibration".to_string(),
+                format!(
+                    "{run_id} started with {devices}: {}",
+                    reason.as_deref().unwrap_or_default()
+                ),
+            ));
+        }
+        entries.push((
+            "start run".to_string(),
+            format!(
+                "{run_id} plan {plan_name} serials {}",
+                serial_list.join(" ")
+            ),
+        ));
+        entries
+    })
     .await?;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }
@@ -121,12 +119,21 @@ async fn check_equipment(
 }
 
 /// Start `plan` on the station for `user`; the run's id. Off the runtime:
-/// starting opens the store, the run's files and the devices' ports.
-async fn start_plan(app: &App, plan: &TestPlan, user: &str) -> ApiResult<String> {
+/// starting opens the store, the run's files and the devices' ports. The
+/// audit entries `entries` makes of the run's id are written in one
+/// transaction before anything is switched on; if they cannot be, nothing
+/// starts (issue 39 item 6).
+async fn start_plan(
+    app: &App,
+    plan: &TestPlan,
+    user: &str,
+    entries: impl Fn(&str) -> Vec<(String, String)> + Send + 'static,
+) -> ApiResult<String> {
     let plan_text = toml::to_string(plan).map_err(|e| ApiError::internal(e.to_string()))?;
     let (plan, user) = (plan.clone(), user.to_string());
     let run_id = blocking_to_the_end(app, move |app| {
-        Ok(app.runner.start(plan, &plan_text, &user))
+        let admit = |run_id: &str| audit_all(app, &user, &entries(run_id));
+        Ok(app.runner.start(plan, &plan_text, &user, &admit))
     })
     .await?
     .map_err(start_error)?;
@@ -165,6 +172,9 @@ fn start_error(e: StartError) -> ApiError {
         StartError::Files(why) => ApiError::internal(why),
         StartError::NotHere(why) => ApiError::not_found(why),
         StartError::Refused(why) => ApiError::conflict(why),
+        StartError::NotAudited(why) => ApiError::store_unavailable(format!(
+            "nothing was started: its audit entry could not be written ({why})"
+        )),
     }
 }
 
@@ -190,11 +200,19 @@ pub(super) async fn resume_run(
 ) -> ApiResult<(StatusCode, Json<RunId>)> {
     let session = authorize(&app, &headers, Role::Operator, true).await?;
     let (asked, user) = (id.clone(), session.user.clone());
-    let run_id = blocking_to_the_end(&app, move |app| Ok(app.runner.resume(&asked, &user)))
-        .await?
-        .map_err(start_error)?;
+    let run_id = blocking_to_the_end(&app, move |app| {
+        let admit = |run_id: &str| {
+            audit_all(
+                app,
+                &user,
+                &[("resume run".to_string(), run_id.to_string())],
+            )
+        };
+        Ok(app.runner.resume(&asked, &user, &admit))
+    })
+    .await?
+    .map_err(start_error)?;
     readable(&app, &run_id).await;
-    audit(&app, &session.user, "resume run", &run_id).await?;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
 }
 
@@ -263,25 +281,24 @@ pub(super) async fn retest(
     // As a new run: an admin may override an overdue device, with a reason
     // (issue 27, item 22: the 409 told them to).
     let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
-    let run_id = start_plan(&app, &plan, &session.user).await?;
-    if let Some(devices) = overridden {
-        audit(
-            &app,
-            &session.user,
-            "override overdue calibration",
-            &format!(
-                "{run_id} (retest of {id}) started with {devices}: {}",
-                ask.override_overdue.as_deref().unwrap_or_default()
-            ),
-        )
-        .await?;
-    }
-    audit(
-        &app,
-        &session.user,
-        "retest run",
-        &format!("{run_id} retests {id}: {}", serials.join(" ")),
-    )
+    let (retested, reason, listed) = (id.clone(), ask.override_overdue.clone(), serials.join(" "));
+    let run_id = start_plan(&app, &plan, &session.user, move |run_id| {
+        let mut entries = Vec::new();
+        if let Some(devices) = &overridden {
+            entries.push((
+                "override overdue calibration".to_string(),
+                format!(
+                    "{run_id} (retest of {retested}) started with {devices}: {}",
+                    reason.as_deref().unwrap_or_default()
+                ),
+            ));
+        }
+        entries.push((
+            "retest run".to_string(),
+            format!("{run_id} retests {retested}: {listed}"),
+        ));
+        entries
+    })
     .await?;
     Ok((
         StatusCode::CREATED,
@@ -312,28 +329,48 @@ pub(super) async fn answer_prompt(
 ) -> ApiResult<Json<RunId>> {
     let session = authorize(&app, &headers, Role::Operator, true).await?;
     let answer: PromptAnswer = parse_json(&body)?;
-    let prompt = app.runner.prompt().unwrap_or_default();
-    let run_id = app
-        .runner
-        .answer(answer.proceed, &session.user)
-        .map_err(ApiError::conflict)?;
-    audit(
-        &app,
-        &session.user,
-        if answer.proceed {
-            "answer prompt: done"
+    // Audited first (issue 39 item 6): while the audit log cannot be
+    // written the run waits at its prompt (the table at rest), and the
+    // answer says so; abort and pause need no audit entry first.
+    let Some(prompt) = app.runner.prompt() else {
+        return Err(ApiError::conflict(if app.runner.active().is_none() {
+            "no run is active"
         } else {
-            "answer prompt: abort"
-        },
-        &format!("{run_id}: {prompt}"),
-    )
-    .await?;
+            "no prompt is waiting for an answer"
+        }));
+    };
+    let run = app.runner.active().unwrap_or_default();
+    let action = if answer.proceed {
+        "answer prompt: done"
+    } else {
+        "answer prompt: abort"
+    };
+    audit(&app, &session.user, action, &format!("{run}: {prompt}"))
+        .await
+        .map_err(|e| e.prefixed("the prompt was not answered"))?;
+    let run_id = match app.runner.answer(answer.proceed, &session.user) {
+        Ok(id) => id,
+        Err(why) => {
+            let _ = audit(
+                &app,
+                &session.user,
+                "answer prompt not taken",
+                &format!("{run}: {why}"),
+            )
+            .await;
+            return Err(ApiError::conflict(why));
+        }
+    };
     Ok(Json(RunId { run_id }))
 }
 
 /// How long a control's answer waits for its audit entry (a store that
 /// does not answer: the entry is written when it does).
 const AUDIT_WAIT: Duration = Duration::from_secs(2);
+
+/// How long a control's audit entry is tried again while the store does
+/// not take it.
+const CONTROL_AUDIT_RETRY: Duration = Duration::from_secs(600);
 
 pub(super) async fn control(
     app: &App,
@@ -343,15 +380,32 @@ pub(super) async fn control(
 ) -> ApiResult<Json<RunId>> {
     // Whatever the database does: a known session from the cache, the
     // action at once, the audit entry written when the store answers.
-    let session = authorize(app, headers, Role::Operator, true).await?;
+    let session = authorize_control(app, headers).await?;
     let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
     let (app, action, id) = (Arc::clone(app), action.to_string(), run_id.clone());
+    // A safety control is never held back by the audit log (issue 39 item
+    // 6 is met by writing its entry until the store takes it: the run's
+    // own record names who aborted or held it in any case).
     let written = tokio::spawn(async move {
-        if let Err(e) = audit(&app, &session.user, &action, &id).await {
-            eprintln!(
-                "warning: the audit entry of {} by {} on run {id} was not written: {}",
-                action, session.user, e.message
-            );
+        let until = tokio::time::Instant::now() + CONTROL_AUDIT_RETRY;
+        let mut warned = false;
+        while let Err(e) = audit(&app, &session.user, &action, &id).await {
+            if !warned {
+                eprintln!(
+                    "warning: the audit entry of {} by {} on run {id} is not written yet ({}); tried again every 2 s",
+                    action, session.user, e.message
+                );
+                warned = true;
+            }
+            if tokio::time::Instant::now() >= until {
+                eprintln!(
+                    "error: the audit entry of {action} by {} on run {id} could not be written in {} s; the run's record names who did it",
+                    session.user,
+                    CONTROL_AUDIT_RETRY.as_secs()
+                );
+                break;
+            }
+            tokio::time::sleep(Duration::from_secs(2)).await;
         }
     });
     // Answered once the entry is written, or after AUDIT_WAIT (it goes on).
