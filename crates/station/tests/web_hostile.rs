@@ -404,3 +404,82 @@ fn a_login_name_with_a_line_break_or_a_nul_is_refused_and_audited_escaped_on(bac
     );
     assert!(refused.iter().any(|w| w == "adm\\u{0}in"), "{refused:?}");
 }
+
+/// Issue 39 items 3 and 8: a flood of connections, header-less and
+/// anonymous, on a full server closes them, not the operator's event
+/// stream nor their status polls; and 2 MiB bodies sent to the login take
+/// no memory (refused by their Content-Length, before a byte is read).
+#[test]
+fn a_connection_flood_spares_the_operators_stream_and_big_bodies_take_no_memory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    add_user(dir.path(), "op", "operator", "op-password");
+    let server = serve_with(dir.path(), "0", &["--max-connections", "16"]);
+    let addr = server.base.trim_start_matches("http://").to_string();
+    let mut op = Client::login(&server, "op", "op-password");
+    let mut stream = TcpStream::connect(&addr).expect("tcp");
+    write!(
+        stream,
+        "GET /api/events HTTP/1.1\r\nHost: x\r\nCookie: {}\r\nAccept: text/event-stream\r\n\r\n",
+        op.cookie.clone().unwrap_or_default()
+    )
+    .expect("events");
+    let mut first = [0u8; 12];
+    stream.read_exact(&mut first).expect("the stream answers");
+    assert_eq!(&first, b"HTTP/1.1 200");
+    let rss_kb = || {
+        std::fs::read_to_string(format!("/proc/{}/status", server.pid()))
+            .ok()
+            .and_then(|s| {
+                s.lines().find(|l| l.starts_with("VmRSS:")).and_then(|l| {
+                    l.split_whitespace()
+                        .nth(1)
+                        .and_then(|v| v.parse::<u64>().ok())
+                })
+            })
+            .expect("the server's resident memory")
+    };
+    let before_kb = rss_kb();
+    // The flood: 60 connections that send nothing, 60 that ask anonymously
+    // and keep their connection, 60 that send a 2 MiB login body.
+    let mut held = Vec::new();
+    let mut polls_failed = 0;
+    let big = format!(
+        "{{\"user\": \"{}\", \"password\": \"x\"}}",
+        "x".repeat(2 * 1024 * 1024)
+    );
+    for round in 0..60 {
+        held.push(TcpStream::connect(&addr).expect("connect"));
+        let mut anon = TcpStream::connect(&addr).expect("connect");
+        let _ = anon.write_all(b"GET /api/openapi.json HTTP/1.1\r\nHost: x\r\n\r\n");
+        held.push(anon);
+        let mut body = TcpStream::connect(&addr).expect("connect");
+        let _ = write!(
+            body,
+            "POST /api/login HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\nContent-Length: {}\r\n\r\n",
+            big.len()
+        );
+        let _ = body.write_all(big.as_bytes());
+        held.push(body);
+        if round % 6 == 0 && op.send("GET", "/api/status", None).status != 200 {
+            polls_failed += 1;
+        }
+    }
+    assert_eq!(polls_failed, 0, "the operator's status polls failed");
+    // The operator's stream is still open (it sends, or waits).
+    let _ = stream.set_read_timeout(Some(Duration::from_millis(500)));
+    let mut more = [0u8; 256];
+    match stream.read(&mut more) {
+        Ok(0) => panic!("the operator's event stream was closed by the flood"),
+        Ok(_) => {}
+        Err(e) => assert!(
+            matches!(
+                e.kind(),
+                std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+            ),
+            "{e}"
+        ),
+    }
+    let grown_mb = rss_kb().saturating_sub(before_kb) as f64 / 1024.0;
+    assert!(grown_mb < 40.0, "the server grew by {grown_mb:.0} MB");
+    eprintln!("bench: flood_server_growth = {grown_mb:.1} MB");
+}

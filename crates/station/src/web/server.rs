@@ -9,10 +9,16 @@
 //! operator reaching for Abort would be refused. So a new connection is
 //! never refused for want of a slot: when its address holds
 //! [`ConnectionLimits::max_per_address`] connections, or the server holds
-//! `max_connections`, the oldest connection of that address (or of the
-//! address holding the most) is closed to make room; and a request's body
-//! must arrive within [`ConnectionLimits::body_timeout`] (408 otherwise,
-//! `body_deadline`).
+//! `max_connections`, one connection (of that address, or of any) is closed
+//! to make room, the least useful first (issue 39 item 3: 300 connections
+//! from 300 addresses closed an operator's event stream 120 times in 45 s):
+//! one that never sent a request; then one without a session; then a
+//! logged-in one; an event stream of a logged-in user last
+//! ([`Usefulness`]); among equals the oldest (the one trickling its header
+//! longest). A request's body must arrive within
+//! [`ConnectionLimits::body_timeout`] (408 otherwise, `body_deadline`), and
+//! is never buffered beyond its route's limit, nor at all for a change
+//! without a session cookie (item 8).
 //!
 //! Written over hyper's connection API rather than `axum::serve`, because
 //! `axum::serve` sets none of these limits (no header timeout, no idle
@@ -64,68 +70,126 @@ impl Default for ConnectionLimits {
     }
 }
 
-/// The open connections, by address, oldest first: (id, the sender that
-/// closes it).
+/// What a connection has shown itself to be, noted as its requests are
+/// answered (by the API's middleware, through the request's extensions).
+#[derive(Debug, Default)]
+pub struct ConnectionState {
+    /// Requests it sent (0: not even one header).
+    requests: AtomicU64,
+    /// It carried a session the server accepted.
+    logged_in: std::sync::atomic::AtomicBool,
+    /// It holds an event stream.
+    streaming: std::sync::atomic::AtomicBool,
+}
+
+impl ConnectionState {
+    /// A request of this connection was answered; `logged_in`: with a
+    /// session the server accepted; `stream`: an event stream.
+    pub fn answered(&self, logged_in: bool, stream: bool) {
+        if logged_in {
+            self.logged_in.store(true, Ordering::Relaxed);
+        }
+        if stream {
+            self.streaming.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// How useful the connection is to keep: the lowest is closed first.
+    fn usefulness(&self) -> Usefulness {
+        let logged_in = self.logged_in.load(Ordering::Relaxed);
+        if self.requests.load(Ordering::Relaxed) == 0 {
+            Usefulness::NoRequest
+        } else if self.streaming.load(Ordering::Relaxed) && logged_in {
+            Usefulness::OperatorsStream
+        } else if logged_in {
+            Usefulness::LoggedIn
+        } else {
+            Usefulness::Anonymous
+        }
+    }
+}
+
+/// A connection's worth when one must close, lowest first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Usefulness {
+    /// No request yet (a header not sent, or trickling).
+    NoRequest,
+    /// Requests without a session (a scraper, a login page, an attacker).
+    Anonymous,
+    /// A logged-in user's requests.
+    LoggedIn,
+    /// A logged-in user's event stream (the Run page).
+    OperatorsStream,
+}
+
+/// One open connection: its id (increasing with age), its state and the
+/// sender that closes it.
+struct Open {
+    id: u64,
+    state: Arc<ConnectionState>,
+    close: watch::Sender<bool>,
+}
+
+/// The open connections, by address, oldest first.
 #[derive(Default)]
 struct Connections {
-    by_address: std::collections::HashMap<
-        std::net::IpAddr,
-        std::collections::VecDeque<(u64, watch::Sender<bool>)>,
-    >,
+    by_address: std::collections::HashMap<std::net::IpAddr, std::collections::VecDeque<Open>>,
     open: usize,
     next_id: u64,
 }
 
 impl Connections {
-    /// Make room for a connection from `address` (closing the oldest of
-    /// that address when it is at its cap, or of the address holding the
-    /// most when the server is full) and register it: its id and the
-    /// receiver that says it must close.
+    /// Make room for a connection from `address` (closing the least
+    /// useful of that address when it is at its cap, or of all when the
+    /// server is full: module docs) and register it: its id, its state and
+    /// the receiver that says it must close.
     fn admit(
         &mut self,
         address: std::net::IpAddr,
         limits: &ConnectionLimits,
-    ) -> (u64, watch::Receiver<bool>) {
+    ) -> (u64, Arc<ConnectionState>, watch::Receiver<bool>) {
         let at_cap = self
             .by_address
             .get(&address)
             .is_some_and(|q| q.len() >= limits.max_per_address.max(1));
-        let victim = if at_cap {
-            Some(address)
-        } else if self.open >= limits.max_connections.max(1) {
-            self.by_address
+        let full = self.open >= limits.max_connections.max(1);
+        if at_cap || full {
+            // Lowest usefulness; among equals, the oldest (a connection
+            // trickling its header is the oldest that never sent one).
+            let victim = self
+                .by_address
                 .iter()
-                .max_by_key(|(_, q)| q.len())
-                .map(|(a, _)| *a)
-        } else {
-            None
-        };
-        if let Some(v) = victim
-            && let Some(q) = self.by_address.get_mut(&v)
-            && let Some((_, close)) = q.pop_front()
-        {
-            let _ = close.send(true);
-            self.open -= 1;
-            if q.is_empty() {
-                self.by_address.remove(&v);
+                .filter(|(a, _)| !at_cap || **a == address)
+                .flat_map(|(a, q)| q.iter().map(move |o| (*a, o)))
+                .min_by_key(|(_, o)| (o.state.usefulness(), o.id))
+                .map(|(a, o)| (a, o.id));
+            if let Some((a, id)) = victim {
+                if let Some(q) = self.by_address.get(&a)
+                    && let Some(o) = q.iter().find(|o| o.id == id)
+                {
+                    let _ = o.close.send(true);
+                }
+                self.leave(a, id);
             }
         }
         let (tx, rx) = watch::channel(false);
         let id = self.next_id;
         self.next_id += 1;
-        self.by_address
-            .entry(address)
-            .or_default()
-            .push_back((id, tx));
+        let state = Arc::new(ConnectionState::default());
+        self.by_address.entry(address).or_default().push_back(Open {
+            id,
+            state: state.clone(),
+            close: tx,
+        });
         self.open += 1;
-        (id, rx)
+        (id, state, rx)
     }
 
     /// Forget connection `id` of `address` (it ended).
     fn leave(&mut self, address: std::net::IpAddr, id: u64) {
         if let Some(q) = self.by_address.get_mut(&address) {
             let before = q.len();
-            q.retain(|(i, _)| *i != id);
+            q.retain(|o| o.id != id);
             self.open -= before - q.len();
             if q.is_empty() {
                 self.by_address.remove(&address);
@@ -197,7 +261,7 @@ pub async fn serve(
     let acceptor = tls.map(tokio_rustls::TlsAcceptor::from);
     let body_timeout = limits.body_timeout;
     let app = app.layer(axum::middleware::from_fn(move |request, next| {
-        body_deadline(body_timeout, MAX_BODY_BYTES, request, next)
+        body_deadline(body_timeout, request, next)
     }));
     let connections = Arc::new(std::sync::Mutex::new(Connections::default()));
     let (stop_tx, stop_rx) = watch::channel(false);
@@ -213,7 +277,7 @@ pub async fn serve(
             tokio::time::sleep(Duration::from_millis(50)).await;
             continue;
         };
-        let (id, mut evicted) = connections
+        let (id, state, mut evicted) = connections
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .admit(peer.ip(), &limits);
@@ -240,7 +304,9 @@ pub async fn serve(
             };
             let activity = (watched.born, watched.last_ms.clone());
             let service = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
+                state.requests.fetch_add(1, Ordering::Relaxed);
                 req.extensions_mut().insert(ConnectInfo(peer));
+                req.extensions_mut().insert(state.clone());
                 let mut app = app.clone();
                 async move { app.call(req).await }
             });
@@ -328,16 +394,67 @@ async fn drive<I, S>(
 /// less; axum's own default is this too).
 pub const MAX_BODY_BYTES: usize = 2 * 1024 * 1024;
 
+/// The most a request's body may hold on its route [bytes]: a login's is
+/// small, a read's smaller still, a change's [`MAX_BODY_BYTES`].
+pub fn route_body_limit(method: &axum::http::Method, path: &str) -> usize {
+    use axum::http::Method;
+    if path == "/api/login" {
+        super::api::LOGIN_BODY_LIMIT
+    } else if matches!(*method, Method::GET | Method::HEAD | Method::DELETE) {
+        4 * 1024
+    } else {
+        MAX_BODY_BYTES
+    }
+}
+
 /// The body of every request read within `limit` (408 otherwise) and at
-/// most `max_bytes` (413 otherwise), then handed on whole: a client
-/// trickling its body holds its connection no longer than that.
+/// most its route's limit ([`route_body_limit`]; 413 otherwise, at once
+/// when its Content-Length says so), then handed on whole: a client
+/// trickling its body holds its connection no longer than that. A change
+/// (POST, PUT, DELETE) other than a login without a session cookie is
+/// answered 401 before its body is read: nothing is buffered for a request
+/// that cannot be done.
 pub async fn body_deadline(
     limit: Duration,
-    max_bytes: usize,
     request: axum::extract::Request,
     next: axum::middleware::Next,
 ) -> axum::response::Response {
+    use axum::http::{Method, StatusCode, header};
     use axum::response::IntoResponse;
+    let max_bytes = route_body_limit(request.method(), request.uri().path());
+    let close = [(header::CONNECTION, "close")];
+    let declared = request
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > max_bytes as u64) {
+        return (
+            StatusCode::PAYLOAD_TOO_LARGE,
+            close,
+            axum::Json(serde_json::json!({"error": format!("a body over {max_bytes} bytes")})),
+        )
+            .into_response();
+    }
+    let change = matches!(
+        *request.method(),
+        Method::POST | Method::PUT | Method::DELETE
+    );
+    let path = request.uri().path();
+    let has_session = request
+        .headers()
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(super::auth::session_token)
+        .is_some();
+    if change && path.starts_with("/api/") && path != "/api/login" && !has_session {
+        return (
+            StatusCode::UNAUTHORIZED,
+            close,
+            axum::Json(serde_json::json!({"error": "not logged in: POST /api/login first"})),
+        )
+            .into_response();
+    }
     let (parts, body) = request.into_parts();
     match tokio::time::timeout(limit, axum::body::to_bytes(body, max_bytes)).await {
         Ok(Ok(bytes)) => {

@@ -470,7 +470,23 @@ async fn count_request(
         .extensions()
         .get::<axum::extract::MatchedPath>()
         .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
+    // What the connection showed itself to be, for the server's choice of
+    // which connection to close when full (issue 39 item 3).
+    let connection = request
+        .extensions()
+        .get::<Arc<crate::web::server::ConnectionState>>()
+        .cloned();
+    let with_session = request
+        .headers()
+        .get(header::COOKIE)
+        .and_then(|v| v.to_str().ok())
+        .and_then(auth::session_token)
+        .is_some();
     let response = next.run(request).await;
+    if let Some(c) = connection {
+        let accepted = with_session && response.status().is_success();
+        c.answered(accepted, accepted && route == "/api/events");
+    }
     app.metrics
         .http_requests
         .with_label_values(&[route.as_str(), response.status().as_str()])
