@@ -249,6 +249,39 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         f.get("station-b").map(String::as_str) == Some("offline")
             && f.get("station-a").map(String::as_str) == Some("idle")
     });
+    // Issue 39 item 9: an offline row has no run fields; an admin retires
+    // it (audited); a live station is not retired.
+    let rows = op_a.get_json("/api/fleet", 200);
+    let b_row = rows
+        .as_array()
+        .expect("a list")
+        .iter()
+        .find(|s| s["station"] == "station-b")
+        .cloned()
+        .expect("station-b listed");
+    assert!(
+        b_row["run_id"].is_null() && b_row["steps_done"].is_null(),
+        "{b_row}"
+    );
+    let mut admin_a = Client::login(&a, "admin", "admin-password");
+    assert_eq!(
+        op_a.send("DELETE", "/api/fleet/station-b", None).status,
+        403
+    );
+    let r = admin_a.send("DELETE", "/api/fleet/station-a", None);
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    let r = admin_a.send("DELETE", "/api/fleet/station-b", None);
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    assert!(!fleet(&mut op_a).contains_key("station-b"));
+    let audit = admin_a.get_json("/api/audit", 200);
+    assert!(
+        audit
+            .as_array()
+            .expect("rows")
+            .iter()
+            .any(|e| e["action"] == "retire station" && e["detail"] == "station-b"),
+        "{audit}"
+    );
     drop(a);
     drop(b);
     for log in [&a_log, &b_log] {

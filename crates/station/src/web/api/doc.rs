@@ -100,7 +100,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::acknowledge_fault, history::unit,
         charts::control_charts,
         equipment::equipment, equipment::set_equipment, equipment::signature,
-        live::fleet, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
+        live::fleet, live::retire_station, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
     ),
     // Types used only as parameters are listed, so their references resolve.
     components(schemas(schema::ReportFormatName, schema::LanguageTag)),

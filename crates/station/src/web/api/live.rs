@@ -1,7 +1,7 @@
 //! The station's status now and the live event stream (server-sent events
 //! with catch-up), both from the hub.
 
-use super::schema::{ErrorBody, FleetStation, StatusReply};
+use super::schema::{ErrorBody, FleetStation, Saved, StatusReply};
 use super::*;
 
 /// The station now: run, step, rate, supplies, interlocks, modules, the board.
@@ -188,4 +188,51 @@ pub(super) async fn fleet(
             })
             .collect(),
     ))
+}
+
+/// Take an offline station out of the Fleet list (an admin; audited): its
+/// runs stay, and it comes back when it runs again. A live station, or the
+/// one answering, is not retired.
+#[utoipa::path(delete, path = "/api/fleet/{station}", tag = "live",
+    security(("session" = [], "csrf" = [])),
+    params(("station" = String, Path, description = "the station's name")),
+    responses(
+        (status = 200, description = "retired", body = Saved),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token, or not an admin", body = ErrorBody),
+        (status = 404, description = "no such station in the list", body = ErrorBody),
+        (status = 409, description = "the station is live, or is this one", body = ErrorBody),
+    ))]
+pub(super) async fn retire_station(
+    State(app): State<App>,
+    headers: HeaderMap,
+    Path(station): Path<String>,
+    _body: Bytes,
+) -> ApiResult<Json<Saved>> {
+    let session = authorize(&app, &headers, Role::Admin, true).await?;
+    if station == app.runner.station().0.station {
+        return Err(ApiError::conflict(format!(
+            "'{}' is this station; retire it from another station's page once it is offline",
+            spinbench_engine::bounds::shown(&station)
+        )));
+    }
+    let asked = station.clone();
+    let (listed, retired) = blocking(&app, move |app| {
+        let store = store(app)?;
+        let listed = store.stations()?.iter().any(|s| s.beat.station == asked);
+        let retired = listed && store.retire_station(&asked, &session.user)?;
+        Ok((listed, retired))
+    })
+    .await?;
+    match (listed, retired) {
+        (false, _) => Err(ApiError::not_found(format!(
+            "no station '{}' in the Fleet list",
+            spinbench_engine::bounds::shown(&station)
+        ))),
+        (true, false) => Err(ApiError::conflict(format!(
+            "station '{}' is live (heard within 10 s): stop its server first",
+            spinbench_engine::bounds::shown(&station)
+        ))),
+        (true, true) => Ok(Json(Saved { saved: true })),
+    }
 }

@@ -441,6 +441,11 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("put", "/api/users/{name}", put(users::change_user)),
         ("get", "/api/audit", get(users::audit_log)),
         ("get", "/api/fleet", get(live::fleet)),
+        (
+            "delete",
+            "/api/fleet/{station}",
+            delete(live::retire_station),
+        ),
     ]
 }
 

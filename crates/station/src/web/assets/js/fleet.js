@@ -1,7 +1,7 @@
 // The Fleet page: every station on this store.
 import { $, api, show, state } from "./core.js";
 import { fmtTime } from "./history.js";
-import { stateWord, word } from "./i18n.js";
+import { fill, stateWord, word } from "./i18n.js";
 
 // The equipment register: every device with its calibration status;
 // engineers and admins keep it (each change in the audit log).
@@ -23,9 +23,29 @@ export async function loadFleet() {
       const progress = st.steps_total ? st.steps_done + " / " + st.steps_total : "—";
       const fpy = st.first_pass_yield === null || st.first_pass_yield === undefined ? "—"
         : (100 * st.first_pass_yield).toFixed(0) + " % (" + st.passed_today + "/" + st.tested_today + ")";
-      [st.station + (st.this_station ? " *" : ""), what, st.run_id || "—", progress, fpy, fmtTime(st.last_seen)]
-        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 1) td.className = "fleet " + st.state; });
+      const kind = word("web.fleet.kind." + st.kind.replace(/ /g, "_"), st.kind);
+      [st.station + (st.this_station ? " *" : ""), kind, what, st.run_id || "—", progress, fpy, fmtTime(st.last_seen)]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 2) td.className = "fleet " + st.state; });
+      // An admin may take an offline station out of the list (audited).
+      const act = tr.insertCell();
+      if (st.state === "offline" && !st.this_station && state.session && state.session.role === "admin") {
+        const b = document.createElement("button");
+        b.textContent = word("web.fleet.retire", "Retire");
+        b.className = "retire";
+        b.onclick = () => retireStation(st.station);
+        act.appendChild(b);
+      }
     }
   } catch (e) { show(e.message); }
   fleetTimer = setTimeout(loadFleet, 3000);
+}
+
+async function retireStation(station) {
+  const ask = fill("web.fleet.retire_confirm",
+    "Take station " + station + " out of the Fleet list? Its runs stay; it comes back if it runs again.", { station });
+  if (!confirm(ask)) return;
+  try {
+    await api("DELETE", "/api/fleet/" + encodeURIComponent(station));
+    await loadFleet();
+  } catch (e) { show(e.message); }
 }
