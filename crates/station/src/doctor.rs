@@ -74,6 +74,7 @@ pub fn check(station_toml: &str, source: &str, store: &StoreTarget, data: &Path)
                 ),
             ));
             found.extend(devices(&station));
+            found.push(name_check(&station.station, store, data));
         }
         Err(e) => found.push(Finding::new(
             Verdict::Fail,
@@ -239,6 +240,64 @@ fn port_problem(path: &Path) -> Option<String> {
             _ => None,
         },
     }
+}
+
+/// Names a station is shipped or started with when none is given: a
+/// second install left with one joins the first's fleet row.
+const DEFAULT_NAMES: [&str; 3] = [
+    "centrifuge station 1",
+    "spinbench",
+    "spinbench virtual bench",
+];
+
+/// The station's name in the fleet (issue 39 item 2): held by another
+/// station (another identity) in the store, or a default name a second
+/// install would share. Doctor changes nothing: no identity is made, no
+/// store created.
+fn name_check(name: &str, target: &StoreTarget, data: &Path) -> Finding {
+    let what = "station name";
+    let own = std::fs::read_to_string(data.join(crate::paths::STATION_ID_FILE))
+        .ok()
+        .map(|t| t.trim().to_string());
+    let exists = match target {
+        StoreTarget::File(p) => p.exists(),
+        StoreTarget::Postgres(_) => true,
+    };
+    let holder = if exists {
+        Store::connect(target)
+            .ok()
+            .and_then(|s| s.station_holder(name).ok().flatten())
+    } else {
+        None
+    };
+    if let Some(h) = holder
+        && !h.instance.is_empty()
+        && own.as_deref() != Some(h.instance.as_str())
+    {
+        let ago = (spinbench_store::now_s() - h.last_seen).max(0);
+        return Finding::new(
+            Verdict::Warn,
+            what,
+            format!(
+                "'{name}' is held in the store by another station (identity {}, at {}, last heard {ago} s ago): \
+                 two stations with one name merge in the fleet, its yield and run numbers, and `serve` refuses \
+                 to start while the other is live. Give this station its own name (`station` in its station.toml, or serve --name)",
+                h.instance,
+                h.address.as_deref().unwrap_or("no address")
+            ),
+        );
+    }
+    if DEFAULT_NAMES.contains(&name) {
+        return Finding::new(
+            Verdict::Warn,
+            what,
+            format!(
+                "'{name}' is a default name: a second station left with it would share this one's fleet row; \
+                 give this station its own name (`station` in its station.toml, or serve --name)"
+            ),
+        );
+    }
+    Finding::new(Verdict::Ok, what, format!("'{name}' is this station's own"))
 }
 
 /// The store: reachable, migrated (each migration applied), writable, sound.

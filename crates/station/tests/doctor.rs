@@ -78,6 +78,32 @@ fn the_virtual_bench_is_ready() {
             "{out}"
         );
     }
+    // Issue 39 item 2: the bench's default name is warned of; so, louder,
+    // is a name another station (another identity) holds in the store.
+    assert!(
+        out.contains("WARN  station name: 'spinbench virtual bench' is a default name"),
+        "{out}"
+    );
+    let store = spinbench_store::Store::open(&data.join("spinbench.db")).expect("store");
+    let claim = store
+        .claim_station(&spinbench_store::fleet::Heartbeat {
+            station: "spinbench virtual bench".into(),
+            instance: "0123456789abcdef0123456789abcdef".into(),
+            state: "idle".into(),
+            run_id: None,
+            progress: None,
+            address: Some("http://10.0.0.7:8080/".into()),
+        })
+        .expect("claim");
+    assert!(matches!(
+        claim,
+        spinbench_store::fleet::Claim::Taken { previous: None }
+    ));
+    let (_, out, _) = doctor(&["--simulate", "--data", data.to_str().expect("utf-8")]);
+    assert!(
+        out.contains("held in the store by another station (identity 0123456789abcdef0123456789abcdef, at http://10.0.0.7:8080/"),
+        "{out}"
+    );
 }
 
 #[test]
