@@ -181,6 +181,34 @@ pub fn pg_restore(target: &StoreTarget, from: &Path) -> Result<(), StoreError> {
     let StoreTarget::Postgres(url) = target else {
         return Err(fail("not a PostgreSQL store".into()));
     };
+    // Into an empty database only (issue 39 item 10): said in words, not
+    // with pg_restore's first "already exists".
+    let mut client = crate::connect_postgres(url)
+        .map_err(|(what, e)| fail(format!("{what}: {}", crate::whole_reason(&e))))?;
+    let tables: Vec<String> = client
+        .query(
+            "SELECT table_name FROM information_schema.tables
+             WHERE table_schema = 'public' ORDER BY table_name LIMIT 6",
+            &[],
+        )
+        .map_err(|e| fail(e.to_string()))?
+        .iter()
+        .map(|r| r.get::<_, String>(0))
+        .collect();
+    drop(client);
+    if !tables.is_empty() {
+        return Err(fail(format!(
+            "the database must be empty: it holds tables already ({}{}); restore into a new database \
+             (createdb NAME, then --db with its URL), or drop this one's tables first",
+            tables
+                .iter()
+                .take(5)
+                .cloned()
+                .collect::<Vec<_>>()
+                .join(", "),
+            if tables.len() > 5 { ", …" } else { "" }
+        )));
+    }
     run_pg_tool(
         "pg_restore",
         url,

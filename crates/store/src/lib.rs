@@ -410,7 +410,7 @@ pub const TCP_USER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs
 /// the URL has none), with the deadlines a plant network needs: a connect
 /// time-out, TCP keepalives and a TCP user time-out (each unless the URL
 /// sets its own). On failure, what was being done and why.
-fn connect_postgres(url: &str) -> Result<postgres::Client, (&'static str, DbError)> {
+pub(crate) fn connect_postgres(url: &str) -> Result<postgres::Client, (&'static str, DbError)> {
     let mut config = pg_config(url, std::env::var("PGPASSWORD").ok())
         .map_err(|e| ("not a PostgreSQL URL", e.into()))?;
     if config.get_connect_timeout().is_none() {
