@@ -182,8 +182,19 @@ fn soak(backend: &str, db: &str, data: &Path, runs: usize) {
     );
     std::fs::create_dir_all(data.join("plans")).expect("plans");
     std::fs::write(data.join("plans").join("soak.toml"), PLAN).expect("plan");
-    let (mut server, base) = serve(data, db);
+    let (server, base) = serve(data, db);
     let pid = server.id();
+    // Stopped however the soak ends (a failed assertion included).
+    struct Stop(Child);
+    impl Drop for Stop {
+        fn drop(&mut self) {
+            let _ = Command::new("kill")
+                .args(["-TERM", &self.0.id().to_string()])
+                .status();
+            let _ = self.0.wait();
+        }
+    }
+    let _server = Stop(server);
     let session = Arc::new(Session::login(&base));
     // The browser: an event stream open all along, read and discarded.
     let stop = Arc::new(AtomicBool::new(false));
@@ -317,10 +328,6 @@ fn soak(backend: &str, db: &str, data: &Path, runs: usize) {
             "{backend}: the store grew {rest_kb_per_run:.1} KiB/run after {first_kb_per_run:.1} KiB/run"
         );
     }
-    let _ = Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status();
-    let _ = server.wait();
 }
 
 fn main() {

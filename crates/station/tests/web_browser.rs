@@ -156,6 +156,21 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         if prompt_shown == Value::Bool(true) {
             if prompts == 0 {
                 b.screenshot(&shots.join("2-prompt.png"));
+                // Issue 40 item 7: the prompt's Abort asks first; cancelled,
+                // the run waits at its prompt as before.
+                b.click("#prompt-abort");
+                b.dismiss_dialog();
+                std::thread::sleep(Duration::from_millis(300));
+                assert_eq!(
+                    b.script("return !document.getElementById('prompt').hidden"),
+                    Value::Bool(true),
+                    "a cancelled Abort left the prompt"
+                );
+                assert_eq!(
+                    b.script("return !document.getElementById('abort-button').hidden"),
+                    Value::Bool(true),
+                    "a cancelled Abort ended the run"
+                );
             }
             b.click("#prompt-done");
             prompts += 1;
@@ -224,6 +239,27 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
          return !!r && r.cells[5].textContent.startsWith('done') && r.cells[6].textContent === '11/11' \
          && r.cells[7].textContent.includes('±') && r.cells[9].textContent !== '—'",
     );
+    // Issue 40 item 1: the end banner counts the outcomes, coloured by the
+    // worst (a limit no instrument meets: none passes).
+    b.wait_for(
+        10,
+        "the end banner's counts",
+        "const a = document.getElementById('alarm'); \
+         return /^Run completed — \\d+ /.test(a.textContent) && !a.textContent.includes(' pass') \
+           && ['fail', 'inconclusive', 'marginal', 'incomplete'].some(o => a.classList.contains(o))",
+    );
+    // Issue 40 item 6: on a 400 px phone nothing runs off the side, Log out
+    // and the language stay in reach, and the board's K2 and outcome show.
+    b.set_window(400, 800);
+    b.wait_for(
+        10,
+        "the phone layout",
+        "const w = window.innerWidth; const inside = e => { const r = e.getBoundingClientRect();            return r.width > 0 && r.left >= 0 && r.right <= w; };          const row = document.querySelector('#board tbody tr[data-slot=\"2\"]');          return w <= 420 && document.documentElement.scrollWidth <= w            && inside(document.getElementById('logout-button')) && inside(document.getElementById('lang-select'))            && !!row && inside(row.cells[8]) && inside(row.cells[9]) && inside(row.cells[1]) && inside(row.cells[5])",
+    );
+    let phone_shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("phone");
+    std::fs::create_dir_all(&phone_shots).expect("screenshots");
+    b.screenshot(&phone_shots.join(format!("run-{backend:?}.png")));
+    b.set_window(1400, 1100);
     // The curves are drawn: pixels on the canvas are not all blank.
     let inked = b.script(
         "const c = document.getElementById('curves'); const d = c.getContext('2d').getImageData(0, 0, c.width, c.height).data; \
@@ -596,7 +632,14 @@ fn a_handled_notice_is_no_alarm_once_the_run_completes_in_the_browser() {
     b.wait_for(
         10,
         "the run's outcome in the banner",
-        "const a = document.getElementById('alarm'); return !a.hidden && a.className === 'done' && a.textContent === 'Run completed'",
+        // Issue 40 item 1: with the counts of the outcomes, which add up to
+        // the board's instruments, coloured by the worst.
+        "const a = document.getElementById('alarm'); if (a.hidden || !a.classList.contains('done')) return false; \
+         const m = a.textContent.match(/^Run completed — (.*)$/); if (!m) return false; \
+         const total = m[1].split(', ').reduce((t, p) => t + parseInt(p, 10), 0); \
+         const rows = [...document.querySelectorAll('#board tbody tr')].filter(r => r.cells[1].textContent !== '').length; \
+         const worst = ['fail', 'incomplete', 'inconclusive', 'marginal'].find(o => a.textContent.includes(' ' + o)); \
+         return total === rows && (!worst || a.classList.contains(worst))",
     );
     std::thread::sleep(Duration::from_secs(5));
     b.click("#nav-history");
@@ -604,7 +647,8 @@ fn a_handled_notice_is_no_alarm_once_the_run_completes_in_the_browser() {
         10,
         "the History page with no alarm",
         "const a = document.getElementById('alarm'); return !document.getElementById('history').hidden \
-         && a.className === 'done' && !document.getElementById('message').textContent.includes('again')",
+         && a.classList.contains('done') && a.textContent.startsWith('Run completed — ') \
+         && !document.getElementById('message').textContent.includes('again')",
     );
 }
 

@@ -178,6 +178,21 @@ impl Browser {
         }
     }
 
+    /// Dismiss (cancel) the page's `confirm()` dialog, waiting up to 5 s
+    /// for the page to open it.
+    pub fn dismiss_dialog(&self) {
+        let until = Instant::now() + Duration::from_secs(5);
+        loop {
+            match self.try_call("POST", "/alert/dismiss", json!({})) {
+                Ok(_) => return,
+                Err(e) if e["error"] == "no such alert" && Instant::now() < until => {
+                    std::thread::sleep(Duration::from_millis(100));
+                }
+                Err(e) => panic!("webdriver dismiss the dialog: {e}"),
+            }
+        }
+    }
+
     /// Type `text` into the element `css`, after clearing it. As with
     /// [`Browser::click`], an element the page drew again meanwhile is
     /// found again, for at most 5 s.
@@ -225,6 +240,15 @@ impl Browser {
             }
             std::thread::sleep(Duration::from_millis(100));
         }
+    }
+
+    /// Resize the window (a phone: 400 × 800).
+    pub fn set_window(&self, width: u32, height: u32) {
+        self.call(
+            "POST",
+            "/window/rect",
+            json!({ "width": width, "height": height }),
+        );
     }
 
     /// A PNG screenshot of the window.

@@ -65,11 +65,14 @@ export function connect() {
     log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""));
     if (e.state === "completed") $("run-progress").value = $("run-progress").max;
     // The run's outcome replaces the notices; a fault's banner stays until acknowledged.
-    if (e.state === "completed") alarm(word("web.banner.completed", "Run completed"), "done");
+    if (e.state === "completed") completedBanner(state.lastBoard);
     else if (e.state === "aborted") alarm(bannerText("aborted", why), "aborted");
     $("prompt").hidden = true;
     if (state.runId) showReports($("run-reports"), state.runId);
     refreshStatus();
+    // The runner lets go of the run a moment after its last event: the
+    // board's outcomes, the banner's counts and the buttons follow then.
+    setTimeout(refreshStatus, 1500);
   });
   on("health", () => refreshStatus());
 }
@@ -125,6 +128,20 @@ export function alarm(text, kind) {
   }
 }
 
+// The end of a completed run at a glance (issue 40 item 1): how many
+// instruments passed, were marginal, failed, were inconclusive or
+// incomplete, coloured by the worst.
+const OUTCOMES = ["pass", "marginal", "fail", "inconclusive", "incomplete"];
+const WORST_FIRST = ["fail", "incomplete", "inconclusive", "marginal", "pass"];
+function completedBanner(board) {
+  const n = {};
+  for (const s of board || []) if (s.serial && s.outcome) n[s.outcome] = (n[s.outcome] || 0) + 1;
+  const parts = OUTCOMES.filter((o) => n[o]).map((o) => n[o] + " " + word("web.outcome." + o, o));
+  const worst = WORST_FIRST.find((o) => n[o]);
+  const text = word("web.banner.completed", "Run completed") + (parts.length ? " — " + parts.join(", ") : "");
+  alarm(text, "done" + (worst && worst !== "pass" ? " " + worst : ""));
+}
+
 export function clearAlarm() {
   const a = $("alarm");
   a.hidden = true; a.className = ""; a.textContent = "";
@@ -144,6 +161,7 @@ export function renderBoard(board) {
   const body = $("board").tBodies[0];
   body.textContent = "";
   const pm = (v) => v === null || v === undefined ? "—" : v[0].toFixed(3) + (v[1] === null ? "" : " ± " + v[1].toFixed(3));
+  state.lastBoard = board || [];
   for (const s of board || []) {
     const tr = body.insertRow();
     tr.dataset.slot = s.slot;
@@ -215,7 +233,7 @@ export async function refreshStatus() {
   if (s.fault && !s.fault_acknowledged && why) alarm(bannerText("fault", why), "fault");
   else if (s.fault && s.fault_acknowledged && $("alarm").className === "fault") clearAlarm();
   else if (why && st === "aborted") alarm(bannerText("aborted", why), "aborted");
-  else if (st === "completed" && !s.active && ["notice", "left-out"].includes($("alarm").className)) alarm(word("web.banner.completed", "Run completed"), "done");
+  else if (st === "completed" && (["notice", "left-out"].includes($("alarm").className) || $("alarm").classList.contains("done"))) completedBanner(s.board);
   // The station's database: a line while it does not take the writes
   // (the run goes on measuring; its record follows when it is back).
   const db = s.store;
