@@ -114,15 +114,12 @@ pub(super) async fn save_plan(
     // Written beside, audited, then put in place (issue 39 item 6): a plan
     // whose audit entry cannot be written is not saved.
     let path = app.plans_dir.join(format!("{name}.toml"));
-    let saving = app.plans_dir.join(format!("{name}.toml.saving"));
-    std::fs::write(&saving, text)
-        .map_err(|e| ApiError::internal(format!("{}: {e}", saving.display())))?;
-    if let Err(e) = audit(&app, &session.user, "save plan", &name).await {
-        let _ = std::fs::remove_file(&saving);
-        return Err(e.prefixed("nothing was saved"));
-    }
-    if let Err(e) = std::fs::rename(&saving, &path) {
-        let _ = std::fs::remove_file(&saving);
+    let beside = Beside::write(&path, text)
+        .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
+    audit(&app, &session.user, "save plan", &name)
+        .await
+        .map_err(|e| e.prefixed("nothing was saved"))?;
+    if let Err(e) = beside.put_in_place() {
         let why = format!("{}: {e}", path.display());
         let _ = audit(
             &app,
@@ -261,11 +258,20 @@ pub(super) async fn save_station(
             "run {run} is active; change the station after it"
         )));
     }
-    // Audited first (issue 39 item 6: no change without its entry), then
-    // written, then applied (issue 27 item 7): a config that cannot be
-    // kept is not used either, and its entry is followed by the failure.
+    // Written beside (issue 27 item 7: a config that cannot be kept is
+    // neither used nor audited), audited (issue 39 item 6: no change
+    // without its entry), then put in place and applied; a failure after
+    // the entry is audited too.
     blocking(&app, move |app| {
         let shown = path.display().to_string();
+        let beside = Beside::write(&path, &text).map_err(|e| {
+            ApiError::conflict(format!(
+                "{}: cannot write the station config ({e}); nothing was changed. Under the packaged service \
+                 the config in /etc/spinbench is read-only to the service: edit it there as root, then \
+                 `systemctl restart spinbench`",
+                path.display()
+            ))
+        })?;
         audit_now(app, &session.user, "save station config", &shown)
             .map_err(|e| e.prefixed("nothing was changed"))?;
         let failed = |why: &str| {
@@ -277,18 +283,16 @@ pub(super) async fn save_station(
             );
         };
         let old = std::fs::read_to_string(&path).ok();
-        write_replacing(&path, &text).inspect_err(|e| failed(&e.to_string())).map_err(|e| {
-            ApiError::conflict(format!(
-                "{}: cannot write the station config ({e}); nothing was changed. Under the packaged service \
-                 the config in /etc/spinbench is read-only to the service: edit it there as root, then \
-                 `systemctl restart spinbench`",
-                path.display()
-            ))
-        })?;
+        if let Err(e) = beside.put_in_place() {
+            failed(&e.to_string());
+            return Err(ApiError::conflict(format!(
+                "{shown}: cannot put the station config in place ({e}); nothing was changed"
+            )));
+        }
         if let Err(why) = app.runner.set_station(config, text) {
             // A run started meanwhile: the file goes back to what it was.
             if let Some(old) = old {
-                let _ = write_replacing(&path, &old);
+                let _ = Beside::write(&path, &old).and_then(Beside::put_in_place);
             }
             failed(&why);
             return Err(ApiError::conflict(why));
@@ -299,16 +303,38 @@ pub(super) async fn save_station(
     Ok(Json(Saved { saved: true }))
 }
 
-/// Replace the file at `path` with `text` whole: written beside it, then
-/// renamed over it, so a failed write leaves the old file as it was.
-fn write_replacing(path: &std::path::Path, text: &str) -> std::io::Result<()> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".saving");
-    let temporary = path.with_file_name(name);
-    std::fs::write(&temporary, text)?;
-    std::fs::rename(&temporary, path).inspect_err(|_| {
-        let _ = std::fs::remove_file(&temporary);
-    })
+/// A file's new text written beside it (`NAME.saving`), so that a failed
+/// write leaves the old file as it was; put in place whole by a rename, or
+/// removed when dropped unused.
+struct Beside {
+    temporary: std::path::PathBuf,
+    path: std::path::PathBuf,
+}
+
+impl Beside {
+    /// Write `text` beside `path`.
+    fn write(path: &std::path::Path, text: &str) -> std::io::Result<Beside> {
+        let mut name = path.file_name().unwrap_or_default().to_os_string();
+        name.push(".saving");
+        let temporary = path.with_file_name(name);
+        std::fs::write(&temporary, text)?;
+        Ok(Beside {
+            temporary,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Replace the file with the new text (a rename).
+    fn put_in_place(self) -> std::io::Result<()> {
+        std::fs::rename(&self.temporary, &self.path)
+    }
+}
+
+impl Drop for Beside {
+    fn drop(&mut self) {
+        // Gone after a rename; left over after a failure: removed.
+        let _ = std::fs::remove_file(&self.temporary);
+    }
 }
 
 /// An uploaded plan or station config as TOML text: the body as sent

@@ -58,24 +58,17 @@ pub(super) async fn start_run(
         .collect();
     let (plan_name, reason) = (start.plan.clone(), start.override_overdue.clone());
     let run_id = start_plan(&app, &plan, &session.user, move |run_id| {
-        let mut entries = Vec::new();
-        if let Some(devices) = &overridden {
-            entries.push((
-                "override overdue calibration".to_string(),
+        run_entries(
+            (&overridden, &reason),
+            format!("{run_id} started"),
+            (
+                "start run",
                 format!(
-                    "{run_id} started with {devices}: {}",
-                    reason.as_deref().unwrap_or_default()
+                    "{run_id} plan {plan_name} serials {}",
+                    serial_list.join(" ")
                 ),
-            ));
-        }
-        entries.push((
-            "start run".to_string(),
-            format!(
-                "{run_id} plan {plan_name} serials {}",
-                serial_list.join(" ")
             ),
-        ));
-        entries
+        )
     })
     .await?;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
@@ -116,6 +109,28 @@ async fn check_equipment(
         ))
         .worded(Wording::new("error.overdue").with("devices", &late))),
     }
+}
+
+/// A run's audit entries: the override of its calibration check (the
+/// devices and the reason), if one was made, after `started` ("RUN
+/// started"), then its own entry (action, detail).
+fn run_entries(
+    (overridden, reason): (&Option<String>, &Option<String>),
+    started: String,
+    (action, detail): (&str, String),
+) -> Vec<(String, String)> {
+    let mut entries = Vec::new();
+    if let Some(devices) = overridden {
+        entries.push((
+            "override overdue calibration".to_string(),
+            format!(
+                "{started} with {devices}: {}",
+                reason.as_deref().unwrap_or_default()
+            ),
+        ));
+    }
+    entries.push((action.to_string(), detail));
+    entries
 }
 
 /// Start `plan` on the station for `user`; the run's id. Off the runtime:
@@ -283,21 +298,14 @@ pub(super) async fn retest(
     let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
     let (retested, reason, listed) = (id.clone(), ask.override_overdue.clone(), serials.join(" "));
     let run_id = start_plan(&app, &plan, &session.user, move |run_id| {
-        let mut entries = Vec::new();
-        if let Some(devices) = &overridden {
-            entries.push((
-                "override overdue calibration".to_string(),
-                format!(
-                    "{run_id} (retest of {retested}) started with {devices}: {}",
-                    reason.as_deref().unwrap_or_default()
-                ),
-            ));
-        }
-        entries.push((
-            "retest run".to_string(),
-            format!("{run_id} retests {retested}: {listed}"),
-        ));
-        entries
+        run_entries(
+            (&overridden, &reason),
+            format!("{run_id} (retest of {retested}) started"),
+            (
+                "retest run",
+                format!("{run_id} retests {retested}: {listed}"),
+            ),
+        )
     })
     .await?;
     Ok((
