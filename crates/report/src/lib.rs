@@ -215,9 +215,30 @@ pub fn write_reports_in(
     lang: Lang,
 ) -> Result<Vec<PathBuf>, ReportError> {
     let report = gather(store, run_id)?;
-    write_files(dir, &report_file_stem(&report.run), formats, |f| {
+    write_files(dir, &report_file_stem_in(&report.run, lang), formats, |f| {
         render_in(&report, f, lang)
     })
+}
+
+/// As [`report_file_stem`], with the language (`…-en`, `…-zh-CN`): a
+/// run's reports in two languages sit side by side in one folder
+/// (issue 40 item 2).
+pub fn report_file_stem_in(run: &spinbench_store::RunRow, lang: Lang) -> String {
+    format!("{}-{}", report_file_stem(run), lang.code())
+}
+
+/// The batch report's file name without its extension: `batch-report-`,
+/// its runs (the one run's label; or how many, the first's and the last's
+/// labels), then the language, so batch reports of other runs or another
+/// language do not write over each other.
+pub fn batch_file_stem(batch: &BatchReport, lang: Lang) -> String {
+    let part = |r: &spinbench_store::RunRow| r.label_file_part().unwrap_or_else(|| r.id.clone());
+    let runs = match batch.runs.as_slice() {
+        [] => "no-runs".to_string(),
+        [only] => part(only),
+        [first, .., last] => format!("{}-runs-{}--{}", batch.runs.len(), part(first), part(last)),
+    };
+    format!("batch-report-{runs}-{}", lang.code())
 }
 
 /// A run report's file name without its extension: `report-`, the run's
@@ -233,7 +254,7 @@ pub fn report_file_stem(run: &spinbench_store::RunRow) -> String {
 }
 
 /// Write the batch report of `run_ids` (every run when empty) in each
-/// format into `dir`; returns the files written (`batch-report.<ext>`).
+/// format into `dir`; returns the files written ([`batch_file_stem`]`.<ext>`).
 pub fn write_batch_reports(
     store: &Store,
     run_ids: &[String],
@@ -244,7 +265,7 @@ pub fn write_batch_reports(
 ) -> Result<Vec<PathBuf>, ReportError> {
     let mut batch = gather_batch(store, run_ids)?;
     batch.rebaseline(baseline_runs);
-    write_files(dir, "batch-report", formats, |f| {
+    write_files(dir, &batch_file_stem(&batch, lang), formats, |f| {
         render_batch_in(&batch, f, lang)
     })
 }

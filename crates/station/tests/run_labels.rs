@@ -97,7 +97,7 @@ fn runs_are_listed_named_and_reported_by_their_labels() {
     ]);
     assert!(ok, "{said}{err}");
     let stem = format!(
-        "report-{day}_{}_1-{}",
+        "report-{day}_{}_1-{}-en",
         first
             .station
             .replace(|c: char| !c.is_ascii_alphanumeric() && c != '-', "-"),
@@ -107,4 +107,25 @@ fn runs_are_listed_named_and_reported_by_their_labels() {
         .unwrap_or_else(|e| panic!("{stem}.html: {e}; wrote {said}"));
     assert!(html.contains(&label_1), "the report shows its label");
     assert!(out.join(format!("{stem}.csv")).is_file());
+    // Issue 40 item 2: the Chinese reports of the same run sit beside the
+    // English ones (the file names carry the language).
+    let (ok, said, err) = spinbench(&[
+        "report",
+        &label_1,
+        "--db",
+        db_s,
+        "--format",
+        "html",
+        "--lang",
+        "zh-CN",
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert!(ok, "{said}{err}");
+    let zh_stem = stem.replace("-en", "-zh-CN");
+    assert!(out.join(format!("{zh_stem}.html")).is_file(), "{said}");
+    assert!(
+        out.join(format!("{stem}.html")).is_file(),
+        "the English report was written over"
+    );
 }

@@ -217,7 +217,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
         10,
         "the refusal in Chinese, naming the device",
         "const m = document.getElementById('message').textContent; \
-         return m.includes('centrifuge (due 2026-01-01)') && m.includes('校准未确认')",
+         return m.includes('centrifuge (due 2026-01-01, overdue)') && m.includes('校准未确认')",
     );
     b.screenshot(&shots.join("zh-5-register-refusal.png"));
 }

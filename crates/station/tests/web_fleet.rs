@@ -117,6 +117,31 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         f.get("station-a").map(String::as_str) == Some("idle")
             && f.get("station-b").map(String::as_str) == Some("idle")
     });
+    // Issue 40 item 1: each row counts its latest run's outcomes (one
+    // instrument each), as the run's own results say.
+    for (k, row) in op_b
+        .get_json("/api/fleet", 200)
+        .as_array()
+        .expect("a list")
+        .iter()
+        .filter(|s| s["station"] == "station-a" || s["station"] == "station-b")
+        .enumerate()
+    {
+        let counts = row["last_run_outcomes"].as_object().expect("outcomes");
+        let total: i64 = counts.values().filter_map(Value::as_i64).sum();
+        assert_eq!(total, 1, "row {k}: {row}");
+        let run = &runs[usize::from(row["station"] == "station-b")];
+        let detail = op_b.get_json(&format!("/api/runs/{run}"), 200);
+        let outcome = detail["results"][0]["outcome"]
+            .as_str()
+            .unwrap_or("?")
+            .to_string();
+        assert_eq!(
+            counts.get(&outcome).and_then(Value::as_i64),
+            Some(1),
+            "{row} {detail}"
+        );
+    }
     // Each server lists both runs, each with its own station and records,
     // and each station keeps its own raw data.
     for c in [&mut op_a, &mut op_b] {

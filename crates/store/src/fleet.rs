@@ -70,6 +70,9 @@ pub struct StationRow {
     pub tested_today: i64,
     /// Of them, passed in every mounting.
     pub passed_today: i64,
+    /// Its latest run's instruments by outcome (`pass`, `fail`, …, each
+    /// with how many), in the outcomes' order.
+    pub last_run_outcomes: Vec<(String, i64)>,
 }
 
 impl Store {
@@ -222,6 +225,18 @@ impl Store {
             )?;
             let (tested_today, passed_today) =
                 yield_rows.first().map_or((0, 0), |y| (y.int(0), y.int(1)));
+            let counted = self.query(
+                "count the latest run's outcomes",
+                "SELECT outcome, COUNT(*) FROM results WHERE run_id =
+                   (SELECT id FROM runs WHERE station = $1 ORDER BY started_at DESC, id DESC LIMIT 1)
+                 GROUP BY outcome",
+                &[name.as_str().into()],
+            )?;
+            let mut last_run_outcomes: Vec<(String, i64)> =
+                counted.iter().map(|r| (r.text(0), r.int(1))).collect();
+            let order = ["pass", "marginal", "fail", "inconclusive", "incomplete"];
+            last_run_outcomes
+                .sort_by_key(|(o, _)| order.iter().position(|k| k == o).unwrap_or(order.len()));
             out.push(StationRow {
                 beat: Heartbeat {
                     station: name,
@@ -236,6 +251,7 @@ impl Store {
                 kind: r.opt_text(9).unwrap_or_else(|| "server".into()),
                 tested_today,
                 passed_today,
+                last_run_outcomes,
             });
         }
         Ok(out)

@@ -35,18 +35,32 @@ stability = {{ hold_s = 3 }}
 }
 
 /// The run report `dir` holds for run `id` in format `ext`
-/// (`report-<label>-<id>.<ext>`: issue 31 item 4).
+/// (`report-<label>-<id>-<language>.<ext>`: issue 31 item 4, issue 40
+/// item 2), English first when both are there.
 #[allow(dead_code)] // not every test file reads reports
 pub fn report_file(dir: &std::path::Path, id: &str, ext: &str) -> std::path::PathBuf {
-    let tail = format!("{id}.{ext}");
-    std::fs::read_dir(dir)
+    let english = format!("{id}-en.{ext}");
+    let found = std::fs::read_dir(dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
         .flatten()
         .map(|e| e.path())
         .find(|p| {
             p.file_name()
                 .and_then(|n| n.to_str())
-                .is_some_and(|n| n.starts_with("report-") && n.ends_with(&tail))
+                .is_some_and(|n| n.starts_with("report-") && n.ends_with(&english))
+        });
+    if let Some(found) = found {
+        return found;
+    }
+    let tail = format!(".{ext}");
+    std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.file_name().and_then(|n| n.to_str()).is_some_and(|n| {
+                n.starts_with("report-") && n.contains(&format!("{id}-")) && n.ends_with(&tail)
+            })
         })
-        .unwrap_or_else(|| panic!("no report-…{tail} in {}", dir.display()))
+        .unwrap_or_else(|| panic!("no report-…{id}-….{ext} in {}", dir.display()))
 }

@@ -160,7 +160,7 @@ pub(super) async fn report(
     let (stem, bytes) = tokio::task::spawn_blocking(move || {
         let store = spinbench_store::Store::connect(&db)?;
         let report = spinbench_report::gather(&store, &run_id)?;
-        let stem = spinbench_report::report_file_stem(&report.run);
+        let stem = spinbench_report::report_file_stem_in(&report.run, lang);
         spinbench_report::render_in(&report, format, lang).map(|bytes| (stem, bytes))
     })
     .await

@@ -185,6 +185,7 @@ pub(super) async fn fleet(
                 passed_today: r.passed_today,
                 first_pass_yield: (r.tested_today > 0)
                     .then(|| r.passed_today as f64 / r.tested_today as f64),
+                last_run_outcomes: r.last_run_outcomes.into_iter().collect(),
             })
             .collect(),
     ))

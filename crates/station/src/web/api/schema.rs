@@ -766,6 +766,10 @@ pub struct FleetStation {
     pub passed_today: i64,
     /// First-pass yield today (passed over tested), absent with none tested.
     pub first_pass_yield: Option<f64>,
+    /// Its latest run's instruments by outcome (pass, marginal, fail,
+    /// inconclusive, incomplete: how many of each; absent ones are 0).
+    #[schema(value_type = std::collections::BTreeMap<String, i64>)]
+    pub last_run_outcomes: std::collections::BTreeMap<String, i64>,
     /// This is the station of the server answering.
     pub this_station: bool,
 }

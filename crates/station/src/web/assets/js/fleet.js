@@ -24,8 +24,17 @@ export async function loadFleet() {
       const fpy = st.first_pass_yield === null || st.first_pass_yield === undefined ? "—"
         : (100 * st.first_pass_yield).toFixed(0) + " % (" + st.passed_today + "/" + st.tested_today + ")";
       const kind = word("web.fleet.kind." + st.kind.replace(/ /g, "_"), st.kind);
-      [st.station + (st.this_station ? " *" : ""), kind, what, st.run_id || "—", progress, fpy, fmtTime(st.last_seen)]
-        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 2) td.className = "fleet " + st.state; });
+      // The latest run's outcomes at a glance (issue 40 item 1), coloured by the worst.
+      const n = st.last_run_outcomes || {};
+      const last = ["pass", "marginal", "fail", "inconclusive", "incomplete"].filter((o) => n[o])
+        .map((o) => n[o] + " " + word("web.outcome." + o, o)).join(", ") || "—";
+      const worst = ["fail", "incomplete", "inconclusive", "marginal", "pass"].find((o) => n[o]) || "";
+      [st.station + (st.this_station ? " *" : ""), kind, what, st.run_id || "—", progress, last, fpy, fmtTime(st.last_seen)]
+        .forEach((v, k) => {
+          const td = tr.insertCell(); td.textContent = v;
+          if (k === 2) td.className = "fleet " + st.state;
+          if (k === 5) { td.className = worst; td.dataset.outcomes = JSON.stringify(n); }
+        });
       // An admin may take an offline station out of the list (audited).
       const act = tr.insertCell();
       if (st.state === "offline" && !st.this_station && state.session && state.session.role === "admin") {
