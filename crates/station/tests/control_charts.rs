@@ -4,6 +4,8 @@
 //! no other, and the batch report shows the charts and the yields.
 
 mod common;
+#[path = "common/web.rs"]
+mod web;
 
 use spinbench_store::{Store, StoreTarget};
 use std::process::Command;
@@ -176,6 +178,28 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
                 .all(|o| ["合格", "临界", "不合格", "无法判定", "未完成"].contains(&o.as_str())),
         "{outcomes:?}"
     );
+
+    // The Charts page's flags name the run by its label and the point's
+    // instrument (issue 40 item 8): on the web API of a server on this store.
+    web::add_user(&data, "op", "operator", "op-password");
+    let server = web::serve(&data, "0");
+    let mut op = web::Client::login(&server, "op", "op-password");
+    let charts = op.get_json("/api/control-charts?baseline_runs=10", 200);
+    let flags: Vec<&serde_json::Value> = charts["charts"]
+        .as_array()
+        .expect("charts")
+        .iter()
+        .flat_map(|c| c["violations"].as_array().into_iter().flatten())
+        .collect();
+    assert!(!flags.is_empty(), "{charts}");
+    for v in flags {
+        let label = v["run_label"].as_str().unwrap_or_default();
+        assert!(
+            label.contains(" · #") && label != v["run_id"].as_str().unwrap_or_default(),
+            "{v}"
+        );
+        assert!(v["serial"].is_string(), "{v}");
+    }
 }
 
 /// The batch report's file of extension `ext` in `dir` (its name carries

@@ -104,6 +104,12 @@ pub(super) async fn control_charts(
                 .map(|v| ChartViolation {
                     point: v.index + 1,
                     run_id: chart.points[v.index].run_id.clone(),
+                    run_label: batch
+                        .runs
+                        .iter()
+                        .find(|r| r.id == chart.points[v.index].run_id)
+                        .map_or_else(|| chart.points[v.index].run_id.clone(), |r| r.label()),
+                    serial: chart.points[v.index].serial.clone(),
                     rule: spinbench_report::lang::serde_name(v.rule),
                     says: spinbench_report::control::rule_text(lang, v.rule),
                 })

@@ -530,6 +530,10 @@ pub struct ChartViolation {
     pub point: usize,
     /// Its run.
     pub run_id: String,
+    /// Its run's label (`2026-11-24 · station 1 · #7`), as people name runs.
+    pub run_label: String,
+    /// The instrument of the point (empty on a radius chart).
+    pub serial: String,
     /// The rule (`beyond3_sigma`, …).
     pub rule: String,
     /// The rule in words, in the user's language.
