@@ -117,12 +117,12 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         out.to_str().expect("utf-8"),
     ]);
     assert!(ok, "{err}");
-    let html = std::fs::read_to_string(batch_file(&out, "html")).expect("html");
+    let html = std::fs::read_to_string(common::batch_file(&out, "html")).expect("html");
     assert!(html.contains("Control charts (limits from the first 10 runs"));
     assert!(html.contains("In control: ") && html.contains("radius slot 1"));
     assert!(html.contains("id=\"control-flags\"") && html.contains("id=\"yield\""));
     let text = Command::new("pdftotext")
-        .arg(batch_file(&out, "pdf"))
+        .arg(common::batch_file(&out, "pdf"))
         .arg("-")
         .output()
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
@@ -146,7 +146,7 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         zh.to_str().expect("utf-8"),
     ]);
     assert!(ok, "{err}");
-    let html = std::fs::read_to_string(batch_file(&zh, "html")).expect("html");
+    let html = std::fs::read_to_string(common::batch_file(&zh, "html")).expect("html");
     assert!(
         html.contains("批次报告")
             && html.contains("控制图（控制限取前 10 次运行")
@@ -157,7 +157,7 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         "the batch report in Chinese"
     );
     let text = Command::new("pdftotext")
-        .arg(batch_file(&zh, "pdf"))
+        .arg(common::batch_file(&zh, "pdf"))
         .arg("-")
         .output()
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
@@ -167,7 +167,7 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
     }
     assert!(!text.contains("Batch report") && !text.contains("Every test"));
     use calamine::{Data, Reader, open_workbook_auto};
-    let mut book = open_workbook_auto(batch_file(&zh, "xlsx")).expect("xlsx");
+    let mut book = open_workbook_auto(common::batch_file(&zh, "xlsx")).expect("xlsx");
     let tests = book.worksheet_range("tests").expect("the tests sheet");
     assert_eq!(tests.get((0, 2)), Some(&Data::String("序列号".into())));
     let outcomes: Vec<String> = tests.rows().skip(1).map(|r| r[3].to_string()).collect();
@@ -200,19 +200,4 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
         );
         assert!(v["serial"].is_string(), "{v}");
     }
-}
-
-/// The batch report's file of extension `ext` in `dir` (its name carries
-/// its runs and language).
-fn batch_file(dir: &std::path::Path, ext: &str) -> std::path::PathBuf {
-    std::fs::read_dir(dir)
-        .expect("the reports' folder")
-        .flatten()
-        .map(|e| e.path())
-        .find(|p| {
-            p.extension().is_some_and(|x| x == ext)
-                && p.file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with("batch-report-"))
-        })
-        .unwrap_or_else(|| panic!("no batch-report-*.{ext} in {}", dir.display()))
 }

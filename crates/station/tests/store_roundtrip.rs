@@ -115,7 +115,7 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
     assert_eq!(stored.len(), 6, "3 serials × 2 runs");
 
     // CSV: every test, full precision.
-    let csv = std::fs::read_to_string(batch_file(&out, "csv")).expect("csv");
+    let csv = std::fs::read_to_string(common::batch_file(&out, "csv")).expect("csv");
     let rows: Vec<Vec<&str>> = csv
         .lines()
         .skip(1)
@@ -137,7 +137,7 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
     // spread of |k1| over the runs; the larger mounting), which `analyze`
     // and `spinbench unit` give too.
     use calamine::{Data, Reader, open_workbook_auto};
-    let mut book = open_workbook_auto(batch_file(&out, "xlsx")).expect("xlsx");
+    let mut book = open_workbook_auto(common::batch_file(&out, "xlsx")).expect("xlsx");
     let sheet = book.worksheet_range("repeatability").expect("sheet");
     let mut repeats = 0;
     for row in sheet.rows().skip(1) {
@@ -188,7 +188,7 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
     // PDF (pdftotext) and HTML carry the same.
     let text = Command::new("pdftotext")
         .args(["-layout"])
-        .arg(batch_file(&out, "pdf"))
+        .arg(common::batch_file(&out, "pdf"))
         .arg("-")
         .output()
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
@@ -203,7 +203,7 @@ fn the_batch_report_holds_every_test_and_the_repeatability_of_serials_tested_twi
             "{serial} k2 {k2:.3} in the PDF"
         );
     }
-    let html = std::fs::read_to_string(batch_file(&out, "html")).expect("html");
+    let html = std::fs::read_to_string(common::batch_file(&out, "html")).expect("html");
     assert!(html.contains("<table id=\"repeats\">") && html.matches("<svg").count() >= 5);
 }
 
@@ -781,19 +781,4 @@ fn the_shared_register_of_the_previous_release_is_copied_to_each_station() {
             .certificate,
         "K-9"
     );
-}
-
-/// The batch report's file of extension `ext` in `dir` (its name carries
-/// its runs and language).
-fn batch_file(dir: &std::path::Path, ext: &str) -> std::path::PathBuf {
-    std::fs::read_dir(dir)
-        .expect("the reports' folder")
-        .flatten()
-        .map(|e| e.path())
-        .find(|p| {
-            p.extension().is_some_and(|x| x == ext)
-                && p.file_name()
-                    .is_some_and(|n| n.to_string_lossy().starts_with("batch-report-"))
-        })
-        .unwrap_or_else(|| panic!("no batch-report-*.{ext} in {}", dir.display()))
 }

@@ -64,3 +64,19 @@ pub fn report_file(dir: &std::path::Path, id: &str, ext: &str) -> std::path::Pat
         })
         .unwrap_or_else(|| panic!("no report-…{id}-….{ext} in {}", dir.display()))
 }
+
+/// The batch report's file of extension `ext` in `dir` (its name carries
+/// its runs and language: issue 40 item 2).
+#[allow(dead_code)] // not every test file reads batch reports
+pub fn batch_file(dir: &std::path::Path, ext: &str) -> std::path::PathBuf {
+    std::fs::read_dir(dir)
+        .expect("the reports' folder")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            p.extension().is_some_and(|x| x == ext)
+                && p.file_name()
+                    .is_some_and(|n| n.to_string_lossy().starts_with("batch-report-"))
+        })
+        .unwrap_or_else(|| panic!("no batch-report-*.{ext} in {}", dir.display()))
+}
