@@ -64,6 +64,10 @@ pub struct StationConfig {
     /// virtual bench, and a run on hardware never is (issue 39 item 5).
     #[serde(default)]
     pub simulated: bool,
+    /// The station's time zone, a fixed offset (`"UTC+08:00"`; default
+    /// UTC): its pages and run reports show times in it, the zone said.
+    #[serde(default)]
+    pub time_zone: crate::time_zone::UtcOffset,
 }
 
 /// `[equipment]`: what the equipment register asks before a run starts.

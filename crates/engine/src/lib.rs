@@ -27,6 +27,7 @@ pub mod planning;
 pub mod record;
 pub mod retest;
 pub mod soak;
+pub mod time_zone;
 
 pub use abort::AbortFlag;
 pub use config::StationConfig;

@@ -301,6 +301,23 @@ fn first_pass_yields(tests: &[&BatchTest]) -> (Vec<Yield>, Vec<Yield>) {
     (by_run, by_day)
 }
 
+/// A chart's quantity as `lang` names it: a fixture position's radius
+/// (`radius slot 2 P` → 半径 工位 2 P), a figure through the catalogue's
+/// `figure.` names; symbols (k2_max, K2, K1, k0) stay as they are.
+pub fn quantity_label(lang: crate::Lang, chart: &ControlChart) -> String {
+    match chart.position {
+        Some((slot, mount)) => {
+            let radius =
+                rust_i18n::t!("chart.radius_slot", slot = slot, locale = lang.code()).into_owned();
+            match mount {
+                Some(m) => format!("{radius} {m:?}"),
+                None => radius,
+            }
+        }
+        None => crate::lang::tr_or(lang, &format!("figure.{}", chart.quantity), &chart.quantity),
+    }
+}
+
 /// The flags table's columns.
 pub(crate) const FLAG_HEADERS: [&str; 6] = ["chart", "point", "run", "serial", "value", "rule"];
 
@@ -312,7 +329,7 @@ pub(crate) fn flag_rows(c: &ControlReport, lang: crate::Lang) -> Vec<Vec<String>
             chart.violations.iter().map(move |v| {
                 let p = &chart.points[v.index];
                 vec![
-                    chart.quantity.clone(),
+                    quantity_label(lang, chart),
                     (v.index + 1).to_string(),
                     p.run_id.clone(),
                     p.serial.clone(),
@@ -396,7 +413,7 @@ pub(crate) fn draw_control_chart<DB: DrawingBackend>(
         .caption(
             format!(
                 "{} [{}] — {}",
-                chart.quantity,
+                quantity_label(lang, chart),
                 chart.unit,
                 limits_caption(chart, lang)
             ),
@@ -425,7 +442,7 @@ pub(crate) fn draw_control_chart<DB: DrawingBackend>(
             }
         })
         .y_label_formatter(&|y| format!("{y:.decimals$}"))
-        .y_desc(format!("{} [{}]", chart.quantity, chart.unit))
+        .y_desc(format!("{} [{}]", quantity_label(lang, chart), chart.unit))
         .draw()
         .ok()?;
     let x_end = n + 0.5;
@@ -483,7 +500,7 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
         .charts
         .iter()
         .filter(|ch| !ch.flagged())
-        .map(|ch| crate::esc(&ch.quantity))
+        .map(|ch| crate::esc(&quantity_label(lang, ch)))
         .collect();
     h.push_str(&format!(
         "<p id=\"in-control\">{}: {}.</p>\n",

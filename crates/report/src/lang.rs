@@ -111,16 +111,27 @@ pub fn outcome(lang: Lang, name: &str) -> String {
     tr_or(lang, &format!("outcome.{name}"), name)
 }
 
-/// A date and time as `lang` writes it: "2026-11-23 15:11 UTC" or
+/// A date and time as `lang` writes it, in UTC: "2026-11-23 15:11 UTC" or
 /// "2026年11月23日 15:11 UTC".
 pub fn date_time(lang: Lang, unix_s: i64) -> String {
+    date_time_in(lang, unix_s, spinbench_engine::time_zone::UtcOffset::UTC)
+}
+
+/// A date and time as `lang` writes it in the station's `zone`, the zone
+/// said ("2026年11月23日 23:11 UTC+08:00").
+pub fn date_time_in(
+    lang: Lang,
+    unix_s: i64,
+    zone: spinbench_engine::time_zone::UtcOffset,
+) -> String {
     match lang {
-        Lang::En => crate::unix_date(unix_s),
+        Lang::En => crate::unix_date_in(unix_s, zone),
         Lang::ZhCn => {
-            let (y, m, d) = spinbench_store::equipment::civil_from_days(unix_s.div_euclid(86_400));
-            let secs = unix_s.rem_euclid(86_400);
+            let local = unix_s + zone.seconds();
+            let (y, m, d) = spinbench_store::equipment::civil_from_days(local.div_euclid(86_400));
+            let secs = local.rem_euclid(86_400);
             format!(
-                "{y}年{m}月{d}日 {:02}:{:02} UTC",
+                "{y}年{m}月{d}日 {:02}:{:02} {zone}",
                 secs / 3600,
                 secs % 3600 / 60
             )
@@ -170,6 +181,11 @@ pub fn decision_rule(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> 
         Lang::En => rule.describe().to_string(),
         _ => tr_or(lang, &format!("rule.{}", rule.name()), rule.describe()),
     }
+}
+
+/// A decision rule's short name in `lang` (`guarded` → 保护带判定).
+pub fn decision_rule_name(lang: Lang, rule: spinbench_engine::plan::DecisionRule) -> String {
+    tr_or(lang, &format!("rule_name.{}", rule.name()), rule.name())
 }
 
 /// A device's role as `lang` names it (`instrument supply` → 仪表电源,

@@ -22,14 +22,14 @@ pub use batch::{
     gather_batch,
 };
 pub use pdf::{batch_pdf, pdf, web_font};
+pub use run::{
+    DECISION_HEADERS, RunReport, SUMMARY_HEADERS, SummaryRow, UnitReport, gather, html, html_in,
+    signer, summary, summary_csv, summary_in,
+};
 pub(crate) use run::{
     POINT_HEADERS, SUMMARY_DECIMALS, meta_rows_in, numbers, point_cells, xlsx_in,
 };
-pub use run::{
-    RunReport, SUMMARY_HEADERS, SummaryRow, UnitReport, gather, html, html_in, summary,
-    summary_csv, summary_in,
-};
-pub(crate) use text::{csv_field, esc, fmt, unix_date};
+pub(crate) use text::{csv_field, esc, fmt, unix_date, unix_date_in, with_cjk_font};
 
 pub use diagnostics::{diagnostic_lines, diagnostic_lines_in, temperature_line};
 pub use lang::{Lang, tr};

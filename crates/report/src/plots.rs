@@ -2,6 +2,17 @@
 //! SVG text, so the browser's fonts render any script).
 
 use crate::UnitReport;
+use crate::lang::{Lang, tr};
+
+/// The catalogue's `key` in `lang` filled with `args`; the key's English
+/// template unfilled when a value is missing (never the case here).
+fn fill(lang: Lang, key: &str, args: &[(&str, &str)]) -> String {
+    let args = args
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    crate::lang::fill(lang, key, &args).unwrap_or_else(|| tr(lang, key))
+}
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use spinbench_analysis::{Direction, Mount};
@@ -84,21 +95,22 @@ impl UnitPlot {
         self,
         u: &UnitReport,
         root: &DrawingArea<DB, Shift>,
+        lang: Lang,
     ) -> Option<()> {
         match self {
-            UnitPlot::OutputVsG => draw_output_vs_g(u, root),
-            UnitPlot::ResidualsVsG => draw_residuals_vs_g(u, root),
-            UnitPlot::K1VsG => draw_k1_vs_g(u, root),
+            UnitPlot::OutputVsG => draw_output_vs_g(u, root, lang),
+            UnitPlot::ResidualsVsG => draw_residuals_vs_g(u, root, lang),
+            UnitPlot::K1VsG => draw_k1_vs_g(u, root, lang),
         }
     }
 
-    /// The plot as an SVG document.
-    pub(crate) fn svg(self, u: &UnitReport) -> Option<String> {
+    /// The plot as an SVG document, its words in `lang`.
+    pub(crate) fn svg(self, u: &UnitReport, lang: Lang) -> Option<String> {
         let mut out = String::new();
         {
             let root = SVGBackend::with_string(&mut out, SIZE).into_drawing_area();
             root.fill(&WHITE).ok()?;
-            self.draw(u, &root)?;
+            self.draw(u, &root, lang)?;
             root.present().ok()?;
         }
         Some(out)
@@ -109,6 +121,7 @@ impl UnitPlot {
 fn draw_output_vs_g<DB: DrawingBackend>(
     u: &UnitReport,
     root: &DrawingArea<DB, Shift>,
+    lang: Lang,
 ) -> Option<()> {
     let pts: Vec<(f64, f64, &str)> = u
         .points
@@ -125,7 +138,7 @@ fn draw_output_vs_g<DB: DrawingBackend>(
     let y = range(pts.iter().map(|p| p.1))?;
     {
         let mut chart = ChartBuilder::on(root)
-            .caption("output vs applied acceleration", ("sans-serif", 16))
+            .caption(tr(lang, "plot.output_title"), ("sans-serif", 16))
             .margin(8)
             .x_label_area_size(36)
             .y_label_area_size(64)
@@ -133,8 +146,8 @@ fn draw_output_vs_g<DB: DrawingBackend>(
             .ok()?;
         chart
             .configure_mesh()
-            .x_desc("applied acceleration [g] (N at −g)")
-            .y_desc("output dF [Hz]")
+            .x_desc(tr(lang, "plot.output_x"))
+            .y_desc(tr(lang, "plot.output_y"))
             .draw()
             .ok()?;
         for (mount, color) in [("P", BLUE), ("N", RED)] {
@@ -145,7 +158,7 @@ fn draw_output_vs_g<DB: DrawingBackend>(
                         .map(|p| Circle::new((p.0, p.1), 3, color.filled())),
                 )
                 .ok()?
-                .label(format!("mounting {mount}"))
+                .label(fill(lang, "plot.mounting", &[("mount", mount)]))
                 .legend(move |(x, y)| Circle::new((x, y), 3, color.filled()));
         }
         chart
@@ -184,13 +197,14 @@ pub fn outlier_marks(u: &UnitReport, res: &[ResidualPoint]) -> Vec<(f64, f64)> {
 fn draw_residuals_vs_g<DB: DrawingBackend>(
     u: &UnitReport,
     root: &DrawingArea<DB, Shift>,
+    lang: Lang,
 ) -> Option<()> {
     let res = residuals(u);
     let x = range(res.iter().map(|r| sign(&r.mount) * r.g_nominal.abs()))?;
     let y = range(res.iter().map(|r| r.residual_ug))?;
     {
         let mut chart = ChartBuilder::on(root)
-            .caption("fit residuals (2)", ("sans-serif", 16))
+            .caption(tr(lang, "plot.residuals_title"), ("sans-serif", 16))
             .margin(8)
             .x_label_area_size(36)
             .y_label_area_size(64)
@@ -198,8 +212,8 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
             .ok()?;
         chart
             .configure_mesh()
-            .x_desc("level [g] (N at −g)")
-            .y_desc("residual [µg]")
+            .x_desc(tr(lang, "plot.residuals_x"))
+            .y_desc(tr(lang, "plot.residuals_y"))
             .draw()
             .ok()?;
         chart
@@ -215,7 +229,7 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
                     }),
             )
             .ok()?
-            .label("up")
+            .label(tr(lang, "arg.direction.up"))
             .legend(|(x, y)| Circle::new((x, y), 3, BLUE.filled()));
         chart
             .draw_series(
@@ -226,7 +240,7 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
                     }),
             )
             .ok()?
-            .label("down")
+            .label(tr(lang, "arg.direction.down"))
             .legend(|(x, y)| Cross::new((x, y), 4, RED));
         // The levels the diagnostics flag as off the curve, ringed.
         let flagged = outlier_marks(u, &res);
@@ -238,7 +252,7 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
                         .map(|&(x, y)| Circle::new((x, y), 9, MAGENTA.stroke_width(2))),
                 )
                 .ok()?
-                .label("outlier level")
+                .label(tr(lang, "plot.outlier_level"))
                 .legend(|(x, y)| Circle::new((x, y), 5, MAGENTA.stroke_width(2)));
         }
         // Upper left: the residuals of the top levels sit upper right.
@@ -253,7 +267,11 @@ fn draw_residuals_vs_g<DB: DrawingBackend>(
 }
 
 /// K1(a) (10) with its fit KA + KB·a + KC·a² (11).
-fn draw_k1_vs_g<DB: DrawingBackend>(u: &UnitReport, root: &DrawingArea<DB, Shift>) -> Option<()> {
+fn draw_k1_vs_g<DB: DrawingBackend>(
+    u: &UnitReport,
+    root: &DrawingArea<DB, Shift>,
+    lang: Lang,
+) -> Option<()> {
     let sf = u.record().analysis.as_ref()?.scale_factor.as_ref()?;
     let pts: Vec<(f64, f64)> = sf.points.iter().map(|p| (p.g_input, p.k1)).collect();
     let (ka, kb, kc) = (sf.ka, sf.kb, sf.kc);
@@ -267,10 +285,7 @@ fn draw_k1_vs_g<DB: DrawingBackend>(u: &UnitReport, root: &DrawingArea<DB, Shift
     let y = range(pts.iter().map(|p| p.1).chain(curve.iter().map(|c| c.1)))?;
     {
         let mut chart = ChartBuilder::on(root)
-            .caption(
-                "scale factor K1(a) (10) and its fit (11)",
-                ("sans-serif", 16),
-            )
+            .caption(tr(lang, "plot.k1_title"), ("sans-serif", 16))
             .margin(8)
             .x_label_area_size(36)
             .y_label_area_size(72)
@@ -278,8 +293,8 @@ fn draw_k1_vs_g<DB: DrawingBackend>(u: &UnitReport, root: &DrawingArea<DB, Shift
             .ok()?;
         chart
             .configure_mesh()
-            .x_desc("input [g]")
-            .y_desc("K1 [Hz/g]")
+            .x_desc(tr(lang, "plot.k1_x"))
+            .y_desc(tr(lang, "plot.k1_y"))
             .draw()
             .ok()?;
         chart

@@ -556,15 +556,29 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     );
     assert!(pages[0].contains(&format!("run {run_id}")), "{}", pages[0]);
     assert!(pages[0].contains(OPERATOR), "operator in {}", pages[0]);
+    // Page 1 is the signer's (issue 40): the judged quantity and its
+    // limit, K2 ± U95 per instrument, the actions and the sign-off block;
+    // the figures per mounting follow on page 2.
+    for said in [
+        "Judged: K2",
+        "K2 ± U95",
+        "Operator actions",
+        "Station notices",
+        "Tested by",
+        "Reviewed by",
+    ] {
+        assert!(pages[0].contains(said), "{said} on page 1: {}", pages[0]);
+    }
     for (serial, mount, k2) in &stored {
         assert!(serial.starts_with(SERIAL_PREFIX));
-        let row = pages[0]
+        assert!(pages[0].contains(serial.as_str()), "{serial} on page 1");
+        let row = pages[1]
             .lines()
             .find(|l| {
                 let cells: Vec<&str> = l.split_whitespace().collect();
                 cells.first() == Some(&serial.as_str()) && cells.get(2) == Some(&mount.as_str())
             })
-            .unwrap_or_else(|| panic!("summary row of {serial} {mount} in {}", pages[0]));
+            .unwrap_or_else(|| panic!("summary row of {serial} {mount} in {}", pages[1]));
         assert!(
             row.split_whitespace().any(|c| c == format!("{k2:.3}")),
             "{serial} {mount} k2 {k2:.3} in {row}"
@@ -706,10 +720,26 @@ fn a_store_written_by_the_previous_release_migrates_and_reads_back_the_same_reco
         .flatten()
         .find(|e| e.path().extension().is_some_and(|x| x == "csv"))
         .expect("a csv report");
-    assert_eq!(
-        std::fs::read_to_string(report.path()).expect("report"),
-        std::fs::read_to_string(format!("{PREVIOUS_RELEASE}/report.csv")).expect("report.csv")
+    // Every column the previous release wrote, byte for byte, where it was;
+    // this release appends what the verdict judged (issue 40: K2, its U95,
+    // the measurand, the limit and the rule).
+    let now = std::fs::read_to_string(report.path()).expect("report");
+    let then =
+        std::fs::read_to_string(format!("{PREVIOUS_RELEASE}/report.csv")).expect("report.csv");
+    assert_eq!(now.lines().count(), then.lines().count(), "{now}");
+    for (k, (new, old)) in now.lines().zip(then.lines()).enumerate() {
+        assert!(
+            new.starts_with(&format!("{old},")),
+            "line {k}: the earlier columns changed:\n  was {old}\n  now {new}"
+        );
+    }
+    let header = now.lines().next().expect("a header");
+    assert!(
+        header.ends_with(",K2 [µg/g²],K2 U95 [µg/g²],judged,limit [µg/g²],rule"),
+        "{header}"
     );
+    let first = now.lines().nth(1).expect("a row");
+    assert!(first.ends_with(",K2,20.0,guarded"), "{first}");
     // The typed record: an old layout (no version), its plan and devices read.
     let record = store.run_record(&id).expect("read").expect("the run");
     assert_eq!(record.start.record_version, 1);

@@ -155,6 +155,22 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
         if prompt_shown == Value::Bool(true) {
             if prompts == 0 {
+                // Issue 40 item 7: the wait is counted on the server's clock
+                // and shown, and the time to go is there from the start
+                // (by the plan), once, not in the step line too.
+                b.wait_for(
+                    10,
+                    "the prompt's waiting time",
+                    "const w = document.getElementById('prompt-waiting'); \
+                     return w.dataset.waitedS !== undefined && w.textContent.startsWith('waiting for the operator for ')",
+                );
+                b.wait_for(
+                    10,
+                    "a time to go from the plan while the first prompt waits",
+                    "const t = document.getElementById('run-eta').textContent; \
+                     return t.startsWith('about ') && t.endsWith(' to go') \
+                       && !document.getElementById('progress').textContent.includes(' to go')",
+                );
                 b.screenshot(&shots.join("2-prompt.png"));
                 // Issue 40 item 7: the prompt's Abort asks first; cancelled,
                 // the run waits at its prompt as before.
@@ -198,6 +214,23 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
                     "while it runs: pause and abort, no resume"
                 );
                 b.screenshot(&shots.join("3-live-curves.png"));
+                // Pause shows the held state (since when, how long); Resume
+                // takes it away.
+                b.click("#pause-button");
+                b.wait_for(
+                    90,
+                    "the held state after Pause",
+                    "const h = document.getElementById('held'); \
+                     return !h.hidden && h.textContent.startsWith('Held by the operator since ') \
+                       && !document.getElementById('resume-button').hidden",
+                );
+                b.screenshot(&shots.join("3c-held.png"));
+                b.click("#resume-button");
+                b.wait_for(
+                    30,
+                    "the held state gone after Resume",
+                    "return document.getElementById('held').hidden",
+                );
                 // The status panel while the table spins.
                 b.click("#nav-status");
                 b.wait_for(

@@ -44,8 +44,8 @@ pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
 pub use label::{LABEL_SEPARATOR, TypedLabel, label_file_part, parse_label, run_label};
 pub use queries::{PointRow, ResultRow, RunRow, UnitRow, ValueRow};
 pub use record::{
-    DeviceEntry, OperatorAction, RECORD_VERSION, ResultFigures, RunEnd, RunRecord, RunStart,
-    StoredPlan, StoredState,
+    DeviceEntry, NoticeKind, OperatorAction, RECORD_VERSION, ResultFigures, RunEnd, RunNotice,
+    RunRecord, RunStart, StoredPlan, StoredState,
 };
 pub use retention::{EventRow, PrunableRun};
 pub use schema::{MIGRATIONS, Migration, MigrationApplied};

@@ -199,8 +199,47 @@ pub struct OperatorAction {
     pub at: i64,
     /// Who.
     pub who: String,
-    /// What.
+    /// What (English, as an MES reads it).
     pub action: String,
+    /// What, as a catalogue key and values (`action.prompt`: `answer` is
+    /// `went_on` or `aborted`, `fixtures` the prompt's fixture per slot as
+    /// [`spinbench_engine::plan::Fixture::code`]s, comma-separated, empty for
+    /// a slot left alone), so a report words it in its language; `None` for
+    /// actions recorded before migration 18.
+    pub wording: Option<Wording>,
+}
+
+/// What a run's notice or fault is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoticeKind {
+    /// Something the operator should know; the run went on.
+    Notice,
+    /// A fault: the run went to the safe state.
+    Fault,
+}
+
+impl NoticeKind {
+    /// As stored (`notice`, `fault`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            NoticeKind::Notice => "notice",
+            NoticeKind::Fault => "fault",
+        }
+    }
+}
+
+/// A notice or fault of the station during a run, kept with its record
+/// (migration 18; the event log, which `prune` removes, has them too).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunNotice {
+    /// When [Unix s].
+    pub at: i64,
+    /// A notice or a fault.
+    pub kind: NoticeKind,
+    /// What happened (English).
+    pub message: String,
+    /// The message as a catalogue key and values, when the engine worded it.
+    pub wording: Option<Wording>,
 }
 
 /// What was known when the run started.
@@ -256,6 +295,8 @@ pub struct RunRecord {
     pub results: Vec<ResultRow>,
     /// What the operator did.
     pub operator_actions: Vec<OperatorAction>,
+    /// What the station told the operator (notices and faults), in order.
+    pub notices: Vec<RunNotice>,
     /// The end (its state is `running` while it goes on).
     pub end: RunEnd,
 }
@@ -462,10 +503,12 @@ impl Store {
         let Some((start, devices, end)) = self.run_head(id)? else {
             return Ok(None);
         };
+        let wording =
+            |text: Option<String>| text.and_then(|t| serde_json::from_str::<Wording>(&t).ok());
         let operator_actions = self
             .query(
                 "read operator actions",
-                "SELECT at, who, action FROM operator_actions WHERE run_id = $1 ORDER BY seq",
+                "SELECT at, who, action, wording_json FROM operator_actions WHERE run_id = $1 ORDER BY seq",
                 &[id.into()],
             )?
             .iter()
@@ -473,6 +516,25 @@ impl Store {
                 at: r.int(0),
                 who: r.text(1),
                 action: r.text(2),
+                wording: wording(r.opt_text(3)),
+            })
+            .collect();
+        let notices = self
+            .query(
+                "read the run's notices",
+                "SELECT at, kind, message, wording_json FROM run_notices WHERE run_id = $1 ORDER BY seq",
+                &[id.into()],
+            )?
+            .iter()
+            .map(|r| RunNotice {
+                at: r.int(0),
+                kind: if r.text(1) == "fault" {
+                    NoticeKind::Fault
+                } else {
+                    NoticeKind::Notice
+                },
+                message: r.text(2),
+                wording: wording(r.opt_text(3)),
             })
             .collect();
         Ok(Some(RunRecord {
@@ -482,6 +544,7 @@ impl Store {
             points: self.points(id)?,
             results: self.results(id)?,
             operator_actions,
+            notices,
             end,
         }))
     }

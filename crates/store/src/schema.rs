@@ -302,6 +302,29 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: MIGRATION_17_SQLITE,
         postgres: MIGRATION_17_POSTGRES,
     },
+    Migration {
+        what: "an operator action's wording (its prompt as fixture codes, so a report words it in any language) and the run's notices and faults kept with its record (run_notices: they stay when `prune` removes the event log)",
+        sqlite: "ALTER TABLE operator_actions ADD COLUMN wording_json TEXT;
+    CREATE TABLE run_notices (
+        seq INTEGER PRIMARY KEY AUTOINCREMENT,
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        at INTEGER NOT NULL,
+        kind TEXT NOT NULL CHECK (kind IN ('notice', 'fault')),
+        message TEXT NOT NULL,
+        wording_json TEXT
+    );
+    CREATE INDEX run_notices_run ON run_notices (run_id, seq);",
+        postgres: "ALTER TABLE operator_actions ADD COLUMN wording_json jsonb;
+    CREATE TABLE run_notices (
+        seq BIGSERIAL PRIMARY KEY,
+        run_id TEXT NOT NULL REFERENCES runs(id),
+        at timestamptz NOT NULL,
+        kind TEXT NOT NULL CHECK (kind IN ('notice', 'fault')),
+        message TEXT NOT NULL,
+        wording_json jsonb
+    );
+    CREATE INDEX run_notices_run ON run_notices (run_id, seq);",
+    },
 ];
 
 /// Migration 17 on SQLite: the register's key changes, so its table is

@@ -3,7 +3,8 @@
 //! the run (nothing is dropped).
 
 use super::*;
-use crate::record::{DeviceEntry, StoredState, result_row_values, stored_slot};
+use crate::record::{DeviceEntry, NoticeKind, StoredState, result_row_values, stored_slot};
+use spinbench_engine::event::Wording;
 
 /// Writes a run's events as they happen. A failed write is an error the
 /// engine answers by holding the run and offering the same event again
@@ -17,6 +18,9 @@ pub struct StoreSink {
     station: String,
     /// The last prompt, recorded with the operator's answer.
     prompt: String,
+    /// Its fixtures' codes per slot, comma-separated (an empty code: the
+    /// slot is left alone), for the answer's wording.
+    prompt_fixtures: String,
 }
 
 impl StoreSink {
@@ -193,16 +197,53 @@ impl StoreSink {
                     ],
                 )?;
             }
-            Event::Prompt { text, .. } => self.prompt = text.clone(),
+            Event::Prompt { text, fixtures } => {
+                self.prompt = text.clone();
+                self.prompt_fixtures = fixtures
+                    .iter()
+                    .map(|f| f.map_or("", |f| f.code()))
+                    .collect::<Vec<_>>()
+                    .join(",");
+            }
             Event::PromptAnswered { proceed, by } => {
                 let action = format!(
                     "{} at the prompt: {}",
                     if *proceed { "went on" } else { "aborted" },
                     self.prompt
                 );
+                let wording = Wording::new("action.prompt")
+                    .with("answer", if *proceed { "went_on" } else { "aborted" })
+                    .with("fixtures", &self.prompt_fixtures);
                 db.execute(
-                    "INSERT INTO operator_actions (run_id, at, who, action) VALUES ($1, $2, $3, $4)",
-                    &[run_id.as_str().into(), now_s().into(), by.into(), action.into()],
+                    "INSERT INTO operator_actions (run_id, at, who, action, wording_json) VALUES ($1, $2, $3, $4, $5)",
+                    &[
+                        run_id.as_str().into(),
+                        now_s().into(),
+                        by.into(),
+                        action.into(),
+                        serde_json::to_string(&wording).ok().into(),
+                    ],
+                )?;
+            }
+            Event::Notice { message, wording }
+            | Event::Fault {
+                reason: message,
+                wording,
+            } if !run_id.is_empty() => {
+                let kind = if matches!(event, Event::Fault { .. }) {
+                    NoticeKind::Fault
+                } else {
+                    NoticeKind::Notice
+                };
+                db.execute(
+                    "INSERT INTO run_notices (run_id, at, kind, message, wording_json) VALUES ($1, $2, $3, $4, $5)",
+                    &[
+                        run_id.as_str().into(),
+                        now_s().into(),
+                        kind.as_str().into(),
+                        message.into(),
+                        wording.as_ref().and_then(|w| serde_json::to_string(w).ok()).into(),
+                    ],
                 )?;
             }
             Event::PointDone { step, points } => {
@@ -328,6 +369,7 @@ impl Store {
             run_id: String::new(),
             station: String::new(),
             prompt: String::new(),
+            prompt_fixtures: String::new(),
         })
     }
 }

@@ -86,6 +86,7 @@ pub fn grade(
                 let judged = Judged {
                     name: name.to_string(),
                     shown: shown_value(rule, v, u),
+                    reach: reach(rule, v, u),
                     unit,
                     limit: l,
                     rule,
@@ -210,6 +211,7 @@ fn grade_instrument_k2(
     let judged = Judged {
         name: "|K2| (both mountings)".to_string(),
         shown: shown_value(rule, v.abs(), u),
+        reach: reach(rule, v, u),
         unit: "µg/g²",
         limit: l,
         rule,
@@ -303,6 +305,7 @@ fn grade_k2_max(
     let judged = Judged {
         name: format!("k2_max: |k2| (mounting {mount})"),
         shown: shown_value(rule, v.abs(), u),
+        reach: reach(rule, v, u),
         unit: "µg/g²",
         limit: l,
         rule,
@@ -322,6 +325,9 @@ struct Judged {
     name: String,
     /// Its value as shown, with ± U95 under the guarded rule.
     shown: String,
+    /// How far it reaches towards the limit: |value| + U95 under the
+    /// guarded rule, |value| by value alone (a marginal reason says it).
+    reach: f64,
     /// Its unit.
     unit: &'static str,
     /// The limit.
@@ -333,6 +339,14 @@ struct Judged {
     /// The catalogue's variant of its reasons (`reason.<code>.<variant>`),
     /// when the figure is not the catalogue's plain one.
     variant: Option<&'static str>,
+}
+
+/// |v| + U under the guarded rule with a U, else |v|.
+fn reach(rule: DecisionRule, v: f64, u: Option<f64>) -> f64 {
+    match (rule, u) {
+        (DecisionRule::Guarded, Some(u)) => v.abs() + u,
+        _ => v.abs(),
+    }
 }
 
 /// "v ± U" under the guarded rule with a U, else "v".
@@ -354,6 +368,7 @@ fn record_verdict(
     let Judged {
         name,
         shown,
+        reach,
         unit,
         limit: l,
         rule,
@@ -403,10 +418,11 @@ fn record_verdict(
                 Reason::new(
                     *near,
                     format!(
-                        "{name} {shown} {unit} within {band} % of the limit {l} {unit}{guarded}"
+                        "{name} {shown} {unit} reaches {reach:.3} {unit}, within {band} % of the limit {l} {unit}{guarded}"
                     ),
                 )
                 .with("value", shown)
+                .with("reach", format!("{reach:.3}"))
                 .with("unit", *unit)
                 .with("limit", *l)
                 .with("band", band)

@@ -523,6 +523,21 @@ pub enum Fixture {
     },
 }
 
+impl Fixture {
+    /// Its code, as the catalogue's `arg.fixture.<code>` words it
+    /// (`tumble_up`, `arm_p`, `crosswise_as_on_arm`, …).
+    pub fn code(self) -> &'static str {
+        match self {
+            Fixture::Up => "tumble_up",
+            Fixture::Down => "tumble_down",
+            Fixture::Arm(Mount::P) => "arm_p",
+            Fixture::Arm(Mount::N) => "arm_n",
+            Fixture::Crosswise { as_on_arm: true } => "crosswise_as_on_arm",
+            Fixture::Crosswise { as_on_arm: false } => "crosswise_inverted",
+        }
+    }
+}
+
 /// One step of a compiled plan.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Step {

@@ -56,12 +56,13 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
     let heads = |list: &[&str]| -> Vec<String> { list.iter().map(|h| header(lang, h)).collect() };
     let (pass, marginal, fail) = b.outcomes();
     let mut h = String::from(
-        "<!DOCTYPE html>\n<html lang=\"LANG\"><head><meta charset=\"utf-8\"><title>spinbench batch report</title>\
-         <style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
+        "<!DOCTYPE html>\n<html lang=\"LANG\"><head><meta charset=\"utf-8\"><title>TITLE</title>\
+         <style>/*CJK*/body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC','spinbench CJK',sans-serif;margin:2em;color:#111}\
          table{border-collapse:collapse;font-size:0.85em;margin-bottom:1em}td,th{border:1px solid #999;padding:2px 6px}\
-         th{background:#eee}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
+         th{background:#eee}figure{display:inline-block;margin:0.5em}svg text{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','spinbench CJK',sans-serif}</style></head><body>\n",
     )
-    .replacen("LANG", lang.code(), 1);
+    .replacen("LANG", lang.code(), 1)
+    .replacen("TITLE", &esc(&tr(lang, "batch.title")), 1);
     let serials = b
         .tests
         .iter()
@@ -92,9 +93,13 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
         &mut h,
         "statistics",
         &heads(&STATISTICS_HEADERS),
-        &statistics_rows(b),
+        &statistics_rows(b, lang),
     );
-    for svg in b.distributions.iter().filter_map(histogram_svg) {
+    for svg in b
+        .distributions
+        .iter()
+        .filter_map(|d| histogram_svg(d, lang))
+    {
         h.push_str("<figure>");
         h.push_str(&svg);
         h.push_str("</figure>\n");
@@ -105,7 +110,7 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
             "batch.outliers",
             "outliers",
             &OUTLIER_HEADERS[..],
-            outlier_rows(b),
+            outlier_rows(b, lang),
         ),
         (
             "batch.repeats",
@@ -113,13 +118,18 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
             &REPEAT_HEADERS[..],
             repeat_rows(b),
         ),
-        ("batch.tests", "tests", &TEST_HEADERS[..], test_rows(b)),
+        (
+            "batch.tests",
+            "tests",
+            &TEST_HEADERS[..],
+            test_rows(b, lang),
+        ),
     ] {
         h.push_str(&format!("<h2>{}</h2>\n", esc(&tr(lang, title))));
         html_table(&mut h, id, &heads(list), &rows);
     }
     h.push_str("</body></html>\n");
-    h
+    crate::text::with_cjk_font(h)
 }
 
 /// The batch report as an XLSX workbook: `tests`, `statistics`, `repeatability`

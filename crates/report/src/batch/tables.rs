@@ -7,14 +7,21 @@ use super::*;
 pub(crate) fn draw_histogram<DB: DrawingBackend>(
     d: &Distribution,
     root: &DrawingArea<DB, Shift>,
+    lang: crate::Lang,
 ) -> Option<()> {
     let (lo, hi) = (d.bins.first()?.0, d.bins.last()?.1);
     let top = d.bins.iter().map(|b| b.2).max().unwrap_or(1).max(1) as f64 * 1.15;
+    let name = figure_name(lang, d.name);
     let mut chart = ChartBuilder::on(root)
         .caption(
-            format!(
-                "{} [{}]: n {}, mean {:.4}, σ {:.4}",
-                d.name, d.unit, d.n, d.mean, d.std
+            rust_i18n::t!(
+                "batch.histogram_caption",
+                name = name,
+                unit = d.unit,
+                n = d.n,
+                mean = format!("{:.4}", d.mean),
+                std = format!("{:.4}", d.std),
+                locale = lang.code()
             ),
             ("sans-serif", 15),
         )
@@ -25,8 +32,8 @@ pub(crate) fn draw_histogram<DB: DrawingBackend>(
         .ok()?;
     chart
         .configure_mesh()
-        .x_desc(format!("{} [{}]", d.name, d.unit))
-        .y_desc("tests")
+        .x_desc(format!("{name} [{}]", d.unit))
+        .y_desc(crate::lang::tr(lang, "batch.axis_tests"))
         .draw()
         .ok()?;
     chart
@@ -47,12 +54,12 @@ pub(crate) fn draw_histogram<DB: DrawingBackend>(
 }
 
 /// A distribution's histogram as SVG.
-pub(crate) fn histogram_svg(d: &Distribution) -> Option<String> {
+pub(crate) fn histogram_svg(d: &Distribution, lang: crate::Lang) -> Option<String> {
     let mut out = String::new();
     {
         let root = SVGBackend::with_string(&mut out, crate::plots::SIZE).into_drawing_area();
         root.fill(&WHITE).ok()?;
-        draw_histogram(d, &root)?;
+        draw_histogram(d, &root, lang)?;
         root.present().ok()?;
     }
     Some(out)
@@ -63,13 +70,19 @@ pub(crate) const STATISTICS_HEADERS: [&str; 9] = [
     "figure", "unit", "n", "mean", "σ", "min", "median", "max", "outliers",
 ];
 
+/// A figure's name in `lang` (`asymmetry` → 不对称度); symbols (k2,
+/// K1) are the same in every language.
+pub(crate) fn figure_name(lang: crate::Lang, name: &str) -> String {
+    crate::lang::tr_or(lang, &format!("figure.{name}"), name)
+}
+
 /// One statistics row per figure, as shown.
-pub(crate) fn statistics_rows(b: &BatchReport) -> Vec<Vec<String>> {
+pub(crate) fn statistics_rows(b: &BatchReport, lang: crate::Lang) -> Vec<Vec<String>> {
     b.distributions
         .iter()
         .map(|d| {
             vec![
-                d.name.to_string(),
+                figure_name(lang, d.name),
                 d.unit.to_string(),
                 d.n.to_string(),
                 format!("{:.4}", d.mean),
@@ -87,13 +100,13 @@ pub(crate) fn statistics_rows(b: &BatchReport) -> Vec<Vec<String>> {
 pub(crate) const OUTLIER_HEADERS: [&str; 5] = ["figure", "serial", "run", "value", "robust z"];
 
 /// One row per outlying test and figure.
-pub(crate) fn outlier_rows(b: &BatchReport) -> Vec<Vec<String>> {
+pub(crate) fn outlier_rows(b: &BatchReport, lang: crate::Lang) -> Vec<Vec<String>> {
     b.distributions
         .iter()
         .flat_map(|d| {
             d.outliers.iter().map(move |o| {
                 vec![
-                    format!("{} [{}]", d.name, d.unit),
+                    format!("{} [{}]", figure_name(lang, d.name), d.unit),
                     o.serial.clone(),
                     o.run_id.clone(),
                     format!("{:.4}", o.value),
@@ -157,15 +170,15 @@ pub(crate) fn test_numbers(t: &BatchTest) -> [Option<f64>; 5] {
 }
 
 /// One row per test, as shown (3–6 decimals).
-pub(crate) fn test_rows(b: &BatchReport) -> Vec<Vec<String>> {
+pub(crate) fn test_rows(b: &BatchReport, lang: crate::Lang) -> Vec<Vec<String>> {
     b.tests
         .iter()
         .map(|t| {
             let mut row = vec![
                 t.run_id.clone(),
-                unix_date(t.started_at),
+                crate::lang::date_time(lang, t.started_at),
                 t.serial.clone(),
-                t.outcome.as_str().to_string(),
+                crate::lang::outcome(lang, t.outcome.as_str()),
             ];
             row.extend(
                 test_numbers(t)

@@ -36,6 +36,27 @@ pub(super) fn from_top(y_mm: f32) -> f32 {
     (PAGE_H_MM - y_mm) * PT_PER_MM
 }
 
+/// The colour of a cell that is an outcome's word in any language (black
+/// for any other cell).
+fn outcome_color(cell: &str) -> (f32, f32, f32) {
+    let is = |o: Outcome| {
+        Lang::ALL
+            .iter()
+            .any(|&l| cell == lang::outcome(l, o.as_str()))
+    };
+    if is(Outcome::Fail) {
+        (0.7, 0.0, 0.0)
+    } else if is(Outcome::Marginal) {
+        (0.65, 0.4, 0.0)
+    } else if is(Outcome::Inconclusive) {
+        (0.1, 0.25, 0.7)
+    } else if is(Outcome::Pass) {
+        (0.0, 0.4, 0.0)
+    } else {
+        BLACK
+    }
+}
+
 impl Canvas {
     pub(super) fn new(font: &'static ParsedFont) -> Canvas {
         Canvas {
@@ -332,13 +353,7 @@ impl Canvas {
             }
             let mut x = x0;
             for (c, cell) in row.iter().enumerate().take(n) {
-                let color = match cell.as_str() {
-                    "fail" => (0.7, 0.0, 0.0),
-                    "marginal" => (0.65, 0.4, 0.0),
-                    "inconclusive" => (0.1, 0.25, 0.7),
-                    "pass" => (0.0, 0.4, 0.0),
-                    _ => BLACK,
-                };
+                let color = outcome_color(cell);
                 if c + 1 == n && !numeric[c] {
                     for (k, text) in last_lines.iter().enumerate() {
                         let y = y_mm + line_mm * (0.8 + k as f32);

@@ -35,6 +35,7 @@ use std::sync::OnceLock;
 mod backend;
 mod canvas;
 mod font;
+mod signer;
 
 use backend::PdfPlotBackend;
 use canvas::{Align, Canvas, from_top, point};
@@ -127,36 +128,24 @@ pub fn pdf(report: &RunReport) -> Result<Vec<u8>, ReportError> {
 pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
     let mut c = Canvas::new(full_font()?);
     let run = &report.run;
+    // Page 1: what a signer signs; then the run's whole header and the
+    // figures per mounting; the instruments' pages; every action and notice.
+    let left_over = signer::signer_page(&mut c, report, lang);
     c.new_page();
     let mut y = MARGIN_MM + 6.0;
-    c.text(
-        MARGIN_MM,
-        y,
-        16.0,
-        &rust_i18n::t!("report.title", run = run.id, locale = lang.code()),
-        Align::Left,
-    );
-    y += 8.0;
+    c.text(MARGIN_MM, y, 12.0, &tr(lang, "report.details"), Align::Left);
+    y += 6.0;
     for (label, value) in meta_rows_in(report, lang) {
         c.text(
             MARGIN_MM,
             y,
-            9.0,
+            8.5,
             &tr(lang, &format!("meta.{label}")),
             Align::Left,
         );
-        c.text(MARGIN_MM + 28.0, y, 9.0, &value, Align::Left);
-        y += 4.6;
-    }
-    if let Some(devices) = crate::devices(report, lang) {
-        y += 2.0;
-        c.text(MARGIN_MM, y, 11.0, &tr(lang, "report.devices"), Align::Left);
-        y += 5.0;
-        for (role, identity, calibration) in devices {
-            c.text(MARGIN_MM, y, 8.0, &role, Align::Left);
-            c.text(MARGIN_MM + 28.0, y, 8.0, &identity, Align::Left);
-            c.text(MARGIN_MM + 150.0, y, 8.0, &calibration, Align::Left);
-            y += 4.0;
+        for line in c.wrap(&value, 8.5, PAGE_W_MM - 2.0 * MARGIN_MM - 28.0) {
+            c.text(MARGIN_MM + 28.0, y, 8.5, &line, Align::Left);
+            y += 4.2;
         }
     }
     y += 3.0;
@@ -189,6 +178,9 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
     for u in &report.units {
         unit_page(&mut c, u, lang);
     }
+    if left_over {
+        signer::actions_page(&mut c, report, lang);
+    }
     finish(
         c,
         Metadata {
@@ -198,8 +190,10 @@ pub fn pdf_in(report: &RunReport, lang: Lang) -> Result<Vec<u8>, ReportError> {
             version: &report.record.start.software_version,
         },
         &format!(
-            "spinbench {} · run {}",
-            report.record.start.software_version, run.id
+            "spinbench {} · {} {}",
+            report.record.start.software_version,
+            tr(lang, "meta.label"),
+            run.id
         ),
         lang,
     )
@@ -266,15 +260,18 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
             .and_then(|u| u.k2_ug_per_g2.as_ref())
             .map(|u| u.u95)
             .or_else(|| fit.ci95.k2_ug_per_g2.map(|[a, b]| (b - a) / 2.0));
-        let line = format!(
-            "mounting {mount}: k0 {} g · k1 {} Hz/g · k2 {} ± {} µg/g² (U95) · k3 {} µg/g³ · residual RMS {} µg",
-            crate::fmt(Some(fit.k0_g), 6),
-            crate::fmt(Some(fit.k1), 6),
-            crate::fmt(fit.k2_ug_per_g2, 3),
-            crate::fmt(half, 3),
-            crate::fmt(fit.k3_ug_per_g3, 3),
-            crate::fmt(Some(fit.residual_rms_ug), 2),
-        );
+        let line = rust_i18n::t!(
+            "report.mounting_line",
+            mount = mount,
+            k0 = crate::fmt(Some(fit.k0_g), 6),
+            k1 = crate::fmt(Some(fit.k1), 6),
+            k2 = crate::fmt(fit.k2_ug_per_g2, 3),
+            u95 = crate::fmt(half, 3),
+            k3 = crate::fmt(fit.k3_ug_per_g3, 3),
+            rms = crate::fmt(Some(fit.residual_rms_ug), 2),
+            locale = lang.code()
+        )
+        .into_owned();
         for text in c.wrap(&line, 8.5, PAGE_W_MM - 2.0 * MARGIN_MM) {
             c.text(MARGIN_MM, y, 8.5, &text, Align::Left);
             y += 4.2;
@@ -299,7 +296,7 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
     let height = width * plots::SIZE.1 as f32 / plots::SIZE.0 as f32;
     for (k, plot) in UNIT_PLOTS.iter().enumerate() {
         c.plot(MARGIN_MM + k as f32 * (width + gap), y, width, |root| {
-            plot.draw(u, root)
+            plot.draw(u, root, lang)
         });
     }
     y += height + 3.0;
@@ -439,7 +436,7 @@ pub fn batch_pdf_in(b: &BatchReport, lang: Lang) -> Result<Vec<u8>, ReportError>
         c.text(MARGIN_MM, y, 9.0, &span, Align::Left);
     }
     y += 4.0;
-    let rows = batch::statistics_rows(b);
+    let rows = batch::statistics_rows(b, lang);
     let bottom = c.table(
         y,
         &headers_in(lang, &batch::STATISTICS_HEADERS),
@@ -448,21 +445,25 @@ pub fn batch_pdf_in(b: &BatchReport, lang: Lang) -> Result<Vec<u8>, ReportError>
         1,
     );
     plot_grid(&mut c, bottom + 2.0, b.distributions.iter(), |d, root| {
-        batch::draw_histogram(d, root)
+        batch::draw_histogram(d, root, lang)
     });
     control_pages(&mut c, &b.control, lang);
     for (title, headers, rows) in [
         (
             "batch.outliers",
             &batch::OUTLIER_HEADERS[..],
-            batch::outlier_rows(b),
+            batch::outlier_rows(b, lang),
         ),
         (
             "batch.repeats",
             &batch::REPEAT_HEADERS[..],
             batch::repeat_rows(b),
         ),
-        ("batch.tests", &batch::TEST_HEADERS[..], batch::test_rows(b)),
+        (
+            "batch.tests",
+            &batch::TEST_HEADERS[..],
+            batch::test_rows(b, lang),
+        ),
     ] {
         c.new_page();
         c.text(

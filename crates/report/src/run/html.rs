@@ -16,12 +16,19 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         "<!DOCTYPE html>\n<html lang=\"{}\"><head><meta charset=\"utf-8\">",
         lang.code()
     ));
-    h.push_str(&format!("<title>spinbench report {}</title>", esc(&run.id)));
+    h.push_str(&format!(
+        "<title>{}</title>",
+        esc(&rust_i18n::t!(
+            "report.title",
+            run = run.label(),
+            locale = lang.code()
+        ))
+    ));
     h.push_str(
-        "<style>body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC',sans-serif;margin:2em;color:#111}\
+        "<style>/*CJK*/body{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','PingFang SC','spinbench CJK',sans-serif;margin:2em;color:#111}\
          table{border-collapse:collapse;font-size:0.85em}td,th{border:1px solid #999;padding:2px 6px;text-align:right}\
          th{background:#eee}td.t{text-align:left}.pass{color:#060}.fail{color:#a00;font-weight:bold}.marginal{color:#a60}.inconclusive{color:#1940b3;font-weight:bold}.incomplete{color:#555;font-style:italic}\
-         section.unit{page-break-before:always;margin-top:2em}figure{display:inline-block;margin:0.5em}</style></head><body>\n",
+         section.unit{page-break-before:always;margin-top:2em}table.sign td{height:3em;width:14em}figure{display:inline-block;margin:0.5em}svg text{font-family:'Noto Sans','Noto Sans CJK SC','Microsoft YaHei','spinbench CJK',sans-serif}</style></head><body>\n",
     );
     h.push_str(&format!(
         "<h1>{}</h1>\n<table class=\"meta\">",
@@ -57,6 +64,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         }
         h.push_str("</table>\n");
     }
+    signer_section(&mut h, report, lang);
     h.push_str(&format!(
         "<h2>{}</h2>\n<table id=\"summary\"><tr>",
         esc(&tr(lang, "report.summary"))
@@ -114,7 +122,7 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         for line in diagnostic_lines_in(u, lang) {
             h.push_str(&format!("<p class=\"diagnostics\">{}</p>\n", esc(&line)));
         }
-        for svg in plots::UNIT_PLOTS.iter().filter_map(|p| p.svg(u)) {
+        for svg in plots::UNIT_PLOTS.iter().filter_map(|p| p.svg(u, lang)) {
             h.push_str("<figure>");
             h.push_str(&svg);
             h.push_str("</figure>\n");
@@ -133,20 +141,102 @@ pub fn html_in(report: &RunReport, lang: Lang) -> String {
         }
         h.push_str("</table></section>\n");
     }
-    if !report.record.operator_actions.is_empty() {
-        h.push_str(
-            "<h2>Operator actions</h2><table><tr><th>time</th><th>who</th><th>what</th></tr>",
-        );
-        for a in &report.record.operator_actions {
+    h.push_str("</body></html>\n");
+    with_cjk_font(h)
+}
+
+/// What a signer reads first (`signer`): the decision, one row per
+/// instrument, the operator's actions, the station's notices, the sign-off.
+fn signer_section(h: &mut String, report: &RunReport, lang: Lang) {
+    h.push_str(&format!(
+        "<section id=\"signer\"><h2>{}</h2>\n",
+        esc(&tr(lang, "report.verdicts"))
+    ));
+    if let Some(decision) = signer::decision_text(report, lang) {
+        h.push_str(&format!("<p id=\"decision\">{}</p>\n", esc(&decision)));
+    }
+    h.push_str(&format!(
+        "<p id=\"tally\">{}</p>\n<table id=\"verdicts\"><tr>",
+        esc(&signer::tally_text(report, lang))
+    ));
+    for head in signer::verdict_headers(lang) {
+        h.push_str(&format!("<th>{}</th>", esc(&head)));
+    }
+    h.push_str("</tr>\n");
+    for row in signer::verdict_rows(report, lang) {
+        h.push_str(&format!(
+            "<tr data-serial=\"{}\"><td class=\"t\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td>\
+             <td class=\"{}\">{}</td><td class=\"t\">{}</td></tr>\n",
+            esc(&row.serial),
+            esc(&row.serial),
+            row.slot,
+            esc(&row.k2),
+            esc(&row.k2_p),
+            esc(&row.k2_n),
+            esc(row.outcome.as_str()),
+            esc(&row.verdict),
+            esc(&row.reason)
+        ));
+    }
+    h.push_str("</table>\n");
+    let lines = |h: &mut String,
+                 id: &str,
+                 heading: &str,
+                 heads: [&str; 3],
+                 rows: Vec<(String, String, String)>| {
+        h.push_str(&format!(
+            "<h3>{}</h3><table id=\"{id}\"><tr><th>{}</th><th>{}</th><th>{}</th></tr>",
+            esc(&tr(lang, heading)),
+            esc(&tr(lang, heads[0])),
+            esc(&tr(lang, heads[1])),
+            esc(&tr(lang, heads[2]))
+        ));
+        if rows.is_empty() {
             h.push_str(&format!(
-                "<tr><td>{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
-                unix_date(a.at),
-                esc(&a.who),
-                esc(&a.action)
+                "<tr><td class=\"t\" colspan=\"3\">{}</td></tr>",
+                esc(&tr(lang, "report.none"))
+            ));
+        }
+        for (when, who, what) in rows {
+            h.push_str(&format!(
+                "<tr><td class=\"t\">{}</td><td class=\"t\">{}</td><td class=\"t\">{}</td></tr>",
+                esc(&when),
+                esc(&who),
+                esc(&what)
             ));
         }
         h.push_str("</table>\n");
-    }
-    h.push_str("</body></html>\n");
-    h
+    };
+    lines(
+        h,
+        "actions",
+        "report.actions",
+        ["report.when", "report.who", "report.what"],
+        report
+            .record
+            .operator_actions
+            .iter()
+            .map(|a| signer::action_line(report, lang, a))
+            .collect(),
+    );
+    lines(
+        h,
+        "notices",
+        "report.notices",
+        ["report.when", "report.kind", "report.what"],
+        report
+            .record
+            .notices
+            .iter()
+            .map(|n| signer::notice_line(report, lang, n))
+            .collect(),
+    );
+    let [tested, reviewed, date] = signer::sign_off_labels(lang);
+    h.push_str(&format!(
+        "<table id=\"sign-off\" class=\"sign\"><tr><th>{}</th><th>{}</th><th>{}</th></tr>\
+         <tr><td></td><td></td><td></td></tr></table>\n</section>\n",
+        esc(&tested),
+        esc(&reviewed),
+        esc(&date)
+    ));
 }

@@ -4,13 +4,14 @@
 
 mod csv;
 mod html;
+pub mod signer;
 mod summary;
 mod xlsx;
 
 pub use csv::summary_csv;
 pub use html::{html, html_in};
+pub use summary::{DECISION_HEADERS, SUMMARY_HEADERS, SummaryRow, summary, summary_in};
 pub(crate) use summary::{POINT_HEADERS, SUMMARY_DECIMALS, meta_rows_in, numbers, point_cells};
-pub use summary::{SUMMARY_HEADERS, SummaryRow, summary, summary_in};
 pub(crate) use xlsx::xlsx_in;
 
 use crate::*;
@@ -61,6 +62,24 @@ pub struct RunReport {
     pub units: Vec<UnitReport>,
     /// The runs that retest this one (`spinbench retest`), oldest first.
     pub retested_by: Vec<String>,
+}
+
+impl RunReport {
+    /// The station's time zone when it ran (its config as the run
+    /// recorded it; UTC when it said none or cannot be read).
+    pub fn zone(&self) -> spinbench_engine::time_zone::UtcOffset {
+        self.record
+            .start
+            .station_config
+            .as_deref()
+            .and_then(|text| spinbench_engine::config::StationConfig::from_toml(text).ok())
+            .map_or(spinbench_engine::time_zone::UtcOffset::UTC, |c| c.time_zone)
+    }
+
+    /// A time of the run [Unix s] as `lang` writes it, in the station's zone.
+    pub fn time(&self, lang: Lang, unix_s: i64) -> String {
+        lang::date_time_in(lang, unix_s, self.zone())
+    }
 }
 
 /// Read a run's report data from the store.

@@ -38,6 +38,17 @@ pub struct SummaryRow {
     pub asymmetry_ppm: Option<f64>,
     /// Hysteresis [µg].
     pub hysteresis_ug: Option<f64>,
+    /// The instrument's own K2 (both mountings; the same on each of its rows) [µg/g²].
+    pub instrument_k2_ug_per_g2: Option<f64>,
+    /// Its U95 [µg/g²].
+    pub instrument_k2_u95_ug_per_g2: Option<f64>,
+    /// The quantity the verdict judged (`K2`, `k2_max`; empty when the
+    /// record does not say).
+    pub judged: String,
+    /// Its limit [µg/g²].
+    pub limit_ug_per_g2: Option<f64>,
+    /// The decision rule (`guarded`, `simple`; empty when not recorded).
+    pub rule: String,
     /// pass, marginal or fail.
     pub outcome: String,
     /// Why, when not a plain pass.
@@ -60,6 +71,7 @@ pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
                 Some(fits) if !fits.is_empty() => fits.iter().map(Some).collect(),
                 _ => vec![None],
             };
+        let figures = spinbench_store::ResultFigures::of(r);
         for entry in fits {
             let mount = entry.map(|(m, _)| *m);
             let fit = entry.map(|(_, f)| &f.fit);
@@ -86,6 +98,17 @@ pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
                     .map(|s| s.residual_max_ppm),
                 asymmetry_ppm: analysis.and_then(|a| a.figures.asymmetry_ppm),
                 hysteresis_ug: analysis.and_then(|a| a.figures.hysteresis_ug),
+                instrument_k2_ug_per_g2: figures.instrument_k2,
+                instrument_k2_u95_ug_per_g2: figures.instrument_k2_u95,
+                judged: r
+                    .decision
+                    .map_or_else(String::new, |d| d.measurand.name().to_string()),
+                limit_ug_per_g2: r.decision.map(|d| d.limit_ug_per_g2),
+                rule: r
+                    .decision
+                    .map(|d| d.rule)
+                    .or(r.decision_rule)
+                    .map_or_else(String::new, |rule| rule.name().to_string()),
                 outcome: u.result.outcome.to_string(),
                 reasons: u.reasons_text_in(lang),
             });
@@ -112,6 +135,16 @@ pub const SUMMARY_HEADERS: [&str; 16] = [
     "hysteresis [µg]",
     "outcome",
     "reasons",
+];
+
+/// The CSV's columns after [`SUMMARY_HEADERS`]: what the verdict judged
+/// (appended, so a reader of the earlier columns reads them where they were).
+pub const DECISION_HEADERS: [&str; 5] = [
+    "K2 [µg/g²]",
+    "K2 U95 [µg/g²]",
+    "judged",
+    "limit [µg/g²]",
+    "rule",
 ];
 
 /// Decimals shown for the summary's numbers (HTML and PDF), in [`numbers`] order.
@@ -179,7 +212,7 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
     }
     rows.extend([
         ("operator", plan.operator()),
-        ("started", lang::date_time(lang, run.started_at)),
+        ("started", report.time(lang, run.started_at)),
         (
             "state",
             match (lang, &run.reason) {

@@ -87,6 +87,19 @@ pub struct StatusSnapshot {
     pub modules: Vec<ModuleHealth>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
+    /// When the prompt was raised (server time, Unix seconds): the page
+    /// shows how long it has waited.
+    pub prompt_since_s: Option<f64>,
+    /// When the operator's pause began holding the run (server time, Unix
+    /// seconds), while it is paused.
+    pub paused_since_s: Option<f64>,
+    /// The server's time when this status was read (Unix seconds): the
+    /// page counts waits against it, not against its own clock.
+    pub server_time_s: f64,
+    /// The station's time zone (`UTC+08:00`), which its pages show times in.
+    pub time_zone: String,
+    /// That zone's offset from UTC [min].
+    pub utc_offset_min: i32,
     /// The fixture it asks of each slot (for the page's language): null for
     /// a slot it asks nothing of, else the fixture as the engine names it
     /// (`"Up"`, `"Down"`, `{"Arm": "P"}`, `{"Crosswise": {"as_on_arm": true}}`).
@@ -106,7 +119,8 @@ pub struct StatusSnapshot {
     pub points: usize,
     /// Seconds since the run started (wall clock).
     pub elapsed_s: f64,
-    /// Estimated seconds to the end (from the steps done so far).
+    /// Estimated seconds to the end: each step by its kind's time so far
+    /// in this run, or by the plan before its kind was timed.
     pub eta_s: Option<f64>,
     /// Instruments in the run (slots).
     pub slots: usize,
@@ -159,11 +173,26 @@ pub struct Hub {
     /// Mean drawing radius of the station's fixtures [m], for g at R0.
     r0_m: f64,
     g_local_m_s2: f64,
+    /// The station's time zone, which its pages show times in.
+    zone: spinbench_engine::time_zone::UtcOffset,
 }
 
 impl Hub {
     /// A hub for a station whose fixtures sit at `r0_m` on average.
     pub fn new(r0_m: f64, g_local_m_s2: f64) -> Hub {
+        Hub::in_zone(
+            r0_m,
+            g_local_m_s2,
+            spinbench_engine::time_zone::UtcOffset::UTC,
+        )
+    }
+
+    /// [`Hub::new`] for a station whose pages show times in `zone`.
+    pub fn in_zone(
+        r0_m: f64,
+        g_local_m_s2: f64,
+        zone: spinbench_engine::time_zone::UtcOffset,
+    ) -> Hub {
         let (tx, _) = broadcast::channel(4096);
         Hub {
             state: Mutex::new(HubState {
@@ -180,6 +209,7 @@ impl Hub {
             closing: tokio::sync::watch::channel(false).0,
             r0_m,
             g_local_m_s2,
+            zone,
         }
     }
 
@@ -223,6 +253,9 @@ impl Hub {
     pub fn status(&self) -> StatusSnapshot {
         let state = self.lock();
         let mut status = state.status.clone();
+        status.server_time_s = unix_now_s();
+        status.time_zone = self.zone.to_string();
+        status.utc_offset_min = self.zone.minutes();
         status.board = state.board.slots().to_vec();
         if let Some(t) = state.started {
             status.elapsed_s = t.elapsed().as_secs_f64();
@@ -309,7 +342,9 @@ impl Hub {
                 state.others.clear();
                 state.next_seq = keep_seq;
                 state.started = Some(std::time::Instant::now());
-                state.clock.run_started(&plan.steps);
+                state
+                    .clock
+                    .run_started(&plan.steps, plan.plan.prediction.as_ref());
                 state.records.clear();
                 *s = StatusSnapshot {
                     run_id: Some(run_id.clone()),
@@ -322,6 +357,11 @@ impl Hub {
             }
             Event::StateChanged { state: st } => {
                 s.state = Some(*st);
+                // Held since when (the Run page shows the held state and for how long).
+                s.paused_since_s = match st {
+                    spinbench_engine::RunState::Paused => s.paused_since_s.or(Some(unix_now_s())),
+                    _ => None,
+                };
             }
             Event::StepStarted {
                 index,
@@ -369,10 +409,12 @@ impl Hub {
             Event::Prompt { text, fixtures } => {
                 s.prompt = Some(text.clone());
                 s.prompt_fixtures = fixtures.clone();
+                s.prompt_since_s = Some(unix_now_s());
             }
             Event::PromptAnswered { .. } => {
                 s.prompt = None;
                 s.prompt_fixtures.clear();
+                s.prompt_since_s = None;
             }
             Event::PointDone { .. } => s.points += 1,
             Event::Notice { message, wording } => {
@@ -404,6 +446,8 @@ impl Hub {
                 s.reason = reason.clone();
                 s.reason_wording = wording.clone();
                 s.prompt = None;
+                s.prompt_since_s = None;
+                s.paused_since_s = None;
                 s.eta_s = None;
                 s.ended = true;
                 s.demand_deg_s = Some(0.0);
@@ -413,6 +457,13 @@ impl Hub {
             _ => {}
         }
     }
+}
+
+/// Now, as Unix seconds.
+fn unix_now_s() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// The engine-side subscriber that publishes into a [`Hub`].

@@ -224,7 +224,11 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     }
     let slots = station.slots().max(1);
     let r0 = (0..slots).map(|i| station.drawing_radius_m(i)).sum::<f64>() / slots as f64;
-    let hub = Arc::new(hub::Hub::new(r0, station.g_local_m_s2));
+    let hub = Arc::new(hub::Hub::in_zone(
+        r0,
+        station.g_local_m_s2,
+        station.time_zone,
+    ));
     let runner = runner::Runner::new(
         station,
         station_toml,

@@ -17,6 +17,7 @@ pub fn spinbench(args: &[&str]) -> (bool, String, String) {
 /// A short two-mounting plan for the virtual bench (±10 g, 7 levels, no
 /// warm-up, 3-s dwell and hold) with instruments `{prefix}1`, `{prefix}2`
 /// (module 1) and `{prefix}7` (module 2).
+#[allow(dead_code)] // not every test file runs a plan of its own
 pub fn short_plan(prefix: &str) -> String {
     format!(
         r#"

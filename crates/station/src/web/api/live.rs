@@ -168,10 +168,24 @@ pub(super) async fn fleet(
 ) -> ApiResult<Json<Vec<FleetStation>>> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let this = app.runner.station().0.station;
-    let rows = blocking(&app, |app| Ok(store(app)?.stations()?)).await?;
+    let rows = blocking(&app, |app| {
+        let store = store(app)?;
+        let mut rows = Vec::new();
+        for r in store.stations()? {
+            // The run by its label (issue 40 item 8), the id beside it.
+            let label = match &r.beat.run_id {
+                Some(id) => store.run(id)?.map(|run| run.label()),
+                None => None,
+            };
+            rows.push((r, label));
+        }
+        Ok(rows)
+    })
+    .await?;
     Ok(Json(
         rows.into_iter()
-            .map(|r| FleetStation {
+            .map(|(r, run_label)| FleetStation {
+                run_label,
                 this_station: r.beat.station == this,
                 station: r.beat.station,
                 state: r.beat.state,

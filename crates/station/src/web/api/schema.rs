@@ -756,6 +756,8 @@ pub struct FleetStation {
     pub kind: String,
     /// Its current run (absent when offline).
     pub run_id: Option<String>,
+    /// That run's label (`2026-11-24 · station 1 · #7`), as people name it.
+    pub run_label: Option<String>,
     /// Steps done of the current run.
     pub steps_done: Option<i64>,
     /// Steps in the current run.

@@ -29,7 +29,7 @@ export async function loadFleet() {
       const last = ["pass", "marginal", "fail", "inconclusive", "incomplete"].filter((o) => n[o])
         .map((o) => n[o] + " " + word("web.outcome." + o, o)).join(", ") || "—";
       const worst = ["fail", "incomplete", "inconclusive", "marginal", "pass"].find((o) => n[o]) || "";
-      [st.station + (st.this_station ? " *" : ""), kind, what, st.run_id || "—", progress, last, fpy, fmtTime(st.last_seen)]
+      [st.station + (st.this_station ? " *" : ""), kind, what, st.run_label || st.run_id || "—", progress, last, fpy, fmtTime(st.last_seen)]
         .forEach((v, k) => {
           const td = tr.insertCell(); td.textContent = v;
           if (k === 2) td.className = "fleet " + st.state;

@@ -3,7 +3,9 @@
 import { $, api, show, state } from "./core.js";
 import { fill, stateWord, word } from "./i18n.js";
 
-export function fmtTime(t) { return new Date(t * 1000).toISOString().replace("T", " ").slice(0, 16) + " UTC"; }
+// A time [Unix s] in the station's zone, the zone said (issue 40 item 8;
+// the zone comes with the status: UTC until it is known).
+export function fmtTime(t) { return new Date(t * 1000 + (state.utcOffsetMin || 0) * 60000).toISOString().replace("T", " ").slice(0, 16) + " " + (state.timeZone || "UTC"); }
 
 // Fill a station selector from the fleet, keeping its choice; `all` adds
 // "every station" first, else this server's station is the default.

@@ -14,7 +14,7 @@ export function connect() {
     state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
     state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
     $("event-log").textContent = ""; $("alarm").hidden = true;
-    log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }));
+    log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }), e.published_ms);
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
     nameRun(e.run_id);
   });
@@ -30,39 +30,41 @@ export function connect() {
   });
   on("state_changed", (e) => setRunState(e.state));
   on("step_started", (e) => {
-    $("progress").textContent = stepText(e.index, e.of, e.label, e.wording);
+    state.stepNow = stepText(e.index, e.of, e.label, e.wording);
+    $("progress").textContent = state.stepNow;
     $("run-progress").max = e.of; $("run-progress").value = e.index;
-    // A level's start, marked on the curves (its label, e.g. "5 g Up (pass 1)").
-    const level = /^(-?[0-9.]+ g)/.exec(e.label);
-    if (level) { state.marks.push([state.lastTime, level[1]]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
-    log(say(e.wording, e.label));
+    // A level's start, marked on the curves with its level (from the
+    // step's wording: no English label is read).
+    const g = e.wording && e.wording.key === "step.level" && e.wording.args ? e.wording.args.g : null;
+    if (g !== null && g !== undefined) { state.marks.push([state.lastTime, g + " g"]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
+    log(say(e.wording, e.label), e.published_ms);
     // The station has gone on: the notice it handled is over.
     if ($("alarm").className === "notice") clearAlarm();
   });
-  on("progress", (e) => { $("progress").textContent = $("progress").textContent.split(" — ")[0] + progressText(e.phase, e.done, e.of); });
+  on("progress", (e) => { state.progressNow = e; $("progress").textContent = (state.stepNow || "") + progressText(e.phase, e.done, e.of); });
   on("prompt", (e) => {
     const text = promptText(e.fixtures, e.text);
-    $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text);
+    $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text, e.published_ms);
   });
   on("prompt_answered", () => { $("prompt").hidden = true; });
   // A notice the station handled (a reading taken again) is no alarm: amber, gone at the next step.
-  on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(bannerText("notice", m)); });
+  on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(bannerText("notice", m), e.published_ms); });
   // A fault is: red, on every page, until someone acknowledges it. An
   // abort someone asked for is no fault: its banner says aborted.
   on("fault", (e) => {
     const m = say(e.wording, e.reason);
-    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(bannerText("aborted", m)); return; }
-    state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m));
+    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(bannerText("aborted", m), e.published_ms); return; }
+    state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m), e.published_ms);
   });
   on("unit_failed", (e) => {
     const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
       { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
-    alarm(m, "left-out"); log(m);
+    alarm(m, "left-out"); log(m, e.published_ms);
   });
   on("run_finished", (e) => {
     const why = e.reason ? (state.fault && e.state === "faulted" ? state.fault : e.reason) : "";
     setRunState(stateWord(e.state) + (why ? ": " + why : ""));
-    log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""));
+    log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""), e.published_ms);
     if (e.state === "completed") $("run-progress").value = $("run-progress").max;
     // The run's outcome replaces the notices; a fault's banner stays until acknowledged.
     if (e.state === "completed") completedBanner(state.lastBoard);
@@ -77,10 +79,11 @@ export function connect() {
   on("health", () => refreshStatus());
 }
 
-// The run's event log, newest first (at most 200 lines).
-export function log(text) {
+// The run's event log, newest first (at most 200 lines), each line at the
+// time the server published its event (a reload keeps the times).
+export function log(text, atMs) {
   const li = document.createElement("li");
-  li.textContent = new Date().toISOString().slice(11, 19) + "  " + text;
+  li.textContent = clock(atMs ? new Date(atMs) : new Date()) + "  " + text;
   const list = $("event-log");
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 200) list.removeChild(list.lastChild);
@@ -200,6 +203,7 @@ export async function refreshStatus() {
   let s;
   try { s = await api("GET", "/api/status"); } catch (_) { return; }
   state.status = s;
+  learnZone(s);
   const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
   $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (" + word("web.status.virtual", "virtual bench") + ")" : "");
   $("st-run").textContent = s.run_id || word("web.status.none", "none");
@@ -247,9 +251,49 @@ export async function refreshStatus() {
   // A status fetched before an answer arrived still shows the old prompt: wait for the next.
   if (s.prompt && Date.now() - state.answeredAt > 2500) { $("prompt-text").textContent = promptText(s.prompt_fixtures, s.prompt); $("prompt").hidden = false; }
   else if (s.active && !s.prompt) $("prompt").hidden = true;
-  const eta = s.active && s.eta_s ? word("web.comma", ", ") + etaText(s.eta_s) : "";
-  if (s.step) $("progress").textContent = stepText(s.step.index, s.step.of, s.step.label, s.step_wording)
-    + (s.active && s.progress ? progressText(s.progress.phase, s.progress.done, s.progress.of) : "") + eta;
+  if (s.step) {
+    state.stepNow = stepText(s.step.index, s.step.of, s.step.label, s.step_wording);
+    $("progress").textContent = state.stepNow + (s.active && s.progress ? progressText(s.progress.phase, s.progress.done, s.progress.of) : "");
+  }
+  waits(s);
+}
+
+// A prompt waits longer than this before the page raises a notice [s].
+export const PROMPT_LATE_S = 600;
+
+// The station's time zone, from the status.
+export function learnZone(s) {
+  if (typeof s.utc_offset_min === "number") { state.utcOffsetMin = s.utc_offset_min; state.timeZone = s.time_zone || "UTC"; }
+}
+
+// How long the operator's prompt and a pause have held the run, counted
+// on the server's clock (the status carries its time).
+export function waits(s) {
+  const since = (t) => Math.max(0, Math.round((s.server_time_s || 0) - t));
+  const span = (n) => n < 120 ? fill("web.wait.seconds", n + " s", { n }) : fill("web.wait.minutes", Math.floor(n / 60) + " min", { n: Math.floor(n / 60) });
+  const box = $("prompt-waiting");
+  if (s.prompt && s.prompt_since_s) {
+    const n = since(s.prompt_since_s);
+    const late = n >= PROMPT_LATE_S;
+    box.textContent = late
+      ? fill("web.prompt.late", "waiting for the operator for " + span(n) + ": the run is held until someone answers", { wait: span(n) })
+      : fill("web.prompt.waiting", "waiting for the operator for " + span(n), { wait: span(n) });
+    box.className = late ? "late" : "hint";
+    box.dataset.waitedS = String(n);
+    if (late && !state.lateSaid) { state.lateSaid = true; alarm(bannerText("notice", box.textContent), "notice"); log(bannerText("notice", box.textContent)); }
+  } else { box.textContent = ""; state.lateSaid = false; }
+  const held = $("held");
+  if (s.active && s.state === "paused" && s.paused_since_s) {
+    const n = since(s.paused_since_s);
+    held.textContent = fill("web.run.held", "Held by the operator since " + clock(new Date(s.paused_since_s * 1000)) + " (" + span(n) + "): press Resume to go on",
+      { since: clock(new Date(s.paused_since_s * 1000)), wait: span(n) });
+    held.hidden = false;
+  } else held.hidden = true;
+}
+
+// A time of day as the page shows it (UTC, said).
+export function clock(date) {
+  return new Date(date.getTime() + (state.utcOffsetMin || 0) * 60000).toISOString().slice(11, 19) + " " + (state.timeZone || "UTC");
 }
 
 // Where a run's median K2 U95 falls with 80 % probability ("" before the
@@ -284,5 +328,5 @@ export async function answer(proceed) {
 }
 
 export async function control(what) {
-  try { await api("POST", "/api/run/" + what); show(what + ": done", true); } catch (e) { show(e.message); }
+  try { await api("POST", "/api/run/" + what); show(word("web.control.done." + what, what), true); } catch (e) { show(e.message); }
 }
