@@ -921,7 +921,7 @@ fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(b
         list.as_array()
             .expect("devices")
             .iter()
-            .all(|d| d["status"] == "not in the register")
+            .all(|d| d["status"] == "not in the register" && d["read_identity"].is_null())
     );
 
     let entry = |cal: &str, due: &str| {
@@ -1007,6 +1007,20 @@ fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(b
     admin.wait_status(60, |s| s["prompt"].is_string());
     assert_eq!(admin.send("POST", "/api/run/abort", None).status, 200);
     admin.wait_status(60, |s| s["active"].is_null());
+    // Issue 40 item 8: after its first run the station offers each device
+    // the identity it read from it (the virtual bench's *IDN? answers).
+    let list = op.get_json("/api/equipment", 200);
+    let fmu = list
+        .as_array()
+        .expect("devices")
+        .iter()
+        .find(|d| d["role"] == "fmu 1")
+        .expect("fmu 1");
+    assert_eq!(fmu["status"], "not in the register");
+    assert!(
+        fmu["read_identity"].as_str().is_some_and(|i| !i.is_empty()),
+        "{fmu}"
+    );
     let html = admin.send("GET", &format!("/api/runs/{run_id}/report/html"), None);
     let html = String::from_utf8_lossy(&html.body);
     assert!(

@@ -56,6 +56,36 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     // The new-run form: the plan, serial numbers per slot (a wrong prefix is refused).
     b.click("#nav-new");
     b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
+    // Issue 40 item 8: the shipped plans are there (a function check, a
+    // check designed to decide, the full test, the temperature test), and
+    // each chosen plan is summed up before anything moves: its range, the
+    // judged quantity, its limit and rule, whether it can decide.
+    let options = b.script(
+        "return Array.from(document.querySelectorAll('#plan-select option')).map(o => o.value)",
+    );
+    for shipped in ["short", "check-70g", "full-70g", "temperature"] {
+        assert!(
+            options
+                .as_array()
+                .is_some_and(|o| o.iter().any(|v| v == shipped)),
+            "{shipped} among {options}"
+        );
+    }
+    b.script("const s = document.getElementById('plan-select'); s.value = 'full-70g'; s.dispatchEvent(new Event('change'));");
+    b.wait_for(
+        5,
+        "the full plan summed up as able to decide",
+        "const p = document.getElementById('plan-summary'); \
+         return p.textContent.startsWith('±70 g, ') && p.textContent.includes('judged: K2 against 20 µg/g² (guarded rule)') \
+           && p.dataset.canDecide === 'true'",
+    );
+    b.script("const s = document.getElementById('plan-select'); s.value = 'short'; s.dispatchEvent(new Event('change'));");
+    b.wait_for(
+        5,
+        "the ±10 g function check said not to decide",
+        "const p = document.getElementById('plan-summary'); \
+         return p.textContent.startsWith('±10 g, ') && p.dataset.canDecide === 'false' && p.textContent.includes('may not decide')",
+    );
     b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
     assert_eq!(
         b.script("return document.getElementById('plan-editor').hidden"),
@@ -732,6 +762,20 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     // run is refused until it is calibrated again.
     b.click("#nav-equipment");
     b.wait_for(10, "the register", "return document.querySelectorAll('#equipment-table tbody tr').length >= 3 && !document.getElementById('equipment-form').hidden");
+    // Issue 40 item 8: the page says that nothing is registered yet, and
+    // each device's Register… fills the form with its role (and the
+    // identity the station read from it, once it has run).
+    b.wait_for(
+        10,
+        "the unregistered devices said",
+        "const n = document.getElementById('equipment-unregistered'); \
+         return !n.hidden && n.textContent.includes('not in the register')",
+    );
+    b.script("document.querySelector('#equipment-table tbody tr[data-role=\"centrifuge\"] button.register').click()");
+    assert_eq!(
+        b.script("return document.getElementById('eq-role').value"),
+        Value::String("centrifuge".into())
+    );
     b.script(
         "document.getElementById('eq-role').value = 'centrifuge';\
          document.getElementById('eq-identity').value = 'Acutrol 3000 SN 117';\

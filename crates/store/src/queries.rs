@@ -358,6 +358,28 @@ impl Store {
     }
 }
 
+impl Store {
+    /// The devices `station` identified in its newest run that got as far
+    /// (each with the identity its `*IDN?` or firmware answer gave): what
+    /// the Equipment page offers an engineer to register. Empty before any.
+    pub fn last_identified_devices(
+        &self,
+        station: &str,
+    ) -> Result<Vec<crate::record::DeviceEntry>, StoreError> {
+        let rows = self.query(
+            "read the station's last device list",
+            "SELECT devices_json FROM runs WHERE station = $1 AND devices_json IS NOT NULL
+             ORDER BY started_at DESC, id DESC LIMIT 1",
+            &[station.into()],
+        )?;
+        match rows.first().and_then(|r| r.opt_text(0)) {
+            Some(json) => crate::record::stored_devices(&json)
+                .map_err(self.err("read the station's last device list")),
+            None => Ok(Vec::new()),
+        }
+    }
+}
+
 impl RunRow {
     /// Whether the run has ended ([`StoredState::is_ended`]).
     pub fn is_ended(&self) -> bool {

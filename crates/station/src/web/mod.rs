@@ -129,7 +129,9 @@ impl ServeArgs {
 }
 
 /// The plan a fresh data directory starts with, so a new station has one to run.
-const EXAMPLE_PLAN: &str = r#"# A short test: ±10 g in both mountings (edit or add plans as an engineer).
+const EXAMPLE_PLAN: &str = r#"# A function check: ±10 g in both mountings, a few minutes; too short to
+# decide K2 against a 20 µg/g² limit (the New-run form says so). Edit or add
+# plans as an engineer.
 name = "short ±10 g"
 range_g = 10
 levels = [0, 1, 2, 4, 6, 8, 10]
@@ -140,6 +142,46 @@ stability = { hold_s = 3 }
 [serials]
 1 = "SN-001"
 "#;
+
+/// The plans a new station's plans directory starts with: (file name, text).
+pub(crate) const SHIPPED_PLANS: [(&str, &str); 4] = [
+    ("short", EXAMPLE_PLAN),
+    (
+        "check-70g",
+        include_str!("../../../../packaging/plans/check-70g.toml"),
+    ),
+    (
+        "full-70g",
+        include_str!("../../../../packaging/plans/full-70g.toml"),
+    ),
+    (
+        "temperature",
+        include_str!("../../../../packaging/plans/temperature.toml"),
+    ),
+];
+
+/// Put the shipped plans a station starts from into `plans_dir`, once (a
+/// `.shipped` mark remembers it): a plan of that name already there is
+/// kept, and a shipped plan an engineer deleted afterwards stays deleted.
+fn offer_shipped_plans(plans_dir: &std::path::Path) -> Result<()> {
+    let mark = plans_dir.join(".shipped");
+    if mark.exists() {
+        return Ok(());
+    }
+    for (name, text) in SHIPPED_PLANS {
+        let path = plans_dir.join(format!("{name}.toml"));
+        if !path.exists() {
+            std::fs::write(&path, text)
+                .with_context(|| format!("{}: cannot write a shipped plan", path.display()))?;
+        }
+    }
+    std::fs::write(
+        &mark,
+        "the shipped plans were put here once; delete this file to have the missing ones again\n",
+    )
+    .with_context(|| format!("{}: cannot write", mark.display()))?;
+    Ok(())
+}
 
 /// Start the server and serve until Ctrl-C; then abort any run into the safe state.
 pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
@@ -189,9 +231,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     let plans_dir = args.data.join("plans");
     std::fs::create_dir_all(&plans_dir)
         .with_context(|| format!("{}: cannot create the plans directory", plans_dir.display()))?;
-    if std::fs::read_dir(&plans_dir).map_or(true, |mut d| d.next().is_none()) {
-        std::fs::write(plans_dir.join("short.toml"), EXAMPLE_PLAN)?;
-    }
+    offer_shipped_plans(&plans_dir)?;
     // TLS first: a wrong certificate is said before anything starts.
     let tls = match (&args.tls_cert, &args.tls_key) {
         (Some(cert), Some(key)) => Some(tls::server_config(cert, key)?),
@@ -545,6 +585,29 @@ pub(crate) fn lock_within<T>(
                 }
                 std::thread::sleep(std::time::Duration::from_millis(10));
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod shipped_plans {
+    #[test]
+    fn every_shipped_plan_reads_and_is_designed_on_the_defaults() {
+        for (name, text) in super::SHIPPED_PLANS {
+            let plan = spinbench_engine::TestPlan::from_toml(text)
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            let designed = plan
+                .designed(&spinbench_analysis::design::StationModel::default())
+                .unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(designed.range_g >= 10.0, "{name}");
+            // The ±10 g function check cannot decide K2 (and says so on
+            // the form); every other shipped plan can.
+            assert_eq!(
+                designed.decision_warning().is_none(),
+                name != "short",
+                "{name}: {:?}",
+                designed.decision_warning()
+            );
         }
     }
 }

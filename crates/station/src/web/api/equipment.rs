@@ -74,16 +74,21 @@ pub(super) async fn equipment(
     authorize(&app, &headers, Role::Operator, false).await?;
     let station = app.runner.station().0;
     let name = station.station.clone();
-    let list = blocking(&app, move |app| {
-        Ok(crate::equipment::station_equipment(
-            &*store(app)?,
-            &station,
-        )?)
+    let station_name = name.clone();
+    let (list, read) = blocking(&app, move |app| {
+        let store = store(app)?;
+        let list = crate::equipment::station_equipment(&store, &station)?;
+        let read = store.last_identified_devices(&station_name)?;
+        Ok((list, read))
     })
     .await?;
     Ok(Json(
         list.iter()
             .map(|(role, row, status)| EquipmentEntry {
+                read_identity: read
+                    .iter()
+                    .find(|d| d.role.name() == *role)
+                    .map(|d| d.identity.clone()),
                 station: name.clone(),
                 role: role.clone(),
                 identity: row.as_ref().map(|r| r.identity.clone()),

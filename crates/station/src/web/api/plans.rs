@@ -2,7 +2,8 @@
 //! after being checked against the station.
 
 use super::schema::{
-    DesignReply, DesignRequest, ErrorBody, PlanEntry, PlanSaved, PlansReply, Saved, StationReply,
+    DesignReply, DesignRequest, ErrorBody, PlanEntry, PlanSaved, PlanSummary, PlansReply, Saved,
+    StationReply,
 };
 use super::*;
 
@@ -63,6 +64,7 @@ pub(super) async fn plans(
                 name: name.to_string(),
                 title: plan.as_ref().map(|p| p.name.clone()).unwrap_or_default(),
                 serials: plan.as_ref().map(|p| p.serials.clone()).unwrap_or_default(),
+                summary: plan.as_ref().ok().and_then(summary),
                 problem: plan.err().map(|e| e.to_string()),
                 text,
             });
@@ -73,6 +75,28 @@ pub(super) async fn plans(
         slots: app.runner.station().0.slots(),
         plans: out,
     }))
+}
+
+/// A plan at a glance, designed on the station's defaults (nothing is
+/// learned to list plans); `None` when it cannot be designed.
+fn summary(plan: &TestPlan) -> Option<PlanSummary> {
+    let designed = plan
+        .designed(&spinbench_analysis::design::StationModel::default())
+        .ok()?;
+    let decision = designed.limits.decision();
+    let warning = designed.decision_warning();
+    Some(PlanSummary {
+        range_g: designed.range_g,
+        levels: designed.level_table().len(),
+        passes: designed.passes.iter().map(ToString::to_string).collect(),
+        measurand: decision.measurand.name().to_string(),
+        limit_ug_per_g2: decision.limit_ug_per_g2,
+        rule: decision.rule.name().to_string(),
+        k2_u95_ug_per_g2: designed.prediction.as_ref().map(|p| p.k2_u95_ug_per_g2),
+        centrifuge_time_s: designed.prediction.as_ref().map(|p| p.centrifuge_time_s),
+        can_decide: warning.is_none(),
+        decision_warning: warning,
+    })
 }
 
 /// Save a plan (an engineer): checked against the station first.

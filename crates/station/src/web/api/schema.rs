@@ -199,6 +199,37 @@ pub struct PlanEntry {
     pub serials: BTreeMap<String, String>,
     /// Why it cannot be read, if it cannot.
     pub problem: Option<String>,
+    /// What it measures and whether it can decide, for the New-run form
+    /// (absent for a plan that cannot be read or designed).
+    pub summary: Option<PlanSummary>,
+}
+
+/// A plan at a glance: its range, levels, mountings, limit and rule, and
+/// what it predicts on the station's defaults.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct PlanSummary {
+    /// The range: the highest level [g].
+    pub range_g: f64,
+    /// How many levels it steps through per mounting.
+    pub levels: usize,
+    /// The mountings measured (`P`, `N`).
+    pub passes: Vec<String>,
+    /// The quantity its verdict judges (`K2`, `k2_max`).
+    pub measurand: String,
+    /// Its limit [µg/g²].
+    pub limit_ug_per_g2: f64,
+    /// The decision rule (`guarded`, `simple`).
+    pub rule: String,
+    /// The predicted K2 U95 [µg/g²] on the station's defaults.
+    pub k2_u95_ug_per_g2: Option<f64>,
+    /// The predicted centrifuge time [s].
+    pub centrifuge_time_s: Option<f64>,
+    /// Whether the plan can decide: false when the prediction is wider
+    /// than the limit allows or the measurand cannot be had (then
+    /// `decision_warning` says why).
+    pub can_decide: bool,
+    /// Why it may not decide (English; the form shows its own words).
+    pub decision_warning: Option<String>,
 }
 
 /// `GET /api/plans`.
@@ -640,6 +671,10 @@ pub struct EquipmentEntry {
     pub updated_by: Option<String>,
     /// `valid`, `due soon`, `overdue` or `not in the register`.
     pub status: String,
+    /// The identity the station read from the device in its newest run
+    /// (its `*IDN?` answer, a module's firmware): offered to an engineer
+    /// to register it; absent before the station's first run.
+    pub read_identity: Option<String>,
 }
 
 /// `PUT /api/equipment/{role}`.

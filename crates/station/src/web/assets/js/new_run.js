@@ -48,8 +48,31 @@ export async function saveStation(ev) {
   try { await api("PUT", "/api/station", $("station-text").value); show("station config saved", true); } catch (e) { show(e.message); }
 }
 
+// The chosen plan at a glance (issue 40 item 8): range, levels, mountings,
+// duration, the judged quantity, its limit and rule, and whether it can
+// decide, before anything moves.
+export function planSummary(plan) {
+  const box = $("plan-summary");
+  const s = plan && plan.summary;
+  if (!s) { box.textContent = plan && plan.problem ? plan.problem : ""; box.className = "hint"; return; }
+  const minutes = s.centrifuge_time_s == null ? "—" : Math.max(1, Math.round(s.centrifuge_time_s / 60));
+  const vars = {
+    range: s.range_g, levels: s.levels, passes: s.passes.join(" " + word("web.and", "and") + " "),
+    minutes, measurand: s.measurand, limit: s.limit_ug_per_g2, rule: word("web.rule." + s.rule, s.rule),
+    u95: s.k2_u95_ug_per_g2 == null ? "—" : s.k2_u95_ug_per_g2.toFixed(3),
+  };
+  const text = fill("web.plan.summary", "±" + vars.range + " g, " + vars.levels + " levels, mountings " + vars.passes + ", about " + minutes + " min of centrifuge time; judged: " + vars.measurand + " against " + vars.limit + " µg/g² (" + vars.rule + " rule); predicted K2 U95 " + vars.u95 + " µg/g²", vars);
+  box.textContent = text + " — " + (s.can_decide
+    ? word("web.plan.can_decide", "it can decide")
+    : word("web.plan.cannot_decide", "⚠ it may not decide: the predicted uncertainty is too wide for the limit, or an instrument lacks a mounting"));
+  box.title = s.decision_warning || "";
+  box.className = s.can_decide ? "hint" : "hint warning";
+  box.dataset.canDecide = String(s.can_decide);
+}
+
 export function fillSerials() {
   const plan = plans.find((p) => p.name === $("plan-select").value);
+  planSummary(plan);
   if (plan) { $("plan-name").value = plan.name; $("plan-text").value = plan.text; }
   const box = $("serials");
   box.textContent = "";
