@@ -213,6 +213,24 @@ fn chinese_reports_carry_no_english_and_page_one_holds_what_a_signer_signs() {
     // Longest first: a name inside another is taken out after it.
     data_words.sort_by_key(|w| std::cmp::Reverse(w.len()));
 
+    // The first two pages of each report as pictures, for the closing note
+    // (poppler's pdftoppm).
+    let shots = Path::new(env!("CARGO_TARGET_TMPDIR")).join("issue-40");
+    std::fs::create_dir_all(&shots).expect("screenshot dir");
+    for (prefix, tail, name) in [
+        ("report-", format!("{run_id}-en.pdf"), "report-en"),
+        ("report-", format!("{run_id}-zh-CN.pdf"), "report-zh-CN"),
+        ("batch-report-", "-en.pdf".to_string(), "batch-en"),
+        ("batch-report-", "-zh-CN.pdf".to_string(), "batch-zh-CN"),
+    ] {
+        let done = Command::new("pdftoppm")
+            .args(["-png", "-r", "70", "-f", "1", "-l", "2"])
+            .arg(file(prefix, &tail))
+            .arg(shots.join(name))
+            .status()
+            .expect("pdftoppm (poppler-utils) runs");
+        assert!(done.success(), "pdftoppm {name}");
+    }
     let zh_pdf = pdf_pages(&file("report-", &format!("{run_id}-zh-CN.pdf")));
     let zh_html = html_text(
         &std::fs::read_to_string(file("report-", &format!("{run_id}-zh-CN.html"))).expect("html"),

@@ -771,6 +771,16 @@ fn an_engineer_saves_a_plan_in_the_browser() {
         "const n = document.getElementById('equipment-unregistered'); \
          return !n.hidden && n.textContent.includes('not in the register')",
     );
+    // Validation after input only: the empty required fields are not red
+    // before anyone typed.
+    assert_eq!(
+        b.script(
+            "const c = document.getElementById('eq-certificate'); \
+             return [c.required, c.value, getComputedStyle(c).borderTopColor === 'rgb(204, 0, 0)']"
+        ),
+        serde_json::json!([true, "", false]),
+        "an untouched required field is not shown as wrong"
+    );
     b.script("document.querySelector('#equipment-table tbody tr[data-role=\"centrifuge\"] button.register').click()");
     assert_eq!(
         b.script("return document.getElementById('eq-role').value"),

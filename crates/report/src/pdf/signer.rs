@@ -45,14 +45,14 @@ pub(super) fn signer_page(c: &mut Canvas, report: &RunReport, lang: Lang) -> boo
         let right_w = PAGE_W_MM - MARGIN_MM - right_x;
         for (role, identity, calibration) in devices {
             c.text(right_x, yr, 7.5, &role, Align::Left);
-            let ident = c.wrap(&identity, 7.5, right_w * 0.42 - 24.0);
-            let cal = c.wrap(&calibration, 7.5, right_w * 0.58);
+            let ident = c.wrap(&identity, 7.5, right_w * 0.45 - 29.0);
+            let cal = c.wrap(&calibration, 7.5, right_w * 0.55);
             for (k, line) in ident.iter().enumerate() {
-                c.text(right_x + 22.0, yr + k as f32 * 3.4, 7.5, line, Align::Left);
+                c.text(right_x + 27.0, yr + k as f32 * 3.4, 7.5, line, Align::Left);
             }
             for (k, line) in cal.iter().enumerate() {
                 c.text(
-                    right_x + right_w * 0.42,
+                    right_x + right_w * 0.45,
                     yr + k as f32 * 3.4,
                     7.5,
                     line,
@@ -99,7 +99,8 @@ pub(super) fn signer_page(c: &mut Canvas, report: &RunReport, lang: Lang) -> boo
             ]
         })
         .collect();
-    y = c.table(y, &signer::verdict_headers(lang), &rows, 7.5, 1) + 2.0;
+    // The next heading's baseline below the table's last row, clear of it.
+    y = c.table(y, &signer::verdict_headers(lang), &rows, 7.5, 1) + 5.5;
     let mut left_over = false;
     let actions: Vec<_> = report
         .record

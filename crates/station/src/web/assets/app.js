@@ -66,13 +66,14 @@ async function afterLogin() {
   $("who").textContent = state.session ? state.session.user + " (" + word("web.role." + state.session.role, state.session.role) + ")" : "";
   $("nav-users").hidden = !(state.session && state.session.role === "admin");
   route();
-  if (state.session) { connect(); refreshStatus(); }
   // The user's language (chosen before, else the browser's), or the browser's before login.
   let language = /^zh(?!.*(TW|HK|Hant))/i.test(navigator.language || "") ? "zh-CN" : "en";
   if (state.session) {
     try { const s = await api("GET", "/api/session"); language = s.language || language; } catch (_) { /* keep the browser's */ }
   }
+  // The words first: the event stream's replay is worded in the user's language.
   await setLanguage(language);
+  if (state.session) { connect(); refreshStatus(); }
 }
 
 async function login(ev) {

@@ -20,6 +20,8 @@ export async function setLanguage(language) {
     if (state.session) $("who").textContent = state.session.user + " (" + word("web.role." + state.session.role, state.session.role) + ")";
     // The last message was in the other language; the curves' labels redrawn.
     show("");
+    // Pages that keep worded lines (the event log) word them again.
+    document.dispatchEvent(new CustomEvent("spinbench:language", { detail: r.language }));
     state.dirty = true;
     // What the server words in the user's language, fetched again.
     if (state.session) {

@@ -14,7 +14,7 @@ export function connect() {
     state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
     state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
     $("event-log").textContent = ""; $("alarm").hidden = true;
-    log(fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }), e.published_ms);
+    log(() => fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }), e.published_ms);
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
     nameRun(e.run_id);
   });
@@ -37,34 +37,36 @@ export function connect() {
     // step's wording: no English label is read).
     const g = e.wording && e.wording.key === "step.level" && e.wording.args ? e.wording.args.g : null;
     if (g !== null && g !== undefined) { state.marks.push([state.lastTime, g + " g"]); while (state.marks.length > 200) state.marks.shift(); state.dirty = true; }
-    log(say(e.wording, e.label), e.published_ms);
+    log(() => say(e.wording, e.label), e.published_ms);
     // The station has gone on: the notice it handled is over.
     if ($("alarm").className === "notice") clearAlarm();
   });
   on("progress", (e) => { state.progressNow = e; $("progress").textContent = (state.stepNow || "") + progressText(e.phase, e.done, e.of); });
   on("prompt", (e) => {
     const text = promptText(e.fixtures, e.text);
-    $("prompt-text").textContent = text; $("prompt").hidden = false; log(word("web.log.asked", "operator asked") + ": " + text, e.published_ms);
+    $("prompt-text").textContent = text; $("prompt").hidden = false; log(() => word("web.log.asked", "operator asked") + ": " + promptText(e.fixtures, e.text), e.published_ms);
   });
   on("prompt_answered", () => { $("prompt").hidden = true; });
   // A notice the station handled (a reading taken again) is no alarm: amber, gone at the next step.
-  on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(bannerText("notice", m), e.published_ms); });
+  on("notice", (e) => { const m = say(e.wording, e.message); alarm(bannerText("notice", m), "notice"); log(() => bannerText("notice", say(e.wording, e.message)), e.published_ms); });
   // A fault is: red, on every page, until someone acknowledges it. An
   // abort someone asked for is no fault: its banner says aborted.
   on("fault", (e) => {
     const m = say(e.wording, e.reason);
-    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(bannerText("aborted", m), e.published_ms); return; }
-    state.fault = m; alarm(bannerText("fault", m), "fault"); log(bannerText("fault", m), e.published_ms);
+    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(() => bannerText("aborted", say(e.wording, e.reason)), e.published_ms); return; }
+    state.fault = m; alarm(bannerText("fault", m), "fault"); log(() => bannerText("fault", say(e.wording, e.reason)), e.published_ms);
   });
   on("unit_failed", (e) => {
     const m = fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
       { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) });
-    alarm(m, "left-out"); log(m, e.published_ms);
+    alarm(m, "left-out");
+    log(() => fill("web.log.left_out", "slot " + (e.slot + 1) + " left out: " + e.reason,
+      { slot: e.slot + 1, reason: say(reasonWording(e.code, e.args), e.reason) }), e.published_ms);
   });
   on("run_finished", (e) => {
     const why = e.reason ? (state.fault && e.state === "faulted" ? state.fault : e.reason) : "";
     setRunState(stateWord(e.state) + (why ? ": " + why : ""));
-    log(word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""), e.published_ms);
+    log(() => word("web.log.run", "run") + " " + stateWord(e.state) + (why ? ": " + why : ""), e.published_ms);
     if (e.state === "completed") $("run-progress").value = $("run-progress").max;
     // The run's outcome replaces the notices; a fault's banner stays until acknowledged.
     if (e.state === "completed") completedBanner(state.lastBoard);
@@ -80,14 +82,30 @@ export function connect() {
 }
 
 // The run's event log, newest first (at most 200 lines), each line at the
-// time the server published its event (a reload keeps the times).
+// time the server published its event (a reload keeps the times). A line is
+// kept with how it is worded (`text` may be a function), so a change of
+// language words it again.
+const logLines = [];
 export function log(text, atMs) {
+  const line = { word: typeof text === "function" ? text : () => text, at: atMs ? new Date(atMs) : new Date() };
+  logLines.unshift(line);
+  while (logLines.length > 200) logLines.pop();
   const li = document.createElement("li");
-  li.textContent = clock(atMs ? new Date(atMs) : new Date()) + "  " + text;
+  li.textContent = clock(line.at) + "  " + line.word();
   const list = $("event-log");
   list.insertBefore(li, list.firstChild);
   while (list.children.length > 200) list.removeChild(list.lastChild);
 }
+function relog() {
+  const list = $("event-log");
+  list.textContent = "";
+  for (const line of logLines) {
+    const li = document.createElement("li");
+    li.textContent = clock(line.at) + "  " + line.word();
+    list.appendChild(li);
+  }
+}
+document.addEventListener("spinbench:language", relog);
 
 // A reason of an outcome ({code, args}) as a wording the page can fill
 // (web.say.reason.<code>, or .<variant> when it has one).

@@ -10,7 +10,7 @@ export async function loadUsers() {
     body.textContent = "";
     for (const u of users) {
       const tr = body.insertRow();
-      tr.insertCell().textContent = u.name; tr.insertCell().textContent = u.role;
+      tr.insertCell().textContent = u.name; tr.insertCell().textContent = word("web.role." + u.role, u.role);
       const b = document.createElement("button"); b.textContent = word("web.button.remove", "Remove");
       b.addEventListener("click", async () => { try { await api("DELETE", "/api/users/" + encodeURIComponent(u.name)); loadUsers(); } catch (e) { show(e.message); } });
       tr.insertCell().appendChild(b);
@@ -18,7 +18,11 @@ export async function loadUsers() {
     const audit = await api("GET", "/api/audit");
     const ab = $("audit-table").tBodies[0];
     ab.textContent = "";
-    for (const a of audit) { const tr = ab.insertRow(); [fmtTime(a.at), a.who, a.action, a.detail].forEach((v) => { tr.insertCell().textContent = v; }); }
+    // The action by its word (issue 40); its detail as it was recorded.
+    for (const a of audit) {
+      const tr = ab.insertRow();
+      [fmtTime(a.at), word("web.who." + a.who, a.who), word("web.audit." + a.action, a.action), a.detail].forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 3) td.className = "detail"; });
+    }
   } catch (e) { show(e.message); }
 }
 
