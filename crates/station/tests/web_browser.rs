@@ -341,6 +341,15 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         "the report links",
         "return !!document.getElementById('report-pdf')",
     );
+    // Issue 40 item 1: the Run page offers the retest of the run's
+    // instruments to test again, and says each instrument's next step.
+    b.wait_for(
+        10,
+        "the retest offered on the Run page",
+        "const b = document.getElementById('run-retest-button'); \
+         return !!b && b.textContent.startsWith('Retest 1 instrument') \
+           && document.querySelector('#board tbody tr[data-slot=\"2\"]').cells[10].textContent !== '—'",
+    );
     b.screenshot(&shots.join("4-finished.png"));
     let got = b.script_async(
         "const done = arguments[0]; fetch(document.getElementById('report-pdf').href)\
@@ -461,6 +470,8 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     );
     b.screenshot(&shots.join("8-retest-offered.png"));
     b.click("#retest-button");
+    // It asks first, naming the instruments.
+    b.accept_dialog();
     b.wait_for(
         20,
         "the retest on the run screen",

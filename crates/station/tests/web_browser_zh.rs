@@ -170,6 +170,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
     );
     b.screenshot(&shots.join("zh-3-retest-offered.png"));
     b.click("#retest-button");
+    b.accept_dialog();
     b.wait_for(
         20,
         "the retest started, said in Chinese",

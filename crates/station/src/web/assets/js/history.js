@@ -118,7 +118,7 @@ export function excludeForm(r) {
 
 // A retest's link to the run it retests, and the runs that retest this
 // one; the Retest button when the run has ended with instruments to retest.
-export function showLinks(box, r) {
+export function showLinks(box, r, idPrefix = "") {
   const runLink = (id) => {
     const a = document.createElement("a");
     a.href = "#history"; a.textContent = id; a.className = "run-link";
@@ -140,7 +140,7 @@ export function showLinks(box, r) {
   // from its journal (on the station that ran it: the server says if not).
   if (["interrupted", "aborted", "faulted"].includes(r.state)) {
     const b = document.createElement("button");
-    b.id = "resume-run-button"; b.type = "button";
+    b.id = idPrefix + "resume-run-button"; b.type = "button";
     b.textContent = word("web.resume.button", "Resume this run (its completed steps are kept)");
     b.addEventListener("click", async () => {
       try {
@@ -151,11 +151,15 @@ export function showLinks(box, r) {
     });
     box.appendChild(b);
   }
-  if (r.state !== "running" && r.to_retest && r.to_retest.length) {
+  // A completed run's instruments to test again (an aborted or faulted
+  // run is resumed, not retested: its instruments were not all measured).
+  if (r.state === "completed" && r.to_retest && r.to_retest.length) {
     const b = document.createElement("button");
-    b.id = "retest-button"; b.type = "button";
-    b.textContent = fill("web.retest.button", "Retest " + r.to_retest.length + " instrument(s): " + r.to_retest.join(", "), { n: r.to_retest.length, serials: r.to_retest.join(", ") });
+    b.id = idPrefix + "retest-button"; b.type = "button";
+    const serials = r.to_retest.join(", ");
+    b.textContent = fill("web.retest.button", "Retest " + r.to_retest.length + " instrument(s): " + serials, { n: r.to_retest.length, serials });
     b.addEventListener("click", async () => {
+      if (!confirm(fill("web.confirm.retest", "Start a retest of " + serials + " on this station?", { serials }))) return;
       try {
         const res = await api("POST", "/api/runs/" + encodeURIComponent(r.id) + "/retest");
         show(fill("web.retest.started", "retest " + res.run_id + " started: " + res.serials.join(", "), { run: res.run_id, serials: res.serials.join(", ") }), true);

@@ -1,7 +1,7 @@
 // The Run page's live side: the event stream, the board, the prompt, the
 // alarm banner, the status refresh, and the operator's actions.
 import { $, api, KEEP_S, show, state } from "./core.js";
-import { runName, showReports } from "./history.js";
+import { runName, showLinks, showReports } from "./history.js";
 import { bannerText, etaText, fill, progressText, say, stateWord, stepText, word } from "./i18n.js";
 
 export function connect() {
@@ -13,7 +13,7 @@ export function connect() {
   on("run_started", (e) => {
     state.runId = e.run_id; state.serials = e.plan.serials; state.slots = e.plan.serials.length;
     state.history = state.serials.map(() => []); state.rate = []; state.values = 0; state.marks = [];
-    $("event-log").textContent = ""; $("alarm").hidden = true;
+    $("event-log").textContent = ""; $("alarm").hidden = true; $("run-next").textContent = "";
     log(() => fill(e.resumed ? "web.log.resumed" : "web.log.started", "run " + e.run_id + (e.resumed ? " resumed" : " started"), { run: e.run_id }), e.published_ms);
     $("run-id").textContent = e.run_id; $("run-reports").textContent = ""; state.dirty = true;
     nameRun(e.run_id);
@@ -72,7 +72,7 @@ export function connect() {
     if (e.state === "completed") completedBanner(state.lastBoard);
     else if (e.state === "aborted") alarm(bannerText("aborted", why), "aborted");
     $("prompt").hidden = true;
-    if (state.runId) showReports($("run-reports"), state.runId);
+    if (state.runId) { showReports($("run-reports"), state.runId); offerNext(state.runId); }
     refreshStatus();
     // The runner lets go of the run a moment after its last event: the
     // board's outcomes, the banner's counts and the buttons follow then.
@@ -188,13 +188,23 @@ export function renderBoard(board) {
     tr.dataset.slot = s.slot;
     const k2 = (s.k2_ug_per_g2 || []).map((k) => k[0] + " " + pm([k[1], k[2]])).join(", ") || "—";
     [s.slot, s.serial, s.mount || "—", s.output_hz === null ? "—" : s.output_hz.toFixed(4), s.temperature_c === null ? "—" : s.temperature_c.toFixed(2),
-      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + say(s.reason_code ? reasonWording(s.reason_code, s.reason_args) : null, s.reason) : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—"]
+      word("web.phase." + s.phase, s.phase) + (s.reason ? ": " + say(s.reason_code ? reasonWording(s.reason_code, s.reason_args) : null, s.reason) : ""), s.points + "/" + s.points_planned, k2, pm(s.big_k2_ug_per_g2), s.outcome ? word("web.outcome." + s.outcome, s.outcome) : "—",
+      // What to do with the instrument now its outcome is known.
+      s.outcome ? word("web.next." + s.outcome, "—") : "—"]
       .forEach((v, k) => {
         const td = tr.insertCell(); td.textContent = v;
         if (k === 5) td.className = "phase " + s.phase;
         if (k === 9 && s.outcome) td.className = s.outcome;
       });
   }
+}
+
+// After a run: Retest (with a confirmation naming the instruments) or
+// Resume from the Run page, as the History page offers them.
+export async function offerNext(id) {
+  const box = $("run-next");
+  box.textContent = "";
+  try { showLinks(box, await api("GET", "/api/runs/" + encodeURIComponent(id)), "run-"); } catch (_) { /* the History page offers them */ }
 }
 
 export function push(list, item) {
