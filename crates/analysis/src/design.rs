@@ -55,8 +55,8 @@
 //! refused with the smallest U95 the search can reach.
 
 use crate::lsq;
-use crate::model::student_t_975;
 use crate::points::Mount;
+use crate::statistics::student_t_975;
 use crate::{AnalysisError, UG_PER_G};
 pub use allan::{AllanFit, allan_deviation, fit_allan};
 use serde::{Deserialize, Serialize};

@@ -15,7 +15,8 @@
 //! effective degrees of freedom are by Welch–Satterthwaite and U = t₀.₉₇₅(ν)·u.
 //! The published per-mounting k2 and k2_max stay as the method defines them.
 
-use crate::model::{MountingFit, student_t_975};
+use crate::model::MountingFit;
+use crate::statistics::student_t_975;
 use crate::uncertainty::{
     MountingBudget, PairedInadequacy, Uncertainty, coverage_factor_95, joint_uncertainty,
 };

@@ -52,6 +52,7 @@ pub mod model;
 pub mod points;
 pub mod radius;
 pub mod scale_factor;
+pub mod statistics;
 pub mod table_signature;
 pub mod temperature;
 pub mod tumble;

@@ -19,10 +19,10 @@
 
 use crate::lsq::{self, FitStats};
 use crate::points::{Direction, Mount, Point};
+use crate::statistics::student_t_975;
 use crate::{AnalysisError, UG_PER_G};
 use nalgebra::{DMatrix, Matrix4};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
-use statrs::distribution::{ContinuousCDF, StudentsT};
 
 /// Polynomial order of the fitted model: 1 (k0, k1), 2 (+k2) or 3 (+k3).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
@@ -401,20 +401,6 @@ pub fn fit_mounting(
     })
 }
 
-/// The two-sided 95 % Student-t quantile t(0.975, dof); `None` for dof = 0.
-pub fn student_t_975(dof: usize) -> Option<f64> {
-    student_t_quantile(0.975, dof)
-}
-
-/// The Student-t quantile t(p, dof); `None` for dof = 0 or p outside (0, 1).
-pub fn student_t_quantile(p: f64, dof: usize) -> Option<f64> {
-    if dof == 0 || !(p > 0.0 && p < 1.0) {
-        return None;
-    }
-    let dist = StudentsT::new(0.0, 1.0, dof as f64).ok()?;
-    Some(dist.inverse_cdf(p))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -436,13 +422,6 @@ mod tests {
                 direction: None,
             })
             .collect()
-    }
-
-    #[test]
-    fn student_t_matches_tables() {
-        assert!((student_t_975(1).expect("t") - 12.706).abs() < 1e-3);
-        assert!((student_t_975(10).expect("t") - 2.228).abs() < 1e-3);
-        assert!(student_t_975(0).is_none());
     }
 
     #[test]

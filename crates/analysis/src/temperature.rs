@@ -64,8 +64,8 @@
 
 use crate::AnalysisError;
 use crate::lsq::{polynomial_design, solve};
-use crate::model::student_t_975;
 use crate::points::{Mount, Point};
+use crate::statistics::student_t_975;
 use serde::{Deserialize, Serialize};
 
 /// One instrument's figures at one temperature, each with its standard uncertainty.

@@ -5,7 +5,7 @@
 //! ±1 `g_local`, the same unit the centrifuge's method.md (3) uses.
 
 use crate::lsq;
-use crate::{AnalysisError, model::student_t_975};
+use crate::{AnalysisError, statistics::student_t_975};
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 

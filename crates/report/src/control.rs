@@ -514,7 +514,7 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
     let heads = |list: &[&str]| -> Vec<String> {
         list.iter().map(|x| crate::lang::header(lang, x)).collect()
     };
-    crate::batch::html_table(
+    crate::text::html_table(
         h,
         "control-flags",
         &heads(&FLAG_HEADERS),
@@ -531,7 +531,7 @@ pub(crate) fn html_section(h: &mut String, c: &ControlReport, lang: crate::Lang)
         "<h2>{}</h2>\n",
         crate::esc(&crate::tr(lang, "batch.yield"))
     ));
-    crate::batch::html_table(h, "yield", &heads(&YIELD_HEADERS), &yield_rows(c));
+    crate::text::html_table(h, "yield", &heads(&YIELD_HEADERS), &yield_rows(c));
 }
 
 /// A control chart as SVG.

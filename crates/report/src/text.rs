@@ -43,6 +43,29 @@ pub(crate) fn with_cjk_font(html: String) -> String {
     html.replacen("/*CJK*/", &face, 1)
 }
 
+/// An HTML table with `id`: its headers, then its rows, every cell escaped
+/// (the batch report's and its control charts' tables).
+pub(crate) fn html_table<S: AsRef<str>>(
+    h: &mut String,
+    id: &str,
+    headers: &[S],
+    rows: &[Vec<String>],
+) {
+    h.push_str(&format!("<table id=\"{id}\"><tr>"));
+    for head in headers {
+        h.push_str(&format!("<th>{}</th>", esc(head.as_ref())));
+    }
+    h.push_str("</tr>\n");
+    for row in rows {
+        h.push_str("<tr>");
+        for cell in row {
+            h.push_str(&format!("<td>{}</td>", esc(cell)));
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
+}
+
 pub(crate) fn csv_field(s: &str) -> String {
     spinbench_store::csv_text_field(s)
 }

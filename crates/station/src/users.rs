@@ -1,8 +1,12 @@
-//! Adding a user, the one way both `spinbench user add` and the web API's
-//! `POST /api/users` do it: the name and password checked, the role parsed,
-//! the password hashed (Argon2id), the user stored and the addition audited.
+//! The users: their roles, the rules for names and passwords, the password
+//! hash (Argon2id), and adding or changing a user, the one way both
+//! `spinbench user …` and the web API do it (checked, hashed, stored and
+//! audited). The web's sessions (`web::auth`) build on this; nothing here
+//! reaches into the web.
 
-use crate::web::auth::{self, Role};
+use argon2::Argon2;
+use argon2::password_hash::{PasswordHash, PasswordHasher, PasswordVerifier, SaltString};
+use serde::Serialize;
 use spinbench_store::Store;
 
 /// Why a user could not be added.
@@ -34,11 +38,11 @@ pub fn add_user(
     let role = Role::parse(role).ok_or_else(|| {
         AddUserError::Invalid(format!("role '{role}': use operator, engineer or admin"))
     })?;
-    auth::check_new_user(name, password).map_err(AddUserError::Invalid)?;
+    check_new_user(name, password).map_err(AddUserError::Invalid)?;
     if store.user(name)?.is_some() {
         return Err(AddUserError::Exists(name.to_string()));
     }
-    let hash = auth::hash_password(password).map_err(AddUserError::Hash)?;
+    let hash = hash_password(password).map_err(AddUserError::Hash)?;
     store.add_user(name, role.as_str(), &hash)?;
     store.audit(by, "add user", &format!("{name} ({})", role.as_str()))?;
     Ok(role)
@@ -74,8 +78,8 @@ pub fn change_user(
     }
     let hash = match password {
         Some(p) => {
-            auth::check_new_user(name, p).map_err(AddUserError::Invalid)?;
-            Some(auth::hash_password(p).map_err(AddUserError::Hash)?)
+            check_new_user(name, p).map_err(AddUserError::Invalid)?;
+            Some(hash_password(p).map_err(AddUserError::Hash)?)
         }
         None => None,
     };
@@ -154,4 +158,96 @@ pub fn os_user() -> String {
             })
         })
         .unwrap_or_else(|| format!("uid {uid}"))
+}
+
+/// What a user may do; each role may do everything the ones before it may.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// Runs tests: start, answer prompts, pause, resume, abort; reads everything.
+    Operator,
+    /// Also edits plans and the station config.
+    Engineer,
+    /// Also manages users and reads the audit log.
+    Admin,
+}
+
+impl Role {
+    /// Parse `operator`, `engineer` or `admin`.
+    pub fn parse(text: &str) -> Option<Role> {
+        match text {
+            "operator" => Some(Role::Operator),
+            "engineer" => Some(Role::Engineer),
+            "admin" => Some(Role::Admin),
+            _ => None,
+        }
+    }
+
+    /// The role's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Role::Operator => "operator",
+            Role::Engineer => "engineer",
+            Role::Admin => "admin",
+        }
+    }
+}
+
+/// Hash a password (Argon2id, random salt) into a PHC string.
+pub fn hash_password(password: &str) -> Result<String, String> {
+    let salt: [u8; 16] = rand::random();
+    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
+    Argon2::default()
+        .hash_password(password.as_bytes(), &salt)
+        .map(|h| h.to_string())
+        .map_err(|e| e.to_string())
+}
+
+/// Whether `password` matches the stored `hash` (false for a malformed hash).
+pub fn verify_password(password: &str, hash: &str) -> bool {
+    PasswordHash::new(hash).is_ok_and(|h| {
+        Argon2::default()
+            .verify_password(password.as_bytes(), &h)
+            .is_ok()
+    })
+}
+
+/// Longest user name [characters].
+pub const MAX_USER_NAME: usize = 64;
+
+/// A user name as stored and compared: trimmed and lower-case, 1 to 64 of
+/// the ASCII letters, digits and `. _ - @`, with at least one letter or
+/// digit. Look-alikes (a Cyrillic "а" beside "admin") and names that are
+/// only dots cannot be made. The problem in words, showing at most a short
+/// prefix of what was given.
+pub fn normalise_user_name(name: &str) -> Result<String, String> {
+    let name = name.trim();
+    let ok = !name.is_empty()
+        && name.len() <= MAX_USER_NAME
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "._-@".contains(c))
+        && name.chars().any(|c| c.is_ascii_alphanumeric());
+    if !ok {
+        return Err(format!(
+            "user name '{}': 1 to {MAX_USER_NAME} ASCII letters, digits or . _ - @, with at least one letter or digit",
+            spinbench_engine::bounds::shown(name)
+        ));
+    }
+    Ok(name.to_ascii_lowercase())
+}
+
+/// Check a new user's name and password; the problem in words.
+pub fn check_new_user(name: &str, password: &str) -> Result<(), String> {
+    let normal = normalise_user_name(name)?;
+    if normal != name {
+        return Err(format!(
+            "user name '{}': use it in lower case, as '{normal}'",
+            spinbench_engine::bounds::shown(name)
+        ));
+    }
+    if password.chars().count() < 8 {
+        return Err("the password needs at least 8 characters".into());
+    }
+    Ok(())
 }

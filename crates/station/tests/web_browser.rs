@@ -344,7 +344,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     // Issue 40 item 1: the Run page offers the retest of the run's
     // instruments to test again, and says each instrument's next step.
     b.wait_for(
-        10,
+        20,
         "the retest offered on the Run page",
         "const b = document.getElementById('run-retest-button'); \
          return !!b && b.textContent.startsWith('Retest 1 instrument') \

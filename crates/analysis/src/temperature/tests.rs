@@ -38,7 +38,7 @@ fn straight_lines_give_their_slopes_and_intervals_at_their_weights() {
         .sum();
     let want = 0.2 / stt.sqrt();
     assert!((c.u.k2.unwrap_or(0.0) - want).abs() < 1e-12);
-    let t1 = crate::model::student_t_975(1).expect("t(1)");
+    let t1 = crate::statistics::student_t_975(1).expect("t(1)");
     assert!((c.k2_ug_per_g2_per_c_u95.unwrap_or(0.0) - t1 * want).abs() < 1e-12);
 }
 

@@ -55,8 +55,9 @@ pub use budget::{
 };
 
 use crate::AnalysisError;
-use crate::model::{Coefficients, ModelOrder, student_t_975};
+use crate::model::{Coefficients, ModelOrder};
 use crate::points::Point;
+use crate::statistics::student_t_975;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 

@@ -20,7 +20,7 @@ impl Executor<'_> {
         // fixed t = 3 and 96 instruments, some instrument's noise looked
         // like drift nearly every second and a level never settled.
         let looks = slots.len().max(1) as f64;
-        let t_crit = spinbench_analysis::model::student_t_quantile(
+        let t_crit = spinbench_analysis::statistics::student_t_quantile(
             1.0 - 0.01 / looks / 2.0,
             (st.hold_s as usize).saturating_sub(2),
         )

@@ -8,8 +8,8 @@ mod tables;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use render::batch_xlsx;
 pub use render::{batch_csv, batch_html, batch_html_in};
-pub(crate) use render::{batch_xlsx, html_table};
 use stats::distribution;
 pub(crate) use tables::{
     OUTLIER_HEADERS, REPEAT_HEADERS, STATISTICS_HEADERS, TEST_HEADERS, draw_histogram,

@@ -24,27 +24,6 @@ pub fn batch_csv(b: &BatchReport) -> String {
     out
 }
 
-pub(crate) fn html_table<S: AsRef<str>>(
-    h: &mut String,
-    id: &str,
-    headers: &[S],
-    rows: &[Vec<String>],
-) {
-    h.push_str(&format!("<table id=\"{id}\"><tr>"));
-    for head in headers {
-        h.push_str(&format!("<th>{}</th>", esc(head.as_ref())));
-    }
-    h.push_str("</tr>\n");
-    for row in rows {
-        h.push_str("<tr>");
-        for cell in row {
-            h.push_str(&format!("<td>{}</td>", esc(cell)));
-        }
-        h.push_str("</tr>\n");
-    }
-    h.push_str("</table>\n");
-}
-
 /// The batch report as one self-contained HTML document.
 pub fn batch_html(b: &BatchReport) -> String {
     batch_html_in(b, crate::Lang::En)
@@ -89,7 +68,7 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
         "<h2>{}</h2>\n",
         esc(&tr(lang, "batch.distributions"))
     ));
-    html_table(
+    crate::text::html_table(
         &mut h,
         "statistics",
         &heads(&STATISTICS_HEADERS),
@@ -126,7 +105,7 @@ pub fn batch_html_in(b: &BatchReport, lang: crate::Lang) -> String {
         ),
     ] {
         h.push_str(&format!("<h2>{}</h2>\n", esc(&tr(lang, title))));
-        html_table(&mut h, id, &heads(list), &rows);
+        crate::text::html_table(&mut h, id, &heads(list), &rows);
     }
     h.push_str("</body></html>\n");
     crate::text::with_cjk_font(h)

@@ -115,28 +115,34 @@ pub(super) fn run_plan(
         }
         crate::retest::check_retest_of(&store, &plan).with_context(|| plan_source.label.clone())?;
         let list = crate::equipment::station_equipment(&store, &station)?;
-        if let Some(late) = crate::equipment::overdue(&list, station.equipment.require_registered) {
-            match override_overdue.map(str::trim).filter(|r| !r.is_empty()) {
-                None => anyhow::bail!(
-                    "{late}: calibration not cleared; calibrate it and update the register \
-                     (`spinbench equipment set`), or start anyway with --override-overdue REASON"
-                ),
-                Some(reason) => {
-                    // The web's rule for an override's reason (issue 41 item 3).
-                    let reason = spinbench_engine::bounds::reason_text(reason, 500)
-                        .map_err(|why| anyhow::anyhow!("--override-overdue: {why}"))?;
-                    let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
-                    store.audit(
-                        &who,
-                        "override overdue calibration",
-                        &format!("a run started with {late}: {reason}"),
-                    )?;
+        // The one admission gate (issue 41 item 3); at the station's own
+        // terminal whoever starts a run may override, with a reason.
+        use crate::equipment::{Admission, Refusal};
+        match crate::equipment::admit(
+            &list,
+            station.equipment.require_registered,
+            override_overdue,
+            true,
+        ) {
+            Ok(Admission::Clear) => {}
+            Ok(admitted @ Admission::Overridden { .. }) => {
+                let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
+                let detail = admitted.audit_detail("a run started").unwrap_or_default();
+                store.audit(&who, crate::equipment::OVERRIDE_ACTION, &detail)?;
+                if let Admission::Overridden { devices, reason } = &admitted {
                     writeln!(
                         out,
-                        "warning: {late}: calibration not cleared; started anyway: {reason}"
+                        "warning: {devices}: calibration not cleared; started anyway: {reason}"
                     )?;
                 }
             }
+            Err(Refusal::BadReason { why }) => {
+                anyhow::bail!("--override-overdue: {why}")
+            }
+            Err(refused) => anyhow::bail!(
+                "{refused}; calibrate it and update the register \
+                 (`spinbench equipment set`), or start anyway with --override-overdue REASON"
+            ),
         }
     }
     let dir = match resumed {

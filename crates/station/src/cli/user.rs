@@ -10,7 +10,7 @@ use std::io::Write;
 pub(super) fn add(name: &str, role: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
     let password = read_password(name)?;
     // Checked before a new store file is made for it.
-    crate::web::auth::check_new_user(name, &password).map_err(anyhow::Error::msg)?;
+    crate::users::check_new_user(name, &password).map_err(anyhow::Error::msg)?;
     if let StoreTarget::File(path) = db
         && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
     {

@@ -7,8 +7,6 @@
 //! for CSRF that every state-changing request must echo in the
 //! `X-CSRF-Token` header. Sessions live in memory: a restart logs everyone out.
 
-use argon2::Argon2;
-use argon2::password_hash::{PasswordHash, PasswordHasher, PasswordVerifier, SaltString};
 use serde::Serialize;
 use spinbench_store::Store;
 use std::collections::HashMap;
@@ -22,97 +20,11 @@ pub const CSRF_HEADER: &str = "x-csrf-token";
 /// A session ends after this long without a request.
 const IDLE_LIMIT: Duration = Duration::from_secs(12 * 3600);
 
-/// What a user may do; each role may do everything the ones before it may.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Serialize, utoipa::ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum Role {
-    /// Runs tests: start, answer prompts, pause, resume, abort; reads everything.
-    Operator,
-    /// Also edits plans and the station config.
-    Engineer,
-    /// Also manages users and reads the audit log.
-    Admin,
-}
-
-impl Role {
-    /// Parse `operator`, `engineer` or `admin`.
-    pub fn parse(text: &str) -> Option<Role> {
-        match text {
-            "operator" => Some(Role::Operator),
-            "engineer" => Some(Role::Engineer),
-            "admin" => Some(Role::Admin),
-            _ => None,
-        }
-    }
-
-    /// The role's name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Role::Operator => "operator",
-            Role::Engineer => "engineer",
-            Role::Admin => "admin",
-        }
-    }
-}
-
-/// Hash a password (Argon2id, random salt) into a PHC string.
-pub fn hash_password(password: &str) -> Result<String, String> {
-    let salt: [u8; 16] = rand::random();
-    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
-    Argon2::default()
-        .hash_password(password.as_bytes(), &salt)
-        .map(|h| h.to_string())
-        .map_err(|e| e.to_string())
-}
-
-/// Whether `password` matches the stored `hash` (false for a malformed hash).
-pub fn verify_password(password: &str, hash: &str) -> bool {
-    PasswordHash::new(hash).is_ok_and(|h| {
-        Argon2::default()
-            .verify_password(password.as_bytes(), &h)
-            .is_ok()
-    })
-}
-
-/// Longest user name [characters].
-pub const MAX_USER_NAME: usize = 64;
-
-/// A user name as stored and compared: trimmed and lower-case, 1 to 64 of
-/// the ASCII letters, digits and `. _ - @`, with at least one letter or
-/// digit. Look-alikes (a Cyrillic "а" beside "admin") and names that are
-/// only dots cannot be made. The problem in words, showing at most a short
-/// prefix of what was given.
-pub fn normalise_user_name(name: &str) -> Result<String, String> {
-    let name = name.trim();
-    let ok = !name.is_empty()
-        && name.len() <= MAX_USER_NAME
-        && name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "._-@".contains(c))
-        && name.chars().any(|c| c.is_ascii_alphanumeric());
-    if !ok {
-        return Err(format!(
-            "user name '{}': 1 to {MAX_USER_NAME} ASCII letters, digits or . _ - @, with at least one letter or digit",
-            spinbench_engine::bounds::shown(name)
-        ));
-    }
-    Ok(name.to_ascii_lowercase())
-}
-
-/// Check a new user's name and password; the problem in words.
-pub fn check_new_user(name: &str, password: &str) -> Result<(), String> {
-    let normal = normalise_user_name(name)?;
-    if normal != name {
-        return Err(format!(
-            "user name '{}': use it in lower case, as '{normal}'",
-            spinbench_engine::bounds::shown(name)
-        ));
-    }
-    if password.chars().count() < 8 {
-        return Err("the password needs at least 8 characters".into());
-    }
-    Ok(())
-}
+// The roles and the password and name rules live with the users
+// (`crate::users`), which the command line shares: the web uses them.
+pub use crate::users::{
+    MAX_USER_NAME, Role, check_new_user, hash_password, normalise_user_name, verify_password,
+};
 
 /// A logged-in user.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]

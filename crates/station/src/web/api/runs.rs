@@ -90,24 +90,21 @@ async fn check_equipment(
         )?)
     })
     .await?;
-    let Some(late) = crate::equipment::overdue(&list, required) else {
-        return Ok(None);
-    };
-    match override_reason.map(str::trim) {
-        Some(reason) if !reason.is_empty() && session.role >= Role::Admin => {
-            spinbench_engine::bounds::reason_text(reason, 500)
-                .map_err(|why| ApiError::bad(format!("override_overdue: {why}")))?;
-            Ok(Some(late))
-        }
-        Some(_) if session.role < Role::Admin => Err(ApiError::new(
+    // The one admission gate (issue 41 item 3): an admin may override.
+    use crate::equipment::Refusal;
+    match crate::equipment::admit(&list, required, override_reason, session.role >= Role::Admin) {
+        Ok(crate::equipment::Admission::Clear) => Ok(None),
+        Ok(crate::equipment::Admission::Overridden { devices, .. }) => Ok(Some(devices)),
+        Err(Refusal::BadReason { why }) => Err(ApiError::bad(format!("override_overdue: {why}"))),
+        Err(Refusal::NotAllowed { devices }) => Err(ApiError::new(
             StatusCode::FORBIDDEN,
-            format!("{late}: calibration not cleared; only an admin may start a run anyway"),
+            format!("{devices}: calibration not cleared; only an admin may start a run anyway"),
         )
-        .worded(Wording::new("error.overdue_admin_only").with("devices", &late))),
-        _ => Err(ApiError::conflict(format!(
-            "{late}: calibration not cleared; calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
+        .worded(Wording::new("error.overdue_admin_only").with("devices", &devices))),
+        Err(Refusal::Overdue { devices }) => Err(ApiError::conflict(format!(
+            "{devices}: calibration not cleared; calibrate it and update the equipment register, or an admin starts the run with a reason (override_overdue)"
         ))
-        .worded(Wording::new("error.overdue").with("devices", &late))),
+        .worded(Wording::new("error.overdue").with("devices", &devices))),
     }
 }
 
@@ -122,7 +119,7 @@ fn run_entries(
     let mut entries = Vec::new();
     if let Some(devices) = overridden {
         entries.push((
-            "override overdue calibration".to_string(),
+            crate::equipment::OVERRIDE_ACTION.to_string(),
             format!(
                 "{started} with {devices}: {}",
                 reason.as_deref().unwrap_or_default()

@@ -3,6 +3,9 @@ import { $, api, show } from "./core.js";
 import { fillStations } from "./history.js";
 import { fill } from "./i18n.js";
 
+// The charts worded again by the server in a new language, when shown.
+document.addEventListener("spinbench:language", () => { if (!$("charts").hidden) loadCharts(); });
+
 // The control charts across every run: the flags, each chart (its SVG,
 // drawn by the server as in the batch report), the first-pass yields.
 export async function loadCharts() {

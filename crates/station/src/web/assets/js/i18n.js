@@ -1,8 +1,6 @@
 // The page's words in the user's language: the catalogue from
 // GET /api/i18n/{language}, filled wordings, and the texts built from them.
-import { loadCharts } from "./control_charts.js";
 import { $, api, show, state } from "./core.js";
-import { refreshStatus, renderBoard } from "./live.js";
 
 // The page's words in one language (GET /api/i18n/{language}): every
 // element with data-i18n shows its entry; word() gives the rest.
@@ -16,18 +14,14 @@ export async function setLanguage(language) {
       const w = state.words[el.dataset.i18n];
       if (w) el.textContent = w;
     }
-    if (state.status) renderBoard(state.status.board);
     if (state.session) $("who").textContent = state.session.user + " (" + word("web.role." + state.session.role, state.session.role) + ")";
     // The last message was in the other language; the curves' labels redrawn.
     show("");
-    // Pages that keep worded lines (the event log) word them again.
-    document.dispatchEvent(new CustomEvent("spinbench:language", { detail: r.language }));
     state.dirty = true;
-    // What the server words in the user's language, fetched again.
-    if (state.session) {
-      refreshStatus();
-      if (!$("charts").hidden) loadCharts();
-    }
+    // The pages word again what they showed (the board, the event log,
+    // what the server words: the status, the charts): announced, so this
+    // module knows no page (issue 41 item 5).
+    document.dispatchEvent(new CustomEvent("spinbench:language", { detail: r.language }));
   } catch (e) { show(e.message); }
 }
 

@@ -72,7 +72,12 @@ export function connect() {
     if (e.state === "completed") completedBanner(state.lastBoard);
     else if (e.state === "aborted") alarm(bannerText("aborted", why), "aborted");
     $("prompt").hidden = true;
-    if (state.runId) { showReports($("run-reports"), state.runId); offerNext(state.runId); }
+    if (state.runId) {
+      showReports($("run-reports"), state.runId);
+      // The store takes the run's last results a moment after its end: asked again.
+      const id = state.runId;
+      for (const ms of [0, 2000, 5000]) setTimeout(() => { if (state.runId === id) offerNext(id); }, ms);
+    }
     refreshStatus();
     // The runner lets go of the run a moment after its last event: the
     // board's outcomes, the banner's counts and the buttons follow then.
@@ -105,7 +110,11 @@ function relog() {
     list.appendChild(li);
   }
 }
-document.addEventListener("spinbench:language", relog);
+document.addEventListener("spinbench:language", () => {
+  relog();
+  if (state.status) renderBoard(state.status.board);
+  if (state.session) refreshStatus();
+});
 
 // A reason of an outcome ({code, args}) as a wording the page can fill
 // (web.say.reason.<code>, or .<variant> when it has one).
