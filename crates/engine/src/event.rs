@@ -301,16 +301,32 @@ pub enum Event {
     },
 }
 
+/// A subscriber could not take an event: what and why, in words that tell
+/// the operator what failed (the run holds and offers the event again; the
+/// text goes into the hold's notice and, past the hold limit, the fault).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{problem}")]
+pub struct SinkError {
+    /// What failed ("store …: cannot record the point_done event: …").
+    pub problem: String,
+}
+
+impl From<String> for SinkError {
+    fn from(problem: String) -> Self {
+        SinkError { problem }
+    }
+}
+
 /// A subscriber to the event stream.
 pub trait EventSink {
     /// Receive one event. An error holds the run (state Paused, the ports
     /// still read) and the same event is offered again every second until it
     /// is taken, the run is aborted, or the hold limit passes (a fault).
-    fn emit(&mut self, event: &Event) -> Result<(), String>;
+    fn emit(&mut self, event: &Event) -> Result<(), SinkError>;
 }
 
 impl<F: FnMut(&Event)> EventSink for F {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), SinkError> {
         self(event);
         Ok(())
     }

@@ -33,7 +33,7 @@ impl Journal {
 }
 
 impl EventSink for Journal {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), crate::event::SinkError> {
         // Per-window values are the store's business (raw data); the journal
         // keeps what is needed to resume and to audit.
         if matches!(event, Event::Values { .. } | Event::Progress { .. }) {

@@ -550,10 +550,10 @@ struct RefusingSink {
 }
 
 impl EventSink for RefusingSink {
-    fn emit(&mut self, e: &Event) -> Result<(), String> {
+    fn emit(&mut self, e: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         if matches!(e, Event::PointDone { .. }) && self.left > 0 {
             self.left -= 1;
-            return Err("store test: the server went away".into());
+            return Err(String::from("store test: the server went away").into());
         }
         if let Ok(mut v) = self.taken.lock() {
             v.push(e.clone());

@@ -88,7 +88,7 @@ impl RunControl {
 struct BoxedSink(Box<dyn EventSink + Send>);
 
 impl EventSink for BoxedSink {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         self.0.emit(event)
     }
 }

@@ -162,7 +162,7 @@ impl ProgressPrinter {
 }
 
 impl EventSink for ProgressPrinter {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         let fitted_before: usize = self
             .board
             .slots()

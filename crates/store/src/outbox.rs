@@ -188,7 +188,7 @@ pub struct OutboxSender {
 }
 
 impl EventSink for OutboxSender {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         if matches!(event, Event::Progress { .. }) {
             return Ok(());
         }

@@ -345,7 +345,7 @@ impl StoreSink {
 }
 
 impl EventSink for StoreSink {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         self.write(event).map_err(|e| {
             format!(
                 "store {}: cannot record the {} event: {}",
@@ -356,6 +356,7 @@ impl EventSink for StoreSink {
                     .unwrap_or_default(),
                 crate::whole_reason(&e)
             )
+            .into()
         })
     }
 }

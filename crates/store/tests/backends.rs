@@ -284,8 +284,8 @@ fn a_write_the_database_refuses_is_an_error_that_names_the_store() {
                 points: vec![point(0, 1.0, 1.0)],
             })
             .expect_err("a point without its run is refused");
-        assert!(err.contains("point_done"), "{err}");
-        assert!(err.contains("store "), "{err}");
+        assert!(err.problem.contains("point_done"), "{err}");
+        assert!(err.problem.contains("store "), "{err}");
         assert!(store.points("r1").expect("points").is_empty());
     });
 }

@@ -9,7 +9,7 @@ impl Executor<'_> {
     pub(super) fn emit(&mut self, event: Event) -> Result<(), EngineError> {
         for i in 0..self.sinks.len() {
             if let Err(problem) = self.sinks[i].emit(&event) {
-                self.hold_for_sink(i, &event, problem)?;
+                self.hold_for_sink(i, &event, problem.problem)?;
             }
         }
         Ok(())
@@ -77,7 +77,7 @@ impl Executor<'_> {
             self.drain_ports(Duration::from_secs(1));
             match self.sinks[failed].emit(event) {
                 Ok(()) => break,
-                Err(e) => last = e,
+                Err(e) => last = e.problem,
             }
         }
         tell_others(

@@ -470,7 +470,7 @@ fn unix_now_s() -> f64 {
 pub struct HubSink(pub Arc<Hub>);
 
 impl EventSink for HubSink {
-    fn emit(&mut self, event: &Event) -> Result<(), String> {
+    fn emit(&mut self, event: &Event) -> Result<(), spinbench_engine::event::SinkError> {
         self.0.publish(event);
         Ok(())
     }
