@@ -498,6 +498,16 @@ impl<'a> Executor<'a> {
             .and_then(|()| self.identify())
             .and_then(|()| self.set_state(Trigger::Start))
             .and_then(|()| self.execute_steps());
+        self.finish(result)
+    }
+
+    /// The run's one end, whatever ended it: the fault said, the safe
+    /// state, the records, the last state change and `RunFinished`. What
+    /// the end itself could not do (a state change the table refused, an
+    /// event a subscriber would not take after its hold) is not discarded:
+    /// it is said in the run's reason (issue 41 item 1).
+    fn finish(&mut self, result: Result<(), EngineError>) -> RunSummary {
+        let mut end_problems: Vec<String> = Vec::new();
         let (mut state, reason) = match &result {
             Ok(()) => (RunState::Completed, None),
             Err(EngineError::Aborted(_)) => (
@@ -506,19 +516,27 @@ impl<'a> Executor<'a> {
             ),
             Err(e) => (RunState::Faulted, Some(e.to_string())),
         };
-        if let (Some(r), Err(e)) = (&reason, &result) {
-            let _ = self.emit(Event::Fault {
+        if let (Some(r), Err(e)) = (&reason, &result)
+            && let Err(not_said) = self.emit(Event::Fault {
                 reason: r.clone(),
                 wording: Some(e.wording()),
-            });
+            })
+        {
+            end_problems.push(format!("the fault could not be recorded: {not_said}"));
         }
-        let _ = self.set_state(Trigger::End);
+        if let Err(refused) = self.set_state(Trigger::End) {
+            end_problems.push(format!("ending: {refused}"));
+        }
         let safe_problems = self.safe_state();
         if !self.stop_confirmed {
-            let _ = self.emit(Event::Fault {
+            if let Err(not_said) = self.emit(Event::Fault {
                 reason: safe_problems[0].clone(),
                 wording: Some(Wording::new("fault.not_safe").with("detail", &safe_problems[0])),
-            });
+            }) {
+                end_problems.push(format!(
+                    "the safe state's fault could not be recorded: {not_said}"
+                ));
+            }
             let centrifuge =
                 std::mem::replace(&mut self.bench.centrifuge, Box::new(HandedToStopKeeper));
             keep_stopping(centrifuge);
@@ -546,20 +564,42 @@ impl<'a> Executor<'a> {
         };
         let records = self.records(complete, reason.as_deref());
         for r in &records {
-            let _ = self.emit(Event::UnitResult {
+            if let Err(not_said) = self.emit(Event::UnitResult {
                 record: Box::new(r.clone()),
-            });
+            }) {
+                end_problems.push(format!(
+                    "slot {}'s result could not be recorded: {not_said}",
+                    r.slot + 1
+                ));
+            }
         }
-        let _ = self.set_state(match state {
+        if let Err(refused) = self.set_state(match state {
             RunState::Completed => Trigger::Completed,
             RunState::Aborted => Trigger::Aborted,
             _ => Trigger::Faulted,
-        });
-        let _ = self.emit(Event::RunFinished {
+        }) {
+            end_problems.push(format!("the last state change: {refused}"));
+        }
+        // What the end could not do, in the run's reason (nothing dropped).
+        let reason = match (reason, end_problems.is_empty()) {
+            (r, true) => r,
+            (Some(r), false) => Some(format!("{r}; at the end: {}", end_problems.join("; "))),
+            (None, false) => Some(format!("at the end: {}", end_problems.join("; "))),
+        };
+        // The last event: a subscriber that cannot take it after its hold
+        // has its own record of why (the store's outbox keeps it, the
+        // journal is read back on resume); the summary says it too.
+        let reason = match self.emit(Event::RunFinished {
             state,
             reason: reason.clone(),
             wording,
-        });
+        }) {
+            Ok(()) => reason,
+            Err(not_said) => Some(format!(
+                "{}the end could not be recorded: {not_said}",
+                reason.map(|r| r + "; ").unwrap_or_default()
+            )),
+        };
         RunSummary {
             state,
             reason,
