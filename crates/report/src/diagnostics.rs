@@ -208,18 +208,37 @@ fn model_verdict(lang: Lang, d: &Diagnostics) -> String {
     text
 }
 
+/// A budget's contribution as a reader takes it in: three significant
+/// figures, "< 0.0001" below that (a timebase's 10⁻¹³ µg/g² is nothing,
+/// and twelve zeros said so badly: issue 40 item 2).
+fn contribution(v: f64) -> String {
+    if v.is_finite() && v.abs() < 1e-4 {
+        "< 0.0001".to_string()
+    } else {
+        sig(v)
+    }
+}
+
+/// Effective degrees of freedom as shown: one decimal, "> 1000" beyond
+/// (the interval's factor is then 1.96 to three figures), "∞" without.
+fn degrees(dof: Option<f64>) -> String {
+    match dof {
+        None => "∞".to_string(),
+        Some(d) if d > 1000.0 => "> 1000".to_string(),
+        Some(d) => format!("{d:.1}"),
+    }
+}
+
 /// An uncertainty with its budget: "U95 2.10 (u 1.02, ν 14.2: repeatability (A) 0.98, …)".
 fn budget(lang: Lang, u: &Uncertainty) -> String {
-    let dof = u
-        .dof_eff
-        .map_or_else(|| "∞".to_string(), |d| format!("{d:.1}"));
+    let dof = degrees(u.dof_eff);
     let parts: Vec<String> = u
         .budget
         .iter()
         .map(|c| {
             let key = format!("source.{}", lang::serde_name(c.source));
             let word = lang::tr_or(lang, &key, &c.source.to_string());
-            format!("{word} {}", sig(c.u))
+            format!("{word} {}", contribution(c.u))
         })
         .collect();
     line(
@@ -305,4 +324,18 @@ pub fn temperature_line_in(points: &[spinbench_engine::PointRecord], lang: Lang)
             ("flagged", flagged),
         ],
     ))
+}
+
+#[cfg(test)]
+mod budget_tests {
+    use super::*;
+
+    #[test]
+    fn budgets_say_nothing_and_many_degrees_plainly() {
+        assert_eq!(contribution(3.2e-13), "< 0.0001");
+        assert_eq!(contribution(5.17), "5.17");
+        assert_eq!(degrees(Some(396_808_424.0)), "> 1000");
+        assert_eq!(degrees(Some(17.64)), "17.6");
+        assert_eq!(degrees(None), "∞");
+    }
 }

@@ -7,35 +7,14 @@
 //! block.
 
 mod common;
+#[path = "common/english.rs"]
+mod english;
 
 use common::spinbench;
+use english::english_words;
 use spinbench_store::{Store, StoreTarget};
 use std::path::Path;
 use std::process::Command;
-
-/// Words of Latin letters that may stand in a Chinese report: units,
-/// symbols and names that are the same in every language.
-const SAME_IN_EVERY_LANGUAGE: &[&str] = &[
-    "spinbench", // the software's name
-    "docs",
-    "method",
-    "md", // the method document's path, docs/method.md
-    "max",
-    "min", // k2_max, indices
-    "deg", // deg/s
-    "ppm",
-    "rms",
-    "RMS",
-    "GUM",
-    "ISO",
-    "ILAC",
-    "UTC",
-    "IEEE",
-    "Hz",
-    "dF",  // the output's symbol
-    "ref", // T_ref
-    "Koq", // the odd coefficient of the model (method (15))
-];
 
 /// The text of `pdf`, page by page (poppler's pdftotext).
 fn pdf_pages(pdf: &Path) -> Vec<String> {
@@ -94,29 +73,6 @@ fn html_text(html: &str) -> String {
         .replace("&gt;", ">")
         .replace("&quot;", "\"")
         .replace("&#39;", "'")
-}
-
-/// The English words in `text` once the run's own data (`data`: the
-/// station's name, the plan's name, serials, device identities, run ids)
-/// is taken out: every word of three or more Latin letters with a
-/// lower-case letter that is not the same in every language.
-fn english_words(text: &str, data: &[String]) -> Vec<String> {
-    let mut text = text.to_string();
-    for d in data {
-        text = text.replace(d.as_str(), " ");
-    }
-    let mut found = Vec::new();
-    for line in text.lines() {
-        for word in line.split(|c: char| !c.is_ascii_alphabetic()) {
-            if word.len() >= 3
-                && word.chars().any(|c| c.is_ascii_lowercase())
-                && !SAME_IN_EVERY_LANGUAGE.contains(&word)
-            {
-                found.push(format!("{word}  ← {}", line.trim()));
-            }
-        }
-    }
-    found
 }
 
 #[test]

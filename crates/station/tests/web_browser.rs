@@ -815,7 +815,8 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     b.wait_for(
         10,
         "the serials",
-        "return !!document.getElementById('serial-1')",
+        "const s = document.getElementById('serial-1'); \
+         return !document.getElementById('new').hidden && !!s && s.offsetParent !== null",
     );
     assert_eq!(
         b.script("return document.getElementById('override-box').hidden"),

@@ -89,6 +89,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
     ];
     let mut board_seen = false;
     let mut prompt_seen = false;
+    let mut abort_asked = false;
     let until = Instant::now() + Duration::from_secs(240);
     loop {
         let state = b.script("return document.getElementById('run-state').textContent");
@@ -130,6 +131,19 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
             {
                 prompt_seen = true;
             }
+            if !abort_asked {
+                abort_asked = true;
+                // The prompt's Abort asks first (in Chinese); cancelled, the
+                // run waits at its prompt as before.
+                b.click("#prompt-abort");
+                b.dismiss_dialog();
+                std::thread::sleep(Duration::from_millis(300));
+                assert_eq!(
+                    b.script("return !document.getElementById('prompt').hidden"),
+                    Value::Bool(true),
+                    "a cancelled Abort left the prompt"
+                );
+            }
             b.click("#prompt-done");
             std::thread::sleep(Duration::from_millis(300));
             continue;
@@ -148,7 +162,29 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
          return !!r && r.cells[5].textContent.startsWith('完成') \
          && ['不合格', '无法判定'].includes(r.cells[9].textContent)",
     );
+    // The end banner counts the outcomes in Chinese, and a 400 px phone
+    // shows the run in Chinese with nothing off the side.
+    b.wait_for(
+        10,
+        "the end banner's counts in Chinese",
+        "const a = document.getElementById('alarm'); \
+         return /^运行已完成 — \\d+ /.test(a.textContent) \
+           && ['fail', 'inconclusive', 'marginal', 'incomplete'].some(o => a.classList.contains(o))",
+    );
     b.screenshot(&shots.join("zh-2-run-done.png"));
+    b.set_window(400, 800);
+    b.wait_for(
+        10,
+        "the phone layout in Chinese",
+        "const w = window.innerWidth; const inside = e => { const r = e.getBoundingClientRect(); \
+           return r.width > 0 && r.left >= 0 && r.right <= w; }; \
+         const row = document.querySelector('#board tbody tr[data-slot=\"1\"]'); \
+         return w <= 420 && document.documentElement.scrollWidth <= w \
+           && inside(document.getElementById('logout-button')) && inside(document.getElementById('lang-select')) \
+           && !!row && inside(row.cells[8]) && inside(row.cells[9]) && inside(row.cells[1])",
+    );
+    b.screenshot(&shots.join("zh-2b-phone.png"));
+    b.set_window(1400, 1100);
 
     // Retest from the history: the run's row, its results' reasons in Chinese
     // (over the limit, or straddling it: on a 6 g plan the honest U can be
@@ -207,10 +243,12 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
         "const r = document.querySelector('#equipment-table tbody tr[data-role=\"centrifuge\"]'); return !!r && r.cells[5].textContent === '已过期'",
     );
     b.click("#nav-new");
+    // Shown, not only there: the page draws its serials again as its plans load.
     b.wait_for(
         10,
         "the serials",
-        "return !!document.getElementById('serial-1')",
+        "const s = document.getElementById('serial-1'); \
+         return !document.getElementById('new').hidden && !!s && s.offsetParent !== null",
     );
     b.type_into("#serial-1", "REG-1");
     b.click("#start-button");

@@ -4,41 +4,18 @@
 //! but the run's own data (the station's, plans', users' and devices' names,
 //! serials, run labels); no page runs off the side of a 1400 px window.
 
+#[path = "common/english.rs"]
+mod english;
 #[path = "common/web.rs"]
 mod web;
 #[path = "common/webdriver.rs"]
 mod webdriver;
 
+use english::english_words;
 use serde_json::Value;
 use std::time::{Duration, Instant};
 use web::Client;
 use webdriver::Browser;
-
-/// Words of Latin letters that stand in a Chinese page: units, symbols and
-/// names that are the same in every language.
-const SAME_IN_EVERY_LANGUAGE: &[&str] = &[
-    "spinbench",
-    "English", // the language menu names each language in its own words
-    "max",
-    "min",
-    "deg",
-    "ppm",
-    "rms",
-    "RMS",
-    "GUM",
-    "ISO",
-    "ILAC",
-    "UTC",
-    "IEEE",
-    "Hz",
-    "dF",
-    "ref",
-    "Koq",
-    "docs",
-    "method",
-    "md",
-    "now",
-];
 
 /// The pages, by their menu entry and section.
 const PAGES: [&str; 8] = [
@@ -51,27 +28,6 @@ const PAGES: [&str; 8] = [
     "fleet",
     "users",
 ];
-
-/// The English words in `text` once `data` is taken out (see the report
-/// test's twin in `report_languages.rs`).
-fn english_words(text: &str, data: &[String]) -> Vec<String> {
-    let mut text = text.to_string();
-    for d in data {
-        text = text.replace(d.as_str(), " ");
-    }
-    let mut found = Vec::new();
-    for line in text.lines() {
-        for word in line.split(|c: char| !c.is_ascii_alphabetic()) {
-            if word.len() >= 3
-                && word.chars().any(|c| c.is_ascii_lowercase())
-                && !SAME_IN_EVERY_LANGUAGE.contains(&word)
-            {
-                found.push(format!("{word}  ← {}", line.trim()));
-            }
-        }
-    }
-    found
-}
 
 /// Run the plan `name` to its end through the API, answering its prompts.
 fn run_to_the_end(api: &mut Client, plan: &str) -> String {

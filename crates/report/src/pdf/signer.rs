@@ -102,18 +102,8 @@ pub(super) fn signer_page(c: &mut Canvas, report: &RunReport, lang: Lang) -> boo
     // The next heading's baseline below the table's last row, clear of it.
     y = c.table(y, &signer::verdict_headers(lang), &rows, 7.5, 1) + 5.5;
     let mut left_over = false;
-    let actions: Vec<_> = report
-        .record
-        .operator_actions
-        .iter()
-        .map(|a| signer::action_line(report, lang, a))
-        .collect();
-    let notices: Vec<_> = report
-        .record
-        .notices
-        .iter()
-        .map(|n| signer::notice_line(report, lang, n))
-        .collect();
+    let actions: Vec<_> = signer::action_lines(report, lang);
+    let notices: Vec<_> = signer::notice_lines(report, lang);
     for (heading, lines) in [("report.actions", &actions), ("report.notices", &notices)] {
         y = room(c, y, 12.0);
         c.text(MARGIN_MM, y, 9.5, &tr(lang, heading), Align::Left);
@@ -182,24 +172,8 @@ pub(super) fn actions_page(c: &mut Canvas, report: &RunReport, lang: Lang) {
     c.new_page();
     let mut y = MARGIN_MM + 5.0;
     for (heading, lines) in [
-        (
-            "report.actions",
-            report
-                .record
-                .operator_actions
-                .iter()
-                .map(|a| signer::action_line(report, lang, a))
-                .collect::<Vec<_>>(),
-        ),
-        (
-            "report.notices",
-            report
-                .record
-                .notices
-                .iter()
-                .map(|n| signer::notice_line(report, lang, n))
-                .collect(),
-        ),
+        ("report.actions", signer::action_lines(report, lang)),
+        ("report.notices", signer::notice_lines(report, lang)),
     ] {
         let rows: Vec<Vec<String>> = lines.into_iter().map(|(a, b, c)| vec![a, b, c]).collect();
         c.text(MARGIN_MM, y, 11.0, &tr(lang, heading), Align::Left);

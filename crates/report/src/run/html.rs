@@ -212,24 +212,14 @@ fn signer_section(h: &mut String, report: &RunReport, lang: Lang) {
         "actions",
         "report.actions",
         ["report.when", "report.who", "report.what"],
-        report
-            .record
-            .operator_actions
-            .iter()
-            .map(|a| signer::action_line(report, lang, a))
-            .collect(),
+        signer::action_lines(report, lang),
     );
     lines(
         h,
         "notices",
         "report.notices",
         ["report.when", "report.kind", "report.what"],
-        report
-            .record
-            .notices
-            .iter()
-            .map(|n| signer::notice_line(report, lang, n))
-            .collect(),
+        signer::notice_lines(report, lang),
     );
     let [tested, reviewed, date] = signer::sign_off_labels(lang);
     h.push_str(&format!(

@@ -130,6 +130,26 @@ pub fn tally_text(report: &RunReport, lang: Lang) -> String {
     .into_owned()
 }
 
+/// Every operator action of the run, as [`action_line`] words each.
+pub fn action_lines(report: &RunReport, lang: Lang) -> Vec<(String, String, String)> {
+    report
+        .record
+        .operator_actions
+        .iter()
+        .map(|a| action_line(report, lang, a))
+        .collect()
+}
+
+/// Every notice and fault of the run, as [`notice_line`] words each.
+pub fn notice_lines(report: &RunReport, lang: Lang) -> Vec<(String, String, String)> {
+    report
+        .record
+        .notices
+        .iter()
+        .map(|n| notice_line(report, lang, n))
+        .collect()
+}
+
 /// An operator's action in `lang`: (time in the station's zone, who, what).
 pub fn action_line(report: &RunReport, lang: Lang, a: &OperatorAction) -> (String, String, String) {
     (report.time(lang, a.at), a.who.clone(), action_text(lang, a))

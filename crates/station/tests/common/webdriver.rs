@@ -211,7 +211,12 @@ impl Browser {
                 });
             match typed {
                 Ok(_) => return,
-                Err(e) if e["error"] == "stale element reference" && Instant::now() < until => {
+                // Drawn again, or not shown yet (a page that just opened).
+                Err(e)
+                    if (e["error"] == "stale element reference"
+                        || e["error"] == "element not interactable")
+                        && Instant::now() < until =>
+                {
                     std::thread::sleep(Duration::from_millis(100));
                 }
                 Err(e) => panic!("webdriver type into {css}: {e}"),

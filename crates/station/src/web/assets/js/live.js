@@ -262,14 +262,16 @@ export async function refreshStatus() {
   if (s.run_id) { state.runId = s.run_id; nameRun(s.run_id); }
   // The controls that apply now, and only those.
   const st = s.state || "";
-  $("pause-button").hidden = !(s.active && (st === "running" || st === "prompting"));
-  $("resume-button").hidden = !(s.active && st === "paused");
-  $("abort-button").hidden = !s.active;
+  // An ended run (its record still being written) has nothing to control.
+  const going = s.active && !s.ended;
+  $("pause-button").hidden = !(going && (st === "running" || st === "prompting"));
+  $("resume-button").hidden = !(going && st === "paused");
+  $("abort-button").hidden = !going;
   renderBoard(s.board);
   renderPrediction(s.prediction, s.achieved);
   if (s.step) { $("run-progress").max = s.step.of; $("run-progress").value = st === "completed" ? s.step.of : s.step.index; }
-  $("run-eta").textContent = s.active && s.eta_s ? etaText(s.eta_s)
-    : (s.active ? word("web.eta.unknown", "time to go: known once a step of each kind is done") : stateWord(st));
+  $("run-eta").textContent = going && s.eta_s ? etaText(s.eta_s)
+    : (going ? word("web.eta.unknown", "time to go: not known yet") : stateWord(st));
   const why = s.reason ? say(s.reason_wording, s.reason) : "";
   if (s.fault && !s.fault_acknowledged && why) alarm(bannerText("fault", why), "fault");
   else if (s.fault && s.fault_acknowledged && $("alarm").className === "fault") clearAlarm();
