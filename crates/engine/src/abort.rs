@@ -20,6 +20,9 @@ pub struct AbortFlag {
 struct Inner {
     set: AtomicBool,
     by: Mutex<Option<String>>,
+    /// The user of the web UI who asked first, when a user did: the run's
+    /// wording names them (`fault.aborted_web`), not the English `by`.
+    user: Mutex<Option<String>>,
 }
 
 impl AbortFlag {
@@ -36,6 +39,29 @@ impl AbortFlag {
             *who = Some(by.to_string());
         }
         !self.inner.set.swap(true, Ordering::SeqCst)
+    }
+
+    /// Ask the run to abort as the web UI's `user` ("the web UI (user
+    /// ana)" in the record; the wording keeps the user apart, so a page in
+    /// another language says it in its own words).
+    pub fn request_by_user(&self, user: &str) -> bool {
+        {
+            let mut first = self.inner.user.lock().unwrap_or_else(|e| e.into_inner());
+            let by = self.inner.by.lock().unwrap_or_else(|e| e.into_inner());
+            if by.is_none() && first.is_none() {
+                *first = Some(user.to_string());
+            }
+        }
+        self.request(&format!("the web UI (user {user})"))
+    }
+
+    /// The web UI's user who asked first, if the first to ask was one.
+    pub fn user(&self) -> Option<String> {
+        self.inner
+            .user
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
     }
 
     /// True once any abort was requested.
@@ -67,5 +93,13 @@ mod tests {
         assert!(!flag.request("signal SIGINT"));
         assert!(seen.is_set());
         assert_eq!(seen.by(), "signal SIGTERM");
+        assert_eq!(seen.user(), None);
+        // A signal first: the user who asks later is not the one recorded.
+        assert!(!flag.request_by_user("ana"));
+        assert_eq!(flag.user(), None);
+        let web = AbortFlag::new();
+        assert!(web.request_by_user("ana"));
+        assert_eq!(web.by(), "the web UI (user ana)");
+        assert_eq!(web.user().as_deref(), Some("ana"));
     }
 }

@@ -223,7 +223,9 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
         30,
         "the retest aborted, its banner in Chinese",
         "return document.getElementById('run-state').textContent.startsWith('已中止') \
-         && document.getElementById('alarm').textContent.startsWith('已中止：')",
+         && document.getElementById('alarm').textContent.startsWith('已中止：') \
+         && document.getElementById('alarm').textContent.includes('网页界面') \
+         && !document.getElementById('alarm').textContent.includes('web UI')",
     );
     b.screenshot(&shots.join("zh-4-retest-aborted.png"));
 

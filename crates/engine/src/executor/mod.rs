@@ -501,6 +501,17 @@ impl<'a> Executor<'a> {
         self.finish(result)
     }
 
+    /// An error's wording; an abort a web user asked for names the user
+    /// apart (`fault.aborted_web`), so another language words the source.
+    fn worded(&self, e: &EngineError) -> Wording {
+        match (e, self.options.abort.user()) {
+            (EngineError::Aborted(_), Some(user)) => {
+                Wording::new("fault.aborted_web").with("user", user)
+            }
+            _ => e.wording(),
+        }
+    }
+
     /// The run's one end, whatever ended it: the fault said, the safe
     /// state, the records, the last state change and `RunFinished`. What
     /// the end itself could not do (a state change the table refused, an
@@ -519,7 +530,7 @@ impl<'a> Executor<'a> {
         if let (Some(r), Err(e)) = (&reason, &result)
             && let Err(not_said) = self.emit(Event::Fault {
                 reason: r.clone(),
-                wording: Some(e.wording()),
+                wording: Some(self.worded(e)),
             })
         {
             end_problems.push(format!("the fault could not be recorded: {not_said}"));
@@ -548,7 +559,7 @@ impl<'a> Executor<'a> {
         // The reason's wording: the fault's (what making safe found after it
         // is in the text only), else what making safe found.
         let wording = match &result {
-            Err(e) => Some(e.wording()),
+            Err(e) => Some(self.worded(e)),
             Ok(()) if !safe_problems.is_empty() => {
                 Some(Wording::new("fault.not_safe").with("detail", safe_problems.join("; ")))
             }

@@ -431,7 +431,9 @@ impl Hub {
                 // An abort someone asked for ends the run safely: its banner
                 // says so (aborted), it is no fault to acknowledge; a stop
                 // not confirmed after it still is.
-                let asked = wording.as_ref().is_some_and(|w| w.key == "fault.aborted");
+                let asked = wording
+                    .as_ref()
+                    .is_some_and(|w| w.key == "fault.aborted" || w.key == "fault.aborted_web");
                 if !asked {
                     s.fault = true;
                     s.fault_acknowledged = None;

@@ -398,6 +398,15 @@ impl Runner {
         })
     }
 
+    /// Abort the active run as the web UI's `user` (recorded as "the web
+    /// UI (user …)", worded with the user apart).
+    pub fn abort_by_user(&self, user: &str) -> Result<String, String> {
+        self.with_active(|a| {
+            a.abort.request_by_user(user);
+            a.run_id.clone()
+        })
+    }
+
     /// Abort whatever runs (recording `why`) and wait, at most `limit`, for
     /// it to reach the safe state and be recorded (server shutdown). True
     /// when no run is active any more.

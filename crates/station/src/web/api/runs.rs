@@ -466,10 +466,7 @@ pub(super) async fn abort(
     headers: HeaderMap,
     _body: Bytes,
 ) -> ApiResult<Json<RunId>> {
-    control(&app, &headers, "abort", |r, user| {
-        r.abort(&format!("the web UI (user {user})"))
-    })
-    .await
+    control(&app, &headers, "abort", |r, user| r.abort_by_user(user)).await
 }
 
 /// Acknowledge the fault that stopped the station's run: its banner goes,

@@ -53,7 +53,7 @@ export function connect() {
   // abort someone asked for is no fault: its banner says aborted.
   on("fault", (e) => {
     const m = say(e.wording, e.reason);
-    if (e.wording && e.wording.key === "fault.aborted") { alarm(bannerText("aborted", m), "aborted"); log(() => bannerText("aborted", say(e.wording, e.reason)), e.published_ms); return; }
+    if (e.wording && (e.wording.key === "fault.aborted" || e.wording.key === "fault.aborted_web")) { alarm(bannerText("aborted", m), "aborted"); log(() => bannerText("aborted", say(e.wording, e.reason)), e.published_ms); return; }
     state.fault = m; alarm(bannerText("fault", m), "fault"); log(() => bannerText("fault", say(e.wording, e.reason)), e.published_ms);
   });
   on("unit_failed", (e) => {
@@ -243,7 +243,8 @@ export async function refreshStatus() {
   learnZone(s);
   const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
   $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (" + word("web.status.virtual", "virtual bench") + ")" : "");
-  $("st-run").textContent = s.run_id || word("web.status.none", "none");
+  // The run by its label once known (issue 40 item 8), else its id.
+  $("st-run").textContent = s.run_id ? (state.runNames[s.run_id] || s.run_id) : word("web.status.none", "none");
   $("st-state").textContent = stateWord(s.state || "idle");
   $("st-rate").textContent = fill("web.status.rate", fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")",
     { rate: fix(s.rate_deg_s, 3), demand: fix(s.demand_deg_s, 3) });
