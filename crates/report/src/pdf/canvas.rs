@@ -36,25 +36,32 @@ pub(super) fn from_top(y_mm: f32) -> f32 {
     (PAGE_H_MM - y_mm) * PT_PER_MM
 }
 
+/// An RGB colour, each part from 0 to 1.
+type Colour = (f32, f32, f32);
+
 /// The colour of a cell that is an outcome's word in any language (black
-/// for any other cell).
-fn outcome_color(cell: &str) -> (f32, f32, f32) {
-    let is = |o: Outcome| {
-        Lang::ALL
-            .iter()
-            .any(|&l| cell == lang::outcome(l, o.as_str()))
-    };
-    if is(Outcome::Fail) {
-        (0.7, 0.0, 0.0)
-    } else if is(Outcome::Marginal) {
-        (0.65, 0.4, 0.0)
-    } else if is(Outcome::Inconclusive) {
-        (0.1, 0.25, 0.7)
-    } else if is(Outcome::Pass) {
-        (0.0, 0.4, 0.0)
-    } else {
-        BLACK
-    }
+/// for any other cell); the words are looked up once per process.
+fn outcome_color(cell: &str) -> Colour {
+    static WORDS: OnceLock<Vec<(String, Colour)>> = OnceLock::new();
+    let words = WORDS.get_or_init(|| {
+        [
+            (Outcome::Fail, (0.7, 0.0, 0.0)),
+            (Outcome::Marginal, (0.65, 0.4, 0.0)),
+            (Outcome::Inconclusive, (0.1, 0.25, 0.7)),
+            (Outcome::Pass, (0.0, 0.4, 0.0)),
+        ]
+        .into_iter()
+        .flat_map(|(o, colour)| {
+            Lang::ALL
+                .iter()
+                .map(move |&l| (lang::outcome(l, o.as_str()), colour))
+        })
+        .collect()
+    });
+    words
+        .iter()
+        .find(|(w, _)| w == cell)
+        .map_or(BLACK, |(_, colour)| *colour)
 }
 
 impl Canvas {

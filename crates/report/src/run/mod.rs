@@ -62,23 +62,15 @@ pub struct RunReport {
     pub units: Vec<UnitReport>,
     /// The runs that retest this one (`spinbench retest`), oldest first.
     pub retested_by: Vec<String>,
+    /// The station's time zone when it ran (read once from its config as
+    /// the run recorded it; UTC when it said none or cannot be read).
+    pub zone: spinbench_engine::time_zone::UtcOffset,
 }
 
 impl RunReport {
-    /// The station's time zone when it ran (its config as the run
-    /// recorded it; UTC when it said none or cannot be read).
-    pub fn zone(&self) -> spinbench_engine::time_zone::UtcOffset {
-        self.record
-            .start
-            .station_config
-            .as_deref()
-            .and_then(|text| spinbench_engine::config::StationConfig::from_toml(text).ok())
-            .map_or(spinbench_engine::time_zone::UtcOffset::UTC, |c| c.time_zone)
-    }
-
     /// A time of the run [Unix s] as `lang` writes it, in the station's zone.
     pub fn time(&self, lang: Lang, unix_s: i64) -> String {
-        lang::date_time_in(lang, unix_s, self.zone())
+        lang::date_time_in(lang, unix_s, self.zone)
     }
 }
 
@@ -103,8 +95,19 @@ pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
     let retested_by = store.retests_of(run_id)?;
     Ok(RunReport {
         run: record.row(),
+        zone: recorded_zone(&record),
         record,
         units,
         retested_by,
     })
+}
+
+/// The station's time zone in a run's recorded config (UTC when absent or unreadable).
+fn recorded_zone(record: &RunRecord) -> spinbench_engine::time_zone::UtcOffset {
+    record
+        .start
+        .station_config
+        .as_deref()
+        .and_then(|text| spinbench_engine::config::StationConfig::from_toml(text).ok())
+        .map_or(spinbench_engine::time_zone::UtcOffset::UTC, |c| c.time_zone)
 }
