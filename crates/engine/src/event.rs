@@ -301,6 +301,33 @@ pub enum Event {
     },
 }
 
+impl Event {
+    /// Its name as its serialised form tags it (`state_changed`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Event::RunStarted { .. } => "run_started",
+            Event::Identified { .. } => "identified",
+            Event::StateChanged { .. } => "state_changed",
+            Event::StepStarted { .. } => "step_started",
+            Event::StepDone { .. } => "step_done",
+            Event::Values { .. } => "values",
+            Event::Progress { .. } => "progress",
+            Event::TumbleDone { .. } => "tumble_done",
+            Event::CrossTumbleDone { .. } => "cross_tumble_done",
+            Event::RadiusDone { .. } => "radius_done",
+            Event::PointDone { .. } => "point_done",
+            Event::UnitFailed { .. } => "unit_failed",
+            Event::Prompt { .. } => "prompt",
+            Event::PromptAnswered { .. } => "prompt_answered",
+            Event::Health { .. } => "health",
+            Event::Notice { .. } => "notice",
+            Event::Fault { .. } => "fault",
+            Event::UnitResult { .. } => "unit_result",
+            Event::RunFinished { .. } => "run_finished",
+        }
+    }
+}
+
 /// A subscriber could not take an event: what and why, in words that tell
 /// the operator what failed (the run holds and offers the event again; the
 /// text goes into the hold's notice and, past the hold limit, the fault).
@@ -438,4 +465,26 @@ pub struct DeviceIdentity {
     /// What it said (`*IDN?`, the controller's identification, the module's firmware id),
     /// or why it could not say.
     pub identity: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{Event, RunState};
+
+    #[test]
+    fn an_events_name_is_its_serialised_tag() {
+        for event in [
+            Event::StepDone { index: 2 },
+            Event::StateChanged {
+                state: RunState::Paused,
+            },
+            Event::Notice {
+                message: "m".into(),
+                wording: None,
+            },
+        ] {
+            let json = serde_json::to_value(&event).expect("an event serialises");
+            assert_eq!(json["event"], event.name(), "{event:?}");
+        }
+    }
 }

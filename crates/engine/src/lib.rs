@@ -9,6 +9,8 @@
 //! * [`executor`] — the one executor: stability, safety, per-instrument
 //!   records, an explicit table of run states;
 //! * [`event`] — the typed event stream the CLI, journal, store and UI subscribe to;
+//! * [`judgement`] — an instrument's points reduced and graded against the
+//!   plan's limits, at the end of a run and after an exclusion;
 //! * [`journal`] — the append-only, flushed journal, and reading it back for resume;
 //! * [`planning`] — a plan's prediction against what its run achieved, and
 //!   the readings of past runs the station's model learns from;
@@ -22,6 +24,7 @@ pub mod config;
 pub mod event;
 pub mod executor;
 pub mod journal;
+pub mod judgement;
 pub mod plan;
 pub mod planning;
 pub mod record;

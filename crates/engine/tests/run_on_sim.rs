@@ -1172,7 +1172,7 @@ fn a_plan_with_temperatures_soaks_at_each_and_keeps_every_point_with_its_setpoin
     plan.temperatures_c = vec![40.0, 5.0];
     let compiled = plan.compile(&station).expect("plan");
     let record = &summary.records[0];
-    let after = spinbench_engine::executor::exclude_after_run(
+    let after = spinbench_engine::judgement::exclude_after_run(
         record,
         &compiled,
         &station,

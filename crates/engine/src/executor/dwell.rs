@@ -3,7 +3,12 @@
 //! each instrument's own noise. The statistics are the pure functions of
 //! [`super::stability`]; this is the loop around them.
 
-use super::*;
+use super::{EngineError, Executor, Window, stability};
+use crate::event::{Event, Wording};
+use crate::record::{Reason, ReasonCode};
+use spinbench_analysis::Mount;
+use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
+use std::collections::BTreeMap;
 
 impl Executor<'_> {
     /// Wait for stability, then average; returns the dwell's windows. An

@@ -1,14 +1,50 @@
 //! Fan-out: every event to every subscriber (journal, store, screens), and
 //! the hold-and-retry when one cannot take it: nothing is dropped.
 
-use super::*;
+use super::state::{StateMachine, Trigger};
+use super::{EngineError, Executor};
+use crate::event::{Event, EventSink, Wording};
+use std::time::{Duration, Instant};
+
+/// The executor's fan-out part: the subscribers, and the run-state table
+/// whose changes they are told of.
+#[derive(Default)]
+pub(super) struct Fanout<'a> {
+    /// Every subscriber, in the order they subscribed.
+    pub(super) sinks: Vec<Box<dyn EventSink + 'a>>,
+    /// The run's state, changed only through the table.
+    pub(super) machine: StateMachine,
+    /// What a subscriber would not take while another one's write was
+    /// held (a second subscriber failing too): said in the run's reason at
+    /// the end, never discarded.
+    pub(super) missed: Vec<String>,
+}
+
+impl Fanout<'_> {
+    /// Offer `event` to every subscriber but `failed` (whose write is
+    /// held); one that refuses it is noted in [`Self::missed`].
+    fn tell_others(&mut self, failed: usize, event: &Event) {
+        for (j, sink) in self.sinks.iter_mut().enumerate() {
+            if j != failed
+                && let Err(e) = sink.emit(event)
+            {
+                self.missed.push(format!(
+                    "subscriber {} missed {}: {}",
+                    j + 1,
+                    event.name(),
+                    e.problem
+                ));
+            }
+        }
+    }
+}
 
 impl Executor<'_> {
     /// Offer `event` to every subscriber in turn; one that refuses it holds
     /// the run until it takes it ([`Self::hold_for_sink`]).
     pub(super) fn emit(&mut self, event: Event) -> Result<(), EngineError> {
-        for i in 0..self.sinks.len() {
-            if let Err(problem) = self.sinks[i].emit(&event) {
+        for i in 0..self.fanout.sinks.len() {
+            if let Err(problem) = self.fanout.sinks[i].emit(&event) {
                 self.hold_for_sink(i, &event, problem.problem)?;
             }
         }
@@ -26,15 +62,7 @@ impl Executor<'_> {
         event: &Event,
         problem: String,
     ) -> Result<(), EngineError> {
-        fn tell_others(sinks: &mut [Box<dyn EventSink + '_>], failed: usize, e: &Event) {
-            for (j, sink) in sinks.iter_mut().enumerate() {
-                if j != failed {
-                    let _ = sink.emit(e);
-                }
-            }
-        }
-        tell_others(
-            &mut self.sinks,
+        self.fanout.tell_others(
             failed,
             &Event::Notice {
                 message: format!(
@@ -46,9 +74,10 @@ impl Executor<'_> {
         );
         // Held through the state table; a run already ended (its last
         // events) has no state to hold, but its write is retried all the same.
-        let holding = self.machine.fire(Trigger::WriteFailed).ok();
+        let holding = self.fanout.machine.fire(Trigger::WriteFailed).ok();
         if let Some(state) = holding {
-            tell_others(&mut self.sinks, failed, &Event::StateChanged { state });
+            self.fanout
+                .tell_others(failed, &Event::StateChanged { state });
         }
         let held = Instant::now();
         let mut last = problem;
@@ -70,18 +99,17 @@ impl Executor<'_> {
             };
             if let Some(e) = gave_up {
                 if holding.is_some() {
-                    self.machine.fire(Trigger::WriteAbandoned)?;
+                    self.fanout.machine.fire(Trigger::WriteAbandoned)?;
                 }
                 return Err(e);
             }
             self.drain_ports(Duration::from_secs(1));
-            match self.sinks[failed].emit(event) {
+            match self.fanout.sinks[failed].emit(event) {
                 Ok(()) => break,
                 Err(e) => last = e.problem,
             }
         }
-        tell_others(
-            &mut self.sinks,
+        self.fanout.tell_others(
             failed,
             &Event::Notice {
                 message: "the write succeeded; nothing was lost and the run goes on".into(),
@@ -89,10 +117,15 @@ impl Executor<'_> {
             },
         );
         if holding.is_some() {
-            let state = self.machine.fire(Trigger::WriteSucceeded)?;
-            tell_others(&mut self.sinks, failed, &Event::StateChanged { state });
-            // The failed subscriber missed the notice; it gets the state.
-            let _ = self.sinks[failed].emit(&Event::StateChanged { state });
+            let state = self.fanout.machine.fire(Trigger::WriteSucceeded)?;
+            self.fanout
+                .tell_others(failed, &Event::StateChanged { state });
+            // The failed subscriber missed the notice; it gets the state,
+            // held again like any event if it cannot take it.
+            let changed = Event::StateChanged { state };
+            if let Err(e) = self.fanout.sinks[failed].emit(&changed) {
+                return self.hold_for_sink(failed, &changed, e.problem);
+            }
         }
         Ok(())
     }

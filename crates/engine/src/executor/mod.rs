@@ -1,29 +1,30 @@
 //! The one executor: runs a compiled plan's steps against the hardware
 //! traits, emits events, and always ends in the safe state.
 //!
-//! This module is the thin run loop ([`Executor::run`]); each job has a
-//! room of its own:
+//! This module holds the run loop ([`Executor::run`]) and its one end
+//! (`finish`). The executor is made of parts, each owning its fields and
+//! kept in a room of its own:
 //!
-//! | module | job |
+//! | module | part or job |
 //! |---|---|
 //! | [`state`] | the run-state table as data; every change of state goes through it |
-//! | `fanout` | every event to every subscriber; hold and retry when one cannot take it |
-//! | `ports` | the counter modules drained and paired into one second of the station, with the per-second safety checks |
+//! | `fanout` | `Fanout`: the subscribers and the state machine; every event to every subscriber, hold and retry when one cannot take it |
+//! | `ports` | `Acquisition`: the counter modules' accumulators, windows and temperatures, paired into one second of the station with the per-second safety checks |
+//! | `soak` | `ChamberState`: the chamber's setpoint and purge, and the soak |
+//! | `units` | `UnitState`: each slot's readings, calibrations, points and failure |
+//! | `resume` | `Progress`: the steps done, restored from a journal |
+//! | `safety` | `SafeOutcome`: the safe state, the confirmed stop, the stop keeper |
 //! | [`stability`] | the stability statistics (pure functions) |
 //! | `dwell` | the settle-and-average loop around them |
 //! | `steps` | one handler per kind of step |
-//! | `judge` | points → fits → figures against the limits → record and outcome |
-//! | `safety` | the safe state, the confirmed stop, the stop keeper |
-//! | `resume` | what a journal says was done, restored |
+//! | `judge` | the run's units into records, through [`crate::judgement`]'s plain functions |
 //!
 //! Time is counted in counter-module windows (one second of ticks each), so
 //! the same code runs against hardware and against a faster-than-real-time
 //! simulator. Data are taken only at stable speed (method.md §3.3).
 
 mod dwell;
-mod exclusions;
 mod fanout;
-mod grade;
 mod judge;
 mod keeper;
 mod ports;
@@ -33,11 +34,9 @@ mod soak;
 pub mod stability;
 pub mod state;
 mod steps;
+mod units;
 
 pub use crate::bench::Bench;
-pub use exclusions::{exclude_after_run, withdraw_exclusion_after_run};
-pub use grade::{Graded, grade};
-pub use judge::analysis_options;
 pub use keeper::{KEEP_RETRY, unconfirmed_safe_devices};
 use safety::HandedToStopKeeper;
 pub use safety::{STOP_NOT_CONFIRMED, keep_stopping, unconfirmed_stops};
@@ -45,27 +44,24 @@ pub use steps::{label, wording};
 
 use crate::abort::AbortFlag;
 use crate::config::StationConfig;
-use crate::event::{DeviceIdentity, DeviceRole, Event, EventSink, ModuleHealth, RunState, Wording};
+use crate::event::{DeviceIdentity, DeviceRole, Event, EventSink, RunState, Wording};
 use crate::plan::{CompiledPlan, Fixture, Step};
-use crate::record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
-use spinbench_analysis::radius::RadiusCalibration;
-use spinbench_analysis::tumble::{CrossAxisSensitivity, MeanReading, TumbleCalibration};
-use spinbench_analysis::unit::{AnalysisOptions, UnitPoints, analyze_unit};
-use spinbench_analysis::{Mount, Point, UG_PER_G, centrifuge};
-use spinbench_devices::{Centrifuge, DeviceError, DeviceErrorKind};
-use spinbench_wire::fmu::{
-    INSTRUMENTS_PER_MODULE, Message, WindowAccumulator, WindowConfig, WindowValue,
-};
-use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use crate::record::{Reason, ReasonCode, UnitRecord};
+use spinbench_devices::DeviceError;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// Scale factor assumed before the tumble has measured it [Hz/g].
 const NOMINAL_K1_HZ_PER_G: f64 = 100.0;
 
-use stability::{AT_REST_DEG_S, mean_std};
-use state::{StateMachine, Trigger};
+use fanout::Fanout;
+use ports::Acquisition;
+use resume::Progress;
+use safety::SafeOutcome;
+use soak::ChamberState;
+use state::Trigger;
+use units::UnitState;
 
 /// An operator's answer to a prompt.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -235,32 +231,6 @@ pub struct RunOptions {
     pub sink_hold_limit: Duration,
 }
 
-#[derive(Debug, Clone, Default)]
-struct UnitState {
-    up: Option<MeanReading>,
-    down: Option<MeanReading>,
-    cal: Option<TumbleCalibration>,
-    /// The four-position tumble's extra readings: [as on the arm, inverted].
-    crosswise: [Option<MeanReading>; 2],
-    cross_axis: Option<CrossAxisSensitivity>,
-    radius: BTreeMap<Mount, f64>,
-    /// Each radius's relative standard uncertainty from its readings [ppm].
-    radius_reading_u_ppm: BTreeMap<Mount, f64>,
-    points: Vec<PointRecord>,
-    failed: Option<Reason>,
-}
-
-impl UnitState {
-    /// The cross-axis sensitivity once the tumble and both cross positions
-    /// are read (nothing until then).
-    fn find_cross_axis(&mut self) -> Result<(), spinbench_analysis::AnalysisError> {
-        if let (Some(cal), [Some(on_arm), Some(inverted)]) = (self.cal, self.crosswise) {
-            self.cross_axis = Some(CrossAxisSensitivity::from_readings(&cal, on_arm, inverted)?);
-        }
-        Ok(())
-    }
-}
-
 /// One second of the whole station.
 #[derive(Debug, Clone)]
 struct Window {
@@ -303,33 +273,22 @@ pub struct Executor<'a> {
     plan: CompiledPlan,
     bench: Bench,
     operator: Box<dyn Operator + 'a>,
-    sinks: Vec<Box<dyn EventSink + 'a>>,
     options: RunOptions,
+    /// Each slot's instrument: its readings, calibrations, points, failure.
     units: Vec<UnitState>,
-    completed: BTreeSet<usize>,
-    resumed: bool,
-    accumulators: Vec<WindowAccumulator>,
-    pending: Vec<VecDeque<WindowValue>>,
-    /// Each slot's latest temperature from its module's temperature frames [°C].
-    temperatures_c: Vec<Option<f64>>,
-    /// The chamber's setpoint since the last soak [°C].
-    setpoint_c: Option<f64>,
-    /// The dry-air purge is on.
-    purge_on: bool,
-    last_data: Vec<Instant>,
-    windows: u64,
+    /// Which steps are done (a resumed run skips them).
+    progress: Progress,
+    /// The counter modules' data: accumulators, windows, temperatures.
+    acquisition: Acquisition,
+    /// The chamber as the run left it (setpoint, purge).
+    chamber: ChamberState,
+    /// The rate the table was last commanded to [°/s] (the per-second
+    /// checks read the interlocks only while it is not zero).
     demand_deg_s: f64,
-    streaming: bool,
-    /// Windows dropped to keep the modules aligned in time.
-    dropped_windows: u64,
-    /// The instrument supply's output 1 at its last safety check: (volts, amperes).
-    supply_first: (f64, f64),
-    /// The controller acknowledged the last stop command.
-    stop_confirmed: bool,
-    /// The chamber and the supply confirmed their safe state.
-    safe_devices_confirmed: bool,
-    /// The run's state, changed only through the table.
-    machine: StateMachine,
+    /// What the safe state at the end confirmed.
+    safe: SafeOutcome,
+    /// The subscribers and the run-state table they are told of.
+    fanout: Fanout<'a>,
 }
 
 impl<'a> Executor<'a> {
@@ -342,54 +301,31 @@ impl<'a> Executor<'a> {
         options: RunOptions,
     ) -> Self {
         let slots = plan.serials.len();
-        let accumulators = station
-            .fmu
-            .iter()
-            .map(|f| {
-                WindowAccumulator::new(WindowConfig {
-                    mode: f.mode.into(),
-                    reference_hz: f.reference_hz,
-                    ..WindowConfig::default()
-                })
-            })
-            .collect();
-        let modules = station.fmu.len();
         Executor {
             station,
             plan,
             bench,
             operator,
-            sinks: Vec::new(),
             options,
             units: vec![UnitState::default(); slots],
-            completed: BTreeSet::new(),
-            resumed: false,
-            accumulators,
-            pending: vec![VecDeque::new(); modules],
-            temperatures_c: vec![None; slots],
-            setpoint_c: None,
-            purge_on: false,
-            last_data: vec![Instant::now(); modules],
-            windows: 0,
+            progress: Progress::default(),
+            acquisition: Acquisition::new(station, slots),
+            chamber: ChamberState::default(),
             demand_deg_s: 0.0,
-            streaming: false,
-            dropped_windows: 0,
-            supply_first: (0.0, 0.0),
-            stop_confirmed: false,
-            safe_devices_confirmed: true,
-            machine: StateMachine::default(),
+            safe: SafeOutcome::default(),
+            fanout: Fanout::default(),
         }
     }
 
     /// Subscribe to the event stream.
     pub fn subscribe(&mut self, sink: impl EventSink + 'a) {
-        self.sinks.push(Box::new(sink));
+        self.fanout.sinks.push(Box::new(sink));
     }
 
     /// Change the state through the table ([`state::TRANSITIONS`]) and say
     /// so; a transition not in the table is refused (an error, nothing changes).
     fn set_state(&mut self, trigger: Trigger) -> Result<(), EngineError> {
-        let state = self.machine.fire(trigger)?;
+        let state = self.fanout.machine.fire(trigger)?;
         self.emit(Event::StateChanged { state })
     }
 
@@ -491,7 +427,7 @@ impl<'a> Executor<'a> {
             run_id: self.options.run_id.clone(),
             station: self.station.station.clone(),
             plan: Box::new(self.plan.clone()),
-            resumed: self.resumed,
+            resumed: self.progress.resumed,
             station_config: self.options.station_config_toml.clone(),
         });
         let result = started
@@ -539,7 +475,7 @@ impl<'a> Executor<'a> {
             end_problems.push(format!("ending: {refused}"));
         }
         let safe_problems = self.safe_state();
-        if !self.stop_confirmed {
+        if !self.safe.stop_confirmed {
             if let Err(not_said) = self.emit(Event::Fault {
                 reason: safe_problems[0].clone(),
                 wording: Some(Wording::new("fault.not_safe").with("detail", &safe_problems[0])),
@@ -591,7 +527,9 @@ impl<'a> Executor<'a> {
         }) {
             end_problems.push(format!("the last state change: {refused}"));
         }
-        // What the end could not do, in the run's reason (nothing dropped).
+        // What the end could not do, and what a subscriber missed while
+        // another's write was held, in the run's reason (nothing dropped).
+        end_problems.append(&mut self.fanout.missed);
         let reason = match (reason, end_problems.is_empty()) {
             (r, true) => r,
             (Some(r), false) => Some(format!("{r}; at the end: {}", end_problems.join("; "))),
@@ -615,17 +553,17 @@ impl<'a> Executor<'a> {
             state,
             reason,
             records,
-            duration_s: self.windows as f64,
-            dropped_windows: self.dropped_windows,
-            stop_confirmed: self.stop_confirmed,
-            safe_devices_confirmed: self.safe_devices_confirmed,
+            duration_s: self.acquisition.windows as f64,
+            dropped_windows: self.acquisition.dropped_windows,
+            stop_confirmed: self.safe.stop_confirmed,
+            safe_devices_confirmed: self.safe.safe_devices_confirmed,
         }
     }
 
     fn execute_steps(&mut self) -> Result<(), EngineError> {
         let steps = self.plan.steps.clone();
         // On resume: the first step still to do, and the mounting it needs.
-        let first_todo = (0..steps.len()).find(|i| !self.completed.contains(i));
+        let first_todo = (0..steps.len()).find(|i| !self.progress.completed.contains(i));
         let remount = first_todo.and_then(|t| {
             (0..t)
                 .rev()
@@ -633,8 +571,8 @@ impl<'a> Executor<'a> {
         });
         for (index, step) in steps.iter().enumerate() {
             let setup = matches!(step, Step::PowerOn | Step::CheckAlive);
-            let needed = !self.completed.contains(&index)
-                || (self.resumed && (setup || Some(index) == remount));
+            let needed = !self.progress.completed.contains(&index)
+                || (self.progress.resumed && (setup || Some(index) == remount));
             if !needed {
                 continue;
             }
@@ -647,7 +585,7 @@ impl<'a> Executor<'a> {
                     if self.options.abort.is_set() {
                         return Err(EngineError::Aborted(self.options.abort.by()));
                     }
-                    if self.streaming {
+                    if self.acquisition.streaming {
                         // Keep reading (and keep the safety checks running) while held.
                         self.next_window()?;
                     } else {

@@ -2,15 +2,75 @@
 //! module's freshest window paired with the others' into one second of the
 //! whole station, with the rate and the per-second safety and health checks.
 
-use super::*;
+use super::{EngineError, Executor, Window};
+use crate::config::StationConfig;
+use crate::event::{Event, ModuleHealth};
+use spinbench_devices::{DeviceError, DeviceErrorKind};
+use spinbench_wire::fmu::{
+    INSTRUMENTS_PER_MODULE, Message, WindowAccumulator, WindowConfig, WindowValue,
+};
+use std::collections::VecDeque;
+use std::time::{Duration, Instant};
 
 /// A temperature frame's value that means "no sensor" (i16::MIN centi-°C).
 const NO_TEMPERATURE: i16 = i16::MIN;
 
-impl Executor<'_> {
+/// What the counter modules have sent: one accumulator and one queue of
+/// decoded windows per module, each slot's latest temperature, and the
+/// run's clock in windows. The executor's acquisition part: only this
+/// module and the run's summary read it.
+pub(super) struct Acquisition {
+    /// One window accumulator per counter module.
+    accumulators: Vec<WindowAccumulator>,
+    /// Each module's decoded windows not yet paired.
+    pending: Vec<VecDeque<WindowValue>>,
+    /// Each slot's latest temperature from its module's temperature frames [°C].
+    temperatures_c: Vec<Option<f64>>,
+    /// When each module last sent anything.
+    pub(super) last_data: Vec<Instant>,
+    /// One-second windows taken so far: the run's clock [s].
+    pub(super) windows: u64,
+    /// The modules stream (set at power-on; the safe state stops them).
+    pub(super) streaming: bool,
+    /// Windows dropped to keep the modules aligned in time.
+    pub(super) dropped_windows: u64,
+    /// The instrument supply's output 1 at its last safety check: (volts, amperes).
+    supply_first: (f64, f64),
+}
+
+impl Acquisition {
+    /// Nothing received yet, for `station`'s modules and `slots` instruments.
+    pub(super) fn new(station: &StationConfig, slots: usize) -> Self {
+        let accumulators = station
+            .fmu
+            .iter()
+            .map(|f| {
+                WindowAccumulator::new(WindowConfig {
+                    mode: f.mode.into(),
+                    reference_hz: f.reference_hz,
+                    ..WindowConfig::default()
+                })
+            })
+            .collect();
+        let modules = station.fmu.len();
+        Acquisition {
+            accumulators,
+            pending: vec![VecDeque::new(); modules],
+            temperatures_c: vec![None; slots],
+            last_data: vec![Instant::now(); modules],
+            windows: 0,
+            streaming: false,
+            dropped_windows: 0,
+            supply_first: (0.0, 0.0),
+        }
+    }
+
     /// Module `m`'s messages: counts into its accumulator (windows queued),
     /// temperatures into each of its slots' latest value.
     fn take_in(&mut self, m: usize, messages: Vec<Message>) {
+        if !messages.is_empty() {
+            self.last_data[m] = Instant::now();
+        }
         for msg in messages {
             if let Message::Temperatures { centi_celsius, .. } = &msg {
                 for (k, &c) in centi_celsius.iter().enumerate() {
@@ -28,6 +88,16 @@ impl Executor<'_> {
         }
     }
 
+    /// Keep module `m`'s freshest window only, counting the ones dropped.
+    fn keep_freshest(&mut self, m: usize) {
+        while self.pending[m].len() > 1 {
+            self.pending[m].pop_front();
+            self.dropped_windows += 1;
+        }
+    }
+}
+
+impl Executor<'_> {
     /// Read every module's port for `time` without using the data beyond
     /// keeping each module's freshest window (a held run must not let the
     /// ports overrun).
@@ -40,16 +110,10 @@ impl Executor<'_> {
                 else {
                     continue;
                 };
-                if !got.is_empty() {
-                    self.last_data[m] = Instant::now();
-                }
-                self.take_in(m, got);
-                while self.pending[m].len() > 1 {
-                    self.pending[m].pop_front();
-                    self.dropped_windows += 1;
-                }
+                self.acquisition.take_in(m, got);
+                self.acquisition.keep_freshest(m);
             }
-            if !self.streaming {
+            if !self.acquisition.streaming {
                 std::thread::sleep(Duration::from_millis(20));
             }
         }
@@ -69,12 +133,9 @@ impl Executor<'_> {
             for (m, value) in values.iter_mut().enumerate() {
                 // Pair each module's freshest window: an older backlog would
                 // put another moment beside the other modules' values.
-                while self.pending[m].len() > 1 {
-                    self.pending[m].pop_front();
-                    self.dropped_windows += 1;
-                }
+                self.acquisition.keep_freshest(m);
                 if value.is_none() {
-                    *value = self.pending[m].pop_front();
+                    *value = self.acquisition.pending[m].pop_front();
                 }
             }
             if values.iter().all(Option::is_some) {
@@ -87,11 +148,8 @@ impl Executor<'_> {
             for m in 0..values.len() {
                 let got =
                     self.bench.modules[m].receive(Instant::now() + Duration::from_millis(1))?;
-                if !got.is_empty() {
-                    self.last_data[m] = Instant::now();
-                }
-                self.take_in(m, got);
-                let silent = self.last_data[m].max(waiting_since).elapsed();
+                self.acquisition.take_in(m, got);
+                let silent = self.acquisition.last_data[m].max(waiting_since).elapsed();
                 if silent > self.options.module_silence {
                     return Err(EngineError::ModuleSilent {
                         module: m + 1,
@@ -110,42 +168,41 @@ impl Executor<'_> {
                 if got.is_empty() {
                     break;
                 }
-                self.last_data[m] = Instant::now();
-                self.take_in(m, got);
+                self.acquisition.take_in(m, got);
             }
-            if let Some(newest) = self.pending[m].pop_back() {
-                self.dropped_windows += 1 + self.pending[m].len() as u64;
-                self.pending[m].clear();
+            if let Some(newest) = self.acquisition.pending[m].pop_back() {
+                self.acquisition.dropped_windows += 1 + self.acquisition.pending[m].len() as u64;
+                self.acquisition.pending[m].clear();
                 *value = Some(newest);
             }
         }
-        self.windows += 1;
+        self.acquisition.windows += 1;
         let rate = self.bench.centrifuge.read_rate()?;
         if self.demand_deg_s != 0.0 && !self.bench.centrifuge.read_interlocks()? {
             return Err(EngineError::InterlockOpen);
         }
         // The chamber watched throughout (not only while it soaks): an
         // alarm or a lost controller while a pass measures faults the run.
-        if self.windows.is_multiple_of(CHAMBER_WATCH_S) {
+        if self.acquisition.windows.is_multiple_of(CHAMBER_WATCH_S) {
             self.watch_chamber()?;
         }
-        if self.windows.is_multiple_of(5) {
+        if self.acquisition.windows.is_multiple_of(5) {
             let first = self.bench.instrument_supply.measure(1)?;
             if first.volts < 0.5 * self.station.power.rail_volts {
                 return Err(EngineError::SupplyTripped { volts: first.volts });
             }
-            self.supply_first = (first.volts, first.amps);
+            self.acquisition.supply_first = (first.volts, first.amps);
         }
         // The status panel's health every 20 s: two more device queries,
         // which cost wall time when the bench runs faster than real time.
-        if self.windows.is_multiple_of(20) {
-            let first = self.supply_first;
+        if self.acquisition.windows.is_multiple_of(20) {
+            let first = self.acquisition.supply_first;
             let second = self.bench.instrument_supply.measure(2)?;
             let modules = self
                 .bench
                 .modules
                 .iter()
-                .zip(&self.accumulators)
+                .zip(&self.acquisition.accumulators)
                 .map(|(module, acc)| {
                     let link = module.link_stats();
                     ModuleHealth {
@@ -183,7 +240,7 @@ impl Executor<'_> {
         }
         // An instrument over the station's temperature limit stops the run.
         if let Some(limit_c) = self.station.temperature.instrument_max_c {
-            for (slot, t) in self.temperatures_c.iter().enumerate() {
+            for (slot, t) in self.acquisition.temperatures_c.iter().enumerate() {
                 if let Some(celsius) = *t
                     && celsius > limit_c
                     && self.plan.serials[slot].is_some()
@@ -197,11 +254,11 @@ impl Executor<'_> {
             }
         }
         let window = Window {
-            time_s: self.windows as f64,
+            time_s: self.acquisition.windows as f64,
             rate_deg_s: rate,
             outputs,
             resonators,
-            temperatures_c: self.temperatures_c.clone(),
+            temperatures_c: self.acquisition.temperatures_c.clone(),
         };
         let on_speed = self.on_speed(rate);
         // The raw bytes of this second reach the capture's file before its
@@ -231,7 +288,7 @@ impl Executor<'_> {
     /// that does not answer (beyond its driver's retries and outage budget)
     /// a device error; either ends the run into the safe state.
     pub(super) fn watch_chamber(&mut self) -> Result<(), EngineError> {
-        let Some(setpoint_c) = self.setpoint_c else {
+        let Some(setpoint_c) = self.chamber.setpoint_c else {
             return Ok(());
         };
         let Some(chamber) = self.bench.chamber.as_mut() else {

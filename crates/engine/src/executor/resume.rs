@@ -1,13 +1,26 @@
 //! Resume: what a journal says was done, restored so the run goes on after
 //! its last completed step with no point lost or repeated.
 
-use super::*;
+use super::Executor;
+use crate::event::Event;
+use crate::record::{PointRecord, Reason};
+use spinbench_analysis::tumble::{MeanReading, TumbleCalibration};
+use std::collections::{BTreeMap, BTreeSet};
+
+/// The executor's progress part: which of the plan's steps are done.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Progress {
+    /// The indices of the steps done (from the journal on resume).
+    pub(super) completed: BTreeSet<usize>,
+    /// The run continues one recorded before.
+    pub(super) resumed: bool,
+}
 
 impl Executor<'_> {
     /// Restore what a journal says was done, so [`run`](Self::run) continues
     /// after the last completed step with no point lost or repeated.
     pub fn restore(&mut self, events: &[Event]) {
-        self.resumed = true;
+        self.progress.resumed = true;
         let mut last_points: BTreeMap<usize, &Vec<PointRecord>> = BTreeMap::new();
         // Station time goes on from where the journal ends, so the resumed
         // run's one-second values never take the times of the first's.
@@ -19,7 +32,7 @@ impl Executor<'_> {
                 }
 
                 Event::StepDone { index } => {
-                    self.completed.insert(*index);
+                    self.progress.completed.insert(*index);
                 }
                 Event::TumbleDone {
                     slot,
@@ -95,11 +108,11 @@ impl Executor<'_> {
             }
         }
         if last_time_s.is_finite() && last_time_s > 0.0 {
-            self.windows = last_time_s.ceil() as u64;
+            self.acquisition.windows = last_time_s.ceil() as u64;
         }
         // A point is whole only with its StepDone; a torn step is redone.
         for (step, points) in last_points {
-            if self.completed.contains(&step) {
+            if self.progress.completed.contains(&step) {
                 for p in points {
                     if let Some(u) = self.units.get_mut(p.slot) {
                         u.points.push(p.clone());
@@ -114,7 +127,7 @@ impl Executor<'_> {
     /// resumed run takes the time of one already stored.
     pub fn continue_time_after(&mut self, time_s: f64) {
         if time_s.is_finite() && time_s > 0.0 {
-            self.windows = self.windows.max(time_s.ceil() as u64);
+            self.acquisition.windows = self.acquisition.windows.max(time_s.ceil() as u64);
         }
     }
 }

@@ -2,7 +2,29 @@
 //! reading the controller back, streaming off, relays open, rails off), and
 //! the thread that keeps commanding a stop the controller did not confirm.
 
-use super::*;
+use super::{Executor, keeper};
+use spinbench_devices::{Centrifuge, DeviceError, DeviceErrorKind};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+/// What the safe state at the end of the run confirmed.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SafeOutcome {
+    /// The controller acknowledged the last stop command.
+    pub(super) stop_confirmed: bool,
+    /// The chamber and the supply confirmed their safe state.
+    pub(super) safe_devices_confirmed: bool,
+}
+
+impl Default for SafeOutcome {
+    /// Before the end: no stop confirmed, nothing left unconfirmed.
+    fn default() -> Self {
+        SafeOutcome {
+            stop_confirmed: false,
+            safe_devices_confirmed: true,
+        }
+    }
+}
 
 /// What every screen and record says when the centrifuge did not confirm its stop.
 pub const STOP_NOT_CONFIRMED: &str = "stop not confirmed: check the centrifuge";
@@ -23,14 +45,14 @@ impl Executor<'_> {
         let mut problems = Vec::new();
         let mut last_stop_error = None;
         let mut budget = SafeStateBudget::new(Instant::now() + SAFE_STATE_BUDGET);
-        self.stop_confirmed = false;
+        self.safe.stop_confirmed = false;
         for attempt in 0..STOP_ATTEMPTS {
             // Confirmed: the stop was sent and the controller answers after
             // it (a dialect whose stop has no acknowledgement would
             // otherwise "succeed" into a controller that hears nothing).
             match stop_and_confirm(self.bench.centrifuge.as_mut()) {
                 Ok(()) => {
-                    self.stop_confirmed = true;
+                    self.safe.stop_confirmed = true;
                     break;
                 }
                 Err(e) => {
@@ -48,14 +70,14 @@ impl Executor<'_> {
                 }
             }
         }
-        if !self.stop_confirmed {
+        if !self.safe.stop_confirmed {
             problems.push(format!(
                 "{STOP_NOT_CONFIRMED} (the controller did not acknowledge the stop: {}; \
                  the station keeps commanding it while this program runs)",
                 last_stop_error.unwrap_or_default()
             ));
         }
-        if self.stop_confirmed {
+        if self.safe.stop_confirmed {
             let centrifuge = self.bench.centrifuge.as_mut();
             budget.attempt("centrifuge", "disarm", &mut problems, || {
                 centrifuge.disarm()
@@ -63,7 +85,7 @@ impl Executor<'_> {
         }
         for (index, m) in self.bench.modules.iter_mut().enumerate() {
             let device = format!("counter module {}", index + 1);
-            if self.streaming {
+            if self.acquisition.streaming {
                 budget.attempt(&device, "stop streaming", &mut problems, || m.stop());
             }
             budget.attempt(&device, "power off", &mut problems, || m.set_power(0));
@@ -99,7 +121,7 @@ impl Executor<'_> {
         }
         // What was not confirmed goes to a keeper that tries again every
         // 2 s while the process lives.
-        self.safe_devices_confirmed = true;
+        self.safe.safe_devices_confirmed = true;
         if budget.unconfirmed("chamber")
             && let Some(chamber) = self.bench.chamber.take()
         {
@@ -114,7 +136,7 @@ impl Executor<'_> {
                 purge_on: false,
                 at_ambient: false,
             });
-            self.safe_devices_confirmed = false;
+            self.safe.safe_devices_confirmed = false;
         }
         if budget.unconfirmed("instrument supply") {
             let supply = std::mem::replace(
@@ -130,7 +152,7 @@ impl Executor<'_> {
                 supply,
                 off: [false, false],
             });
-            self.safe_devices_confirmed = false;
+            self.safe.safe_devices_confirmed = false;
         }
         self.demand_deg_s = 0.0;
         problems

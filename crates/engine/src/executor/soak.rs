@@ -4,7 +4,18 @@
 //! chamber watched all the while (an alarm or a silent controller stops the
 //! run into the safe state, which sends the chamber back to the room).
 
-use super::*;
+use super::{EngineError, Executor, ports, stability};
+use crate::event::{Event, Wording};
+use std::collections::VecDeque;
+
+/// The executor's chamber part: what the run has asked of the chamber.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct ChamberState {
+    /// The setpoint since the last soak [°C]; `None` before any.
+    pub(super) setpoint_c: Option<f64>,
+    /// The dry-air purge is on.
+    pub(super) purge_on: bool,
+}
 
 /// The purge goes on this far above the dew point [°C].
 const DEW_MARGIN_C: f64 = 2.0;
@@ -17,13 +28,13 @@ impl Executor<'_> {
         let dew_c = self.station.temperature.dew_point_c + DEW_MARGIN_C;
         self.command_rate(0.0)?;
         let chamber = self.bench.chamber.as_mut().ok_or(EngineError::NoChamber)?;
-        if setpoint_c < dew_c && !self.purge_on {
+        if setpoint_c < dew_c && !self.chamber.purge_on {
             chamber.set_purge(true)?;
-            self.purge_on = true;
+            self.chamber.purge_on = true;
         }
         ports::set_and_confirm_setpoint(chamber.as_mut(), setpoint_c)?;
         chamber.set_running(true)?;
-        self.setpoint_c = Some(setpoint_c);
+        self.chamber.setpoint_c = Some(setpoint_c);
         self.emit(Event::Notice {
             message: format!(
                 "soaking at {setpoint_c} °C: the air within ±{} °C and the instruments still for {} s (at most {} s)",
@@ -55,9 +66,9 @@ impl Executor<'_> {
                     });
                 }
                 // Warm again: the purge may go off.
-                if self.purge_on && setpoint_c >= dew_c && air_c >= dew_c {
+                if self.chamber.purge_on && setpoint_c >= dew_c && air_c >= dew_c {
                     chamber.set_purge(false)?;
-                    self.purge_on = false;
+                    self.chamber.purge_on = false;
                 }
             }
             let in_band = (air_c - setpoint_c).abs() <= soak.tolerance_c;

@@ -1,7 +1,18 @@
 //! One handler per kind of [`Step`]: power on, alive check, warm-up, the
 //! operator's remounting, the tumble, the radius at 1 g, a level's point.
 
-use super::*;
+use super::stability::{self, AT_REST_DEG_S, mean_std};
+use super::state::Trigger;
+use super::{Answer, EngineError, Executor, Window};
+use crate::event::{Event, Wording};
+use crate::plan::{Fixture, Step};
+use crate::record::{PointRecord, Reason, ReasonCode};
+use spinbench_analysis::radius::RadiusCalibration;
+use spinbench_analysis::tumble::{MeanReading, TumbleCalibration};
+use spinbench_analysis::{Mount, UG_PER_G, centrifuge};
+use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
+use std::collections::BTreeSet;
+use std::time::{Duration, Instant};
 
 /// Resonator frequencies outside this range mean a dead or miswired input [Hz].
 const RESONATOR_RANGE_HZ: (f64, f64) = (5_000.0, 200_000.0);
@@ -57,11 +68,11 @@ impl Executor<'_> {
             module.set_power(mask)?;
             module.start(self.station.fmu[m].mode.into())?;
         }
-        self.streaming = true;
+        self.acquisition.streaming = true;
         self.bench.centrifuge.reset_interlocks()?;
         self.bench.centrifuge.arm()?;
         let now = Instant::now();
-        self.last_data.iter_mut().for_each(|t| *t = now);
+        self.acquisition.last_data.iter_mut().for_each(|t| *t = now);
         Ok(())
     }
 
@@ -456,7 +467,7 @@ impl Executor<'_> {
                     .collect::<Vec<_>>(),
             );
             points.push(PointRecord {
-                setpoint_c: self.setpoint_c,
+                setpoint_c: self.chamber.setpoint_c,
                 temperature_c: temperature.map(|t| t.0),
                 temperature_change_c: temperature.map(|t| t.1),
                 temperature_unsettled: self

@@ -89,7 +89,7 @@ async fn change_level(
                 &id,
                 &ask.serial,
                 |record, plan, station| match change {
-                    LevelChange::Exclude => spinbench_engine::executor::exclude_after_run(
+                    LevelChange::Exclude => spinbench_engine::judgement::exclude_after_run(
                         record,
                         plan,
                         station,
@@ -103,7 +103,7 @@ async fn change_level(
                         },
                     ),
                     LevelChange::Withdraw => {
-                        spinbench_engine::executor::withdraw_exclusion_after_run(
+                        spinbench_engine::judgement::withdraw_exclusion_after_run(
                             record, plan, station, ask.mount, ask.g,
                         )
                     }

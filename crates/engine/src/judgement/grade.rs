@@ -2,9 +2,11 @@
 //! the plan's limit under its decision rule, into an outcome with coded
 //! reasons (k2 with its GUM U95, guarded by default).
 
-use super::*;
 use crate::plan::{DecisionRule, Measurand, Verdict};
+use crate::record::{Outcome, Reason, ReasonCode};
 use spinbench_analysis::table_signature::TableSignature;
+use spinbench_analysis::unit::{AnalysisOptions, UnitPoints};
+use spinbench_analysis::{Mount, Point};
 
 /// One graded instrument: its reduction, k2_max, outcome and reasons.
 #[derive(Debug, Clone)]

@@ -4,9 +4,13 @@
 //! config, its readings kept.
 
 use super::grade::grade;
-use super::judge::{graded_points, point_list, temperature_reasons};
-use super::*;
+use super::{analysis_options, graded_points, point_list, temperature_reasons};
+use crate::config::StationConfig;
+use crate::plan::CompiledPlan;
+use crate::record::{Outcome, UnitRecord};
+use spinbench_analysis::Mount;
 use spinbench_analysis::exclusion::LevelExclusion;
+use spinbench_analysis::unit::UnitPoints;
 
 /// A finished instrument's record reduced again with one more level left
 /// out, by an engineer after the run (the web UI): the exclusions it
