@@ -6,13 +6,12 @@
 //!
 //! Run: `cargo bench -p spinbench-station --bench report`
 
-use spinbench_engine::{StationConfig, TestPlan};
+use spinbench_engine::TestPlan;
 use spinbench_report::ReportFormat;
 use spinbench_sim::SimConfig;
-use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::station::SimOperator;
 use spinbench_station::run_setup::{RunDir, Setup, prepare};
-use spinbench_station::station_run::{RunControl, connect_bench, execute, sim_station_toml};
+use spinbench_station::station_run::{RunControl, connect_bench, execute};
+use spinbench_station::virtual_bench::VirtualBench;
 use spinbench_store::{Store, StoreTarget};
 use std::time::Instant;
 
@@ -20,17 +19,17 @@ fn main() {
     let measuring = std::env::args().any(|a| a == "--bench");
     let modules = if measuring { 16 } else { 1 };
     let dir = tempfile::tempdir().expect("tempdir");
-    let sim = RunningBench::start(
+    let sim = VirtualBench::open_config(
         SimConfig {
             seed: 11,
             speed: 0.0,
             modules,
             ..SimConfig::default()
         },
-        ServeOptions::default(),
+        false,
     )
     .expect("virtual bench");
-    let station = StationConfig::from_toml(&sim_station_toml(&sim)).expect("station config");
+    let station = sim.station().expect("station config");
     let slots = station.slots();
     let serials: String = (1..=slots)
         .map(|i| format!("{i} = \"R{i:03}\"\n"))
@@ -43,7 +42,7 @@ fn main() {
     let db = StoreTarget::File(dir.path().join("spinbench.db"));
     let started = Instant::now();
     let prepared = prepare(Setup {
-        station_toml: sim_station_toml(&sim),
+        station_toml: sim.station_toml().to_string(),
         station,
         plan,
         plan_text: None,
@@ -56,12 +55,12 @@ fn main() {
     let finished = execute(
         prepared,
         bench,
-        Box::new(SimOperator::new(&sim, true)),
+        sim.operator(true),
         true,
         RunControl::abort_only(spinbench_engine::AbortFlag::new()),
     )
     .expect("run");
-    sim.shutdown();
+    drop(sim);
     let run_s = started.elapsed().as_secs_f64();
     let store = Store::connect(&db).expect("store");
     let run_id = run_id.as_str();

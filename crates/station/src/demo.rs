@@ -3,14 +3,12 @@
 //! beside the simulator's truth.
 
 use crate::run_setup::{RunDir, Setup, prepare};
-use crate::station_run::{Finished, RunControl, connect_bench, execute, sim_station_toml};
-use anyhow::{Context, Result, bail};
+use crate::station_run::{Finished, RunControl, connect_bench, execute};
+use crate::virtual_bench::{BenchArgs, VirtualBench};
+use anyhow::{Result, bail};
 use serde::Serialize;
 use spinbench_analysis::Mount;
-use spinbench_engine::{AbortFlag, Outcome, RunState, StationConfig, TestPlan, UnitRecord};
-use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::station::SimOperator;
-use spinbench_sim::{Realism, SimConfig};
+use spinbench_engine::{AbortFlag, Outcome, RunState, TestPlan, UnitRecord};
 use spinbench_store::StoreTarget;
 use std::io::Write;
 use std::path::Path;
@@ -192,66 +190,29 @@ pub fn demo_plan(slots: usize, tumble_positions: u8, temperatures_c: &[f64]) -> 
     }
 }
 
-/// Which virtual bench: a seed, a preset of realism, a bench config file.
-#[derive(Debug, Clone, Default)]
-pub struct BenchChoice {
-    /// Seed (replaces the file's).
-    pub seed: u64,
-    /// Preset (replaces the file's `realism`; default `ideal`).
-    pub realism: Option<Realism>,
-    /// Bench config (TOML) whose keys go over the preset's.
-    pub config: Option<std::path::PathBuf>,
-    /// Put the instruments in a temperature chamber (the config's own
-    /// `[chamber]`, else the default one), with temperature coefficients of
-    /// k1 (15 ppm/°C) and K2 (0.05 µg/g²/°C) where the preset has none.
-    pub chamber: bool,
-}
-
-impl BenchChoice {
-    /// The bench's config, in virtual time (lockstep: reproducible).
-    pub fn sim_config(&self) -> Result<SimConfig> {
-        let base = match &self.config {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("{}: cannot read the bench config", path.display()))?;
-                SimConfig::from_toml_with(&text, self.realism)
-                    .with_context(|| path.display().to_string())?
-            }
-            None => self.realism.unwrap_or_default().config(),
-        };
-        let mut config = SimConfig {
-            seed: self.seed,
-            speed: 0.0,
-            ..base
-        };
-        if self.chamber {
-            config.chamber.get_or_insert_with(Default::default);
-            let p = &mut config.instruments;
-            if p.k1_temp_coeff_ppm_per_c == 0.0 {
-                p.k1_temp_coeff_ppm_per_c = 15.0;
-            }
-            if p.k2_temp_coeff_ug_per_g2_per_c == 0.0 {
-                p.k2_temp_coeff_ug_per_g2_per_c = 0.05;
-            }
+/// The demo's virtual bench: `args`' in virtual time (lockstep:
+/// reproducible); with `chamber`, the instruments in a temperature chamber
+/// (the config's own `[chamber]`, else the default one), with temperature
+/// coefficients of k1 (15 ppm/°C) and K2 (0.05 µg/g²/°C) where the preset
+/// has none.
+pub fn open_bench(args: &BenchArgs, chamber: bool) -> Result<VirtualBench> {
+    let mut config = args.config(Some(0.0))?;
+    if chamber {
+        config.chamber.get_or_insert_with(Default::default);
+        let p = &mut config.instruments;
+        if p.k1_temp_coeff_ppm_per_c == 0.0 {
+            p.k1_temp_coeff_ppm_per_c = 15.0;
         }
-        Ok(config)
+        if p.k2_temp_coeff_ug_per_g2_per_c == 0.0 {
+            p.k2_temp_coeff_ug_per_g2_per_c = 0.05;
+        }
     }
-}
-
-/// Start the virtual bench and the station config that reaches it.
-pub fn start_sim(choice: &BenchChoice) -> Result<(RunningBench, StationConfig)> {
-    let sim = choice.sim_config()?;
-    let bench = RunningBench::start(sim, ServeOptions::default())
-        .context("cannot start the virtual bench")?;
-    let text = sim_station_toml(&bench);
-    let station = StationConfig::from_toml(&text)
-        .with_context(|| format!("the virtual bench's station config:\n{text}"))?;
-    Ok((bench, station))
+    VirtualBench::open_config(config, false)
 }
 
 /// `spinbench demo`.
 pub fn demo(
-    choice: &BenchChoice,
+    bench: &BenchArgs,
     plan_choice: DemoPlanChoice,
     json: bool,
     data_dir: &Path,
@@ -259,8 +220,10 @@ pub fn demo(
     out: &mut dyn Write,
 ) -> Result<()> {
     let wall = Instant::now();
-    let seed = choice.seed;
-    let (sim, station) = start_sim(choice)?;
+    let virtual_bench = open_bench(bench, !plan_choice.temperatures_c.is_empty())?;
+    let station = virtual_bench.station()?;
+    let sim = virtual_bench.running();
+    let seed = sim.with_world(|w| w.config().seed);
     let realism = sim.with_world(|w| w.config().realism);
     let mut plan = demo_plan(
         station.slots(),
@@ -290,7 +253,7 @@ pub fn demo(
         out.flush()?;
     }
     let prepared = prepare(Setup {
-        station_toml: sim_station_toml(&sim),
+        station_toml: virtual_bench.station_toml().to_string(),
         station,
         plan,
         plan_text: None,
@@ -303,7 +266,7 @@ pub fn demo(
     let prediction = prepared.plan.prediction.clone();
     let decision_warning = prepared.plan.decision_warning();
     let bench = connect_bench(&prepared.station, Some(&prepared.dir.raw_dir()))?;
-    let operator = Box::new(SimOperator::new(&sim, json));
+    let operator = virtual_bench.operator(json);
     let abort = AbortFlag::new();
     crate::signals::abort_on_termination_signals(abort.clone())?;
     let finished = execute(
@@ -319,7 +282,6 @@ pub fn demo(
         sim.with_world(|w| w.perfect_fit_k2(slot, mount, &levels, plan_order))
     };
     let units = compare_with_truth(&finished.summary.records, &truth, &perfect);
-    sim.shutdown();
     std::fs::write(
         finished.dir.join("truth.json"),
         serde_json::to_string_pretty(&truth)?,

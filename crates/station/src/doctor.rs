@@ -497,19 +497,14 @@ pub fn report(findings: &[Finding], out: &mut dyn Write) -> Result<()> {
 /// `spinbench doctor`: the station at `station` (or the virtual bench).
 pub fn run(
     station: Option<&Path>,
-    simulate: bool,
+    simulate: Option<&crate::virtual_bench::BenchArgs>,
     store: &StoreTarget,
     data: &Path,
     out: &mut dyn Write,
 ) -> Result<()> {
-    if simulate {
-        let bench = spinbench_sim::serve::RunningBench::start(
-            spinbench_sim::Realism::default().config(),
-            spinbench_sim::serve::ServeOptions::default(),
-        )
-        .context("cannot start the virtual bench")?;
-        let toml = crate::station_run::sim_station_toml(&bench);
-        let findings = check(&toml, "the virtual bench", store, data);
+    if let Some(bench_args) = simulate {
+        let bench = crate::virtual_bench::VirtualBench::open(bench_args, None, false)?;
+        let findings = check(bench.station_toml(), "the virtual bench", store, data);
         return report(&findings, out);
     }
     let path =

@@ -7,7 +7,8 @@
 //! * [`replay`] — `spinbench replay`: a run's raw bytes through the decoder again, checked against the store;
 //! * [`run_setup`] — one run set-up: the run directory, the plan compiled once, the store path;
 //! * [`station_run`] — a prepared run executed: engine, journal, store, results, report;
-//! * [`demo`] — `spinbench demo`: the virtual bench, a whole test, the truth beside it;
+//! * [`demo`] — `spinbench demo`: the virtual bench, a whole test, the truth beside it (feature `sim`);
+//! * [`virtual_bench`] — the virtual bench's arguments, opened in one place, stopped when dropped;
 //! * [`terminal`] — the operator at the terminal and the progress printer;
 //! * [`signals`] — SIGINT, SIGTERM and SIGHUP abort the run, naming the signal;
 //! * [`users`] — adding a user, the one way the CLI and the web API do it;
@@ -15,6 +16,7 @@
 //! * [`web`] — `spinbench serve`: the web UI and the HTTP API.
 
 pub mod cli;
+#[cfg(feature = "sim")]
 pub mod demo;
 pub mod doctor;
 pub mod equipment;
@@ -32,4 +34,5 @@ pub mod station_model;
 pub mod station_run;
 pub mod terminal;
 pub mod users;
+pub mod virtual_bench;
 pub mod web;

@@ -12,7 +12,6 @@ use spinbench_engine::journal::{Journal, read_journal};
 use spinbench_engine::{
     AbortFlag, Bench, Executor, Operator, RunOptions, RunState, RunSummary, StationConfig,
 };
-use spinbench_sim::serve::RunningBench;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -22,11 +21,6 @@ use std::time::Duration;
 pub use crate::run_setup::{DB_FILE, DEFAULT_DATA_DIR, new_run_id};
 pub use crate::terminal::TerminalOperator;
 
-/// The station config (TOML) that goes with the virtual bench's devices.
-pub fn sim_station_toml(bench: &RunningBench) -> String {
-    spinbench_sim::station::station_toml(bench, "")
-}
-
 /// Connect every device of a station through the production drivers; with
 /// `raw_dir` (a run's [`crate::run_setup::RunDir::raw_dir`]), the counter
 /// modules' raw bytes are kept there (for `spinbench replay`).
@@ -35,8 +29,6 @@ pub fn connect_bench(station: &StationConfig, raw_dir: Option<&Path>) -> Result<
         .connect_capturing(raw_dir)
         .context("cannot connect the station's devices")
 }
-
-pub use spinbench_sim::station::SimOperator;
 
 /// What a run produced.
 pub struct Finished {

@@ -147,3 +147,66 @@ fn realism_chooses_the_presets_error_sources_and_the_truth_says_which() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("ideal, typical or harsh"), "{stderr}");
 }
+
+/// One set of bench arguments for every command (issue 41 item 2): the
+/// same flags mean the same bench on `sim`, `run`, `retest` and `doctor`,
+/// and a bench config file without `--simulate` is refused, saying how.
+#[test]
+fn every_command_takes_the_same_bench_arguments() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let bench = dir.path().join("bench.toml");
+    std::fs::write(&bench, "realism = \"typical\"\nseed = 5\n").expect("bench config");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, "range_g = 10\n[serials]\n1 = \"A\"\n").expect("plan");
+    // A bench file on hardware: refused before anything is opened.
+    for args in [
+        vec!["run", plan.to_str().expect("utf-8"), "--bench"],
+        vec!["retest", "no-such-run", "--bench"],
+        vec!["doctor", "--bench"],
+    ] {
+        let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+            .args(&args)
+            .arg(&bench)
+            .arg("--data")
+            .arg(dir.path().join("data"))
+            .output()
+            .expect("spinbench");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?}: {stderr}");
+        assert!(stderr.contains("add --simulate"), "{args:?}: {stderr}");
+    }
+    // The bench's own spelling on `sim` (--config) and the shared one
+    // (--bench) both open the bench the file describes.
+    for flag in ["--config", "--bench"] {
+        let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+            .args(["sim", "--for", "0", flag])
+            .arg(&bench)
+            .output()
+            .expect("spinbench sim");
+        assert!(
+            out.status.success(),
+            "{flag}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(
+            String::from_utf8_lossy(&out.stdout).contains("[centrifuge]"),
+            "{flag}: the station config's device sections are printed"
+        );
+    }
+    // The doctor opens the virtual bench through the same arguments.
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args([
+            "doctor",
+            "--simulate",
+            "--realism",
+            "harsh",
+            "--seed",
+            "2",
+            "--data",
+        ])
+        .arg(dir.path().join("data"))
+        .output()
+        .expect("spinbench doctor");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("the virtual bench"), "{stdout}");
+}

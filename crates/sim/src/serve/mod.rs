@@ -356,10 +356,19 @@ impl RunningBench {
         out
     }
 
-    /// Stop every thread.
-    pub fn shutdown(mut self) {
+    /// Stop every thread (what dropping the bench does too).
+    pub fn shutdown(self) {
+        drop(self);
+    }
+}
+
+impl Drop for RunningBench {
+    /// A bench dropped stops serving: every thread is told and waited for,
+    /// so no virtual device outlives its owner.
+    fn drop(&mut self) {
         self.stop.store(true, Ordering::Relaxed);
         for t in self.threads.drain(..) {
+            // A thread that panicked has stopped all the same.
             let _ = t.join();
         }
     }

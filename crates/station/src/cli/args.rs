@@ -63,18 +63,11 @@ pub enum Command {
     /// The main job, with no hardware: a complete simulated station (virtual
     /// bench, 12 instruments, ±70 g in both mountings) runs a real test end
     /// to end in virtual time and compares what it measured with the truth.
+    #[cfg(feature = "sim")]
     Demo {
-        /// Seed of the virtual bench (same seed and realism, same results).
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// How real the virtual bench is: ideal, typical (the error sources
-        /// of precision centrifuge testing) or harsh (typical with drift, a
-        /// dead and a noisy instrument and line faults).
-        #[arg(long)]
-        realism: Option<spinbench_sim::Realism>,
-        /// Bench configuration (TOML) to start from (its keys over its realism preset).
-        #[arg(long, value_name = "FILE")]
-        sim_config: Option<PathBuf>,
+        /// Which virtual bench.
+        #[command(flatten)]
+        bench: crate::virtual_bench::BenchArgs,
         /// Tumble positions: 2 (IA up and down, the published method) or 4
         /// (also the two cross-axis positions, which take gravity across the
         /// axis out of each radius).
@@ -129,16 +122,9 @@ pub enum Command {
         /// Run against the virtual bench in this process (real pseudo-terminals).
         #[arg(long)]
         simulate: bool,
-        /// Seed of the virtual bench.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
-        #[arg(long)]
-        realism: Option<spinbench_sim::Realism>,
-        /// With --simulate: a bench config (TOML) whose keys go over the
-        /// realism preset's (as `spinbench sim --config`).
-        #[arg(long, value_name = "BENCH_TOML", requires = "simulate")]
-        bench: Option<PathBuf>,
+        /// With --simulate: which virtual bench.
+        #[command(flatten)]
+        bench: crate::virtual_bench::BenchArgs,
         /// Continue the run in this directory from its journal.
         #[arg(long, value_name = "RUN_DIR")]
         resume: Option<PathBuf>,
@@ -170,12 +156,9 @@ pub enum Command {
         /// Run against the virtual bench in this process (real pseudo-terminals).
         #[arg(long)]
         simulate: bool,
-        /// Seed of the virtual bench.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// With --simulate: how real the virtual bench is (ideal, typical, harsh).
-        #[arg(long)]
-        realism: Option<spinbench_sim::Realism>,
+        /// With --simulate: which virtual bench.
+        #[command(flatten)]
+        bench: crate::virtual_bench::BenchArgs,
         /// Where runs are kept.
         #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,
@@ -257,16 +240,14 @@ pub enum Command {
     /// modules and supplies) behind real pseudo-terminals, and print the
     /// device sections of a station config that reach it. Runs until
     /// interrupted (Ctrl-C).
+    #[cfg(feature = "sim")]
     Sim {
-        /// Bench configuration (TOML); every key has a default.
-        #[arg(long)]
-        config: Option<PathBuf>,
+        /// Which virtual bench (its config: every key has a default).
+        #[command(flatten)]
+        bench: crate::virtual_bench::BenchArgs,
         /// Time: 1 = real time, N = N× faster, 0 = virtual time in lockstep with the station.
         #[arg(long)]
         speed: Option<f64>,
-        /// How real the bench is (ideal, typical, harsh); replaces the config's `realism`.
-        #[arg(long)]
-        realism: Option<spinbench_sim::Realism>,
         /// Put the centrifuge controller and the supplies on TCP (loopback).
         #[arg(long)]
         tcp: bool,
@@ -314,6 +295,9 @@ pub enum Command {
         /// Check the virtual bench instead of hardware.
         #[arg(long)]
         simulate: bool,
+        /// With --simulate: which virtual bench.
+        #[command(flatten)]
+        bench: crate::virtual_bench::BenchArgs,
         /// Where runs are kept (its free disk is checked).
         #[arg(long, default_value = crate::run_setup::DEFAULT_DATA_DIR)]
         data: PathBuf,

@@ -33,6 +33,7 @@ mod plan_design;
 mod records;
 mod reports;
 mod run;
+#[cfg(feature = "sim")]
 mod sim;
 mod user;
 
@@ -173,10 +174,9 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             }
             Ok(())
         }
+        #[cfg(feature = "sim")]
         Command::Demo {
-            seed,
-            realism,
-            sim_config,
+            bench,
             tumble_positions,
             temperatures,
             levels,
@@ -186,35 +186,25 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             json,
             data,
             db,
-        } => {
-            let bench = crate::demo::BenchChoice {
-                seed,
-                realism,
-                config: sim_config,
-                chamber: !temperatures.is_empty(),
-            };
-            crate::demo::demo(
-                &bench,
-                crate::demo::DemoPlanChoice {
-                    tumble_positions,
-                    temperatures_c: temperatures,
-                    levels_g: (!levels.is_empty()).then_some(levels),
-                    target_k2_u95,
-                    anomalies,
-                    decide_on,
-                },
-                json,
-                &data,
-                db.as_ref(),
-                out,
-            )
-        }
+        } => crate::demo::demo(
+            &bench,
+            crate::demo::DemoPlanChoice {
+                tumble_positions,
+                temperatures_c: temperatures,
+                levels_g: (!levels.is_empty()).then_some(levels),
+                target_k2_u95,
+                anomalies,
+                decide_on,
+            },
+            json,
+            &data,
+            db.as_ref(),
+            out,
+        ),
         Command::Run {
             plan,
             station,
             simulate,
-            seed,
-            realism,
             bench,
             resume,
             override_overdue,
@@ -227,13 +217,8 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 .as_deref()
                 .map(|p| run::Source::file(p, "station config"))
                 .transpose()?,
-            simulate,
-            &crate::demo::BenchChoice {
-                seed,
-                realism,
-                config: bench,
-                chamber: false,
-            },
+            simulate_with(simulate, &bench)?,
+            &bench,
             resume.as_deref(),
             &data,
             db,
@@ -245,21 +230,15 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             run,
             station,
             simulate,
-            seed,
-            realism,
+            bench,
             data,
             quiet,
             db,
         } => run::retest(
             &run,
             station.as_deref(),
-            simulate,
-            &crate::demo::BenchChoice {
-                seed,
-                realism,
-                config: None,
-                chamber: false,
-            },
+            simulate_with(simulate, &bench)?,
+            &bench,
             &data,
             db,
             quiet,
@@ -291,11 +270,13 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         Command::Doctor {
             station,
             simulate,
+            bench,
             data,
             db,
         } => {
             let db = db.unwrap_or_else(|| StoreTarget::File(data.join(crate::run_setup::DB_FILE)));
-            crate::doctor::run(station.as_deref(), simulate, &db, &data, out)
+            let simulated = simulate_with(simulate, &bench)?.then_some(&bench);
+            crate::doctor::run(station.as_deref(), simulated, &db, &data, out)
         }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
         Command::Migrate { db, history } => backup::migrate(&db, history, out),
@@ -362,13 +343,24 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
                 )
             }
         },
+        #[cfg(feature = "sim")]
         Command::Sim {
-            config,
+            bench,
             speed,
-            realism,
             tcp,
             truth,
             run_for,
-        } => sim::run_sim(config, speed, realism, tcp, truth, run_for, out),
+        } => sim::run_sim(&bench, speed, tcp, truth, run_for, out),
     }
+}
+
+/// `--simulate`, checked with the bench's arguments: a bench config file
+/// is for the virtual bench only.
+fn simulate_with(simulate: bool, bench: &crate::virtual_bench::BenchArgs) -> Result<bool> {
+    if bench.names_a_file() && !simulate {
+        anyhow::bail!(
+            "--bench names a virtual bench's config: add --simulate to run on the virtual bench"
+        );
+    }
+    Ok(simulate)
 }

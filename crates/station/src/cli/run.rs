@@ -51,7 +51,7 @@ pub(super) fn run_plan(
     plan_source: Source,
     station_source: Option<Source>,
     simulate: bool,
-    bench_choice: &crate::demo::BenchChoice,
+    bench_args: &crate::virtual_bench::BenchArgs,
     resume: Option<&Path>,
     data: &Path,
     db: Option<StoreTarget>,
@@ -60,9 +60,9 @@ pub(super) fn run_plan(
     out: &mut dyn Write,
 ) -> Result<()> {
     use crate::run_setup::{RunDir, Setup, prepare};
-    use crate::station_run::{TerminalOperator, connect_bench, execute, sim_station_toml};
+    use crate::station_run::{TerminalOperator, connect_bench, execute};
+    use crate::virtual_bench::VirtualBench;
     use spinbench_engine::{AbortFlag, StationConfig, TestPlan};
-    use spinbench_sim::station::SimOperator;
     let plan_text = plan_source.text;
     let plan = TestPlan::from_toml(&plan_text).with_context(|| plan_source.label.clone())?;
     // SIGINT, SIGTERM, SIGHUP: the engine stops the table, switches
@@ -71,14 +71,16 @@ pub(super) fn run_plan(
     crate::signals::abort_on_termination_signals(abort.clone())?;
     // A resumed run: only with its own plan; it keeps writing to its own store.
     let resumed = resume.map(|d| RunDir::resume(d, &plan)).transpose()?;
-    let sim;
+    let virtual_bench;
     let (station, station_toml, operator): (
         StationConfig,
         String,
         Box<dyn spinbench_engine::Operator + '_>,
     ) = if simulate {
-        let (bench, mut station) = crate::demo::start_sim(bench_choice)?;
-        let mut text = sim_station_toml(&bench);
+        // The station's virtual bench, in virtual time (reproducible).
+        let bench = VirtualBench::open(bench_args, Some(0.0), false)?;
+        let mut station = bench.station()?;
+        let mut text = bench.station_toml().to_string();
         if let Some(source) = &station_source {
             // Only the device sections are the bench's (issue 27 item 15):
             // the rest of the station's own config (its temperature limit,
@@ -88,9 +90,8 @@ pub(super) fn run_plan(
             station = StationConfig::from_toml(&text)
                 .with_context(|| format!("{} with the virtual bench's devices", source.label))?;
         }
-        sim = Some(bench);
-        let bench_ref = sim.as_ref().context("virtual bench")?;
-        (station, text, Box::new(SimOperator::new(bench_ref, quiet)))
+        virtual_bench = bench;
+        (station, text, virtual_bench.operator(quiet))
     } else {
         let source = station_source
             .context("--station CONFIG is needed (or --simulate for the virtual bench)")?;
@@ -208,7 +209,7 @@ pub(super) fn retest(
     run_id: &str,
     station_path: Option<&Path>,
     simulate: bool,
-    bench_choice: &crate::demo::BenchChoice,
+    bench_args: &crate::virtual_bench::BenchArgs,
     data: &Path,
     db: Option<StoreTarget>,
     quiet: bool,
@@ -246,7 +247,7 @@ pub(super) fn retest(
         plan_source,
         station_source,
         simulate,
-        bench_choice,
+        bench_args,
         None,
         data,
         db,

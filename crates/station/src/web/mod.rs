@@ -17,8 +17,6 @@ pub mod tls;
 
 use anyhow::{Context, Result};
 use spinbench_engine::StationConfig;
-use spinbench_sim::SimConfig;
-use spinbench_sim::serve::{RunningBench, ServeOptions};
 use spinbench_store::{Store, StoreTarget};
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -65,15 +63,9 @@ pub struct ServeArgs {
     /// The virtual bench's time: 1 = real time, N = N× faster, 0 = virtual time in lockstep.
     #[arg(long, default_value_t = 1.0)]
     pub sim_speed: f64,
-    /// How real the virtual bench is (ideal, typical, harsh); replaces the bench config's `realism`.
-    #[arg(long)]
-    pub realism: Option<spinbench_sim::Realism>,
-    /// The virtual bench's configuration (TOML, as for `spinbench sim --config`).
-    #[arg(long)]
-    pub sim_config: Option<PathBuf>,
-    /// Seed of the virtual bench.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// With --simulate: which virtual bench.
+    #[command(flatten)]
+    pub bench: crate::virtual_bench::BenchArgs,
     /// Address to listen on (port 0: any free port).
     #[arg(long, default_value = "127.0.0.1:8080")]
     pub bind: SocketAddr,
@@ -191,26 +183,15 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         .db
         .clone()
         .unwrap_or_else(|| StoreTarget::File(args.data.join(crate::run_setup::DB_FILE)));
-    let (station_toml, sim) = if args.simulate {
-        let base = match &args.sim_config {
-            Some(p) => {
-                let text = std::fs::read_to_string(p)
-                    .with_context(|| format!("{}: cannot read the bench config", p.display()))?;
-                SimConfig::from_toml_with(&text, args.realism)
-                    .with_context(|| p.display().to_string())?
-            }
-            None => args.realism.unwrap_or_default().config(),
-        };
-        let config = SimConfig {
-            seed: args.seed,
-            speed: args.sim_speed,
-            ..base
-        };
-        let bench = RunningBench::start(config, ServeOptions::default())
-            .context("cannot start the virtual bench")?;
-        // The virtual bench lives as long as the server.
-        let bench: &'static RunningBench = Box::leak(Box::new(bench));
-        (crate::station_run::sim_station_toml(bench), Some(bench))
+    // The virtual bench lives as long as the server (this function) and
+    // the runs it hands to; it stops when the last of them drops it.
+    let (station_toml, virtual_bench) = if args.simulate {
+        let bench = std::sync::Arc::new(crate::virtual_bench::VirtualBench::open(
+            &args.bench,
+            Some(args.sim_speed),
+            false,
+        )?);
+        (bench.station_toml().to_string(), Some(bench))
     } else {
         let path = args
             .station
@@ -269,10 +250,13 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         station.g_local_m_s2,
         station.time_zone,
     ));
+    let hands = virtual_bench
+        .clone()
+        .map(|bench| bench as Arc<dyn runner::Hands>);
     let runner = runner::Runner::new(
         station,
         station_toml,
-        sim,
+        hands,
         args.data.clone(),
         db.clone(),
         hub.clone(),

@@ -8,8 +8,6 @@ use crate::run_setup::{PrepareError, RunDir, Setup, prepare};
 use crate::station_run::{RunControl, connect_bench, execute};
 use spinbench_engine::plan::Fixture;
 use spinbench_engine::{AbortFlag, Answer, Operator, StationConfig, TestPlan};
-use spinbench_sim::serve::RunningBench;
-use spinbench_sim::station::SimOperator;
 use spinbench_store::StoreTarget;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -46,13 +44,24 @@ impl PromptSlot {
     }
 }
 
+/// Whoever moves the instruments once a user answers a prompt: on the
+/// station's hardware a person did it before answering (there are no
+/// hands to ask); on the virtual bench the simulator remounts its
+/// instruments as the prompt asked. The web asks the bench for its hands
+/// ([`crate::virtual_bench::VirtualBench`] is one) and never names the
+/// simulator.
+pub trait Hands: Send + Sync {
+    /// Do what the prompt `text` asked, mounting the instruments as `fixtures`.
+    fn carry_out(&self, text: &str, fixtures: &[Option<Fixture>]);
+}
+
 /// Answers the engine's prompts with what a user sends through the web; on
-/// the virtual bench the simulator then remounts the instruments as asked.
+/// a bench with hands (the virtual bench) they then do what was asked.
 pub struct WebOperator {
     slot: Arc<PromptSlot>,
     abort: AbortFlag,
-    sim: Option<&'static RunningBench>,
-    /// The question posted, for the simulator's hands.
+    hands: Option<Arc<dyn Hands>>,
+    /// The question posted, for the bench's hands.
     asked: Option<(String, Vec<Option<Fixture>>)>,
 }
 
@@ -98,10 +107,9 @@ impl Operator for WebOperator {
         };
         drop(state);
         if answer.proceed
-            && let (Some(sim), Some((text, fixtures))) = (self.sim, self.asked.take())
+            && let (Some(hands), Some((text, fixtures))) = (&self.hands, self.asked.take())
         {
-            // The simulator plays the operator's hands.
-            SimOperator::new(sim, true).ask(&text, &fixtures);
+            hands.carry_out(&text, &fixtures);
         }
         Some(answer)
     }
@@ -146,7 +154,8 @@ pub type Admit<'a> = &'a dyn Fn(&str) -> Result<(), String>;
 pub struct Runner {
     /// The station config and its text (an engineer may replace them between runs).
     station: Mutex<(StationConfig, String)>,
-    sim: Option<&'static RunningBench>,
+    /// The bench's hands (the virtual bench's), when it has them.
+    hands: Option<Arc<dyn Hands>>,
     data_dir: PathBuf,
     db: StoreTarget,
     hub: Arc<Hub>,
@@ -156,18 +165,18 @@ pub struct Runner {
 }
 
 impl Runner {
-    /// A runner for `station` (on the virtual bench `sim`, when given).
+    /// A runner for `station` (on a bench with `hands`, the virtual bench's, when given).
     pub fn new(
         station: StationConfig,
         station_toml: String,
-        sim: Option<&'static RunningBench>,
+        hands: Option<Arc<dyn Hands>>,
         data_dir: PathBuf,
         db: StoreTarget,
         hub: Arc<Hub>,
     ) -> Runner {
         Runner {
             station: Mutex::new((station, station_toml)),
-            sim,
+            hands,
             data_dir,
             db,
             hub,
@@ -209,9 +218,9 @@ impl Runner {
         Ok(())
     }
 
-    /// True on the virtual bench.
+    /// True on the virtual bench (a bench with hands).
     pub fn simulated(&self) -> bool {
-        self.sim.is_some()
+        self.hands.is_some()
     }
 
     fn lock(&self) -> MutexGuard<'_, Option<ActiveRun>> {
@@ -324,7 +333,7 @@ impl Runner {
         let operator = WebOperator {
             slot: prompt.clone(),
             abort: abort.clone(),
-            sim: self.sim,
+            hands: self.hands.clone(),
             asked: None,
         };
         let control = RunControl {
