@@ -45,6 +45,75 @@ pub const MAX_ARM_G: f64 = 10_000.0;
 /// Most counter modules on one station.
 pub const MAX_MODULES: usize = 64;
 
+/// Why a number from outside was refused: what was given and what is
+/// allowed, naming the bound.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BoundError {
+    /// Not a finite number (NaN or infinite).
+    #[error("{value} is not a number; give a finite value from {min} to {max} {unit}")]
+    NotFinite {
+        /// The value given.
+        value: f64,
+        /// The lowest allowed.
+        min: f64,
+        /// The highest allowed.
+        max: f64,
+        /// Its unit.
+        unit: String,
+    },
+    /// Outside the named bound.
+    #[error("{value} {unit} is outside {min} to {max} {unit} ({bound})")]
+    Outside {
+        /// The value given.
+        value: f64,
+        /// The lowest allowed.
+        min: f64,
+        /// The highest allowed.
+        max: f64,
+        /// Its unit.
+        unit: String,
+        /// The bound's name (`MAX_LEVEL_G`).
+        bound: String,
+    },
+    /// Zero or below where only a value above zero will do.
+    #[error("{value} {unit}: must be above 0")]
+    NotPositive {
+        /// The value given.
+        value: f64,
+        /// Its unit.
+        unit: String,
+    },
+}
+
+/// Why a text typed by a person was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TextError {
+    /// A name holds a control or format character.
+    #[error("'{shown}' holds an invisible character U+{code:04X}; type it again without it")]
+    InvisibleInName {
+        /// The name as shown ([`shown`]).
+        shown: String,
+        /// The character's code point.
+        code: u32,
+    },
+    /// A reason is empty or too long.
+    #[error("say why in 1 to {max_chars} characters")]
+    ReasonLength {
+        /// The most characters allowed.
+        max_chars: usize,
+    },
+    /// A reason holds a control or format character.
+    #[error(
+        "'{shown}' holds a control or invisible character U+{code:04X}; type it again without it"
+    )]
+    InvisibleInReason {
+        /// The reason as shown ([`shown`]).
+        shown: String,
+        /// The character's code point.
+        code: u32,
+    },
+}
+
 /// Check that `value` is finite and inside `range` (bounds named `bound`),
 /// in `unit`; the error says what was given and what is allowed.
 pub fn check(
@@ -52,29 +121,35 @@ pub fn check(
     range: RangeInclusive<f64>,
     unit: &str,
     bound: &str,
-) -> Result<(), String> {
+) -> Result<(), BoundError> {
     if !value.is_finite() {
-        return Err(format!(
-            "{value} is not a number; give a finite value from {} to {} {unit}",
-            range.start(),
-            range.end()
-        ));
+        return Err(BoundError::NotFinite {
+            value,
+            min: *range.start(),
+            max: *range.end(),
+            unit: unit.to_string(),
+        });
     }
     if !range.contains(&value) {
-        return Err(format!(
-            "{value} {unit} is outside {} to {} {unit} ({bound})",
-            range.start(),
-            range.end()
-        ));
+        return Err(BoundError::Outside {
+            value,
+            min: *range.start(),
+            max: *range.end(),
+            unit: unit.to_string(),
+            bound: bound.to_string(),
+        });
     }
     Ok(())
 }
 
 /// As [`check`], for a value that must be above zero (zero excluded).
-pub fn check_positive(value: f64, max: f64, unit: &str, bound: &str) -> Result<(), String> {
+pub fn check_positive(value: f64, max: f64, unit: &str, bound: &str) -> Result<(), BoundError> {
     check(value, 0.0..=max, unit, bound)?;
     if value <= 0.0 {
-        return Err(format!("{value} {unit}: must be above 0"));
+        return Err(BoundError::NotPositive {
+            value,
+            unit: unit.to_string(),
+        });
     }
     Ok(())
 }
@@ -115,31 +190,29 @@ pub fn shown(name: &str) -> String {
 /// trimmed; refused, naming the character, when it holds a format
 /// character (a zero-width space, a right-to-left override) or a control
 /// character, which would let two look-alike names sit side by side.
-pub fn person_text(text: &str) -> Result<String, String> {
+pub fn person_text(text: &str) -> Result<String, TextError> {
     use unicode_normalization::UnicodeNormalization;
     if let Some(c) = text.chars().find(|&c| is_invisible(c)) {
-        return Err(format!(
-            "'{}' holds an invisible character U+{:04X}; type it again without it",
-            shown(text),
-            u32::from(c)
-        ));
+        return Err(TextError::InvisibleInName {
+            shown: shown(text),
+            code: u32::from(c),
+        });
     }
     Ok(text.nfkc().collect::<String>().trim().to_string())
 }
 
 /// A reason typed by a person (an exclusion, an override) as kept: 1 to
 /// `max_chars` characters once trimmed, no control or format character.
-pub fn reason_text(text: &str, max_chars: usize) -> Result<String, String> {
+pub fn reason_text(text: &str, max_chars: usize) -> Result<String, TextError> {
     let trimmed = text.trim();
     if trimmed.is_empty() || trimmed.chars().count() > max_chars {
-        return Err(format!("say why in 1 to {max_chars} characters"));
+        return Err(TextError::ReasonLength { max_chars });
     }
     if let Some(c) = trimmed.chars().find(|&c| is_invisible(c)) {
-        return Err(format!(
-            "'{}' holds a control or invisible character U+{:04X}; type it again without it",
-            shown(trimmed),
-            u32::from(c)
-        ));
+        return Err(TextError::InvisibleInReason {
+            shown: shown(trimmed),
+            code: u32::from(c),
+        });
     }
     Ok(trimmed.to_string())
 }
@@ -192,17 +265,31 @@ mod tests {
 
     #[test]
     fn non_finite_negative_and_huge_values_are_refused_with_the_bound() {
-        assert!(check(f64::NAN, 0.0..=1.0, "s", "B").is_err());
+        assert!(matches!(
+            check(f64::NAN, 0.0..=1.0, "s", "B"),
+            Err(BoundError::NotFinite { .. })
+        ));
         assert!(check(f64::INFINITY, 0.0..=1.0, "s", "B").is_err());
         let e = check(2.0, 0.0..=1.0, "s", "MAX_B").expect_err("above");
-        assert!(e.contains("MAX_B"), "{e}");
-        assert!(check_positive(0.0, 1.0, "A", "B").is_err());
+        assert!(matches!(&e, BoundError::Outside { bound, .. } if bound == "MAX_B"));
+        // The words a user reads are the ones before the type (issue 41 item 4).
+        assert_eq!(e.to_string(), "2 s is outside 0 to 1 s (MAX_B)");
+        assert_eq!(
+            check_positive(0.0, 1.0, "A", "B"),
+            Err(BoundError::NotPositive {
+                value: 0.0,
+                unit: "A".into()
+            })
+        );
         assert!(check_positive(0.5, 1.0, "A", "B").is_ok());
         assert_eq!(shown("abc"), "abc");
         assert_eq!(shown("adm\nFORGED"), "adm\\u{a}FORGED");
         assert!(shown("station\u{202E}A").contains("\\u{202e}"));
         assert!(reason_text("ok\u{200B}", 10).is_err());
-        assert!(reason_text("  ", 10).is_err());
+        assert_eq!(
+            reason_text("  ", 10),
+            Err(TextError::ReasonLength { max_chars: 10 })
+        );
         assert_eq!(reason_text(" ok ", 10).as_deref(), Ok("ok"));
         assert!(mixed_script("SN-\u{0410}1").is_some());
         assert!(mixed_script("SN-A1").is_none());

@@ -349,10 +349,6 @@ impl StationConfig {
             })
         };
         use crate::bounds::*;
-        let at = |key: &str| {
-            let key = key.to_string();
-            move |problem: String| StationConfigError { key, problem }
-        };
         if self.station.chars().count() > MAX_NAME_CHARS {
             return err(
                 "station",
@@ -369,7 +365,7 @@ impl StationConfig {
                 return err("station", "empty: give the station a name".into());
             }
             Ok(_) => {}
-            Err(why) => return err("station", why),
+            Err(why) => return err("station", why.to_string()),
         }
         check_positive(self.arm.radius_m, MAX_ARM_RADIUS_M, "m", "MAX_ARM_RADIUS_M")
             .map_err(at("arm.radius_m"))?;
@@ -575,5 +571,14 @@ impl StationConfig {
             );
         }
         Ok(())
+    }
+}
+
+/// A problem (a bound's refusal, or a sentence) at the station config's key `key`.
+fn at<P: std::fmt::Display>(key: &str) -> impl FnOnce(P) -> StationConfigError {
+    let key = key.to_string();
+    move |problem: P| StationConfigError {
+        key,
+        problem: problem.to_string(),
     }
 }

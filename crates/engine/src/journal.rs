@@ -56,16 +56,48 @@ impl EventSink for Journal {
     }
 }
 
+/// Why a journal could not be read back.
+#[derive(Debug, thiserror::Error)]
+pub enum JournalError {
+    /// The file could not be opened or read.
+    #[error("{path}: cannot {doing}: {source}")]
+    Io {
+        /// The journal's path, as shown.
+        path: String,
+        /// What was being done ("open the journal", "read").
+        doing: &'static str,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// A line before the last is not an event.
+    #[error("{path}:{line}: not a journal event: {problem}")]
+    NotAnEvent {
+        /// The journal's path, as shown.
+        path: String,
+        /// The line (1-based).
+        line: usize,
+        /// The parser's words.
+        problem: String,
+    },
+}
+
 /// Read a journal back. A last line cut short by a crash is ignored (and
 /// reported); any other unreadable line is an error naming the line.
-pub fn read_journal(dir: &Path) -> Result<(Vec<Event>, Option<String>), String> {
+pub fn read_journal(dir: &Path) -> Result<(Vec<Event>, Option<String>), JournalError> {
     let path = dir.join(JOURNAL_FILE);
-    let file = File::open(&path)
-        .map_err(|e| format!("{}: cannot open the journal: {e}", path.display()))?;
+    let io = |doing: &'static str| {
+        let path = path.display().to_string();
+        move |source: std::io::Error| JournalError::Io {
+            path,
+            doing,
+            source,
+        }
+    };
+    let file = File::open(&path).map_err(io("open the journal"))?;
     let lines: Vec<String> = BufReader::new(file)
         .lines()
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
+        .map_err(io("read"))?;
     let mut events = Vec::with_capacity(lines.len());
     let mut torn = None;
     for (i, line) in lines.iter().enumerate() {
@@ -82,11 +114,11 @@ pub fn read_journal(dir: &Path) -> Result<(Vec<Event>, Option<String>), String> 
                 ))
             }
             Err(e) => {
-                return Err(format!(
-                    "{}:{}: not a journal event: {e}",
-                    path.display(),
-                    i + 1
-                ));
+                return Err(JournalError::NotAnEvent {
+                    path: path.display().to_string(),
+                    line: i + 1,
+                    problem: e.to_string(),
+                });
             }
         }
     }

@@ -17,6 +17,13 @@ pub struct UtcOffset {
     minutes: i32,
 }
 
+/// A time zone that is not an offset from UTC this station takes.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "time_zone = '{0}': write an offset from UTC as UTC+HH:MM (UTC+08:00 for China), from UTC-12:00 to UTC+14:00 in quarter hours, or UTC"
+)]
+pub struct NotAnOffset(pub String);
+
 impl UtcOffset {
     /// UTC itself.
     pub const UTC: UtcOffset = UtcOffset { minutes: 0 };
@@ -33,12 +40,8 @@ impl UtcOffset {
 
     /// Read `UTC`, `UTC+08:00`, `+08:00`, `UTC-05:30` or `UTC+8`; the
     /// error says what is accepted.
-    pub fn parse(text: &str) -> Result<UtcOffset, String> {
-        let bad = || {
-            format!(
-                "time_zone = '{text}': write an offset from UTC as UTC+HH:MM (UTC+08:00 for China), from UTC-12:00 to UTC+14:00 in quarter hours, or UTC"
-            )
-        };
+    pub fn parse(text: &str) -> Result<UtcOffset, NotAnOffset> {
+        let bad = || NotAnOffset(text.to_string());
         let t = text.trim();
         let rest = t.strip_prefix("UTC").unwrap_or(t);
         if rest.is_empty() {
@@ -129,7 +132,8 @@ mod tests {
                 continue;
             }
             let e = UtcOffset::parse(bad).expect_err(bad);
-            assert!(e.contains("UTC+08:00 for China"), "{e}");
+            assert_eq!(e, NotAnOffset(bad.to_string()));
+            assert!(e.to_string().contains("UTC+08:00 for China"), "{e}");
         }
     }
 }

@@ -38,11 +38,11 @@ pub fn add_user(
     let role = Role::parse(role).ok_or_else(|| {
         AddUserError::Invalid(format!("role '{role}': use operator, engineer or admin"))
     })?;
-    check_new_user(name, password).map_err(AddUserError::Invalid)?;
+    check_new_user(name, password).map_err(|e| AddUserError::Invalid(e.to_string()))?;
     if store.user(name)?.is_some() {
         return Err(AddUserError::Exists(name.to_string()));
     }
-    let hash = hash_password(password).map_err(AddUserError::Hash)?;
+    let hash = hash_password(password).map_err(|e| AddUserError::Hash(e.to_string()))?;
     store.add_user(name, role.as_str(), &hash)?;
     store.audit(by, "add user", &format!("{name} ({})", role.as_str()))?;
     Ok(role)
@@ -78,8 +78,8 @@ pub fn change_user(
     }
     let hash = match password {
         Some(p) => {
-            check_new_user(name, p).map_err(AddUserError::Invalid)?;
-            Some(hash_password(p).map_err(AddUserError::Hash)?)
+            check_new_user(name, p).map_err(|e| AddUserError::Invalid(e.to_string()))?;
+            Some(hash_password(p).map_err(|e| AddUserError::Hash(e.to_string()))?)
         }
         None => None,
     };
@@ -193,14 +193,41 @@ impl Role {
     }
 }
 
+/// Why a user's name or password was refused, in words.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum UserError {
+    /// The name is empty, too long, or holds other characters.
+    #[error(
+        "user name '{shown}': 1 to {MAX_USER_NAME} ASCII letters, digits or . _ - @, with at least one letter or digit"
+    )]
+    BadName {
+        /// The name as shown (a short prefix, invisible characters escaped).
+        shown: String,
+    },
+    /// A new name not given in lower case.
+    #[error("user name '{shown}': use it in lower case, as '{normal}'")]
+    NotLowerCase {
+        /// The name as given, shown.
+        shown: String,
+        /// The name as it would be kept.
+        normal: String,
+    },
+    /// The password is too short.
+    #[error("the password needs at least 8 characters")]
+    ShortPassword,
+    /// The password could not be hashed (the hashing library's words).
+    #[error("the password could not be hashed: {0}")]
+    Hash(String),
+}
+
 /// Hash a password (Argon2id, random salt) into a PHC string.
-pub fn hash_password(password: &str) -> Result<String, String> {
+pub fn hash_password(password: &str) -> Result<String, UserError> {
     let salt: [u8; 16] = rand::random();
-    let salt = SaltString::encode_b64(&salt).map_err(|e| e.to_string())?;
+    let salt = SaltString::encode_b64(&salt).map_err(|e| UserError::Hash(e.to_string()))?;
     Argon2::default()
         .hash_password(password.as_bytes(), &salt)
         .map(|h| h.to_string())
-        .map_err(|e| e.to_string())
+        .map_err(|e| UserError::Hash(e.to_string()))
 }
 
 /// Whether `password` matches the stored `hash` (false for a malformed hash).
@@ -220,7 +247,7 @@ pub const MAX_USER_NAME: usize = 64;
 /// digit. Look-alikes (a Cyrillic "а" beside "admin") and names that are
 /// only dots cannot be made. The problem in words, showing at most a short
 /// prefix of what was given.
-pub fn normalise_user_name(name: &str) -> Result<String, String> {
+pub fn normalise_user_name(name: &str) -> Result<String, UserError> {
     let name = name.trim();
     let ok = !name.is_empty()
         && name.len() <= MAX_USER_NAME
@@ -229,25 +256,24 @@ pub fn normalise_user_name(name: &str) -> Result<String, String> {
             .all(|c| c.is_ascii_alphanumeric() || "._-@".contains(c))
         && name.chars().any(|c| c.is_ascii_alphanumeric());
     if !ok {
-        return Err(format!(
-            "user name '{}': 1 to {MAX_USER_NAME} ASCII letters, digits or . _ - @, with at least one letter or digit",
-            spinbench_engine::bounds::shown(name)
-        ));
+        return Err(UserError::BadName {
+            shown: spinbench_engine::bounds::shown(name),
+        });
     }
     Ok(name.to_ascii_lowercase())
 }
 
 /// Check a new user's name and password; the problem in words.
-pub fn check_new_user(name: &str, password: &str) -> Result<(), String> {
+pub fn check_new_user(name: &str, password: &str) -> Result<(), UserError> {
     let normal = normalise_user_name(name)?;
     if normal != name {
-        return Err(format!(
-            "user name '{}': use it in lower case, as '{normal}'",
-            spinbench_engine::bounds::shown(name)
-        ));
+        return Err(UserError::NotLowerCase {
+            shown: spinbench_engine::bounds::shown(name),
+            normal,
+        });
     }
     if password.chars().count() < 8 {
-        return Err("the password needs at least 8 characters".into());
+        return Err(UserError::ShortPassword);
     }
     Ok(())
 }

@@ -104,22 +104,47 @@ pub fn parse_date(text: &str) -> Option<i64> {
     (civil_from_days(days) == (y, m, d)).then_some(days)
 }
 
+/// Why a calibration's dates were refused (dates shown as YYYY-MM-DD).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CalibrationDateError {
+    /// Calibrated after today.
+    #[error(
+        "calibrated on {calibrated} is after today ({today}): give the date on the certificate"
+    )]
+    CalibratedInFuture {
+        /// The calibration date.
+        calibrated: String,
+        /// Today.
+        today: String,
+    },
+    /// Due no later than calibrated.
+    #[error("due on {due} is not after calibrated on {calibrated}")]
+    DueBeforeCalibrated {
+        /// The due date.
+        due: String,
+        /// The calibration date.
+        calibrated: String,
+    },
+}
+
 /// Check a calibration's dates (days since 1970-01-01): calibrated no later
-/// than `today`, due after it was calibrated. The problem in words.
-pub fn check_calibration_dates(calibrated: i64, due: i64, today: i64) -> Result<(), String> {
+/// than `today`, due after it was calibrated.
+pub fn check_calibration_dates(
+    calibrated: i64,
+    due: i64,
+    today: i64,
+) -> Result<(), CalibrationDateError> {
     if calibrated > today {
-        return Err(format!(
-            "calibrated on {} is after today ({}): give the date on the certificate",
-            civil_date(calibrated * 86_400),
-            civil_date(today * 86_400)
-        ));
+        return Err(CalibrationDateError::CalibratedInFuture {
+            calibrated: civil_date(calibrated * 86_400),
+            today: civil_date(today * 86_400),
+        });
     }
     if due <= calibrated {
-        return Err(format!(
-            "due on {} is not after calibrated on {}",
-            civil_date(due * 86_400),
-            civil_date(calibrated * 86_400)
-        ));
+        return Err(CalibrationDateError::DueBeforeCalibrated {
+            due: civil_date(due * 86_400),
+            calibrated: civil_date(calibrated * 86_400),
+        });
     }
     Ok(())
 }

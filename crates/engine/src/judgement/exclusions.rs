@@ -12,6 +12,69 @@ use spinbench_analysis::Mount;
 use spinbench_analysis::exclusion::LevelExclusion;
 use spinbench_analysis::unit::UnitPoints;
 
+/// Why a level was not left out of a finished record, or not given back:
+/// each says what to do instead. The record is unchanged.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ExclusionError {
+    /// The record was never graded (incomplete, or the instrument failed).
+    #[error(
+        "{serial} was not graded ({outcome}): there is no reduction to leave a level out of; retest it"
+    )]
+    NotGraded {
+        /// The instrument.
+        serial: String,
+        /// Its outcome.
+        outcome: Outcome,
+    },
+    /// No reason was given.
+    #[error("a reason is required: say why the level is left out")]
+    NoReason,
+    /// The level is left out already.
+    #[error("{g} g in mounting {mount} of {serial} is already left out")]
+    AlreadyOut {
+        /// The instrument.
+        serial: String,
+        /// The mounting.
+        mount: Mount,
+        /// The level [g].
+        g: f64,
+    },
+    /// The instrument has no reading at that level.
+    #[error("{serial} has no reading at {g} g in mounting {mount}; give one of its levels")]
+    NoReading {
+        /// The instrument.
+        serial: String,
+        /// The mounting.
+        mount: Mount,
+        /// The level [g].
+        g: f64,
+    },
+    /// Leaving it out would leave a mounting's fit or the joint K2 unmade.
+    #[error(
+        "leaving out {g} g in mounting {mount} leaves {serial} too few levels to reduce (a mounting's fit or the joint K2 could no longer be made); refused, the record is unchanged. Withdraw another exclusion first, or retest the instrument"
+    )]
+    TooFewLevels {
+        /// The instrument.
+        serial: String,
+        /// The mounting.
+        mount: Mount,
+        /// The level [g].
+        g: f64,
+    },
+    /// The level to give back is not left out.
+    #[error("{g} g in mounting {mount} of {serial} is not left out (its exclusions: {listed})")]
+    NotOut {
+        /// The instrument.
+        serial: String,
+        /// The mounting.
+        mount: Mount,
+        /// The level [g].
+        g: f64,
+        /// Its exclusions, as a list ("none" when it has none).
+        listed: String,
+    },
+}
+
 /// A finished instrument's record reduced again with one more level left
 /// out, by an engineer after the run (the web UI): the exclusions it
 /// already had and `exclusion` applied to its points, which stay in the
@@ -23,25 +86,26 @@ pub fn exclude_after_run(
     plan: &CompiledPlan,
     station: &StationConfig,
     mut exclusion: LevelExclusion,
-) -> Result<UnitRecord, String> {
+) -> Result<UnitRecord, ExclusionError> {
     if record.outcome == Outcome::Incomplete || record.analysis.is_none() {
-        return Err(format!(
-            "{} was not graded ({}): there is no reduction to leave a level out of; retest it",
-            record.serial, record.outcome
-        ));
+        return Err(ExclusionError::NotGraded {
+            serial: record.serial.clone(),
+            outcome: record.outcome,
+        });
     }
     if exclusion.reason.trim().is_empty() {
-        return Err("a reason is required: say why the level is left out".into());
+        return Err(ExclusionError::NoReason);
     }
     if record
         .exclusions
         .iter()
         .any(|e| e.mount == exclusion.mount && e.g == exclusion.g)
     {
-        return Err(format!(
-            "{} g in mounting {} of {} is already left out",
-            exclusion.g, exclusion.mount, record.serial
-        ));
+        return Err(ExclusionError::AlreadyOut {
+            serial: record.serial.clone(),
+            mount: exclusion.mount,
+            g: exclusion.g,
+        });
     }
     exclusion.unit = Some(record.serial.clone());
     let exclusions: Vec<LevelExclusion> = record
@@ -60,10 +124,11 @@ pub fn exclude_after_run(
         .last()
         .is_some_and(|e| e.points_removed == 0)
     {
-        return Err(format!(
-            "{} has no reading at {g} g in mounting {mount}; give one of its levels",
-            record.serial
-        ));
+        return Err(ExclusionError::NoReading {
+            serial: record.serial.clone(),
+            mount,
+            g,
+        });
     }
     // Issue 27 item 9: an exclusion that leaves a mounting (or the joint K2)
     // without a fit would turn a graded instrument into an ungradable one,
@@ -76,10 +141,11 @@ pub fn exclude_after_run(
     let (before_fits, before_joint) = fitted(record);
     let (after_fits, after_joint) = fitted(&after);
     if after_fits < before_fits || (before_joint && !after_joint) {
-        return Err(format!(
-            "leaving out {g} g in mounting {mount} leaves {} too few levels to reduce (a mounting's fit or the joint K2 could no longer be made); refused, the record is unchanged. Withdraw another exclusion first, or retest the instrument",
-            record.serial
-        ));
+        return Err(ExclusionError::TooFewLevels {
+            serial: record.serial.clone(),
+            mount,
+            g,
+        });
     }
     Ok(after)
 }
@@ -93,7 +159,7 @@ pub fn withdraw_exclusion_after_run(
     station: &StationConfig,
     mount: Mount,
     g: f64,
-) -> Result<UnitRecord, String> {
+) -> Result<UnitRecord, ExclusionError> {
     let before = record.exclusions.len();
     let exclusions: Vec<LevelExclusion> = record
         .exclusions
@@ -102,10 +168,11 @@ pub fn withdraw_exclusion_after_run(
         .cloned()
         .collect();
     if exclusions.len() == before {
-        return Err(format!(
-            "{g} g in mounting {mount} of {} is not left out (its exclusions: {})",
-            record.serial,
-            if record.exclusions.is_empty() {
+        return Err(ExclusionError::NotOut {
+            serial: record.serial.clone(),
+            mount,
+            g,
+            listed: if record.exclusions.is_empty() {
                 "none".to_string()
             } else {
                 record
@@ -114,8 +181,8 @@ pub fn withdraw_exclusion_after_run(
                     .map(|e| format!("{} {} g", e.mount, e.g))
                     .collect::<Vec<_>>()
                     .join(", ")
-            }
-        ));
+            },
+        });
     }
     regrade(record, plan, station, exclusions)
 }
@@ -127,7 +194,7 @@ fn regrade(
     plan: &CompiledPlan,
     station: &StationConfig,
     exclusions: Vec<LevelExclusion>,
-) -> Result<UnitRecord, String> {
+) -> Result<UnitRecord, ExclusionError> {
     let mut exclusions: Vec<LevelExclusion> = exclusions
         .into_iter()
         .map(|e| LevelExclusion {

@@ -13,7 +13,7 @@
 pub mod exclusions;
 pub mod grade;
 
-pub use exclusions::{exclude_after_run, withdraw_exclusion_after_run};
+pub use exclusions::{ExclusionError, exclude_after_run, withdraw_exclusion_after_run};
 pub use grade::{Graded, grade};
 
 use crate::config::StationConfig;

@@ -205,7 +205,7 @@ impl TestPlan {
             };
             let normal = match crate::bounds::person_text(bare) {
                 Ok(n) => n,
-                Err(why) => return err(&format!("serials.{key}"), why),
+                Err(why) => return err(&format!("serials.{key}"), why.to_string()),
             };
             let bare = normal.as_str();
             if bare.is_empty() {

@@ -9,10 +9,6 @@ impl TestPlan {
     /// it: finite, of the right sign, within the bound.
     pub fn validate(&self) -> Result<(), PlanError> {
         use crate::bounds::*;
-        let at = |key: &str| {
-            let key = key.to_string();
-            move |problem: String| PlanError { key, problem }
-        };
         for (key, text) in [("name", &self.name), ("operator", &self.operator)] {
             if text.chars().count() > MAX_NAME_CHARS || text.chars().any(char::is_control) {
                 return Err(at(key)(format!(
@@ -166,5 +162,14 @@ impl TestPlan {
         check(l.marginal_fraction, 0.0..=1.0, "", "a fraction")
             .map_err(at("limits.marginal_fraction"))?;
         Ok(())
+    }
+}
+
+/// A problem (a bound's refusal, or a sentence) at the plan's key `key`.
+fn at<P: std::fmt::Display>(key: &str) -> impl FnOnce(P) -> PlanError {
+    let key = key.to_string();
+    move |problem: P| PlanError {
+        key,
+        problem: problem.to_string(),
     }
 }

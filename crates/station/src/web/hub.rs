@@ -177,6 +177,20 @@ pub struct Hub {
     zone: spinbench_engine::time_zone::UtcOffset,
 }
 
+/// Why a fault was not acknowledged.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum AcknowledgeError {
+    /// Someone acknowledged it before.
+    #[error("the fault was acknowledged by {by} already")]
+    Already {
+        /// Who acknowledged it.
+        by: String,
+    },
+    /// No fault waits.
+    #[error("no fault waits for acknowledgement")]
+    NoFault,
+}
+
 impl Hub {
     /// A hub for a station whose fixtures sit at `r0_m` on average.
     pub fn new(r0_m: f64, g_local_m_s2: f64) -> Hub {
@@ -269,7 +283,7 @@ impl Hub {
     /// Acknowledge the fault that stopped the station's run, as `by`:
     /// its banner goes; the run id and the fault's reason, for the audit
     /// log. An error when no fault waits for acknowledgement.
-    pub fn acknowledge_fault(&self, by: &str) -> Result<(String, String), String> {
+    pub fn acknowledge_fault(&self, by: &str) -> Result<(String, String), AcknowledgeError> {
         let mut state = self.lock();
         let s = &mut state.status;
         match (&s.run_id, s.fault, &s.fault_acknowledged) {
@@ -281,8 +295,8 @@ impl Hub {
                 });
                 Ok(found)
             }
-            (_, true, Some(a)) => Err(format!("the fault was acknowledged by {} already", a.by)),
-            _ => Err("no fault waits for acknowledgement".into()),
+            (_, true, Some(a)) => Err(AcknowledgeError::Already { by: a.by.clone() }),
+            _ => Err(AcknowledgeError::NoFault),
         }
     }
 

@@ -146,9 +146,32 @@ pub enum StartError {
     NotAudited(String),
 }
 
+/// Why a control of the active run (an answer, a hold, an abort, a new
+/// station config) was not taken: each a conflict with the run's state.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ControlError {
+    /// No run is active.
+    #[error("no run is active")]
+    NoActiveRun,
+    /// The active run waits on no prompt.
+    #[error("no prompt is waiting for an answer")]
+    NoPrompt,
+    /// A run is active, so the station config cannot change now.
+    #[error("run {run_id} is active; change the station after it")]
+    RunActive {
+        /// The active run.
+        run_id: String,
+    },
+}
+
 /// Writes a run's audit entries once its id is known and before anything
 /// is switched on (issue 39 item 6): an error leaves the run unstarted.
-pub type Admit<'a> = &'a dyn Fn(&str) -> Result<(), String>;
+pub type Admit<'a> = &'a dyn Fn(&str) -> Result<(), NotAudited>;
+
+/// A run's audit entries could not be written (the store's words).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct NotAudited(pub String);
 
 /// Starts and steers the web's runs.
 pub struct Runner {
@@ -204,15 +227,14 @@ impl Runner {
     }
 
     /// Replace the station config (refused while a run is active).
-    pub fn set_station(&self, station: StationConfig, text: String) -> Result<(), String> {
+    pub fn set_station(&self, station: StationConfig, text: String) -> Result<(), ControlError> {
         let active = self.lock();
         if let Some(a) = active.as_ref()
             && !a.finished.load(Ordering::Relaxed)
         {
-            return Err(format!(
-                "run {} is active; change the station after it",
-                a.run_id
-            ));
+            return Err(ControlError::RunActive {
+                run_id: a.run_id.clone(),
+            });
         }
         *self.station.lock().unwrap_or_else(|e| e.into_inner()) = (station, text);
         Ok(())
@@ -253,7 +275,7 @@ impl Runner {
             RunDir::create(&self.data_dir).map_err(|e| StartError::Files(format!("{e:#}")))?;
         if let Err(why) = admit(dir.id()) {
             dir.discard();
-            return Err(StartError::NotAudited(why));
+            return Err(StartError::NotAudited(why.0));
         }
         self.launch(&mut active, dir, plan, plan_text, by)
     }
@@ -291,7 +313,7 @@ impl Runner {
             RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
         dir.check_same_station(&self.station().1)
             .map_err(|e| StartError::Refused(format!("{e:#}")))?;
-        admit(run_id).map_err(StartError::NotAudited)?;
+        admit(run_id).map_err(|e| StartError::NotAudited(e.0))?;
         self.launch(&mut active, dir, plan, &plan_text, by)
     }
 
@@ -364,16 +386,16 @@ impl Runner {
         Ok(run_id)
     }
 
-    fn with_active<T>(&self, f: impl FnOnce(&ActiveRun) -> T) -> Result<T, String> {
+    fn with_active<T>(&self, f: impl FnOnce(&ActiveRun) -> T) -> Result<T, ControlError> {
         let active = self.lock();
         match active.as_ref() {
             Some(a) if !a.finished.load(Ordering::Relaxed) => Ok(f(a)),
-            _ => Err("no run is active".into()),
+            _ => Err(ControlError::NoActiveRun),
         }
     }
 
     /// Answer the active run's prompt.
-    pub fn answer(&self, proceed: bool, by: &str) -> Result<String, String> {
+    pub fn answer(&self, proceed: bool, by: &str) -> Result<String, ControlError> {
         self.with_active(|a| {
             a.prompt
                 .answer(Answer {
@@ -381,7 +403,7 @@ impl Runner {
                     by: by.to_string(),
                 })
                 .then(|| a.run_id.clone())
-                .ok_or_else(|| "no prompt is waiting for an answer".to_string())
+                .ok_or(ControlError::NoPrompt)
         })?
     }
 
@@ -391,7 +413,7 @@ impl Runner {
     }
 
     /// Hold (true) or resume (false) the active run.
-    pub fn pause(&self, on: bool) -> Result<String, String> {
+    pub fn pause(&self, on: bool) -> Result<String, ControlError> {
         self.with_active(|a| {
             a.pause.store(on, Ordering::Relaxed);
             a.run_id.clone()
@@ -400,7 +422,7 @@ impl Runner {
 
     /// Abort the active run (the engine brings the station to its safe
     /// state); `by` is recorded as who aborted.
-    pub fn abort(&self, by: &str) -> Result<String, String> {
+    pub fn abort(&self, by: &str) -> Result<String, ControlError> {
         self.with_active(|a| {
             a.abort.request(by);
             a.run_id.clone()
@@ -409,7 +431,7 @@ impl Runner {
 
     /// Abort the active run as the web UI's `user` (recorded as "the web
     /// UI (user …)", worded with the user apart).
-    pub fn abort_by_user(&self, user: &str) -> Result<String, String> {
+    pub fn abort_by_user(&self, user: &str) -> Result<String, ControlError> {
         self.with_active(|a| {
             a.abort.request_by_user(user);
             a.run_id.clone()

@@ -154,7 +154,7 @@ pub(super) async fn set_equipment(
         .ok_or_else(|| ApiError::bad("due_on: a date YYYY-MM-DD (1970 to 2200)"))?;
     let today = spinbench_store::now_s().div_euclid(86_400);
     spinbench_store::equipment::check_calibration_dates(calibrated, due, today)
-        .map_err(ApiError::bad)?;
+        .map_err(|why| ApiError::bad(why.to_string()))?;
     let row = EquipmentRow {
         station: app.runner.station().0.station,
         role: role.clone(),

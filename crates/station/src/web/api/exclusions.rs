@@ -184,7 +184,10 @@ fn change_record(
         &spinbench_engine::UnitRecord,
         &spinbench_engine::CompiledPlan,
         &spinbench_engine::StationConfig,
-    ) -> Result<spinbench_engine::UnitRecord, String>,
+    ) -> Result<
+        spinbench_engine::UnitRecord,
+        spinbench_engine::judgement::ExclusionError,
+    >,
 ) -> ApiResult<(
     spinbench_engine::UnitRecord,
     spinbench_engine::UnitRecord,
@@ -220,6 +223,7 @@ fn change_record(
         })?;
     // The body was well formed; the record's state refuses it (a level the
     // run does not have, one already out or not out, too few levels left).
-    let after = change(&result.record, &compiled, &station).map_err(ApiError::conflict)?;
+    let after = change(&result.record, &compiled, &station)
+        .map_err(|refused| ApiError::conflict(refused.to_string()))?;
     Ok((result.record, after, result.revision))
 }

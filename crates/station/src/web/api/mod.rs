@@ -101,6 +101,13 @@ impl ApiError {
     }
 }
 
+impl From<crate::web::runner::ControlError> for ApiError {
+    /// A control the run's state does not allow: a conflict, saying why.
+    fn from(e: crate::web::runner::ControlError) -> ApiError {
+        ApiError::conflict(e.to_string())
+    }
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let mut response = (
@@ -353,11 +360,12 @@ pub(super) fn audit_all(
     app: &AppState,
     who: &str,
     entries: &[(String, String)],
-) -> Result<(), String> {
+) -> Result<(), crate::web::runner::NotAudited> {
+    use crate::web::runner::NotAudited;
     store(app)
-        .map_err(|e| e.message)?
+        .map_err(|e| NotAudited(e.message))?
         .audit_all(who, entries)
-        .map_err(|e| e.to_string())
+        .map_err(|e| NotAudited(e.to_string()))
 }
 
 /// Write an entry of the audit log: only inside [`blocking`].

@@ -318,8 +318,8 @@ pub(super) async fn save_station(
             if let Some(old) = old {
                 let _ = Beside::write(&path, &old).and_then(Beside::put_in_place);
             }
-            failed(&why);
-            return Err(ApiError::conflict(why));
+            failed(&why.to_string());
+            return Err(why.into());
         }
         Ok(())
     })

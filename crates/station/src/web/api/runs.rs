@@ -363,7 +363,7 @@ pub(super) async fn answer_prompt(
                 &format!("{run}: {why}"),
             )
             .await;
-            return Err(ApiError::conflict(why));
+            return Err(why.into());
         }
     };
     Ok(Json(RunId { run_id }))
@@ -381,12 +381,15 @@ pub(super) async fn control(
     app: &App,
     headers: &HeaderMap,
     action: &str,
-    act: impl FnOnce(&crate::web::runner::Runner, &str) -> Result<String, String>,
+    act: impl FnOnce(
+        &crate::web::runner::Runner,
+        &str,
+    ) -> Result<String, crate::web::runner::ControlError>,
 ) -> ApiResult<Json<RunId>> {
     // Whatever the database does: a known session from the cache, the
     // action at once, the audit entry written when the store answers.
     let session = authorize_control(app, headers).await?;
-    let run_id = act(&app.runner, &session.user).map_err(ApiError::conflict)?;
+    let run_id = act(&app.runner, &session.user)?;
     let (app, action, id) = (Arc::clone(app), action.to_string(), run_id.clone());
     // A safety control is never held back by the audit log (issue 39 item
     // 6 is met by writing its entry until the store takes it: the run's
@@ -488,7 +491,7 @@ pub(super) async fn acknowledge_fault(
     let (run_id, reason) = app
         .hub
         .acknowledge_fault(&session.user)
-        .map_err(ApiError::conflict)?;
+        .map_err(|e| ApiError::conflict(e.to_string()))?;
     audit(
         &app,
         &session.user,
