@@ -5,45 +5,13 @@
 //! points the signature of the published station's data: method.md §5
 //! "What real data look like"), and `harsh` (typical, plus drift, a dead
 //! and a noisy instrument and intermittent faults on the counter lines).
+//!
+//! A bench config file is read here too ([`SimConfig::from_toml`]): its
+//! preset first, its keys over it. This module depends on [`crate::config`]
+//! (the types), never the other way round.
 
-use crate::config::{Disturbance, FaultConfig, SimConfig, SlotRef};
-use serde::{Deserialize, Serialize};
-
-/// A preset of realism.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Realism {
-    /// Today's clean world.
-    #[default]
-    Ideal,
-    /// The published data's signature.
-    Typical,
-    /// Typical, with drift, a dead and a noisy instrument and line faults.
-    Harsh,
-}
-
-impl std::str::FromStr for Realism {
-    type Err = String;
-
-    fn from_str(text: &str) -> Result<Self, Self::Err> {
-        match text.trim().to_ascii_lowercase().as_str() {
-            "ideal" => Ok(Realism::Ideal),
-            "typical" => Ok(Realism::Typical),
-            "harsh" => Ok(Realism::Harsh),
-            _ => Err(format!("unknown realism '{text}': ideal, typical or harsh")),
-        }
-    }
-}
-
-impl std::fmt::Display for Realism {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Realism::Ideal => "ideal",
-            Realism::Typical => "typical",
-            Realism::Harsh => "harsh",
-        })
-    }
-}
+pub use crate::config::Realism;
+use crate::config::{Disturbance, FaultConfig, SimConfig, SimConfigError, SlotRef};
 
 /// Arm stretch of the typical bench: 2 µg/g² common to both mountings on
 /// the 0.8 m arm, c = k_s·g/R0² (method.md (15)) → k_s = c·R0²/g.
@@ -122,6 +90,43 @@ impl Realism {
             };
         }
         c
+    }
+}
+
+impl SimConfig {
+    /// Parse TOML text: the preset its `realism` key names (`ideal` when
+    /// absent), with the file's other keys over it.
+    pub fn from_toml(text: &str) -> Result<SimConfig, SimConfigError> {
+        SimConfig::from_toml_with(text, None)
+    }
+
+    /// Parse TOML text as [`from_toml`](Self::from_toml); `realism`, when
+    /// given (a command line's `--realism`), replaces the file's preset.
+    pub fn from_toml_with(
+        text: &str,
+        realism: Option<Realism>,
+    ) -> Result<SimConfig, SimConfigError> {
+        let file_error = |problem: String| SimConfigError {
+            key: "(file)".into(),
+            problem,
+        };
+        let mut table: toml::Table = toml::from_str(text).map_err(|e| file_error(e.to_string()))?;
+        let named = match table.remove("realism") {
+            None => Realism::Ideal,
+            Some(v) => v.try_into().map_err(|_| SimConfigError {
+                key: "realism".into(),
+                problem: "must be \"ideal\", \"typical\" or \"harsh\"".into(),
+            })?,
+        };
+        let realism = realism.unwrap_or(named);
+        let mut merged = toml::Table::try_from(realism.config())
+            .map_err(|e| file_error(format!("the {realism:?} preset: {e}")))?;
+        merge(&mut merged, table);
+        let config: SimConfig = merged
+            .try_into()
+            .map_err(|e: toml::de::Error| file_error(e.to_string()))?;
+        config.validate()?;
+        Ok(config)
     }
 }
 

@@ -1,10 +1,14 @@
 //! The virtual bench's configuration (TOML). Every key has a default, so an
 //! empty file, or none, is a complete bench: two counter modules with six
 //! instruments each on a 0.8 m centrifuge.
+//!
+//! The types and their validation only, the preset's name ([`Realism`])
+//! among them; what each preset holds, and a file read over its preset
+//! (`SimConfig::from_toml`), are in [`crate::realism`], which depends on
+//! this module and not the other way round.
 
 mod validate;
 
-use crate::realism::Realism;
 use serde::{Deserialize, Serialize};
 
 /// The whole bench.
@@ -380,39 +384,38 @@ pub struct SimConfigError {
     pub problem: String,
 }
 
-impl SimConfig {
-    /// Parse TOML text: the preset its `realism` key names (`ideal` when
-    /// absent), with the file's other keys over it.
-    pub fn from_toml(text: &str) -> Result<SimConfig, SimConfigError> {
-        SimConfig::from_toml_with(text, None)
-    }
+/// A preset of realism.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Realism {
+    /// Today's clean world.
+    #[default]
+    Ideal,
+    /// The published data's signature.
+    Typical,
+    /// Typical, with drift, a dead and a noisy instrument and line faults.
+    Harsh,
+}
 
-    /// Parse TOML text as [`from_toml`](Self::from_toml); `realism`, when
-    /// given (a command line's `--realism`), replaces the file's preset.
-    pub fn from_toml_with(
-        text: &str,
-        realism: Option<Realism>,
-    ) -> Result<SimConfig, SimConfigError> {
-        let file_error = |problem: String| SimConfigError {
-            key: "(file)".into(),
-            problem,
-        };
-        let mut table: toml::Table = toml::from_str(text).map_err(|e| file_error(e.to_string()))?;
-        let named = match table.remove("realism") {
-            None => Realism::Ideal,
-            Some(v) => v.try_into().map_err(|_| SimConfigError {
-                key: "realism".into(),
-                problem: "must be \"ideal\", \"typical\" or \"harsh\"".into(),
-            })?,
-        };
-        let realism = realism.unwrap_or(named);
-        let mut merged = toml::Table::try_from(realism.config())
-            .map_err(|e| file_error(format!("the {realism:?} preset: {e}")))?;
-        crate::realism::merge(&mut merged, table);
-        let config: SimConfig = merged
-            .try_into()
-            .map_err(|e: toml::de::Error| file_error(e.to_string()))?;
-        config.validate()?;
-        Ok(config)
+impl std::str::FromStr for Realism {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        match text.trim().to_ascii_lowercase().as_str() {
+            "ideal" => Ok(Realism::Ideal),
+            "typical" => Ok(Realism::Typical),
+            "harsh" => Ok(Realism::Harsh),
+            _ => Err(format!("unknown realism '{text}': ideal, typical or harsh")),
+        }
+    }
+}
+
+impl std::fmt::Display for Realism {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Realism::Ideal => "ideal",
+            Realism::Typical => "typical",
+            Realism::Harsh => "harsh",
+        })
     }
 }
