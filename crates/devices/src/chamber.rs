@@ -633,7 +633,7 @@ impl ChamberConfig {
         if let ChamberProtocol::ModbusRtu(map) | ChamberProtocol::ModbusTcp(map) = &self.protocol {
             map.validate().map_err(|problem| ConfigError {
                 key: "chamber.protocol".into(),
-                problem,
+                problem: problem.to_string(),
             })?;
         }
         Ok(())

@@ -72,13 +72,13 @@ impl Transcript {
     }
 
     /// Ok if every step was used and every write was as expected; else what differed.
-    pub fn verify(&self) -> Result<(), String> {
+    pub fn verify(&self) -> Result<(), NotFollowed> {
         let s = self.lock();
         if !s.mismatches.is_empty() {
-            return Err(s.mismatches.join("\n"));
+            return Err(NotFollowed::Mismatched(s.mismatches.clone()));
         }
         if !s.steps.is_empty() {
-            return Err(format!("{} step(s) not used: {:?}", s.steps.len(), s.steps));
+            return Err(NotFollowed::Unused(format!("{:?}", s.steps)));
         }
         Ok(())
     }
@@ -87,6 +87,17 @@ impl Transcript {
     pub fn discards(&self) -> usize {
         self.lock().discarded
     }
+}
+
+/// How a driver did not follow its transcript.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum NotFollowed {
+    /// Writes that differed from the transcript's, one line each.
+    #[error("{}", .0.join("\n"))]
+    Mismatched(Vec<String>),
+    /// Steps the driver never reached (listed).
+    #[error("step(s) not used: {0}")]
+    Unused(String),
 }
 
 fn text(bytes: &[u8]) -> String {

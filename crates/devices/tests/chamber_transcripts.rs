@@ -257,7 +257,10 @@ fn a_purge_on_both_the_controller_and_a_relay_is_refused_naming_the_key() {
     let map: RegisterMap =
         toml::from_str("setpoint = 1\nprocess_value = 2\nrun = 3\npurge = 4\npurge_coil = 5\n")
             .expect("map");
-    assert!(map.validate().expect_err("both").contains("purge_coil"));
+    assert_eq!(
+        map.validate().expect_err("both"),
+        spinbench_wire::chamber::MapError::TwoPurgeOutputs
+    );
 }
 
 #[test]

@@ -477,7 +477,7 @@ impl StationConfig {
             }
         }
         if let Err(problem) = self.type_b(0).validate() {
-            return err("uncertainty", problem);
+            return err("uncertainty", problem.to_string());
         }
         if self.uncertainty.radius_reading_ppm_p != 0.0
             || self.uncertainty.radius_reading_ppm_n != 0.0

@@ -103,13 +103,18 @@ impl std::fmt::Display for RunState {
     }
 }
 
+/// A text that names no run state.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("'{0}' is not a run state")]
+pub struct NotARunState(pub String);
+
 impl std::str::FromStr for RunState {
-    type Err = String;
-    fn from_str(text: &str) -> Result<RunState, String> {
+    type Err = NotARunState;
+    fn from_str(text: &str) -> Result<RunState, NotARunState> {
         RunState::ALL
             .into_iter()
             .find(|s| s.as_str() == text)
-            .ok_or_else(|| format!("'{text}' is not a run state"))
+            .ok_or_else(|| NotARunState(text.to_string()))
     }
 }
 
@@ -421,11 +426,18 @@ impl std::fmt::Display for DeviceRole {
     }
 }
 
+/// A text that names no device role; says the names.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "'{0}' is not a device role: centrifuge, fmu 1 … fmu {MAX_FMU_ROLES}, instrument supply or module supply"
+)]
+pub struct NotADeviceRole(pub String);
+
 impl std::str::FromStr for DeviceRole {
-    type Err = String;
+    type Err = NotADeviceRole;
     /// A role's exact name; anything else (a typo would leave a real device
     /// unregistered while the register looks kept) is refused, saying the names.
-    fn from_str(text: &str) -> Result<DeviceRole, String> {
+    fn from_str(text: &str) -> Result<DeviceRole, NotADeviceRole> {
         match text {
             "centrifuge" => return Ok(DeviceRole::Centrifuge),
             "instrument supply" => return Ok(DeviceRole::InstrumentSupply),
@@ -436,17 +448,13 @@ impl std::str::FromStr for DeviceRole {
             .and_then(|n| n.parse::<u8>().ok())
             .filter(|n| (1..=MAX_FMU_ROLES).contains(n) && text == format!("fmu {n}"))
             .map(DeviceRole::Fmu)
-            .ok_or_else(|| {
-                format!(
-                    "'{text}' is not a device role: centrifuge, fmu 1 … fmu {MAX_FMU_ROLES}, instrument supply or module supply"
-                )
-            })
+            .ok_or_else(|| NotADeviceRole(text.to_string()))
     }
 }
 
 impl TryFrom<String> for DeviceRole {
-    type Error = String;
-    fn try_from(text: String) -> Result<DeviceRole, String> {
+    type Error = NotADeviceRole;
+    fn try_from(text: String) -> Result<DeviceRole, NotADeviceRole> {
         text.parse()
     }
 }

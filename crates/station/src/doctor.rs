@@ -93,15 +93,14 @@ fn devices(station: &StationConfig) -> Vec<Finding> {
     let mut found = Vec::new();
     let c = &station.centrifuge;
     found.push(device("centrifuge", &c.transport, || {
-        let mut d = c.connect().map_err(|e| e.to_string())?;
-        d.identify().map_err(|e| e.to_string())
+        let mut d = c.connect()?;
+        Ok(d.identify()?)
     }));
     for (i, f) in station.fmu.iter().enumerate() {
         found.push(device(&format!("fmu {}", i + 1), &f.transport, || {
-            let mut d = f.connect(i).map_err(|e| e.to_string())?;
-            d.status()
-                .map(|s| format!("firmware {:#06x}", s.firmware_id))
-                .map_err(|e| e.to_string())
+            let mut d = f.connect(i)?;
+            Ok(d.status()
+                .map(|s| format!("firmware {:#06x}", s.firmware_id))?)
         }));
     }
     for p in &station.power_supply {
@@ -113,10 +112,10 @@ fn devices(station: &StationConfig) -> Vec<Finding> {
             format!("supply '{}'", p.name)
         };
         found.push(device(&role, &p.transport, || {
-            let mut d = p.connect().map_err(|e| e.to_string())?;
-            let identity = d.identify().map_err(|e| e.to_string())?;
+            let mut d = p.connect()?;
+            let identity = d.identify()?;
             // What another program left in its error queue, read and cleared.
-            let stale = d.clear_errors().map_err(|e| e.to_string())?;
+            let stale = d.clear_errors()?;
             Ok(if stale.is_empty() {
                 identity
             } else {
@@ -136,22 +135,23 @@ fn devices(station: &StationConfig) -> Vec<Finding> {
         found.push(device("chamber", &ch.transport, || {
             // Every register the run reads: the air, the setpoint (a wrong
             // setpoint register or scale shows here), the alarm word.
-            let mut d = ch.connect().map_err(|e| e.to_string())?;
-            let air = d.temperature_c().map_err(|e| e.to_string())?;
-            let setpoint = d.setpoint_c().map_err(|e| e.to_string())?;
-            let alarms = d.alarms().map_err(|e| e.to_string())?;
+            let mut d = ch.connect()?;
+            let air = d.temperature_c()?;
+            let setpoint = d.setpoint_c()?;
+            let alarms = d.alarms()?;
             if !(PLAUSIBLE_SETPOINT_C.0..=PLAUSIBLE_SETPOINT_C.1).contains(&setpoint) {
-                return Err(format!(
+                anyhow::bail!(
                     "its setpoint reads {setpoint:.1} °C, outside {} to {} °C: check the map's \
                      setpoint register, counts_per_c and signed",
-                    PLAUSIBLE_SETPOINT_C.0, PLAUSIBLE_SETPOINT_C.1
-                ));
+                    PLAUSIBLE_SETPOINT_C.0,
+                    PLAUSIBLE_SETPOINT_C.1
+                );
             }
             if alarms != 0 {
-                return Err(format!(
+                anyhow::bail!(
                     "air {air:.1} °C, setpoint {setpoint:.1} °C, and an alarm is active \
                      (alarm word {alarms:#06x}): clear it at the controller before a run"
-                ));
+                );
             }
             Ok(format!(
                 "air {air:.1} °C, setpoint {setpoint:.1} °C, no alarm"
@@ -170,7 +170,7 @@ pub const PLAUSIBLE_SETPOINT_C: (f64, f64) = (-80.0, 180.0);
 fn device(
     role: &str,
     transport: &TransportConfig,
-    ask: impl FnOnce() -> Result<String, String>,
+    ask: impl FnOnce() -> anyhow::Result<String>,
 ) -> Finding {
     let place = match transport {
         TransportConfig::Serial(s) => s.path.clone(),

@@ -86,11 +86,38 @@ pub fn pg_tool(name: &str) -> Option<std::path::PathBuf> {
     on_path.chain(debian).find(|p| p.is_file())
 }
 
+/// Why a PostgreSQL client tool did not do its job.
+#[derive(Debug, thiserror::Error)]
+enum PgToolError {
+    /// The URL is not one.
+    #[error("not a PostgreSQL URL: {0}")]
+    NotAUrl(postgres::Error),
+    /// The tool is not installed.
+    #[error(
+        "{0} is not installed: install the PostgreSQL client tools (Debian: apt install postgresql-client) and run this again"
+    )]
+    NotInstalled(String),
+    /// The tool could not be started.
+    #[error("{path}: {source}")]
+    NotStarted {
+        /// The tool's path, as shown.
+        path: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The tool ran and failed (its error output).
+    #[error("{tool} failed: {stderr}")]
+    Failed {
+        /// The tool.
+        tool: String,
+        /// What it wrote to its error output.
+        stderr: String,
+    },
+}
+
 /// A PostgreSQL URL as libpq keywords without the password, and the password.
-fn pg_connection(url: &str) -> Result<(String, Option<String>), String> {
-    let config: postgres::Config = url
-        .parse()
-        .map_err(|e| format!("not a PostgreSQL URL: {e}"))?;
+fn pg_connection(url: &str) -> Result<(String, Option<String>), PgToolError> {
+    let config: postgres::Config = url.parse().map_err(PgToolError::NotAUrl)?;
     let mut words = Vec::new();
     if let Some(postgres::config::Host::Tcp(h)) = config.get_hosts().first() {
         words.push(format!("host='{h}'"));
@@ -111,24 +138,23 @@ fn pg_connection(url: &str) -> Result<(String, Option<String>), String> {
 }
 
 /// Run a PostgreSQL client tool on `url`'s database; its error output on failure.
-fn run_pg_tool(tool: &str, url: &str, args: &[&std::ffi::OsStr]) -> Result<(), String> {
-    let path = pg_tool(tool).ok_or_else(|| {
-        format!("{tool} is not installed: install the PostgreSQL client tools (Debian: apt install postgresql-client) and run this again")
-    })?;
+fn run_pg_tool(tool: &str, url: &str, args: &[&std::ffi::OsStr]) -> Result<(), PgToolError> {
+    let path = pg_tool(tool).ok_or_else(|| PgToolError::NotInstalled(tool.to_string()))?;
     let (conninfo, password) = pg_connection(url)?;
     let mut cmd = std::process::Command::new(&path);
     cmd.args(args).arg(format!("--dbname={conninfo}"));
     if let Some(p) = password {
         cmd.env("PGPASSWORD", p);
     }
-    let out = cmd
-        .output()
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let out = cmd.output().map_err(|source| PgToolError::NotStarted {
+        path: path.display().to_string(),
+        source,
+    })?;
     if !out.status.success() {
-        return Err(format!(
-            "{tool} failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        ));
+        return Err(PgToolError::Failed {
+            tool: tool.to_string(),
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        });
     }
     Ok(())
 }
@@ -156,7 +182,7 @@ pub fn pg_dump(target: &StoreTarget, to: &Path) -> Result<(), StoreError> {
             file.as_os_str(),
         ],
     )
-    .map_err(fail)?;
+    .map_err(|e| fail(e.to_string()))?;
     let list = pg_tool("pg_restore")
         .ok_or_else(|| fail("pg_restore is not installed to check the dump".into()))?;
     let checked = std::process::Command::new(list)
@@ -218,5 +244,5 @@ pub fn pg_restore(target: &StoreTarget, from: &Path) -> Result<(), StoreError> {
             from.as_os_str(),
         ],
     )
-    .map_err(fail)
+    .map_err(|e| fail(e.to_string()))
 }

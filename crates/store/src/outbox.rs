@@ -99,6 +99,49 @@ impl StoreHealth {
     }
 }
 
+/// Why the outbox could not keep an event on disk (the store's own
+/// outages are not errors here: they are waited out).
+#[derive(Debug, thiserror::Error)]
+pub enum OutboxError {
+    /// An event could not be written as JSON.
+    #[error("an event could not be written as JSON: {0}")]
+    Serialise(#[from] serde_json::Error),
+    /// The queue could not spill to disk.
+    #[error("{path}: cannot spill the store's queue to disk: {source}")]
+    Spill {
+        /// The spill file, as shown.
+        path: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// The spill file could not be written.
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        /// The spill file, as shown.
+        path: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+    /// What the store had not taken at the end could not be kept.
+    #[error("{path}: cannot keep the {count} events the store {target} has not taken: {source}")]
+    Keep {
+        /// The outbox file, as shown.
+        path: String,
+        /// How many events.
+        count: usize,
+        /// The store, as shown.
+        target: String,
+        /// The system's error.
+        source: std::io::Error,
+    },
+}
+
+impl From<OutboxError> for spinbench_engine::event::SinkError {
+    fn from(e: OutboxError) -> Self {
+        e.to_string().into()
+    }
+}
+
 /// Events past the memory bound, in a file, in order.
 struct Spill {
     path: PathBuf,
@@ -125,13 +168,16 @@ impl Spill {
             read: 0,
         })
     }
-    fn push(&mut self, event: &Event) -> Result<(), String> {
-        let mut line = serde_json::to_vec(event).map_err(|e| e.to_string())?;
+    fn push(&mut self, event: &Event) -> Result<(), OutboxError> {
+        let mut line = serde_json::to_vec(event)?;
         line.push(b'\n');
         self.file
             .write_all(&line)
             .and_then(|()| self.file.flush())
-            .map_err(|e| format!("{}: cannot write: {e}", self.path.display()))?;
+            .map_err(|source| OutboxError::Write {
+                path: self.path.display().to_string(),
+                source,
+            })?;
         self.written += 1;
         Ok(())
     }
@@ -194,12 +240,14 @@ impl EventSink for OutboxSender {
         }
         let mut q = locked(&self.shared.queue);
         if q.spill.is_none() && q.memory.len() >= MEMORY_EVENTS {
-            q.spill = Some(Spill::open(self.shared.spill_path.clone()).map_err(|e| {
-                format!(
-                    "{}: cannot spill the store's queue to disk: {e}",
-                    self.shared.spill_path.display()
-                )
-            })?);
+            q.spill = Some(
+                Spill::open(self.shared.spill_path.clone()).map_err(|source| {
+                    OutboxError::Spill {
+                        path: self.shared.spill_path.display().to_string(),
+                        source,
+                    }
+                })?,
+            );
         }
         if let Some(spill) = q.spill.as_mut() {
             spill.push(event)?;
@@ -287,7 +335,7 @@ impl Outbox {
         mut self,
         wait: Duration,
         mut progress: impl FnMut(&HealthReading),
-    ) -> Result<Finished, String> {
+    ) -> Result<Finished, OutboxError> {
         let until = Instant::now() + wait;
         {
             let mut q = locked(&self.shared.queue);
@@ -331,7 +379,7 @@ impl Outbox {
     }
 
     /// Everything not written, in order, into the outbox file.
-    fn keep_left(&self) -> Result<u64, String> {
+    fn keep_left(&self) -> Result<u64, OutboxError> {
         let mut q = locked(&self.shared.queue);
         let mut rest: Vec<Event> = q.writing.take().into_iter().collect();
         rest.extend(q.memory.drain(..).map(|(_, e)| e));
@@ -347,20 +395,18 @@ impl Outbox {
         }
         let mut text = Vec::new();
         for e in &rest {
-            serde_json::to_writer(&mut text, e).map_err(|e| e.to_string())?;
+            serde_json::to_writer(&mut text, e)?;
             text.push(b'\n');
         }
         let tmp = path.with_extension("jsonl.tmp");
         std::fs::write(&tmp, &text)
             .and_then(|()| File::open(&tmp)?.sync_all())
             .and_then(|()| std::fs::rename(&tmp, path))
-            .map_err(|e| {
-                format!(
-                    "{}: cannot keep the {} events the store {} has not taken: {e}",
-                    path.display(),
-                    rest.len(),
-                    self.target
-                )
+            .map_err(|source| OutboxError::Keep {
+                path: path.display().to_string(),
+                count: rest.len(),
+                target: self.target.to_string(),
+                source,
             })?;
         Ok(rest.len() as u64)
     }

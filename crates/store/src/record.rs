@@ -87,16 +87,14 @@ impl std::fmt::Display for StoredState {
 }
 
 impl std::str::FromStr for StoredState {
-    type Err = String;
+    type Err = spinbench_engine::event::NotARunState;
     /// A stored name; the engine's transient states (an archive written
     /// while a run was paused or prompting) read as `running`.
-    fn from_str(text: &str) -> Result<StoredState, String> {
+    fn from_str(text: &str) -> Result<StoredState, Self::Err> {
         if let Some(s) = StoredState::ALL.into_iter().find(|s| s.as_str() == text) {
             return Ok(s);
         }
-        text.parse::<RunState>()
-            .map(StoredState::of_engine)
-            .map_err(|_| format!("'{text}' is not a run state"))
+        text.parse::<RunState>().map(StoredState::of_engine)
     }
 }
 

@@ -27,14 +27,16 @@ pub fn empty_postgres_database(admin_url: &str) -> Result<String, super::DbError
     Ok(format!("{base}/{name}"))
 }
 
+/// No test PostgreSQL server is named; says how to get one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{POSTGRES_ENV} is not set: run the tests with ./scripts/test, which starts a throwaway PostgreSQL on loopback, or set it to postgres://user@host:port/database"
+)]
+pub struct NoTestPostgres;
+
 /// The test server's URL, or an error that says how to get one.
-pub fn postgres_url() -> Result<String, String> {
-    std::env::var(POSTGRES_ENV).map_err(|_| {
-        format!(
-            "{POSTGRES_ENV} is not set: run the tests with ./scripts/test, which starts a \
-             throwaway PostgreSQL on loopback, or set it to postgres://user@host:port/database"
-        )
-    })
+pub fn postgres_url() -> Result<String, NoTestPostgres> {
+    std::env::var(POSTGRES_ENV).map_err(|_| NoTestPostgres)
 }
 
 fn rand_u64() -> u64 {

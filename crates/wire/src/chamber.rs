@@ -128,28 +128,36 @@ pub struct RegisterMap {
     pub counts_per_c: f64,
 }
 
+/// Why a chamber's register map cannot work.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MapError {
+    /// The scale is not a positive number up to 1000.
+    #[error("counts_per_c = {0} is not a scale from 0 to 1000 counts per °C")]
+    Scale(f64),
+    /// The purge valve is named on two outputs.
+    #[error(
+        "both `purge` (a register) and `purge_coil` are set: name the one output the valve is on"
+    )]
+    TwoPurgeOutputs,
+    /// Run and stop are written as the same value.
+    #[error("run_value and stop_value are both {0}: the station could not tell run from stop")]
+    RunIsStop(u16),
+}
+
 impl RegisterMap {
     /// Check the map: a finite, positive scale no larger than 1000 counts/°C.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MapError> {
         if !(self.counts_per_c.is_finite()
             && self.counts_per_c > 0.0
             && self.counts_per_c <= 1000.0)
         {
-            return Err(format!(
-                "counts_per_c = {} is not a scale from 0 to 1000 counts per °C",
-                self.counts_per_c
-            ));
+            return Err(MapError::Scale(self.counts_per_c));
         }
         if self.purge.is_some() && self.purge_coil.is_some() {
-            return Err(
-                "both `purge` (a register) and `purge_coil` are set: name the one output the valve is on".into(),
-            );
+            return Err(MapError::TwoPurgeOutputs);
         }
         if self.run_value == self.stop_value {
-            return Err(format!(
-                "run_value and stop_value are both {}: the station could not tell run from stop",
-                self.run_value
-            ));
+            return Err(MapError::RunIsStop(self.run_value));
         }
         Ok(())
     }

@@ -151,10 +151,30 @@ pub const MAX_TABLE_DISTURBANCE_UG: f64 = 1e5;
 /// The half-width assumed when a table-disturbance bound gives none [g].
 pub const DEFAULT_TABLE_DISTURBANCE_WIDTH_G: f64 = 8.0;
 
+/// A Type B input the budget cannot take; names the key.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum InputError {
+    /// Not a number from 0 to its bound.
+    #[error("{key} = {value} is not a number from 0 to {bound}")]
+    OutOfBound {
+        /// The key.
+        key: &'static str,
+        /// The value given.
+        value: f64,
+        /// The highest allowed.
+        bound: f64,
+    },
+    /// A rate resolution with no radius to turn it into acceleration.
+    #[error(
+        "rate_resolution_deg_s needs arm_radius_m (the radius that turns the rate into acceleration)"
+    )]
+    ResolutionWithoutRadius,
+}
+
 impl TypeBInputs {
     /// Check every field: finite, not negative, within its named bound; the
     /// error names the key.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), InputError> {
         let checks: [(&str, f64, f64); 19] = [
             (
                 "table_disturbance_ug",
@@ -218,14 +238,11 @@ impl TypeBInputs {
         ];
         for (key, value, bound) in checks {
             if !value.is_finite() || value < 0.0 || value > bound {
-                return Err(format!("{key} = {value} is not a number from 0 to {bound}"));
+                return Err(InputError::OutOfBound { key, value, bound });
             }
         }
         if self.rate_resolution_deg_s > 0.0 && self.arm_radius_m <= 0.0 {
-            return Err(
-                "rate_resolution_deg_s needs arm_radius_m (the radius that turns the rate into acceleration)"
-                    .into(),
-            );
+            return Err(InputError::ResolutionWithoutRadius);
         }
         Ok(())
     }

@@ -21,7 +21,7 @@ pub(super) fn subset_font(
     let fail =
         |what: &str, e: String| ReportError::Pdf(format!("subsetting the font: {what}: {e}"));
     let bytes = subset_bytes(full, used.iter().copied(), SubsetProfile::Pdf)
-        .map_err(|e| fail("subset", e))?;
+        .map_err(|e| fail("subset", e.to_string()))?;
     let font = ParsedFont::from_bytes(&bytes, 0, &mut Vec::new())
         .ok_or_else(|| fail("reading the subset", "not a font".into()))?;
     // Every character the full font draws must still map to a glyph.
@@ -43,12 +43,27 @@ pub fn web_font(text: &str) -> Result<Vec<u8>, ReportError> {
         .map_err(|e| ReportError::Pdf(format!("the web font: {e}")))
 }
 
+/// Why the embedded font could not be cut to the glyphs a document uses
+/// (the font library's words).
+#[derive(Debug, thiserror::Error)]
+enum SubsetError {
+    /// The font collection could not be read.
+    #[error("reading: {0}")]
+    Read(String),
+    /// Its first face could not be read.
+    #[error("face 0: {0}")]
+    Face(String),
+    /// The subsetter refused.
+    #[error("{0}")]
+    Subset(String),
+}
+
 /// The embedded font's glyphs of `chars` as a font of `profile`'s tables.
 fn subset_bytes(
     full: &ParsedFont,
     chars: impl Iterator<Item = char>,
     profile: allsorts::subset::SubsetProfile,
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, SubsetError> {
     use allsorts::binary::read::ReadScope;
     use allsorts::font_data::FontData;
     use allsorts::subset::{CmapTarget, subset};
@@ -62,7 +77,10 @@ fn subset_bytes(
     let ids: Vec<u16> = std::iter::once(0).chain(glyphs).collect();
     let data = ReadScope::new(FONT_TTC)
         .read::<FontData<'_>>()
-        .map_err(|e| format!("reading: {e}"))?;
-    let provider = data.table_provider(0).map_err(|e| format!("face 0: {e}"))?;
-    subset(&provider, &ids, &profile, CmapTarget::Unicode).map_err(|e| e.to_string())
+        .map_err(|e| SubsetError::Read(e.to_string()))?;
+    let provider = data
+        .table_provider(0)
+        .map_err(|e| SubsetError::Face(e.to_string()))?;
+    subset(&provider, &ids, &profile, CmapTarget::Unicode)
+        .map_err(|e| SubsetError::Subset(e.to_string()))
 }
