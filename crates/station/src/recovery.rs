@@ -100,6 +100,13 @@ pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
                 if !dir.is_dir() || !idle(&dir) || journal_finished(&dir) {
                     continue;
                 }
+                // What the crashed process's outbox held in memory: the
+                // record keeps every measurement its journal has.
+                if let Ok((events, _)) = read_journal(&dir)
+                    && let Err(e) = spinbench_store::outbox::catch_up_from_journal(store, &events)
+                {
+                    out.problems.push(e.to_string());
+                }
                 let why = "interrupted: the station's process ended without finishing the run (a crash or a power cut)";
                 match store.mark_interrupted(&row.id, why) {
                     Ok(true) => out.interrupted.push((row.id, dir)),

@@ -141,6 +141,15 @@ pub fn execute(
     let db = spinbench_store::Store::connect(&store)?;
     let mut executor = Executor::new(&station, compiled, bench, operator, options);
     if let Some(events) = &past {
+        // What the killed process's outbox held in memory, from its journal
+        // (before the station time goes on from the store's last value).
+        let restored = spinbench_store::outbox::catch_up_from_journal(&db, events)
+            .context("the store must hold what the journal measured before the run is resumed")?;
+        if restored > 0 && !quiet {
+            eprintln!(
+                "  wrote the {restored} measurement events the store had not taken when the run's process ended"
+            );
+        }
         executor.restore(events);
         if let Some(t) = db.last_value_time_s(&run_id)? {
             executor.continue_time_after(t);

@@ -137,7 +137,14 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
             continue;
         }
         let before = journaled_before_kill(&run_dir);
-        // Kill during write: the store opens, is sound, and holds every point the journal completed.
+        let run_id = run_dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        // Kill during write: the store opens and is sound. The points the
+        // outbox still held in memory died with the process (the journal,
+        // synced first, has them): the resume below writes them, and the
+        // store must then hold every point the journal completed.
         let db = data.join("spinbench.db");
         if db.exists() {
             let store = spinbench_store::Store::open(&db).expect("the store opens after SIGKILL");
@@ -146,18 +153,6 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
                 "ok",
                 "trial {trial}"
             );
-            let run_id = run_dir
-                .file_name()
-                .map(|n| n.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            let stored = store.point_keys(&run_id).expect("keys");
-            for p in &before {
-                let key = (p.0, p.1["slot"].as_i64().unwrap_or(-1));
-                assert!(
-                    stored.contains(&key),
-                    "trial {trial}: point {key:?} completed in the journal is missing from the store"
-                );
-            }
             stored_checks += 1;
         }
         let out = spinbench()
@@ -187,12 +182,17 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
             );
         }
         resumed_trials += 1;
-        // The resumed run finished in its own store, with each point once.
+        // The resumed run finished in its own store, with each point once,
+        // every point the journal completed before the kill among them.
         let store = spinbench_store::Store::open(&data.join("spinbench.db")).expect("store");
-        let run_id = run_dir
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        let stored = store.point_keys(&run_id).expect("keys");
+        for p in &before {
+            let key = (p.0, p.1["slot"].as_i64().unwrap_or(-1));
+            assert!(
+                stored.contains(&key),
+                "trial {trial}: point {key:?} completed in the journal before the kill is missing from the store"
+            );
+        }
         assert_eq!(
             store.point_keys(&run_id).expect("keys").len(),
             reference.len(),

@@ -545,3 +545,60 @@ pub fn catch_up(store: &Store, run_dir: &Path) -> Result<u64, StoreError> {
     let _ = std::fs::remove_file(&path);
     Ok(events.len() as u64)
 }
+
+/// A process killed outright (SIGKILL, a power cut) takes the events its
+/// outbox still held in memory with it; its journal, written and synced
+/// first, has them. Write into `store` what `journal` (a run directory's
+/// events, [`spinbench_engine::journal::read_journal`]) holds of the run's
+/// measurements and the store lacks: the run itself if the store never
+/// heard of it, every step's points, the radii, and the one-second values
+/// after the store's last. Each is an upsert: nothing is doubled, and a
+/// step redone after the resume replaces its rows. Returns how many events
+/// were written. Called before a run is resumed and when a crashed run is
+/// marked interrupted.
+pub fn catch_up_from_journal(store: &Store, journal: &[Event]) -> Result<u64, StoreError> {
+    let what = "catch up from a run's journal";
+    let Some(first) = journal
+        .iter()
+        .find(|e| matches!(e, Event::RunStarted { .. }))
+    else {
+        return Ok(0);
+    };
+    let Event::RunStarted { run_id, .. } = first else {
+        return Ok(0);
+    };
+    let known = store.run(run_id)?.is_some();
+    let stored: std::collections::BTreeSet<(i64, i64)> = if known {
+        store.point_keys(run_id)?.into_iter().collect()
+    } else {
+        Default::default()
+    };
+    let last_value_s = if known {
+        store.last_value_time_s(run_id)?
+    } else {
+        None
+    };
+    let mut sink = store.sink()?;
+    sink.prime(first);
+    let mut written = 0;
+    let fail = failed(store.target(), what);
+    if !known {
+        sink.write(first).map_err(&fail)?;
+        written += 1;
+    }
+    for event in journal {
+        let missing = match event {
+            Event::PointDone { step, points } => points
+                .iter()
+                .any(|p| !stored.contains(&(*step as i64, p.slot as i64))),
+            Event::RadiusDone { .. } => true,
+            Event::Values { time_s, .. } => last_value_s.is_none_or(|t| *time_s > t),
+            _ => false,
+        };
+        if missing {
+            sink.write(event).map_err(&fail)?;
+            written += 1;
+        }
+    }
+    Ok(written)
+}

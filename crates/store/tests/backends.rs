@@ -614,3 +614,71 @@ fn two_changes_of_one_result_from_one_revision_do_not_both_land() {
         }
     });
 }
+
+/// A process killed outright loses what its outbox held in memory; its
+/// journal has it. The journal's measurements the store lacks are written
+/// again before a resume (and when a crashed run is marked interrupted),
+/// each once: a second catch-up writes nothing new and doubles nothing.
+#[test]
+fn what_a_killed_process_journaled_reaches_the_store_once() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        let started = Event::RunStarted {
+            run_id: "r-killed".into(),
+            station: "bench 1".into(),
+            plan: Box::new(plan(&["A", "B"])),
+            resumed: false,
+            station_config: "station = \"bench 1\"\n".into(),
+        };
+        let values = |t: f64| Event::Values {
+            time_s: t,
+            rate_deg_s: 10.0,
+            demand_deg_s: 10.0,
+            on_speed: true,
+            outputs_hz: vec![Some(1.5), Some(2.5)],
+            temperatures_c: vec![None, None],
+        };
+        let journal = vec![
+            started.clone(),
+            values(1.0),
+            Event::PointDone {
+                step: 3,
+                points: vec![point(0, 0.0, 1.0), point(1, 0.0, 2.0)],
+            },
+            Event::StepDone { index: 3 },
+            values(2.0),
+            Event::PointDone {
+                step: 4,
+                points: vec![point(0, 5.0, 11.0), point(1, 5.0, 12.0)],
+            },
+            Event::StepDone { index: 4 },
+        ];
+        // The store took the first three events before the kill.
+        let mut sink = store.sink().expect("sink");
+        for e in &journal[..3] {
+            sink.emit(e).expect("taken");
+        }
+        assert_eq!(store.point_keys("r-killed").expect("keys").len(), 2);
+        let written =
+            spinbench_store::outbox::catch_up_from_journal(&store, &journal).expect("caught up");
+        assert_eq!(written, 2, "{target}: step 4's points and the second value");
+        let mut keys = store.point_keys("r-killed").expect("keys");
+        keys.sort_unstable();
+        assert_eq!(keys, vec![(3, 0), (3, 1), (4, 0), (4, 1)], "{target}");
+        assert_eq!(store.last_value_time_s("r-killed").expect("t"), Some(2.0));
+        // Once only.
+        let again = spinbench_store::outbox::catch_up_from_journal(&store, &journal)
+            .expect("caught up again");
+        assert_eq!(again, 0, "{target}");
+        assert_eq!(store.point_keys("r-killed").expect("keys").len(), 4);
+        // A run the store never heard of is started in it first.
+        let mut unseen = journal.clone();
+        if let Event::RunStarted { run_id, .. } = &mut unseen[0] {
+            *run_id = "r-unseen".into();
+        }
+        let written =
+            spinbench_store::outbox::catch_up_from_journal(&store, &unseen).expect("caught up");
+        assert_eq!(written, 1 + 4, "{target}: the start, two values, two steps");
+        assert_eq!(store.point_keys("r-unseen").expect("keys").len(), 4);
+    });
+}

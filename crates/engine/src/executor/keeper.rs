@@ -175,7 +175,10 @@ impl PowerSupply for HandedToKeeper {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::Kept;
+    use spinbench_devices::chamber::Chamber;
+    use spinbench_devices::{DeviceError, DeviceErrorKind};
+    use std::time::Duration;
 
     /// A chamber that does not answer its first `silent` commands, then
     /// holds what it is told.

@@ -102,7 +102,7 @@ pub fn mean_std(y: &[f64]) -> (f64, f64) {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::{drifting, on_speed, own_scatter_ug, sem_ug};
 
     #[test]
     fn a_slope_is_drift_only_when_large_and_significant() {

@@ -228,7 +228,8 @@ impl StateMachine {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use super::{Refused, STATES, StateMachine, TRANSITIONS, TRIGGERS, Target, Trigger};
+    use crate::event::RunState;
     use RunState::{Aborted, Completed, Faulted, Paused, Prompting, Running, Stopping};
     use Target::{Back, To};
     use Trigger::{Answered, End, Prompt, Start, WriteFailed, WriteSucceeded};
