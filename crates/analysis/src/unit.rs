@@ -250,7 +250,13 @@ pub fn analyze_unit_with(
             Some(t) => t.correction_effect(&input.unit, points, options.order, &what)?,
             None => None,
         };
-        match crate::uncertainty::mounting_budget(points, options.order, &options.type_b, &what) {
+        match crate::uncertainty::mounting_budget_of(
+            points,
+            options.order,
+            &options.type_b,
+            table.is_some(),
+            &what,
+        ) {
             Ok(mut budget) => {
                 budget.effects.extend(anomaly_effect);
                 budget.effects.extend(signature_effect);

@@ -352,3 +352,59 @@ fn a_table_disturbance_the_jackknife_sees_is_not_counted_twice() {
     );
     assert!(got < inadequacy_alone, "{got} vs {inadequacy_alone}");
 }
+
+#[test]
+fn on_points_the_signature_corrected_the_instruments_own_misfit_is_kept_whole() {
+    // Once the table's learned signature has taken its level-by-level part
+    // out of the points, the jackknife over levels no longer sees the table:
+    // what it finds is the instrument's own misfit (here an activity dip at
+    // one level), and all of it is model inadequacy beside the stated Type B
+    // term. Cut by that term it would leave the dip's effect on k2 out of
+    // the interval (issue 36: the per-mounting misses on the typical bench).
+    use spinbench_analysis::uncertainty::{Source, mounting_budget_of};
+    let mut rng = ChaCha8Rng::seed_from_u64(26);
+    let noise = Normal::new(0.0, 30e-6 * K[1]).expect("normal");
+    let dip = |g: f64| {
+        if (g - 50.0).abs() < 0.5 {
+            -4_000e-6
+        } else {
+            0.0
+        }
+    };
+    let p: Vec<Point> = points(Mount::P, &inputs(), None)
+        .into_iter()
+        .map(|q| Point {
+            output: ieee1293_output(K, q.g_nominal + dip(q.g_nominal)) + noise.sample(&mut rng),
+            ..q
+        })
+        .collect();
+    let with = TypeBInputs {
+        table_disturbance_ug: 3_000.0,
+        table_disturbance_width_g: 8.0,
+        ..TypeBInputs::default()
+    };
+    let part = |b: &spinbench_analysis::uncertainty::MountingBudget, s: Source| {
+        b.effects
+            .iter()
+            .find(|e| e.source == s)
+            .map_or(0.0, |e| e.delta[2])
+    };
+    let alone = mounting_budget(&p, ModelOrder::Cubic, &TypeBInputs::default(), "P").expect("P");
+    let uncorrected = mounting_budget_of(&p, ModelOrder::Cubic, &with, false, "P").expect("P");
+    let corrected = mounting_budget_of(&p, ModelOrder::Cubic, &with, true, "P").expect("P");
+    let dip_alone = part(&alone, Source::ModelInadequacy);
+    assert!(dip_alone > 0.0, "the jackknife sees the dip");
+    assert!(
+        part(&corrected, Source::TableDisturbance).abs() > 0.0,
+        "the stated Type B term stays"
+    );
+    assert!(
+        (part(&corrected, Source::ModelInadequacy) - dip_alone).abs() <= 1e-9 * dip_alone,
+        "corrected points: the dip's misfit {} kept whole ({dip_alone} alone)",
+        part(&corrected, Source::ModelInadequacy)
+    );
+    assert!(
+        part(&uncorrected, Source::ModelInadequacy) < dip_alone,
+        "uncorrected points: the table's term is taken from what the jackknife sees"
+    );
+}

@@ -157,6 +157,27 @@ pub fn mounting_budget(
     inputs: &TypeBInputs,
     what: &str,
 ) -> Result<MountingBudget, AnalysisError> {
+    mounting_budget_of(points, order, inputs, false, what)
+}
+
+/// The budget of one mounting's fit of `points` with `inputs`, the points
+/// corrected by the table's learned signature when `table_corrected`
+/// (docs/method.md §6). The model inadequacy is what the levels' jackknife
+/// finds beyond the repeatability and, on points the signature has not
+/// corrected, beyond the table disturbance's Type B term: there the
+/// jackknife sees the table's bump among the levels' scatter, and it is
+/// counted once. On corrected points the level-by-level part the jackknife
+/// could see is gone (the signature took it out), so what it finds is the
+/// instrument's own misfit, all of it model inadequacy, beside the stated
+/// Type B term for the table's part no population of instruments can tell
+/// from their curvature.
+pub fn mounting_budget_of(
+    points: &[Point],
+    order: ModelOrder,
+    inputs: &TypeBInputs,
+    table_corrected: bool,
+    what: &str,
+) -> Result<MountingBudget, AnalysisError> {
     let fit =
         crate::model::fit_ieee1293(points, order, crate::model::Convention::PerMounting, what)?;
     let p = order.coefficients();
@@ -213,7 +234,11 @@ pub fn mounting_budget(
                     jk = std::array::from_fn(|j| jk[j].max(jb[j]));
                 }
                 let inadequacy: [f64; 4] = std::array::from_fn(|j| {
-                    let known = table.map_or(0.0, |t| t[j]);
+                    let known = if table_corrected {
+                        0.0
+                    } else {
+                        table.map_or(0.0, |t| t[j])
+                    };
                     crate::inadequacy::inadequacy_beyond(jk[j], repeatability[j].hypot(known))
                 });
                 if inadequacy.iter().any(|u| *u > 0.0) {

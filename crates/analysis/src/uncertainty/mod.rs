@@ -52,6 +52,7 @@ mod tests;
 pub use budget::{
     Effect, LACK_OF_FIT_ALPHA, MountingBudget, PairedInadequacy, anomaly_rule_effect,
     coefficients as coefficients_of, joint_uncertainty, leave_each_level_out, mounting_budget,
+    mounting_budget_of,
 };
 
 use crate::AnalysisError;
