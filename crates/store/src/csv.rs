@@ -2,7 +2,7 @@
 //! format of `spinbench analyze`, and text cells guarded against formula
 //! injection.
 
-use super::*;
+use super::{Store, StoreError};
 
 /// The characters that make a spreadsheet program read a cell as a formula.
 pub const FORMULA_STARTS: [char; 6] = ['=', '+', '-', '@', '\t', '\r'];

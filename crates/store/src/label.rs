@@ -6,7 +6,7 @@
 //! name it, and either is accepted where a run is typed
 //! ([`Store::resolve_run`]).
 
-use super::*;
+use super::{RunRow, Store, StoreError};
 
 /// The separator between a label's parts.
 pub const LABEL_SEPARATOR: &str = " · ";

@@ -19,7 +19,7 @@
 //! start of the station. [`StoreHealth`] says how the store is doing (up,
 //! errors, the queue's depth and age) for `/metrics` and the fleet.
 
-use super::*;
+use super::{Event, EventSink, Path, Store, StoreError, StoreSink, failed};
 use std::collections::VecDeque;
 use std::fs::{File, OpenOptions};
 use std::io::{BufRead, BufReader, Write};

@@ -1,7 +1,7 @@
 //! Reading the store back: runs, results (typed records), points,
 //! one-second values, radii.
 
-use super::*;
+use super::{Outcome, Store, StoreError, StoredState, UnitRecord, Value, now_s};
 use crate::record::{parse_column, slot_index, stored_direction, stored_mount};
 use spinbench_analysis::{Direction, Mount};
 

@@ -12,7 +12,7 @@
 //! schema, so a plan this release cannot read is kept as it was stored,
 //! with the reason, and the few facts a report needs are still read.
 
-use super::*;
+use super::{DbError, PointRow, ResultRow, RunRow, Store, StoreError, UnitRow, Value, run_label};
 use crate::equipment::CalibrationStatus;
 use spinbench_analysis::{Direction, Mount};
 use spinbench_engine::event::{DeviceRole, Wording};

@@ -5,7 +5,7 @@
 //! stays in the store. `spinbench prune` writes the archive (Parquet) and
 //! deletes only what it wrote and read back.
 
-use super::*;
+use super::{Db, DbError, RunRow, Store, StoreError, StoredState};
 
 /// One stored event.
 #[derive(Debug, Clone, PartialEq)]

@@ -2,7 +2,7 @@
 //! applied once under an exclusive transaction (SQLite) or an advisory lock
 //! (PostgreSQL), and the schema's version and soundness.
 
-use super::*;
+use super::{Db, DbError, Dialect, Store, StoreError};
 
 /// One schema migration, as SQLite and PostgreSQL spell it.
 #[derive(Debug, Clone, Copy)]

@@ -2,7 +2,7 @@
 //! as it happens; a failed write is an error the engine answers by holding
 //! the run (nothing is dropped).
 
-use super::*;
+use super::{DbError, Event, EventSink, Store, StoreError, now_s};
 use crate::record::{DeviceEntry, NoticeKind, StoredState, result_row_values, stored_slot};
 use spinbench_engine::event::Wording;
 

@@ -3,7 +3,9 @@
 //! jackknife over levels when the lack of fit is significant), the joint
 //! K2's, and the anomaly rule's effect.
 
-use super::*;
+use super::{
+    AnalysisError, Coefficients, ModelOrder, Point, Source, TypeBInputs, Uncertainty, combine,
+};
 
 /// One source's effect on k0 [g], k1, k2 [µg/g²], k3 [µg/g³] of one mounting:
 /// signed for a source the mountings share, an RSS over points otherwise.

@@ -1,7 +1,10 @@
 //! A plan checked against a station (rate limit, fixtures' rating, chamber,
 //! temperature limit) and compiled into the list of steps one executor runs.
 
-use super::*;
+use super::{
+    CompiledPlan, Direction, Fixture, ModelOrder, Mount, PlanError, StationConfig, Step, TestPlan,
+    centrifuge,
+};
 
 impl TestPlan {
     /// Check the plan against the station and compile it into steps. This

@@ -1,7 +1,7 @@
 //! A plan checked on its own, against the named bounds (`crate::bounds`),
 //! before it is compared with a station.
 
-use super::*;
+use super::{LevelTable, PlanError, TestPlan};
 
 impl TestPlan {
     /// Check every number and name of the plan against its named bound

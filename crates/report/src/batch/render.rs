@@ -1,6 +1,9 @@
 //! The batch report as CSV, HTML and XLSX (the PDF is `crate::pdf`).
 
-use super::*;
+use super::{
+    BatchReport, OUTLIER_HEADERS, REPEAT_HEADERS, STATISTICS_HEADERS, TEST_HEADERS, esc,
+    histogram_svg, outlier_rows, repeat_rows, statistics_rows, test_numbers, test_rows, unix_date,
+};
 
 /// Every test as CSV, numbers at full precision.
 pub fn batch_csv(b: &BatchReport) -> String {

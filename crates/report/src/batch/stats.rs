@@ -1,7 +1,7 @@
 //! The batch's statistics: medians, and each figure's distribution with its
 //! robust outliers.
 
-use super::*;
+use super::{BatchTest, Distribution, Outlier};
 
 pub(crate) fn median(sorted: &[f64]) -> f64 {
     let n = sorted.len();

@@ -1,7 +1,12 @@
 //! What every format of the batch report shows: the histograms' drawing and
 //! the tables' headers and rows.
 
-use super::*;
+use super::{
+    BLUE, BatchReport, BatchTest, ChartBuilder, Distribution, DrawingArea, DrawingBackend,
+    Rectangle, SVGBackend, Shift, WHITE, fmt,
+};
+use plotters::drawing::IntoDrawingArea;
+use plotters::style::Color;
 
 /// Draw a distribution's histogram on any plotters backend.
 pub(crate) fn draw_histogram<DB: DrawingBackend>(

@@ -2,7 +2,10 @@
 //! operators (written by hand: no crate draws plotters charts into printpdf
 //! operators), so the PDF's plots are the very same charts as the HTML's SVG.
 
-use super::*;
+use super::{
+    BackendColor, BackendCoord, BackendStyle, BackendTextStyle, Canvas, DrawingBackend,
+    DrawingErrorKind, FontTransform, HPos, Infallible, LinePoint, VPos, plots, point,
+};
 
 /// A plotters backend that draws into a [`Canvas`] page as PDF vector
 /// operators: plotters lays the chart out in its pixel grid, and each pixel

@@ -1,7 +1,13 @@
 //! The page canvas: A4 pages of PDF operators being laid out (text in the
 //! embedded font, tables, lines), and the characters used on them.
 
-use super::*;
+use super::{
+    BLACK, BTreeSet, Color, DrawingArea, FONT_ID, FOOTER_MM, FontId, GREY, Lang, Line, LinePoint,
+    MARGIN_MM, OnceLock, Op, Outcome, PAGE_H_MM, PAGE_W_MM, PT_PER_MM, PaintMode, ParsedFont,
+    PdfFontHandle, PdfPlotBackend, Point, Polygon, PolygonRing, Pt, Rgb, Shift, TextItem,
+    TextMatrix, WHITE, WindingOrder, lang, plots,
+};
+use plotters::drawing::IntoDrawingArea;
 
 /// Text alignment in a table cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

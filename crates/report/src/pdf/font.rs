@@ -1,7 +1,7 @@
 //! The embedded font (WenQuanYi Micro Hei): parsed once for metrics, and
 //! cut down to the glyphs a report uses.
 
-use super::*;
+use super::{BTreeSet, FONT_TTC, OnceLock, ParsedFont, ReportError};
 
 /// The embedded font, parsed once per process (metrics for the layout).
 pub(super) fn full_font() -> Result<&'static ParsedFont, ReportError> {

@@ -16,7 +16,7 @@ use crate::{
     meta_rows_in, numbers, point_cells, summary_in,
 };
 use plotters::coord::Shift;
-use plotters::prelude::{DrawingArea, IntoDrawingArea, WHITE};
+use plotters::prelude::{DrawingArea, WHITE};
 use plotters_backend::text_anchor::{HPos, VPos};
 use plotters_backend::{
     BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingBackend, DrawingErrorKind,

@@ -4,7 +4,7 @@
 //! verdict, one reason), the operator's actions and the station's notices
 //! (the first few; all on the last page), and the sign-off block.
 
-use super::*;
+use super::{Align, Canvas, FOOTER_MM, Lang, MARGIN_MM, PAGE_H_MM, PAGE_W_MM, RunReport, tr};
 use crate::signer;
 
 /// Lines of actions or notices shown on the first page; the rest are on

@@ -1,7 +1,6 @@
 //! A run's summary as CSV.
 
-use super::*;
-use crate::*;
+use crate::{DECISION_HEADERS, RunReport, SUMMARY_HEADERS, csv_field, numbers, summary};
 
 /// The summary table as CSV (full precision: `{:?}` reads back to the same number).
 pub fn summary_csv(report: &RunReport) -> String {

@@ -1,7 +1,10 @@
 //! A run's report as one HTML page.
 
-use super::*;
-use crate::*;
+use crate::{
+    Lang, POINT_HEADERS, RunReport, SUMMARY_DECIMALS, SUMMARY_HEADERS, devices,
+    diagnostic_lines_in, esc, fmt, lang, meta_rows_in, numbers, plots, point_cells, signer,
+    summary_in, tr, with_cjk_font,
+};
 
 /// The report as one self-contained HTML document.
 pub fn html(report: &RunReport) -> String {

@@ -14,7 +14,7 @@ pub use summary::{DECISION_HEADERS, SUMMARY_HEADERS, SummaryRow, summary, summar
 pub(crate) use summary::{POINT_HEADERS, SUMMARY_DECIMALS, meta_rows_in, numbers, point_cells};
 pub(crate) use xlsx::xlsx_in;
 
-use crate::*;
+use crate::{Lang, ReportError, lang};
 use spinbench_store::{PointRow, ResultRow, RunRecord, RunRow, Store};
 
 /// One instrument of a run.

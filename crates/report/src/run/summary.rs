@@ -1,8 +1,8 @@
 //! The rows and cells every format of a run's report shares: one summary
 //! row per instrument-mounting, the points' cells, the run's meta rows.
 
-use super::*;
-use crate::*;
+use super::PointRow;
+use crate::{Lang, RunReport, lang, tr};
 
 /// One row of the summary table.
 #[derive(Debug, Clone, PartialEq)]

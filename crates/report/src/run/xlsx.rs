@@ -1,7 +1,9 @@
 //! A run's report as a spreadsheet.
 
-use super::*;
-use crate::*;
+use crate::{
+    Lang, POINT_HEADERS, RunReport, SUMMARY_HEADERS, devices, lang, meta_rows_in, numbers, plots,
+    signer, summary_in, tr,
+};
 
 /// The report as an XLSX workbook: `results` (the summary), `points`, and
 /// one sheet per instrument with its plot data.

@@ -1,7 +1,10 @@
 //! A bench config checked against its named bounds before anything is
 //! allocated or started; the error names the key.
 
-use super::*;
+use super::{
+    MAX_DIP_G, MAX_DIP_UG, MAX_DISTURBANCES, MAX_FAULT_TIME_S, MAX_POSITION_SHIFTS, MAX_SPEED,
+    SimConfig, SimConfigError,
+};
 
 impl SimConfig {
     /// Check values that TOML types cannot.

@@ -1,7 +1,10 @@
 //! The bench's clock: in real time (or faster), or in lockstep with the
 //! station (virtual time).
 
-use super::*;
+use super::{
+    Arc, AtomicBool, Duration, Instant, JoinHandle, LOCKSTEP_CLOCK_PERIOD, LOCKSTEP_LIVENESS,
+    MODULE_BUFFER_LIMIT, Ordering, ServeStats, Shared, TICK_S, VecDeque, World, lock, thread,
+};
 
 pub(super) fn run_clock(
     world: Shared<World>,

@@ -1,7 +1,7 @@
 //! The bench's control socket: remount instruments, read the clock and the
 //! truth.
 
-use super::*;
+use super::{Mounting, World};
 
 pub(super) fn control_command(world: &mut World, line: &str) -> Option<String> {
     let words: Vec<&str> = line.split_whitespace().collect();

@@ -28,7 +28,7 @@ use crate::world::{SupplyId, TICK_S, World};
 use serialport::{SerialPort, TTYPort};
 use spinbench_wire::fmu::{FrameDecoder, Message};
 use std::collections::VecDeque;
-use std::io::{self, BufRead, BufReader, Read, Write};
+use std::io::{self, BufReader};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};

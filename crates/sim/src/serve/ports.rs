@@ -1,7 +1,15 @@
 //! The serving loops: each counter module on its pseudo-terminal, the line
 //! devices and the chamber's Modbus on theirs, line devices over TCP.
 
-use super::*;
+use super::{
+    Arc, AtomicBool, BufReader, ChamberModel, Duration, FrameDecoder, Instant, JoinHandle,
+    LineHandler, Message, Ordering, Shared, TTYPort, TcpListener, TcpStream, VecDeque, World, io,
+    lock, thread,
+};
+use serialport::SerialPort;
+use std::io::BufRead;
+use std::io::Read;
+use std::io::Write;
 
 /// How long a thread that found nothing to do sleeps: 100 µs at first,
 /// doubling up to 20 ms while it stays idle, back to 100 µs on progress.

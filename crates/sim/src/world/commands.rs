@@ -1,7 +1,10 @@
 //! The devices' command sides: counter-module messages, the centrifuge
 //! controller's dialects, the supplies' SCPI lines.
 
-use super::*;
+use super::{
+    FIRMWARE_ID, HeaderSpec, Message, SimDialect, StatusReply, SupplyId, TICKS_PER_SECOND, World,
+    h, parse_line, scpi,
+};
 
 impl World {
     /// A frame from the station to module `m`; returns the bytes of the reply.

@@ -2,7 +2,11 @@
 //! relays, each instrument's input acceleration, the table's disturbance and
 //! scheduled faults.
 
-use super::*;
+use super::{
+    FLICKER_TAUS_S, INSTRUMENTS_PER_MODULE, MODULE_CURRENT_A, Mounting, SlotRef, StandardNormal,
+    TICK_S, TICKS_PER_SECOND, World,
+};
+use rand_distr::Distribution;
 
 impl World {
     /// The laboratory's temperature now [°C].

@@ -1,7 +1,12 @@
 //! One tick of the world: the table, the instruments' frequencies, the
 //! counter modules' frames.
 
-use super::*;
+use super::{
+    INPUTS_PER_MODULE, INSTRUMENTS_PER_MODULE, Inputs, Message, Mounting, Normal, StandardNormal,
+    StreamMode, TICK_S, TICKS_PER_SECOND, Vba, World,
+};
+use rand::RngExt;
+use rand_distr::Distribution;
 
 impl World {
     /// Advance one tick; returns the bytes each counter module sends in it

@@ -1,7 +1,7 @@
 //! What the bench knows and the station must find out: the truth types,
 //! and the perfect-fit truths of each instrument on this centrifuge.
 
-use super::*;
+use super::{EARTH_RATE_RAD_S, INSTRUMENTS_PER_MODULE, Inputs, Serialize, VbaTruth, World};
 
 /// One fixture position on the arm.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

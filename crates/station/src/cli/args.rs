@@ -1,7 +1,7 @@
 //! The command line, parsed in one place: every command and option with
 //! its help and its value parser (the dispatch is in `mod.rs`).
 
-use super::*;
+use super::{Parser, PathBuf, StoreTarget, Subcommand, parse_store};
 
 /// spinbench: automatic centrifuge test station for vibrating-beam accelerometers.
 #[derive(Debug, Parser)]

@@ -1,7 +1,7 @@
 //! Each file format's cells: CSV, XLSX/ODS (through calamine, and the
 //! XLSX sheet's own cells when a sheet declares a huge range) and Parquet.
 
-use super::*;
+use super::{Cell, Location, Path, PointsFile, PointsFileError, RawRow, parse_rows};
 
 /// A Parquet file (as `spinbench export --format parquet` writes): its
 /// column names are the header row; row n of the data is line n + 1.

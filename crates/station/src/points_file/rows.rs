@@ -2,7 +2,10 @@
 //! cell checked (a bad number rejects its unit only, naming the row),
 //! repeated rows and blocks.
 
-use super::*;
+use super::{
+    Cell, Direction, Location, Mount, Path, Point, PointsFile, PointsFileError,
+    REPEATED_BLOCK_ROWS, REQUIRED_COLUMNS, RawRow, RejectedUnit, UnitPoints, column_letters,
+};
 
 /// Longest serial number read from a points file [characters].
 pub(super) const MAX_UNIT_CHARS: usize = 200;

@@ -1,6 +1,7 @@
 //! The page's own files (one page, plain JS and CSS) and the OpenAPI document.
 
-use super::*;
+use super::{ApiError, Path, Response, StatusCode, header};
+use axum::response::IntoResponse;
 
 pub(super) fn asset(content_type: &'static str, body: &'static str) -> Response {
     (

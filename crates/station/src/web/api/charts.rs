@@ -3,7 +3,10 @@
 //! first-pass yields — the batch report's section, for the web UI; one
 //! station (centrifuge) at a time, this server's unless another is asked.
 
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Deserialize, HeaderMap, Json, Query, QueryRejection, Role, State,
+    authorize, blocking, query_error, store,
+};
 
 use super::schema::{ChartPoint, ChartReply, ChartViolation, ChartsReply, ErrorBody, YieldRow};
 

@@ -3,7 +3,9 @@
 //! schemas are the types the handlers parse and send, so the document
 //! cannot drift from them; a test holds its paths to the route table.
 
-use super::*;
+use super::{
+    assets, auth, charts, equipment, exclusions, history, live, plans, runs, schema, session, users,
+};
 use utoipa::openapi::security::{ApiKey, ApiKeyValue, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 

@@ -5,7 +5,10 @@
 use super::schema::{
     EquipmentEntry, EquipmentSaved, ErrorBody, SetEquipment, SignatureReply, SignatureSpike,
 };
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Bytes, HeaderMap, Json, Path, Role, State, authorize, blocking,
+    parse_json, store,
+};
 use spinbench_engine::bounds::person_text;
 use spinbench_store::equipment::{EquipmentRow, parse_date};
 

@@ -4,7 +4,10 @@
 //! the figures before and after in the audit log.
 
 use super::schema::{ErrorBody, ExcludeLevel, Excluded};
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Bytes, HeaderMap, Json, Path, Role, State, TestPlan, authorize,
+    blocking, json, parse_json, store,
+};
 
 /// Leave a level of one instrument of a finished run out of its reduction
 /// (an engineer, with a reason): the record is reduced and graded again by

@@ -2,7 +2,11 @@
 //! results with its links, its reports, every test of one serial number.
 
 use super::schema::{ErrorBody, ResultRow, RunDetail, RunEntry, UnitHistory, UnitTest};
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Deserialize, HeaderMap, Json, Path, Query, QueryRejection,
+    ReportFormat, Response, Role, State, authorize, blocking, header, query_error, store,
+};
+use axum::response::IntoResponse;
 
 /// Which station's runs (`GET /api/runs`).
 #[derive(Deserialize, utoipa::IntoParams)]

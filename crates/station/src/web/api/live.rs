@@ -2,7 +2,11 @@
 //! with catch-up), both from the hub.
 
 use super::schema::{ErrorBody, FleetStation, Saved, StatusReply};
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Arc, Bytes, Deserialize, Duration, HeaderMap, Infallible, Instant,
+    Json, KeepAlive, Path, Query, QueryRejection, Role, Sse, SseEvent, State, Stream, auth,
+    authorize, blocking, header, query_error, store,
+};
 
 /// The station now: run, step, rate, supplies, interlocks, modules, the board.
 #[utoipa::path(get, path = "/api/status", tag = "live",

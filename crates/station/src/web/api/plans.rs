@@ -5,7 +5,10 @@ use super::schema::{
     DesignReply, DesignRequest, ErrorBody, PlanEntry, PlanSaved, PlanSummary, PlansReply, Saved,
     StationReply,
 };
-use super::*;
+use super::{
+    ApiError, ApiResult, App, BTreeMap, Bytes, HeaderMap, Json, Path, Role, State, TestPlan, audit,
+    audit_now, authorize, blocking, parse_json, store,
+};
 
 pub(super) fn plan_name_ok(name: &str) -> bool {
     !name.is_empty()

@@ -4,7 +4,11 @@
 
 use super::plans::{plan_name_ok, plan_with_serials};
 use super::schema::{ErrorBody, PromptAnswer, RetestRequest, RetestStarted, RunId, StartRun};
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Arc, Bytes, Duration, HeaderMap, Instant, Json, Path, Role, Session,
+    StartError, State, StatusCode, TestPlan, audit, audit_all, authorize, authorize_control,
+    blocking, blocking_to_the_end, parse_json, store,
+};
 use spinbench_engine::event::Wording;
 
 /// Start a run of a plan; serials per slot replace the plan's.

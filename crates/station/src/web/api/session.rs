@@ -1,7 +1,11 @@
 //! Sessions: login (bounded, throttled per name and address, audited),
 //! logout and the session check.
 
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Bytes, HeaderMap, HeaderValue, Json, Path, Response, Role, Session,
+    State, StatusCode, audit, auth, authorize, blocking, header, parse_json, store,
+};
+use axum::response::IntoResponse;
 use spinbench_report::Lang;
 
 use super::schema::{Catalogue, ErrorBody, Language, Login, SessionReply};

@@ -1,7 +1,10 @@
 //! Users (admins manage them) and the audit log.
 
 use super::schema::{AuditEntry, ChangeUser, ErrorBody, NewUser, UserAdded, UserEntry};
-use super::*;
+use super::{
+    ApiError, ApiResult, App, Bytes, HeaderMap, Json, Path, Role, State, StatusCode, authorize,
+    blocking, parse_json, store,
+};
 
 /// Every user (an admin).
 #[utoipa::path(get, path = "/api/users", tag = "users",
