@@ -307,6 +307,31 @@ fn a_broad_table_disturbance_is_in_each_mountings_k2_and_cancels_from_k2() {
     );
 }
 
+/// Mounting P's points of the reference instrument with `feature(g)` [g]
+/// added to each level's acceleration and white noise (seed `seed`).
+fn points_with(seed: u64, feature: impl Fn(f64) -> f64) -> Vec<Point> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, 30e-6 * K[1]).expect("normal");
+    points(Mount::P, &inputs(), None)
+        .into_iter()
+        .map(|q| Point {
+            output: ieee1293_output(K, q.g_nominal + feature(q.g_nominal)) + noise.sample(&mut rng),
+            ..q
+        })
+        .collect()
+}
+
+/// A budget's standard uncertainty of k2 from `source` (0 when absent).
+fn k2_part(
+    b: &spinbench_analysis::uncertainty::MountingBudget,
+    source: spinbench_analysis::uncertainty::Source,
+) -> f64 {
+    b.effects
+        .iter()
+        .find(|e| e.source == source)
+        .map_or(0.0, |e| e.delta[2])
+}
+
 #[test]
 fn a_table_disturbance_the_jackknife_sees_is_not_counted_twice() {
     // The table's bump moves the levels' readings, so the jackknife over
@@ -315,27 +340,13 @@ fn a_table_disturbance_the_jackknife_sees_is_not_counted_twice() {
     // beyond the repeatability and that source (u_MI² = max(0, u_JK² −
     // u_rep² − u_table²)), never both in full.
     use spinbench_analysis::uncertainty::Source;
-    let mut rng = ChaCha8Rng::seed_from_u64(25);
-    let noise = Normal::new(0.0, 30e-6 * K[1]).expect("normal");
-    let bump = |g: f64| 3_000e-6 / (1.0 + ((g - 45.0) / 3.0).powi(2));
-    let p: Vec<Point> = points(Mount::P, &inputs(), None)
-        .into_iter()
-        .map(|q| Point {
-            output: ieee1293_output(K, q.g_nominal + bump(q.g_nominal)) + noise.sample(&mut rng),
-            ..q
-        })
-        .collect();
+    let p = points_with(25, |g| 3_000e-6 / (1.0 + ((g - 45.0) / 3.0).powi(2)));
     let with = TypeBInputs {
         table_disturbance_ug: 3_000.0,
         table_disturbance_width_g: 3.0,
         ..TypeBInputs::default()
     };
-    let part = |b: &spinbench_analysis::uncertainty::MountingBudget, s: Source| {
-        b.effects
-            .iter()
-            .find(|e| e.source == s)
-            .map_or(0.0, |e| e.delta[2])
-    };
+    let part = k2_part;
     let alone = mounting_budget(&p, ModelOrder::Cubic, &TypeBInputs::default(), "P").expect("P");
     let both = mounting_budget(&p, ModelOrder::Cubic, &with, "P").expect("P");
     let (inadequacy_alone, table) = (
@@ -383,12 +394,7 @@ fn on_points_the_signature_corrected_the_instruments_own_misfit_is_kept_whole() 
         table_disturbance_width_g: 8.0,
         ..TypeBInputs::default()
     };
-    let part = |b: &spinbench_analysis::uncertainty::MountingBudget, s: Source| {
-        b.effects
-            .iter()
-            .find(|e| e.source == s)
-            .map_or(0.0, |e| e.delta[2])
-    };
+    let part = k2_part;
     let alone = mounting_budget(&p, ModelOrder::Cubic, &TypeBInputs::default(), "P").expect("P");
     let uncorrected = mounting_budget_of(&p, ModelOrder::Cubic, &with, false, "P").expect("P");
     let corrected = mounting_budget_of(&p, ModelOrder::Cubic, &with, true, "P").expect("P");
