@@ -680,6 +680,72 @@ fn a_write_that_keeps_failing_faults_into_the_safe_state_after_the_hold_limit() 
     )));
 }
 
+/// A second subscriber that refuses what it is told while the first one's
+/// write is held (its notices, the held state): nothing is dropped in
+/// silence, the run's reason says what it missed (issue 41 item 1).
+#[test]
+fn what_a_second_subscriber_misses_during_a_hold_is_said_in_the_runs_reason() {
+    /// Refuses what it is told of another subscriber's hold: the held
+    /// notice and the held state.
+    struct Flaky;
+    impl EventSink for Flaky {
+        fn emit(&mut self, e: &Event) -> Result<(), spinbench_engine::event::SinkError> {
+            let of_the_hold = match e {
+                Event::Notice { message, .. } => message.contains("the run is held"),
+                Event::StateChanged { state } => *state == RunState::Paused,
+                _ => false,
+            };
+            if of_the_hold {
+                return Err(String::from("screen test: the browser went away").into());
+            }
+            Ok(())
+        }
+    }
+    let bench = RunningBench::start(
+        SimConfig {
+            speed: 0.0,
+            ..SimConfig::default()
+        },
+        ServeOptions::default(),
+    )
+    .expect("bench");
+    let station = station_for(&bench);
+    let compiled = small_plan().compile(&station).expect("plan");
+    let options = RunOptions {
+        run_id: "missed".into(),
+        abort: spinbench_engine::AbortFlag::new(),
+        pause: Arc::new(AtomicBool::new(false)),
+        module_silence: Duration::from_secs(2),
+        station_config_toml: String::new(),
+        sink_hold_limit: Duration::from_secs(600),
+    };
+    let stored = Arc::new(Mutex::new(Vec::new()));
+    let summary = {
+        let mut ex = Executor::new(
+            &station,
+            compiled,
+            connect(&station),
+            Box::new(SimOperator::new(&bench, true)),
+            options,
+        );
+        ex.subscribe(RefusingSink {
+            left: 1,
+            taken: stored.clone(),
+        });
+        ex.subscribe(Flaky);
+        ex.run()
+    };
+    assert_safe(&bench, true);
+    bench.shutdown();
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let why = reason(&summary);
+    assert!(
+        why.contains("subscriber 2 missed notice: screen test: the browser went away")
+            && why.contains("subscriber 2 missed state_changed"),
+        "{why}"
+    );
+}
+
 /// Issue 39 item 10: a signal that aborts a run held on a failing write is
 /// named in the run's reason as the signal, not as "the operator".
 #[test]

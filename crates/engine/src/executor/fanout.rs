@@ -16,9 +16,14 @@ pub(super) struct Fanout<'a> {
     pub(super) machine: StateMachine,
     /// What a subscriber would not take while another one's write was
     /// held (a second subscriber failing too): said in the run's reason at
-    /// the end, never discarded.
+    /// the end, never discarded (the first [`MISSED_KEPT`], then a count).
     pub(super) missed: Vec<String>,
+    /// How many more were missed than [`Self::missed`] lists.
+    pub(super) missed_more: usize,
 }
+
+/// How many missed events the run's reason names one by one.
+pub(super) const MISSED_KEPT: usize = 20;
 
 impl Fanout<'_> {
     /// Offer `event` to every subscriber but `failed` (whose write is
@@ -28,6 +33,10 @@ impl Fanout<'_> {
             if j != failed
                 && let Err(e) = sink.emit(event)
             {
+                if self.missed.len() >= MISSED_KEPT {
+                    self.missed_more += 1;
+                    continue;
+                }
                 self.missed.push(format!(
                     "subscriber {} missed {}: {}",
                     j + 1,

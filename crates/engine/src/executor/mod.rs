@@ -530,6 +530,12 @@ impl<'a> Executor<'a> {
         // What the end could not do, and what a subscriber missed while
         // another's write was held, in the run's reason (nothing dropped).
         end_problems.append(&mut self.fanout.missed);
+        if self.fanout.missed_more > 0 {
+            end_problems.push(format!(
+                "and {} more events missed by a subscriber",
+                self.fanout.missed_more
+            ));
+        }
         let reason = match (reason, end_problems.is_empty()) {
             (r, true) => r,
             (Some(r), false) => Some(format!("{r}; at the end: {}", end_problems.join("; "))),
