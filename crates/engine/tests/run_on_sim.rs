@@ -577,6 +577,26 @@ fn run_with_refusing_sink_and(
     hold_limit: Duration,
     abort: spinbench_engine::AbortFlag,
 ) -> (RunSummary, Vec<Event>, Vec<Event>) {
+    run_with_refusing_sink_then(refusals, hold_limit, abort, None)
+}
+
+/// A boxed subscriber passed on to the executor.
+struct Boxed(Box<dyn EventSink>);
+
+impl EventSink for Boxed {
+    fn emit(&mut self, e: &Event) -> Result<(), spinbench_engine::event::SinkError> {
+        self.0.emit(e)
+    }
+}
+
+/// As [`run_with_refusing_sink_and`], with `then` subscribed after the
+/// refusing subscriber (the third).
+fn run_with_refusing_sink_then(
+    refusals: u32,
+    hold_limit: Duration,
+    abort: spinbench_engine::AbortFlag,
+    then: Option<Box<dyn EventSink>>,
+) -> (RunSummary, Vec<Event>, Vec<Event>) {
     let bench = RunningBench::start(
         SimConfig {
             speed: 0.0,
@@ -615,6 +635,9 @@ fn run_with_refusing_sink_and(
             left: refusals,
             taken: stored.clone(),
         });
+        if let Some(then) = then {
+            ex.subscribe(Boxed(then));
+        }
         ex.run()
     };
     assert_safe(&bench, true);
@@ -701,47 +724,17 @@ fn what_a_second_subscriber_misses_during_a_hold_is_said_in_the_runs_reason() {
             Ok(())
         }
     }
-    let bench = RunningBench::start(
-        SimConfig {
-            speed: 0.0,
-            ..SimConfig::default()
-        },
-        ServeOptions::default(),
-    )
-    .expect("bench");
-    let station = station_for(&bench);
-    let compiled = small_plan().compile(&station).expect("plan");
-    let options = RunOptions {
-        run_id: "missed".into(),
-        abort: spinbench_engine::AbortFlag::new(),
-        pause: Arc::new(AtomicBool::new(false)),
-        module_silence: Duration::from_secs(2),
-        station_config_toml: String::new(),
-        sink_hold_limit: Duration::from_secs(600),
-    };
-    let stored = Arc::new(Mutex::new(Vec::new()));
-    let summary = {
-        let mut ex = Executor::new(
-            &station,
-            compiled,
-            connect(&station),
-            Box::new(SimOperator::new(&bench, true)),
-            options,
-        );
-        ex.subscribe(RefusingSink {
-            left: 1,
-            taken: stored.clone(),
-        });
-        ex.subscribe(Flaky);
-        ex.run()
-    };
-    assert_safe(&bench, true);
-    bench.shutdown();
+    let (summary, _, _) = run_with_refusing_sink_then(
+        1,
+        Duration::from_secs(600),
+        spinbench_engine::AbortFlag::new(),
+        Some(Box::new(Flaky)),
+    );
     assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
     let why = reason(&summary);
     assert!(
-        why.contains("subscriber 2 missed notice: screen test: the browser went away")
-            && why.contains("subscriber 2 missed state_changed"),
+        why.contains("subscriber 3 missed notice: screen test: the browser went away")
+            && why.contains("subscriber 3 missed state_changed"),
         "{why}"
     );
 }
