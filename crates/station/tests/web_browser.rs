@@ -204,14 +204,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
                 b.screenshot(&shots.join("2-prompt.png"));
                 // Issue 40 item 7: the prompt's Abort asks first; cancelled,
                 // the run waits at its prompt as before.
-                b.click("#prompt-abort");
-                b.dismiss_dialog();
-                std::thread::sleep(Duration::from_millis(300));
-                assert_eq!(
-                    b.script("return !document.getElementById('prompt').hidden"),
-                    Value::Bool(true),
-                    "a cancelled Abort left the prompt"
-                );
+                b.cancel_the_prompts_abort();
                 // The run is still active (the button shows once the page's
                 // status refresh has seen the run; it may come a moment late).
                 b.wait_for(

@@ -135,14 +135,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
                 abort_asked = true;
                 // The prompt's Abort asks first (in Chinese); cancelled, the
                 // run waits at its prompt as before.
-                b.click("#prompt-abort");
-                b.dismiss_dialog();
-                std::thread::sleep(Duration::from_millis(300));
-                assert_eq!(
-                    b.script("return !document.getElementById('prompt').hidden"),
-                    Value::Bool(true),
-                    "a cancelled Abort left the prompt"
-                );
+                b.cancel_the_prompts_abort();
             }
             b.click("#prompt-done");
             std::thread::sleep(Duration::from_millis(300));

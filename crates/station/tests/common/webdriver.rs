@@ -193,6 +193,19 @@ impl Browser {
         }
     }
 
+    /// Click the prompt's Abort and cancel its confirmation (issue 40 item
+    /// 7): the run must still wait at its prompt.
+    pub fn cancel_the_prompts_abort(&self) {
+        self.click("#prompt-abort");
+        self.dismiss_dialog();
+        std::thread::sleep(Duration::from_millis(300));
+        assert_eq!(
+            self.script("return !document.getElementById('prompt').hidden"),
+            Value::Bool(true),
+            "a cancelled Abort left the prompt"
+        );
+    }
+
     /// Type `text` into the element `css`, after clearing it. As with
     /// [`Browser::click`], an element the page drew again meanwhile is
     /// found again, for at most 5 s.
