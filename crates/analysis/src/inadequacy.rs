@@ -598,5 +598,8 @@ pub fn paired_lack_of_fit(
     Ok(Some((f, dist.sf(f))))
 }
 
+mod smooth;
+pub use smooth::{SmoothMisfit, smooth_misfit};
+
 #[cfg(test)]
 mod tests;

@@ -100,3 +100,53 @@ fn the_between_level_variance_is_estimated_without_bias() {
     let mean_tau_ug = (tau2.iter().sum::<f64>() / tau2.len() as f64).sqrt() / 100.0 * 1e6;
     assert!((mean_tau_ug - 300.0).abs() < 30.0, "τ̂ {mean_tau_ug} µg");
 }
+
+/// Each reading of the levels up and down at its level's `misfit(g)`
+/// minus the cubic's least-squares part of it (the residual a fit leaves),
+/// with the true effect of `misfit` on k2 (the part the cubic absorbs).
+fn residual_of(misfit: impl Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>, f64) {
+    let x: Vec<f64> = LEVELS
+        .iter()
+        .chain(LEVELS.iter().rev().skip(1))
+        .copied()
+        .collect();
+    let d: Vec<f64> = x.iter().map(|g| misfit(*g)).collect();
+    let design = lsq::polynomial_design(&x, 3);
+    let op = lsq::solution_operator(&design, "test").expect("operator");
+    let dv = nalgebra::DVector::from_column_slice(&d);
+    let coef = &op * &dv;
+    let r = &dv - &design * &coef;
+    (x, r.iter().copied().collect(), coef[2])
+}
+
+#[test]
+fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
+    // A 2,000 µg bump of σ 8 g at 40 g: the cubic absorbs most of it and
+    // leaves no trace of that part; the shape links the two.
+    let (x, r, truth) = residual_of(|g| 2e-3 * (-0.5 * ((g - 40.0) / 8.0).powi(2)).exp());
+    let s = smooth_misfit(&x, &r, 1e-10, 3, 2, "test").expect("read as broad");
+    assert!(
+        (s.effect - truth).abs() < 0.15 * truth.abs(),
+        "effect {} truth {truth}",
+        s.effect
+    );
+    // A step of 1,000 µg from 33 g on.
+    let (x, r, truth) = residual_of(|g| if g > 33.0 { 1e-3 } else { 0.0 });
+    let s = smooth_misfit(&x, &r, 1e-10, 3, 2, "test").expect("read as a step");
+    assert!(
+        (s.effect - truth).abs() < 0.15 * truth.abs(),
+        "effect {} truth {truth}",
+        s.effect
+    );
+}
+
+#[test]
+fn a_dip_at_one_level_is_left_to_the_jackknife() {
+    let (x, r, _) = residual_of(|g| if g == 40.0 { 5e-3 } else { 0.0 });
+    assert_eq!(smooth_misfit(&x, &r, 1e-10, 3, 2, "test"), None);
+    // No misfit, nothing read.
+    assert_eq!(
+        smooth_misfit(&x, &vec![0.0; x.len()], 1e-10, 3, 2, "test"),
+        None
+    );
+}

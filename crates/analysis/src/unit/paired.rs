@@ -126,6 +126,36 @@ pub(super) fn paired_inadequacy(
         let jb = crate::inadequacy::block_jackknife(full, &blocks, &leverage, b);
         jk = [jk[0].max(jb[0]), jk[1].max(jb[1])];
     }
+    // A smooth misfit of one mounting (a broad bump, a step): the part the
+    // cubic absorbs, read through the shape that best explains the
+    // half-difference (crate::inadequacy::smooth). Each of P's points at
+    // its level's half-difference, so that a level weighs by its readings.
+    let x: Vec<f64> = p.points.iter().map(Point::g_magnitude).collect();
+    let at: Vec<f64> = p
+        .points
+        .iter()
+        .map(|q| {
+            shared
+                .iter()
+                .position(|g| *g == q.g_nominal.abs())
+                .map_or(0.0, |i| half_difference[i])
+        })
+        .collect();
+    // One reading's pure error in the half-difference [g²].
+    let sigma2_half = 0.25 * (p.sigma2 / (p.k1 * p.k1) + n.sigma2 / (n.k1 * n.k1));
+    let smooth =
+        crate::inadequacy::smooth_misfit(&x, &at, sigma2_half, degree, 2, &what).filter(|s| {
+            s.effect.is_finite()
+                && s.significant(
+                    sigma2_half,
+                    p.dof_pe + n.dof_pe,
+                    shared.len() - (degree + 1),
+                )
+        });
+    if let Some(s) = smooth {
+        let effect = s.effect * crate::UG_PER_G;
+        jk[0] = jk[0].max(effect * effect);
+    }
     let repeat = |m: Mount| {
         budgets
             .get(&m)
@@ -139,6 +169,7 @@ pub(super) fn paired_inadequacy(
             .ok()
             .flatten()
             .is_some_and(|(_, pv)| pv < crate::uncertainty::LACK_OF_FIT_ALPHA);
+        let significant = significant || (even && smooth.is_some());
         let u = crate::inadequacy::inadequacy_beyond(jk[index], repeatability);
         (significant && u > 0.0).then_some((u, dof))
     };
