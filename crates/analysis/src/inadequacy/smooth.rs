@@ -1,4 +1,4 @@
-//! The part of a smooth misfit that the cubic absorbs (docs/method.md §5,
+//! The part of a smooth misfit that the cubic absorbs (docs/method.md §6,
 //! "Smooth misfit").
 //!
 //! A feature that spans several levels (a broad bump of the instrument's
