@@ -136,30 +136,29 @@ fn coverage(shape: &str, trials: usize) -> f64 {
 fn k2s_interval_holds_anomalies_of_every_shape() {
     let trials = 400;
     let mut report = Vec::new();
-    // Each shape's floor: 90 %, but a step's 85 % (a sharp step leaves a
-    // residual much like a dip at the level beside it, and is then read
-    // as one; 89.5 % measured, 53 % before the smooth-misfit term).
-    for (shape, floor) in [
-        ("dip", 0.90),
-        ("wings", 0.90),
-        ("broad bump", 0.90),
-        ("step", 0.85),
-        ("two dips", 0.90),
-        ("drift", 0.90),
-        ("hysteresis", 0.90),
+    // Without the smooth-misfit term (inadequacy/smooth.rs) a broad bump
+    // was held in 66 % and a step in 50 %.
+    for shape in [
+        "dip",
+        "wings",
+        "broad bump",
+        "step",
+        "two dips",
+        "drift",
+        "hysteresis",
     ] {
         let c = coverage(shape, trials);
         println!("K2 within U95 with a {shape}: {c:.3} of {trials}");
-        report.push((shape, c, floor));
+        report.push((shape, c));
     }
     let shown: Vec<String> = report
         .iter()
-        .map(|(shape, c, _)| format!("{shape} {c:.3}"))
+        .map(|(shape, c)| format!("{shape} {c:.3}"))
         .collect();
-    for (shape, c, floor) in &report {
+    for (shape, c) in &report {
         assert!(
-            c >= floor,
-            "K2 coverage with a {shape} under {floor}: {}",
+            *c >= 0.90,
+            "K2 coverage with a {shape} under 90 %: {}",
             shown.join(", ")
         );
     }

@@ -12,11 +12,19 @@
 //!
 //! So the residuals are read against a family of shapes — Gaussian bumps
 //! of widths 2–17 % of the range and smoothed steps (edges 1 % and 4 % of
-//! the range), centred every 0.5 % of the range — and the shape that
-//! explains most of them (least squares, its size fitted) gives the
-//! effect on the coefficient of that shape at that size. That effect is
-//! the misfit's estimated bias, entered as a standard uncertainty like the
-//! jackknife's (the larger of the two counts, never both).
+//! the range), centred every 0.5 % of the range — each with its size
+//! fitted (least squares) and its effect on the coefficient at that size.
+//! The members the data cannot tell from the best one (within χ²₁ at 5 %
+//! of the pure error) and that explain at least 70 % of the misfit beyond
+//! what the pure error leaves by chance are the readings the data allow;
+//! the largest effect among their broad ones is the misfit's estimated
+//! bias, entered as a standard uncertainty like the jackknife's (the
+//! larger of the two counts, never both). A step and a dip at the level
+//! beside it fit alike, and which it is cannot be known: the uncertainty
+//! carries the larger effect. When only bumps within about one level
+//! remain, the misfit is the jackknife's, which sees such a feature whole;
+//! when no one shape explains most of it (two separate dips), it is read
+//! by the jackknife too.
 //!
 //! It counts when the lack of fit is significant, or when the best shape
 //! alone explains more of the residuals than the pure error would by
@@ -42,8 +50,9 @@ const BUMP_WIDTHS: [f64; 6] = [0.02, 0.035, 0.05, 0.08, 0.12, 0.17];
 const NARROW: f64 = 0.035;
 /// Step edge widths (logistic scale) as fractions of the range.
 const STEP_WIDTHS: [f64; 2] = [0.01, 0.04];
-/// The share of the residuals' sum of squares the best shape must explain.
-const MOSTLY: f64 = 0.5;
+/// The share of the misfit's sum of squares, beyond the pure error's, a
+/// shape must explain to be read.
+const MOSTLY: f64 = 0.7;
 /// The 95 % point of χ² with one degree of freedom.
 const CHI2_1_95: f64 = 3.841;
 /// Spacing of the shapes' centres as a fraction of the range.
@@ -77,7 +86,8 @@ impl SmoothMisfit {
 
 /// The family member that best explains the points' `misfit` (each
 /// point's level-mean residual, in the units of the data; `sigma2` one
-/// reading's pure-error variance in those units²), read through
+/// reading's pure-error variance in those units², over `levels` levels),
+/// read through
 /// the polynomial of `degree` fitted to points at |g| `x`, and its effect
 /// on coefficient `coefficient` (module docs). `None` when nothing can be
 /// read (too few points, no misfit) or when the best is a bump within
@@ -86,6 +96,7 @@ pub fn smooth_misfit(
     x: &[f64],
     misfit: &[f64],
     sigma2: f64,
+    levels: usize,
     degree: usize,
     coefficient: usize,
     what: &str,
@@ -102,8 +113,8 @@ pub fn smooth_misfit(
     {
         return None;
     }
-    let mut best: Option<(f64, f64, bool)> = None; // (explained, effect, narrow)
-    let mut best_narrow = 0.0_f64;
+    // Every member: (explained, effect, narrow).
+    let mut read: Vec<(f64, f64, bool)> = Vec::new();
     let mut consider = |shape: &dyn Fn(f64) -> f64, narrow: bool| {
         let s: Vec<f64> = x.iter().map(|g| shape(*g)).collect();
         let sv = nalgebra::DVector::from_column_slice(&s);
@@ -114,14 +125,7 @@ pub fn smooth_misfit(
             return;
         }
         let dot: f64 = r.iter().zip(misfit).map(|(a, b)| a * b).sum();
-        let explained = dot * dot / ss;
-        let effect = dot / ss * coef[coefficient];
-        if narrow {
-            best_narrow = best_narrow.max(explained);
-        }
-        if best.is_none_or(|(e, _, _)| explained > e) {
-            best = Some((explained, effect, narrow));
-        }
+        read.push((dot * dot / ss, dot / ss * coef[coefficient], narrow));
     };
     let centres =
         (0..=((1.0 / CENTRE_STEP).round() as usize)).map(|i| i as f64 * CENTRE_STEP * range);
@@ -138,15 +142,22 @@ pub fn smooth_misfit(
             consider(&|g: f64| 1.0 / (1.0 + (-(g - c) / scale).exp()), false);
         }
     }
-    // The misfit must be mostly this shape: a broad shape that explains a
-    // little of two separate dips would read their sum as a feature the
-    // cubic absorbs, which it is not.
-    let total: f64 = misfit.iter().map(|m| m * m).sum();
-    // And it must explain more than a feature within one level does, by
-    // more than chance would (χ²₁ at 5 %, 3.84 σ²): at a level spacing of
-    // 5 g a dip at one level is read almost as well by a bump a few g
-    // wide, and that is the jackknife's.
-    best.filter(|b| !b.2 && b.0 >= MOSTLY * total && b.0 - best_narrow > CHI2_1_95 * sigma2)
+    let best = read.iter().map(|r| r.0).fold(0.0_f64, f64::max);
+    // The misfit beyond what the pure error leaves in the L − p residual
+    // directions by chance.
+    let total: f64 = misfit.iter().map(|m| m * m).sum::<f64>()
+        - sigma2 * levels.saturating_sub(degree + 1) as f64;
+    // The members the data cannot tell from the best (within χ²₁ at 5 %
+    // of the pure error, 3.84 σ²) that explain most of that misfit (a
+    // broad shape explaining some of two separate dips would read their
+    // sum as a feature the cubic absorbs, which it is not). Among them the
+    // broad one of largest effect: when a step and a dip at the level
+    // beside it fit alike, which it is cannot be known, and the larger
+    // effect is the one the uncertainty must carry. When only features
+    // within one level remain, the misfit is the jackknife's.
+    read.into_iter()
+        .filter(|r| !r.2 && r.0 >= MOSTLY * total && r.0 >= best - CHI2_1_95 * sigma2)
+        .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         .map(|(explained_ss, effect, _)| SmoothMisfit {
             effect,
             explained_ss,

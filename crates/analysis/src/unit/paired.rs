@@ -144,14 +144,15 @@ pub(super) fn paired_inadequacy(
     // One reading's pure error in the half-difference [g²].
     let sigma2_half = 0.25 * (p.sigma2 / (p.k1 * p.k1) + n.sigma2 / (n.k1 * n.k1));
     let smooth =
-        crate::inadequacy::smooth_misfit(&x, &at, sigma2_half, degree, 2, &what).filter(|s| {
-            s.effect.is_finite()
-                && s.significant(
-                    sigma2_half,
-                    p.dof_pe + n.dof_pe,
-                    shared.len() - (degree + 1),
-                )
-        });
+        crate::inadequacy::smooth_misfit(&x, &at, sigma2_half, shared.len(), degree, 2, &what)
+            .filter(|s| {
+                s.effect.is_finite()
+                    && s.significant(
+                        sigma2_half,
+                        p.dof_pe + n.dof_pe,
+                        shared.len() - (degree + 1),
+                    )
+            });
     if let Some(s) = smooth {
         let effect = s.effect * crate::UG_PER_G;
         jk[0] = jk[0].max(effect * effect);
