@@ -84,7 +84,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         5,
         "the ±10 g function check said not to decide",
         "const p = document.getElementById('plan-summary'); \
-         return p.textContent.startsWith('±10 g, ') && p.dataset.canDecide === 'false' && p.textContent.includes('may not decide')",
+         return p.textContent.startsWith('±10 g, ') && p.dataset.canDecide === 'false' && p.textContent.includes('⚠ the predicted K2 U95 ')",
     );
     b.script("const s = document.getElementById('plan-select'); s.value = 'browser'; s.dispatchEvent(new Event('change'));");
     assert_eq!(

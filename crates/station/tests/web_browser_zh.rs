@@ -72,6 +72,15 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
     b.click("#nav-new");
     b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-1')");
     b.script("const s = document.getElementById('plan-select'); s.value = 'zh'; s.dispatchEvent(new Event('change'));");
+    // Why the plan cannot decide (its limit of 0.001 µg/g² is narrower
+    // than any U95), said in full in the operator's language.
+    b.wait_for(
+        5,
+        "the plan's decision warning in Chinese",
+        "const p = document.getElementById('plan-summary'); \
+         return p.dataset.canDecide === 'false' && p.textContent.includes('预测的 K2 U95') \
+           && p.textContent.includes('按保护带判定没有仪表能通过') && !p.textContent.includes('the predicted')",
+    );
     b.click("#start-button");
     b.wait_for(
         10,

@@ -39,6 +39,17 @@ impl TestPlan {
     /// verdict's U95 is not the predicted one (each mounting's k2 carries
     /// the centrifuge's common part, docs/method.md (15)).
     pub fn decision_warning(&self) -> Option<String> {
+        self.undecidable().map(|u| u.text())
+    }
+
+    /// The same as [`TestPlan::decision_warning`], as a wording for another
+    /// language (the catalogue's `say.plan.decision.<case>`).
+    pub fn decision_wording(&self) -> Option<crate::event::Wording> {
+        self.undecidable().map(|u| u.wording())
+    }
+
+    /// Why this plan may not decide (module docs of [`Undecidable`]).
+    fn undecidable(&self) -> Option<Undecidable> {
         let limits = &self.limits;
         let limit = limits.k2_max_ug_per_g2;
         // Without both passes (or with a slot fixed to one mounting by its
@@ -50,39 +61,21 @@ impl TestPlan {
             .filter(|s| s.trim_start().starts_with("P:") || s.trim_start().starts_with("N:"))
             .map(String::as_str)
             .collect();
-        if limits.decide_on == Measurand::K2 && (!both || !fixed.is_empty()) {
-            let which = if both {
-                format!(
-                    "the slots of {} are fixed to one mounting",
-                    fixed.join(", ")
-                )
-            } else {
-                "the plan measures one mounting (passes = [\"P\", \"N\"] measures both)".into()
-            };
-            return Some(format!(
-                "the verdict is on K2 (decide_on = \"K2\") against {limit} µg/g², which needs both mountings, but {which}: those instruments cannot be decided; measure both mountings or judge k2_max (decide_on = \"k2_max\")"
-            ));
+        if limits.decide_on == Measurand::K2 && !both {
+            return Some(Undecidable::OneMounting { limit });
         }
-        let p = self.prediction.as_ref()?;
-        let u = p.k2_u95_ug_per_g2;
+        if limits.decide_on == Measurand::K2 && !fixed.is_empty() {
+            return Some(Undecidable::FixedSlots {
+                limit,
+                slots: fixed.join(", "),
+            });
+        }
+        let u = self.prediction.as_ref()?.k2_u95_ug_per_g2;
+        let guarded = limits.decision_rule == DecisionRule::Guarded;
         match limits.decide_on {
-            Measurand::K2Max => Some(format!(
-                "the verdict is on k2_max (decide_on = \"k2_max\") against {limit} µg/g², but the prediction (K2 U95 {u:.3} µg/g²) is of the instrument's K2: each mounting's k2 also carries the centrifuge's common part and its U95 can be several times wider, so most instruments may be inconclusive; judge K2 (decide_on = \"K2\") to decide on the instrument"
-            )),
-            Measurand::K2 if limits.decision_rule == DecisionRule::Guarded && u >= limit => {
-                Some(format!(
-                    "the predicted K2 U95 {u:.3} µg/g² is as wide as the limit {limit} µg/g² or wider: under the guarded rule no instrument can pass; add levels or dwell (levels = \"auto\" with a target below {:.3}), or widen the limit",
-                    0.5 * limit
-                ))
-            }
-            Measurand::K2 if limits.decision_rule == DecisionRule::Guarded && u > 0.5 * limit => {
-                Some(format!(
-                    "the predicted K2 U95 {u:.3} µg/g² is over half the limit {limit} µg/g²: only instruments with |K2| under {:.3} can pass and over {:.3} can fail, the rest will be inconclusive; a target below {:.3} decides more",
-                    limit - u,
-                    limit + u,
-                    0.25 * limit
-                ))
-            }
+            Measurand::K2Max => Some(Undecidable::JudgesK2Max { limit, u }),
+            Measurand::K2 if guarded && u >= limit => Some(Undecidable::TooWide { limit, u }),
+            Measurand::K2 if guarded && u > 0.5 * limit => Some(Undecidable::OverHalf { limit, u }),
             Measurand::K2 => None,
         }
     }
@@ -204,5 +197,100 @@ impl TestPlan {
                 model_runs: model.runs,
             });
         Ok(plan)
+    }
+}
+
+/// Why a plan may not decide ([`TestPlan::decision_warning`]): one case,
+/// its English text and its wording from the same values.
+enum Undecidable {
+    /// The verdict is on K2 but the plan measures one mounting.
+    OneMounting { limit: f64 },
+    /// The verdict is on K2 but these slots are fixed to one mounting.
+    FixedSlots { limit: f64, slots: String },
+    /// The verdict is on k2_max, the prediction of K2.
+    JudgesK2Max { limit: f64, u: f64 },
+    /// The predicted K2 U95 is the limit or wider (guarded rule).
+    TooWide { limit: f64, u: f64 },
+    /// The predicted K2 U95 is over half the limit (guarded rule).
+    OverHalf { limit: f64, u: f64 },
+}
+
+impl Undecidable {
+    /// The case's key, its values as shown.
+    fn values(&self) -> (&'static str, Vec<(&'static str, String)>) {
+        let n = |v: f64| format!("{v:.3}");
+        match self {
+            Undecidable::OneMounting { limit } => {
+                ("one_mounting", vec![("limit", limit.to_string())])
+            }
+            Undecidable::FixedSlots { limit, slots } => (
+                "fixed_slots",
+                vec![("limit", limit.to_string()), ("slots", slots.clone())],
+            ),
+            Undecidable::JudgesK2Max { limit, u } => (
+                "judges_k2_max",
+                vec![("limit", limit.to_string()), ("u95", n(*u))],
+            ),
+            Undecidable::TooWide { limit, u } => (
+                "too_wide",
+                vec![
+                    ("limit", limit.to_string()),
+                    ("u95", n(*u)),
+                    ("target", n(0.5 * limit)),
+                ],
+            ),
+            Undecidable::OverHalf { limit, u } => (
+                "over_half",
+                vec![
+                    ("limit", limit.to_string()),
+                    ("u95", n(*u)),
+                    ("pass_below", n(limit - u)),
+                    ("fail_over", n(limit + u)),
+                    ("target", n(0.25 * limit)),
+                ],
+            ),
+        }
+    }
+
+    /// The wording (`plan.decision.<case>`).
+    fn wording(&self) -> crate::event::Wording {
+        let (case, values) = self.values();
+        values.into_iter().fold(
+            crate::event::Wording::new(&format!("plan.decision.{case}")),
+            |w, (name, value)| w.with(name, value),
+        )
+    }
+
+    /// The English text (the catalogue's `en` entry says the same).
+    fn text(&self) -> String {
+        let (_, values) = self.values();
+        let v = |name: &str| {
+            values
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, v)| v.as_str())
+                .unwrap_or_default()
+        };
+        let (limit, u95, target) = (v("limit"), v("u95"), v("target"));
+        match self {
+            Undecidable::OneMounting { .. } => format!(
+                "the verdict is on K2 (decide_on = \"K2\") against {limit} µg/g², which needs both mountings, but the plan measures one mounting (passes = [\"P\", \"N\"] measures both): those instruments cannot be decided; measure both mountings or judge k2_max (decide_on = \"k2_max\")"
+            ),
+            Undecidable::FixedSlots { .. } => format!(
+                "the verdict is on K2 (decide_on = \"K2\") against {limit} µg/g², which needs both mountings, but the slots of {} are fixed to one mounting: those instruments cannot be decided; measure both mountings or judge k2_max (decide_on = \"k2_max\")",
+                v("slots")
+            ),
+            Undecidable::JudgesK2Max { .. } => format!(
+                "the verdict is on k2_max (decide_on = \"k2_max\") against {limit} µg/g², but the prediction (K2 U95 {u95} µg/g²) is of the instrument's K2: each mounting's k2 also carries the centrifuge's common part and its U95 can be several times wider, so most instruments may be inconclusive; judge K2 (decide_on = \"K2\") to decide on the instrument"
+            ),
+            Undecidable::TooWide { .. } => format!(
+                "the predicted K2 U95 {u95} µg/g² is as wide as the limit {limit} µg/g² or wider: under the guarded rule no instrument can pass; add levels or dwell (levels = \"auto\" with a target below {target}), or widen the limit"
+            ),
+            Undecidable::OverHalf { .. } => format!(
+                "the predicted K2 U95 {u95} µg/g² is over half the limit {limit} µg/g²: only instruments with |K2| under {} can pass and over {} can fail, the rest will be inconclusive; a target below {target} decides more",
+                v("pass_below"),
+                v("fail_over")
+            ),
+        }
     }
 }

@@ -594,4 +594,70 @@ mod shipped_plans {
             );
         }
     }
+
+    #[test]
+    fn every_decision_warning_is_worded_the_same_in_english_and_in_chinese() {
+        use spinbench_report::lang::{Lang, say};
+        let model = spinbench_analysis::design::StationModel::default();
+        let (_, short) = super::SHIPPED_PLANS[0];
+        // A limit 1.5 times the short plan's predicted U95: over half of it.
+        let u95 = spinbench_engine::TestPlan::from_toml(short)
+            .and_then(|p| p.designed(&model))
+            .ok()
+            .and_then(|p| p.prediction)
+            .map(|p| p.k2_u95_ug_per_g2)
+            .expect("the short plan's prediction");
+        let variants = [
+            (
+                "too_wide",
+                format!("{short}\n[limits]\nk2_max_ug_per_g2 = 0.001\n"),
+            ),
+            (
+                "over_half",
+                format!(
+                    "{short}\n[limits]\nk2_max_ug_per_g2 = {}\n",
+                    (1.5 * u95).round()
+                ),
+            ),
+            (
+                "judges_k2_max",
+                format!("{short}\n[limits]\nk2_max_ug_per_g2 = 20\ndecide_on = \"k2_max\"\n"),
+            ),
+            (
+                "one_mounting",
+                format!(
+                    "passes = [\"P\"]\n{}",
+                    short.replace("passes =", "# passes =")
+                ),
+            ),
+        ];
+        for (case, text) in variants {
+            let plan = spinbench_engine::TestPlan::from_toml(&text)
+                .unwrap_or_else(|e| panic!("{case}: {e}\n{text}"))
+                .designed(&model)
+                .unwrap_or_else(|e| panic!("{case}: {e}"));
+            let english = plan
+                .decision_warning()
+                .unwrap_or_else(|| panic!("{case}: no warning"));
+            let wording = plan
+                .decision_wording()
+                .expect("a wording beside the warning");
+            assert_eq!(wording.key, format!("plan.decision.{case}"));
+            // The catalogue's English is the engine's text, word for word;
+            // the Chinese is a text of its own with the same numbers.
+            assert_eq!(
+                say(Lang::En, &wording).as_deref(),
+                Some(english.as_str()),
+                "{case}"
+            );
+            let chinese = say(Lang::ZhCn, &wording).unwrap_or_else(|| panic!("{case}: no zh"));
+            assert_ne!(chinese, english, "{case}");
+            for value in wording.args.values() {
+                assert!(
+                    chinese.contains(value.as_str()),
+                    "{case}: {value} in {chinese}"
+                );
+            }
+        }
+    }
 }

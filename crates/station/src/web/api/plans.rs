@@ -99,6 +99,7 @@ fn summary(plan: &TestPlan) -> Option<PlanSummary> {
         centrifuge_time_s: designed.prediction.as_ref().map(|p| p.centrifuge_time_s),
         can_decide: warning.is_none(),
         decision_warning: warning,
+        decision_wording: designed.decision_wording(),
     })
 }
 
@@ -219,6 +220,7 @@ pub(super) async fn design_plan(
         .ok_or_else(|| ApiError::internal("the design gave no prediction"))?;
     Ok(Json(DesignReply {
         decision_warning: designed.decision_warning(),
+        decision_wording: designed.decision_wording(),
         levels_g: designed.level_table(),
         down_levels_g: designed.down_levels.clone().unwrap_or_default(),
         dwell_s: designed.dwell.seconds,

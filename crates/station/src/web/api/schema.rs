@@ -230,6 +230,10 @@ pub struct PlanSummary {
     pub can_decide: bool,
     /// Why it may not decide (English; the form shows its own words).
     pub decision_warning: Option<String>,
+    /// The same as a wording (`{key, args}`, the catalogue's
+    /// `say.plan.decision.*`), for the page's language.
+    #[schema(value_type = Option<Object>)]
+    pub decision_wording: Option<spinbench_engine::event::Wording>,
 }
 
 /// `GET /api/plans`.
@@ -347,6 +351,10 @@ pub struct DesignReply {
     /// Why the plan may not decide, before anything moves (the predicted
     /// U95 of the judged quantity against its limit); none when it can.
     pub decision_warning: Option<String>,
+    /// The same as a wording (`{key, args}`, the catalogue's
+    /// `say.plan.decision.*`), for the page's language.
+    #[schema(value_type = Option<Object>)]
+    pub decision_wording: Option<spinbench_engine::event::Wording>,
 }
 
 /// A run started, answered, paused, resumed or aborted.

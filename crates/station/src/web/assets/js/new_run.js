@@ -1,7 +1,7 @@
 // The New run page: plans, the station config, the serials (a barcode
 // scanner types them) and the start.
 import { $, api, show, state } from "./core.js";
-import { fill, word } from "./i18n.js";
+import { fill, say, word } from "./i18n.js";
 import { predictionRange } from "./live.js";
 
 export let plans = [];
@@ -62,10 +62,13 @@ export function planSummary(plan) {
     u95: s.k2_u95_ug_per_g2 == null ? "—" : s.k2_u95_ug_per_g2.toFixed(3),
   };
   const text = fill("web.plan.summary", "±" + vars.range + " g, " + vars.levels + " levels, mountings " + vars.passes + ", about " + minutes + " min of centrifuge time; judged: " + vars.measurand + " against " + vars.limit + " µg/g² (" + vars.rule + " rule); predicted K2 U95 " + vars.u95 + " µg/g²", vars);
+  // Why it may not decide, in the page's language, shown in full.
   box.textContent = text + " — " + (s.can_decide
     ? word("web.plan.can_decide", "it can decide")
-    : word("web.plan.cannot_decide", "⚠ it may not decide: the predicted uncertainty is too wide for the limit, or an instrument lacks a mounting"));
-  box.title = s.decision_warning || "";
+    : "⚠ " + (s.decision_warning
+      ? say(s.decision_wording, s.decision_warning)
+      : word("web.plan.cannot_decide", "⚠ it may not decide: the predicted uncertainty is too wide for the limit, or an instrument lacks a mounting")));
+  box.title = "";
   box.className = s.can_decide ? "hint" : "hint warning";
   box.dataset.canDecide = String(s.can_decide);
 }
@@ -170,7 +173,7 @@ export async function predict(ev) {
     };
     box.textContent = fill("web.msg.design", "designed: " + vars.levels + " levels, " + vars.down + " read again on the way down, " + vars.dwell + " s dwell — predicted K2 U95 " + vars.u95 + " µg/g² in " + vars.time + " s of centrifuge time; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (" + vars.source + ")", vars)
       + predictionRange(d.k2_u95_run_range_ug_per_g2)
-      + (d.decision_warning ? " ⚠ " + d.decision_warning : "");
+      + (d.decision_warning ? " ⚠ " + say(d.decision_wording, d.decision_warning) : "");
     box.classList.toggle("warning", !!d.decision_warning);
     box.hidden = false;
   } catch (e) { box.hidden = true; show(e.message); }
