@@ -26,13 +26,13 @@
 //! when no one shape explains most of it (two separate dips), it is read
 //! by the jackknife too.
 //!
-//! It counts when the lack of fit is significant, or when the best shape
-//! alone explains more of the residuals than the pure error would by
-//! chance: its explained sum of squares over σ² against χ²₁ at 5 %
-//! divided by the L − p directions the residuals have (a shape is a
-//! direction in that space; Bonferroni over them). A targeted test has the
-//! power the omnibus lack-of-fit test lacks for a feature the cubic mostly
-//! absorbs.
+//! It counts only when the shape read explains more of the residuals than
+//! the pure error would by chance ([`SmoothMisfit::significant`]): its
+//! explained sum of squares over σ² against F(1, ν_pe) at 5 % divided by
+//! the L − p directions the residuals have (a shape is a direction in that
+//! space; Bonferroni over them). A shape that passes counts even when the
+//! omnibus lack-of-fit test does not: that test lacks the power for a
+//! feature the cubic mostly absorbs.
 //!
 //! What it cannot see: a feature wider than about a sixth of the range is
 //! not told from the instrument's curvature (it is, for every purpose a
@@ -87,11 +87,12 @@ impl SmoothMisfit {
 /// The family member that best explains the points' `misfit` (each
 /// point's level-mean residual, in the units of the data; `sigma2` one
 /// reading's pure-error variance in those units², over `levels` levels),
-/// read through
-/// the polynomial of `degree` fitted to points at |g| `x`, and its effect
+/// read through the polynomial of `degree` fitted to points at |g| `x`,
+/// and its effect
 /// on coefficient `coefficient` (module docs). `None` when nothing can be
-/// read (too few points, no misfit) or when the best is a bump within
-/// about one level (the jackknife's, module docs).
+/// read (too few points, no misfit), or when no broad member explains
+/// most of the misfit as well as the best member does (the jackknife's,
+/// module docs).
 pub fn smooth_misfit(
     x: &[f64],
     misfit: &[f64],
