@@ -599,7 +599,7 @@ pub fn paired_lack_of_fit(
 }
 
 mod smooth;
-pub use smooth::{SmoothMisfit, smooth_misfit};
+pub use smooth::{Readings, SmoothMisfit, smooth_misfit};
 
 #[cfg(test)]
 mod tests;

@@ -107,6 +107,15 @@ fn coverage(shape: &str, trials: usize) -> f64 {
                 Mount::P => size * dip(g, centre),
                 Mount::N => 0.6 * size * dip(g, other),
             }),
+            // A broad bump in one mounting and a mode crossing in the
+            // other (the typical bench's instruments have their dips).
+            "bump and dip" => Box::new(move |m, g, _, _| {
+                if m == one {
+                    broad_size * (-0.5 * ((g - centre) / sigma).powi(2)).exp()
+                } else {
+                    size * dip(g, other)
+                }
+            }),
             // The bias drifting through the run.
             "drift" => Box::new(move |_, _, i, _| broad_size * 0.3 * i as f64 / 62.0),
             // The way down off the way up, growing with g.
@@ -144,6 +153,7 @@ fn k2s_interval_holds_anomalies_of_every_shape() {
         "broad bump",
         "step",
         "two dips",
+        "bump and dip",
         "drift",
         "hysteresis",
     ] {

@@ -24,7 +24,11 @@
 //! carries the larger effect. When only bumps within about one level
 //! remain, the misfit is the jackknife's, which sees such a feature whole;
 //! when no one shape explains most of it (two separate dips), it is read
-//! by the jackknife too.
+//! by the jackknife too. Levels flagged off the curve (a dip: the
+//! jackknife's) are set aside first and the rest read through the fit
+//! without them: a dip's pull on the fit leaves the other levels a residual
+//! in that fit's span, which this removes whole, so that an instrument
+//! with a dip in one mounting and a broad bump in the other is still read.
 //!
 //! It counts only when the shape read explains more of the residuals than
 //! the pure error would by chance ([`SmoothMisfit::significant`]): its
@@ -84,6 +88,17 @@ impl SmoothMisfit {
     }
 }
 
+/// The readings a smooth misfit is read from, one entry per point.
+#[derive(Debug, Clone, Copy)]
+pub struct Readings<'a> {
+    /// Each point's |g| [g].
+    pub x: &'a [f64],
+    /// Each point's level-mean residual (the data's units).
+    pub misfit: &'a [f64],
+    /// Whether the point's level is set aside (flagged off the curve).
+    pub set_aside: &'a [bool],
+}
+
 /// The family member that best explains the points' `misfit` (each
 /// point's level-mean residual, in the units of the data; `sigma2` one
 /// reading's pure-error variance in those units², over `levels` levels),
@@ -94,19 +109,40 @@ impl SmoothMisfit {
 /// most of the misfit as well as the best member does (the jackknife's,
 /// module docs).
 pub fn smooth_misfit(
-    x: &[f64],
-    misfit: &[f64],
+    readings: &Readings,
     sigma2: f64,
     levels: usize,
     degree: usize,
     coefficient: usize,
     what: &str,
 ) -> Option<SmoothMisfit> {
-    if x.len() != misfit.len() || x.len() <= degree + 2 || coefficient > degree {
+    let Readings {
+        x,
+        misfit,
+        set_aside,
+    } = *readings;
+    if x.len() != misfit.len() || set_aside.len() != x.len() || coefficient > degree {
         return None;
     }
-    let design = lsq::polynomial_design(x, degree);
+    // The points of the levels set aside (flagged off the curve: the
+    // jackknife's) are left out, and what the rest show is read again
+    // through the fit without them: a dip's pull on the fit leaves the
+    // other levels a residual in the span of that fit, which this removes
+    // whole, so that the dip is not read as part of a broad shape.
+    let kept: Vec<usize> = (0..x.len()).filter(|&i| !set_aside[i]).collect();
+    if kept.len() <= degree + 2 {
+        return None;
+    }
+    let x: Vec<f64> = kept.iter().map(|&i| x[i]).collect();
+    let design = lsq::polynomial_design(&x, degree);
     let op = lsq::solution_operator(&design, what).ok()?;
+    let misfit: Vec<f64> = {
+        let m = nalgebra::DVector::from_iterator(kept.len(), kept.iter().map(|&i| misfit[i]));
+        let r = &m - &design * (&op * &m);
+        r.iter().copied().collect()
+    };
+    let misfit = misfit.as_slice();
+    let x = x.as_slice();
     let range = x.iter().copied().fold(0.0_f64, f64::max);
     if !(range > 0.0 && range.is_finite())
         || misfit.iter().any(|m| !m.is_finite())

@@ -124,7 +124,19 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
     // A 2,000 µg bump of σ 8 g at 40 g: the cubic absorbs most of it and
     // leaves no trace of that part; the shape links the two.
     let (x, r, truth) = residual_of(|g| 2e-3 * (-0.5 * ((g - 40.0) / 8.0).powi(2)).exp());
-    let s = smooth_misfit(&x, &r, 1e-10, 16, 3, 2, "test").expect("read as broad");
+    let s = smooth_misfit(
+        &Readings {
+            x: &x,
+            misfit: &r,
+            set_aside: &vec![false; x.len()],
+        },
+        1e-10,
+        16,
+        3,
+        2,
+        "test",
+    )
+    .expect("read as broad");
     assert!(
         (s.effect - truth).abs() < 0.15 * truth.abs(),
         "effect {} truth {truth}",
@@ -132,7 +144,19 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
     );
     // A step of 1,000 µg from 33 g on.
     let (x, r, truth) = residual_of(|g| if g > 33.0 { 1e-3 } else { 0.0 });
-    let s = smooth_misfit(&x, &r, 1e-10, 16, 3, 2, "test").expect("read as a step");
+    let s = smooth_misfit(
+        &Readings {
+            x: &x,
+            misfit: &r,
+            set_aside: &vec![false; x.len()],
+        },
+        1e-10,
+        16,
+        3,
+        2,
+        "test",
+    )
+    .expect("read as a step");
     assert!(
         (s.effect - truth).abs() < 0.15 * truth.abs(),
         "effect {} truth {truth}",
@@ -143,10 +167,77 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
 #[test]
 fn a_dip_at_one_level_is_left_to_the_jackknife() {
     let (x, r, _) = residual_of(|g| if g == 40.0 { 5e-3 } else { 0.0 });
-    assert_eq!(smooth_misfit(&x, &r, 1e-10, 16, 3, 2, "test"), None);
+    assert_eq!(
+        smooth_misfit(
+            &Readings {
+                x: &x,
+                misfit: &r,
+                set_aside: &vec![false; x.len()]
+            },
+            1e-10,
+            16,
+            3,
+            2,
+            "test"
+        ),
+        None
+    );
     // No misfit, nothing read.
     assert_eq!(
-        smooth_misfit(&x, &vec![0.0; x.len()], 1e-10, 16, 3, 2, "test"),
+        smooth_misfit(
+            &Readings {
+                x: &x,
+                misfit: &vec![0.0; x.len()],
+                set_aside: &vec![false; x.len()]
+            },
+            1e-10,
+            16,
+            3,
+            2,
+            "test"
+        ),
+        None
+    );
+}
+
+#[test]
+fn a_broad_bump_is_read_past_a_dip_once_the_dips_level_is_set_aside() {
+    let bump = |g: f64| 2e-3 * (-0.5 * ((g - 45.0) / 8.0).powi(2)).exp();
+    let (_, _, truth) = residual_of(bump);
+    let (x, r, _) = residual_of(|g| bump(g) + if g == 20.0 { 8e-3 } else { 0.0 });
+    let aside: Vec<bool> = x.iter().map(|g| *g == 20.0).collect();
+    let s = smooth_misfit(
+        &Readings {
+            x: &x,
+            misfit: &r,
+            set_aside: &aside,
+        },
+        1e-10,
+        15,
+        3,
+        2,
+        "test",
+    )
+    .expect("read");
+    assert!(
+        (s.effect - truth).abs() < 0.2 * truth.abs(),
+        "effect {} truth {truth}",
+        s.effect
+    );
+    // Read with the dip among the levels, no one shape explains most of it.
+    assert_eq!(
+        smooth_misfit(
+            &Readings {
+                x: &x,
+                misfit: &r,
+                set_aside: &vec![false; x.len()]
+            },
+            1e-10,
+            16,
+            3,
+            2,
+            "test"
+        ),
         None
     );
 }

@@ -141,16 +141,33 @@ pub(super) fn paired_inadequacy(
                 .map_or(0.0, |i| half_difference[i])
         })
         .collect();
+    // The levels flagged off the curve in either mounting: the jackknife's.
+    let flagged: Vec<f64> = [Mount::P, Mount::N]
+        .iter()
+        .filter_map(|m| fits.get(m)?.diagnostics.as_ref())
+        .flat_map(|d| d.outlier_levels.iter().map(|o| o.g))
+        .collect();
+    let set_aside: Vec<bool> = p
+        .points
+        .iter()
+        .map(|q| flagged.contains(&q.g_nominal.abs()))
+        .collect();
+    let levels_read = shared.iter().filter(|g| !flagged.contains(g)).count();
     // One reading's pure error in the half-difference [g²].
     let sigma2_half = 0.25 * (p.sigma2 / (p.k1 * p.k1) + n.sigma2 / (n.k1 * n.k1));
+    let readings = crate::inadequacy::Readings {
+        x: &x,
+        misfit: &at,
+        set_aside: &set_aside,
+    };
     let smooth =
-        crate::inadequacy::smooth_misfit(&x, &at, sigma2_half, shared.len(), degree, 2, &what)
+        crate::inadequacy::smooth_misfit(&readings, sigma2_half, levels_read, degree, 2, &what)
             .filter(|s| {
                 s.effect.is_finite()
                     && s.significant(
                         sigma2_half,
                         p.dof_pe + n.dof_pe,
-                        shared.len() - (degree + 1),
+                        levels_read.saturating_sub(degree + 1),
                     )
             });
     if let Some(s) = smooth {
