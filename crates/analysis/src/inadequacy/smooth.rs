@@ -38,6 +38,11 @@
 //! omnibus lack-of-fit test does not: that test lacks the power for a
 //! feature the cubic mostly absorbs.
 //!
+//! It is not read with fewer than six residual directions (L − p): then
+//! some broad member explains most of any misfit, a drift's or the
+//! scatter's, and the data do not tell the shape (a ±10 g function check
+//! of 7 levels has 3).
+//!
 //! What it cannot see: a feature wider than about a sixth of the range is
 //! not told from the instrument's curvature (it is, for every purpose a
 //! smooth model has, the curvature), and a misfit of a shape far from the
@@ -57,6 +62,11 @@ const STEP_WIDTHS: [f64; 2] = [0.01, 0.04];
 /// The share of the misfit's sum of squares, beyond the pure error's, a
 /// shape must explain to be read.
 const MOSTLY: f64 = 0.7;
+/// The fewest residual directions (L − p) a shape is read in: with fewer,
+/// some broad member explains most of any misfit (a drift, the scatter),
+/// and the shape, hence its absorbed part, is not told by the data (a
+/// ±10 g plan of 7 levels has 3).
+const MIN_DIRECTIONS: usize = 6;
 /// The 95 % point of χ² with one degree of freedom.
 const CHI2_1_95: f64 = 3.841;
 /// Spacing of the shapes' centres as a fraction of the range.
@@ -121,7 +131,11 @@ pub fn smooth_misfit(
         misfit,
         set_aside,
     } = *readings;
-    if x.len() != misfit.len() || set_aside.len() != x.len() || coefficient > degree {
+    if x.len() != misfit.len()
+        || set_aside.len() != x.len()
+        || coefficient > degree
+        || levels.saturating_sub(degree + 1) < MIN_DIRECTIONS
+    {
         return None;
     }
     // The points of the levels set aside (flagged off the curve: the

@@ -241,3 +241,24 @@ fn a_broad_bump_is_read_past_a_dip_once_the_dips_level_is_set_aside() {
         None
     );
 }
+
+#[test]
+fn a_plan_of_few_levels_reads_no_shape() {
+    // 7 levels and a cubic: 3 residual directions, too few to tell a shape.
+    let x: Vec<f64> = [0.0, 1.0, 2.0, 4.0, 6.0, 8.0, 10.0].repeat(2);
+    let bump: Vec<f64> = x
+        .iter()
+        .map(|g| 1e-3 * (-0.5 * ((g - 5.0) / 1.2).powi(2)).exp())
+        .collect();
+    let design = lsq::polynomial_design(&x, 3);
+    let op = lsq::solution_operator(&design, "test").expect("operator");
+    let b = nalgebra::DVector::from_column_slice(&bump);
+    let r = &b - &design * (&op * &b);
+    let r: Vec<f64> = r.iter().copied().collect();
+    let readings = Readings {
+        x: &x,
+        misfit: &r,
+        set_aside: &vec![false; x.len()],
+    };
+    assert_eq!(smooth_misfit(&readings, 1e-10, 7, 3, 2, "test"), None);
+}
