@@ -119,24 +119,23 @@ fn residual_of(misfit: impl Fn(f64) -> f64) -> (Vec<f64>, Vec<f64>, f64) {
     (x, r.iter().copied().collect(), coef[2])
 }
 
+/// What the 16 levels' residuals `r` at `x` show, none set aside, over
+/// a pure error of 1e-10.
+fn read_all(x: &[f64], r: &[f64]) -> Option<SmoothMisfit> {
+    let readings = Readings {
+        x,
+        misfit: r,
+        set_aside: &vec![false; x.len()],
+    };
+    smooth_misfit(&readings, 1e-10, 16, 3, 2, "test")
+}
+
 #[test]
 fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
     // A 2,000 µg bump of σ 8 g at 40 g: the cubic absorbs most of it and
     // leaves no trace of that part; the shape links the two.
     let (x, r, truth) = residual_of(|g| 2e-3 * (-0.5 * ((g - 40.0) / 8.0).powi(2)).exp());
-    let s = smooth_misfit(
-        &Readings {
-            x: &x,
-            misfit: &r,
-            set_aside: &vec![false; x.len()],
-        },
-        1e-10,
-        16,
-        3,
-        2,
-        "test",
-    )
-    .expect("read as broad");
+    let s = read_all(&x, &r).expect("read as broad");
     assert!(
         (s.effect - truth).abs() < 0.15 * truth.abs(),
         "effect {} truth {truth}",
@@ -144,19 +143,7 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
     );
     // A step of 1,000 µg from 33 g on.
     let (x, r, truth) = residual_of(|g| if g > 33.0 { 1e-3 } else { 0.0 });
-    let s = smooth_misfit(
-        &Readings {
-            x: &x,
-            misfit: &r,
-            set_aside: &vec![false; x.len()],
-        },
-        1e-10,
-        16,
-        3,
-        2,
-        "test",
-    )
-    .expect("read as a step");
+    let s = read_all(&x, &r).expect("read as a step");
     assert!(
         (s.effect - truth).abs() < 0.15 * truth.abs(),
         "effect {} truth {truth}",
@@ -167,21 +154,7 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
 #[test]
 fn a_dip_at_one_level_is_left_to_the_jackknife() {
     let (x, r, _) = residual_of(|g| if g == 40.0 { 5e-3 } else { 0.0 });
-    assert_eq!(
-        smooth_misfit(
-            &Readings {
-                x: &x,
-                misfit: &r,
-                set_aside: &vec![false; x.len()]
-            },
-            1e-10,
-            16,
-            3,
-            2,
-            "test"
-        ),
-        None
-    );
+    assert_eq!(read_all(&x, &r), None);
     // No misfit, nothing read.
     assert_eq!(
         smooth_misfit(
@@ -225,21 +198,7 @@ fn a_broad_bump_is_read_past_a_dip_once_the_dips_level_is_set_aside() {
         s.effect
     );
     // Read with the dip among the levels, no one shape explains most of it.
-    assert_eq!(
-        smooth_misfit(
-            &Readings {
-                x: &x,
-                misfit: &r,
-                set_aside: &vec![false; x.len()]
-            },
-            1e-10,
-            16,
-            3,
-            2,
-            "test"
-        ),
-        None
-    );
+    assert_eq!(read_all(&x, &r), None);
 }
 
 #[test]
