@@ -1553,3 +1553,101 @@ fn an_instrument_that_falls_silent_mid_run_is_put_to_the_operator_and_ends_incom
     assert_ne!(good.outcome, Outcome::Incomplete);
     bench.shutdown();
 }
+
+/// The largest acceleration the run put on any position [g]: the table's
+/// rate read back each second at the bench's true radii (the largest).
+fn largest_applied_g(events: &[Event], bench: &RunningBench) -> f64 {
+    let true_radius_m = bench.with_world(|w| {
+        w.truth()
+            .instruments
+            .iter()
+            .flat_map(|u| [u.position.radius_p_m, u.position.radius_n_m])
+            .fold(0.0, f64::max)
+    });
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Values { rate_deg_s, .. } => Some(*rate_deg_s),
+            _ => None,
+        })
+        .map(|rate| rate.to_radians().powi(2) * true_radius_m / 9.80665)
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn safety_a_wrong_configured_radius_stops_the_run_at_1_g_before_any_level() {
+    // Fixtures at 0.8 m rated 100 g, the config saying 0.5 m: a 70 g plan
+    // passes the plan check (70 g at 0.5 m) and would put 112 g on them.
+    let mut plan = small_plan();
+    plan.range_g = 70.0;
+    plan.levels = Some(spinbench_engine::plan::LevelTable::List(vec![
+        0.0, 10.0, 20.0, 40.0, 55.0, 70.0,
+    ]));
+    let (summary, events, bench) = run_paused(SimConfig::default(), plan, None, None, &|s| {
+        s.arm.radius_m = 0.5;
+        s.arm.position_radius_m.clear();
+        s.arm.max_g = 100.0;
+    });
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    let why = reason(&summary);
+    assert!(
+        why.contains("measured radius is 0.80") && why.contains("arm.radius_m 0.5 m"),
+        "{why}"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, Event::PointDone { .. })),
+        "no level was measured"
+    );
+    let applied = largest_applied_g(&events, &bench);
+    assert!(applied < 2.0, "the table went to {applied:.2} g");
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn safety_a_level_over_the_rating_at_the_measured_radius_is_never_spun() {
+    // Every fixture 6 mm further out than drawn (within the radius
+    // tolerance): 10 g at the drawing radius is 10.08 g on fixtures rated 10 g.
+    let mut sim = SimConfig::default();
+    sim.centrifuge.radius_scatter_mm = 0.0;
+    sim.centrifuge.position_shifts_mm = vec![6.0; 18];
+    let (summary, events, bench) = run_paused(sim, small_plan(), None, None, &|s| {
+        s.arm.max_g = 10.0;
+    });
+    assert_eq!(summary.state, RunState::Faulted, "{}", reason(&summary));
+    let why = reason(&summary);
+    assert!(
+        why.contains("10.00 g would put 10.0") && why.contains("arm.max_g = 10 g"),
+        "{why}"
+    );
+    assert!(
+        !events.iter().any(|e| matches!(e, Event::PointDone { .. })),
+        "stopped at the radius step, before the first level"
+    );
+    let applied = largest_applied_g(&events, &bench);
+    assert!(applied <= 10.0, "the table went to {applied:.3} g");
+    assert_safe(&bench, true);
+    bench.shutdown();
+}
+
+#[test]
+fn one_instrument_far_from_its_drawing_radius_is_set_aside_and_the_run_goes_on() {
+    let mut sim = SimConfig::default();
+    sim.centrifuge.position_shifts_mm = vec![10.0];
+    let (summary, _events, bench) = run(sim, small_plan(), None);
+    assert_eq!(summary.state, RunState::Completed, "{}", reason(&summary));
+    let first = &summary.records[0];
+    let why: Vec<&str> = first.reasons.iter().map(|r| r.text.as_str()).collect();
+    assert!(
+        why.iter()
+            .any(|t| t.contains("radius measured 0.809") && t.contains("check its fixture")),
+        "{why:?}"
+    );
+    assert_eq!(first.outcome, Outcome::Incomplete);
+    assert!(
+        summary.records[1..]
+            .iter()
+            .all(|r| r.radius_m.contains_key(&Mount::P))
+    );
+    bench.shutdown();
+}

@@ -205,6 +205,38 @@ impl RunDir {
                 },
             );
         }
+        // What sets the speed or the g of a level: a resume with another
+        // arm would label points measured at 32 g as 20 g in the same run.
+        let speed_of = |t: &toml::Table| -> Vec<(&'static str, Option<toml::Value>)> {
+            let centrifuge = t.get("centrifuge").and_then(toml::Value::as_table);
+            vec![
+                ("arm", t.get("arm").cloned()),
+                ("g_local_m_s2", t.get("g_local_m_s2").cloned()),
+                (
+                    "centrifuge.max_rate_deg_s",
+                    centrifuge.and_then(|c| c.get("max_rate_deg_s").cloned()),
+                ),
+                (
+                    "centrifuge.max_rate_rpm",
+                    centrifuge.and_then(|c| c.get("max_rate_rpm").cloned()),
+                ),
+            ]
+        };
+        let speed_differ: Vec<&str> = speed_of(&recorded)
+            .into_iter()
+            .zip(speed_of(&now))
+            .filter(|((_, was), (_, is))| was != is)
+            .map(|((key, _), _)| key)
+            .collect();
+        if !speed_differ.is_empty() {
+            bail!(
+                "--resume {path}: [{}] is not what the run was recorded with (see {}): the speed of every level \
+                 and the g its points are labelled with would change within one run; continue it with the \
+                 station config it used, or start a new run",
+                speed_differ.join("], ["),
+                recorded_path.display()
+            );
+        }
         if !is_sim {
             let differ: Vec<&str> = DEVICE_SECTIONS
                 .into_iter()

@@ -385,6 +385,23 @@ fn a_run_is_resumed_only_on_its_own_station_and_bench() {
             .contains("recorded on station 'spinbench virtual bench', this is station 'line 2'"),
         "{err}"
     );
+    // Another arm: every level's speed and the g of its points would change.
+    let other_arm = dir.path().join("other-arm.toml");
+    assert!(recorded.contains("radius_m = 0.8"), "{recorded}");
+    std::fs::write(
+        &other_arm,
+        recorded.replacen("radius_m = 0.8", "radius_m = 0.5", 1),
+    )
+    .expect("another arm");
+    let (ok, err) = resume(&[
+        "--simulate",
+        "--station",
+        other_arm.to_str().expect("utf-8"),
+    ]);
+    assert!(
+        !ok && err.contains("[arm] is not what the run was recorded with"),
+        "{err}"
+    );
     // A run recorded on hardware is not continued on the virtual bench.
     std::fs::write(
         run_dir.join("station.toml"),

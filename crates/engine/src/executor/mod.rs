@@ -12,6 +12,7 @@
 //! | `ports` | `Acquisition`: the counter modules' accumulators, windows and temperatures, paired into one second of the station with the per-second safety checks |
 //! | `soak` | `ChamberState`: the chamber's setpoint and purge, and the soak |
 //! | `units` | `UnitState`: each slot's readings, calibrations, points and failure |
+//! | `rating` | the speed bounded by the measured radius: the configured radius checked at 1 g, every commanded rate under the fixtures' rating |
 //! | `resume` | `Progress`: the steps done, restored from a journal |
 //! | `safety` | `SafeOutcome`: the safe state, the confirmed stop, the stop keeper |
 //! | [`stability`] | the stability statistics (pure functions) |
@@ -28,6 +29,7 @@ mod fanout;
 mod judge;
 mod keeper;
 mod ports;
+mod rating;
 mod resume;
 mod safety;
 mod soak;
@@ -168,6 +170,37 @@ pub enum EngineError {
     /// A level that cannot be turned into a rate (plan or station values).
     #[error("{0}")]
     Rate(String),
+    /// The instruments' measured radius is not the configured arm's.
+    #[error(
+        "the instruments' measured radius is {measured_m:.4} m (median), the configured arm.radius_m {configured_m} m: \
+         more than {tolerance_pct} % apart, so every level's g would be wrong; the table was stopped before the first level \
+         (correct [arm] radius_m and start the run again)"
+    )]
+    RadiusMismatch {
+        /// The median of the radii measured in the pass [m].
+        measured_m: f64,
+        /// The configured drawing radius [m].
+        configured_m: f64,
+        /// The tolerance [%].
+        tolerance_pct: f64,
+    },
+    /// A level would put more g on a fixture than it is rated for.
+    #[error(
+        "{g_nominal:.2} g would put {applied_g:.2} g on slot {slot} at its radius of {radius_m:.4} m, \
+         above its rating arm.max_g = {max_g} g; the table was stopped (lower the plan's range)"
+    )]
+    OverRating {
+        /// The level, at the drawing radius [g].
+        g_nominal: f64,
+        /// The acceleration it would apply at the largest known radius [g].
+        applied_g: f64,
+        /// The slot of that radius (1-based).
+        slot: usize,
+        /// The largest known radius [m].
+        radius_m: f64,
+        /// The fixtures' rating [g].
+        max_g: f64,
+    },
 }
 
 impl EngineError {
@@ -209,6 +242,26 @@ impl EngineError {
             EngineError::NoUnits => Wording::new("fault.no_units"),
             EngineError::State(e) => Wording::new("fault.state").with("detail", e),
             EngineError::Rate(detail) => Wording::new("fault.rate").with("detail", detail),
+            EngineError::RadiusMismatch {
+                measured_m,
+                configured_m,
+                tolerance_pct,
+            } => Wording::new("fault.radius_mismatch")
+                .with("measured", format!("{measured_m:.4}"))
+                .with("configured", configured_m)
+                .with("tolerance", tolerance_pct),
+            EngineError::OverRating {
+                g_nominal,
+                applied_g,
+                slot,
+                radius_m,
+                max_g,
+            } => Wording::new("fault.over_rating")
+                .with("g", format!("{g_nominal:.2}"))
+                .with("applied", format!("{applied_g:.2}"))
+                .with("slot", slot)
+                .with("radius", format!("{radius_m:.4}"))
+                .with("max_g", max_g),
         }
     }
 }

@@ -182,6 +182,7 @@ impl Executor<'_> {
         if rate_deg_s == 0.0 {
             self.bench.centrifuge.stop()?;
         } else {
+            self.check_rate_allowed(rate_deg_s)?;
             self.bench.centrifuge.set_rate(rate_deg_s)?;
         }
         self.demand_deg_s = rate_deg_s;
@@ -336,7 +337,7 @@ impl Executor<'_> {
                 )?,
             }
         }
-        Ok(())
+        self.check_radii(pass)
     }
 
     pub(super) fn level(

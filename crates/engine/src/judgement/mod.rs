@@ -184,5 +184,8 @@ pub(crate) fn point_list(records: &[PointRecord]) -> Vec<Point> {
 /// unpowered, unplugged or silent), so its record is
 /// [`Outcome::Incomplete`], never [`Outcome::Fail`].
 pub(crate) fn unmeasured(code: ReasonCode) -> bool {
-    matches!(code, ReasonCode::Dead | ReasonCode::NoOutput)
+    matches!(
+        code,
+        ReasonCode::Dead | ReasonCode::NoOutput | ReasonCode::RadiusFailed
+    )
 }
