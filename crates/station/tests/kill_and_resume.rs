@@ -402,6 +402,32 @@ fn a_run_is_resumed_only_on_its_own_station_and_bench() {
         !ok && err.contains("[arm] is not what the run was recorded with"),
         "{err}"
     );
+    // An overdue device: a resume moves the table, so it is refused as a
+    // new run is, naming the override.
+    let db = data.join("spinbench.db");
+    let set = spinbench()
+        .args(["equipment", "set", "centrifuge", "--identity", "CT 1"])
+        .args(["--certificate", "K-1", "--calibrated", "2020-01-01"])
+        .args([
+            "--due",
+            "2021-01-01",
+            "--station",
+            "spinbench virtual bench",
+        ])
+        .arg("--db")
+        .arg(&db)
+        .output()
+        .expect("equipment set");
+    assert!(
+        set.status.success(),
+        "{}",
+        String::from_utf8_lossy(&set.stderr)
+    );
+    let (ok, err) = resume(&["--simulate"]);
+    assert!(
+        !ok && err.contains("overdue") && err.contains("--override-overdue"),
+        "{err}"
+    );
     // A run recorded on hardware is not continued on the virtual bench.
     std::fs::write(
         run_dir.join("station.toml"),

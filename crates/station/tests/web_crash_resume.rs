@@ -13,6 +13,7 @@ fn crashed_run_is_marked_interrupted_and_resumed_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
     backend.prepare(dir.path());
     add_user(dir.path(), "op", "operator", "op-password");
+    add_user(dir.path(), "admin", "admin", "admin-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(
         dir.path().join("plans").join("crash.toml"),
@@ -47,8 +48,33 @@ fn crashed_run_is_marked_interrupted_and_resumed_on(backend: Backend) {
         run["reason"].as_str().is_some_and(|r| r.contains("crash")),
         "{run}"
     );
-    let r = op.send("POST", &format!("/api/runs/{run_id}/resume"), Some("null"));
+    // The centrifuge overdue: a resume moves the table as a new run does,
+    // so it passes the same gate: refused, an operator may not override,
+    // an admin may with a reason, audited.
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    let overdue = serde_json::json!({"identity": "C 1", "certificate": "K-1", "calibrated_on": "2020-01-01", "due_on": "2021-01-01"});
+    let r = admin.send(
+        "PUT",
+        "/api/equipment/centrifuge",
+        Some(&overdue.to_string()),
+    );
+    assert_eq!(r.status, 200, "{:?}", r.json());
+    let resume = format!("/api/runs/{run_id}/resume");
+    let r = op.send("POST", &resume, Some("null"));
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    let with_reason = r#"{"override_overdue": "certificate renewal in the post"}"#;
+    assert_eq!(op.send("POST", &resume, Some(with_reason)).status, 403);
+    let r = admin.send("POST", &resume, Some(with_reason));
     assert_eq!(r.status, 201, "{:?}", r.json());
+    let audit = admin.get_json("/api/audit", 200);
+    assert!(
+        audit.as_array().expect("a list").iter().any(|e| e["action"]
+            == "override overdue calibration"
+            && e["detail"]
+                .as_str()
+                .is_some_and(|d| d.contains("resumed") && d.contains("renewal"))),
+        "{audit}"
+    );
     let started = Instant::now();
     loop {
         let s = op.wait_status(300, |s| s["prompt"].is_string() || s["active"].is_null());

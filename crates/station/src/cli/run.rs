@@ -101,20 +101,33 @@ pub(super) fn run_plan(
             Box::new(TerminalOperator::default()),
         )
     };
-    // The equipment register: no new run while a device is overdue, unless
-    // overridden with a reason (kept in the audit log).
-    if resumed.is_none() {
+    // A resume only on the station and arm it was recorded with, before
+    // anything else is asked of it.
+    if let Some(dir) = &resumed {
+        dir.check_same_station(&station_toml)?;
+    }
+    // The equipment register: no run moves the table (a new one, a retest
+    // or a resume) while a device is overdue, unless overridden with a
+    // reason (kept in the audit log).
+    {
         let target = db
             .clone()
             .unwrap_or_else(|| crate::paths::default_store(data));
         let store = spinbench_store::Store::connect(&target)
             .with_context(|| format!("cannot open the store {target}"))?;
-        // Runs this station's processes left behind (left-over events
-        // written, crashed runs marked interrupted).
-        for line in crate::recovery::recover(data, &station.station, &store).lines() {
-            writeln!(out, "{line}")?;
+        if resumed.is_none() {
+            // Runs this station's processes left behind (left-over events
+            // written, crashed runs marked interrupted).
+            for line in crate::recovery::recover(data, &station.station, &store).lines() {
+                writeln!(out, "{line}")?;
+            }
+            crate::retest::check_retest_of(&store, &plan)
+                .with_context(|| plan_source.label.clone())?;
         }
-        crate::retest::check_retest_of(&store, &plan).with_context(|| plan_source.label.clone())?;
+        let what = match &resumed {
+            Some(dir) => format!("run {} resumed", dir.id()),
+            None => "a run started".to_string(),
+        };
         let list = crate::equipment::station_equipment(&store, &station)?;
         // The one admission gate (issue 41 item 3); at the station's own
         // terminal whoever starts a run may override, with a reason.
@@ -128,7 +141,7 @@ pub(super) fn run_plan(
             Ok(Admission::Clear) => {}
             Ok(admitted @ Admission::Overridden { .. }) => {
                 let who = std::env::var("USER").unwrap_or_else(|_| "spinbench".into());
-                let detail = admitted.audit_detail("a run started").unwrap_or_default();
+                let detail = admitted.audit_detail(&what).unwrap_or_default();
                 store.audit(&who, crate::equipment::OVERRIDE_ACTION, &detail)?;
                 if let Admission::Overridden { devices, reason } = &admitted {
                     writeln!(
@@ -147,10 +160,7 @@ pub(super) fn run_plan(
         }
     }
     let dir = match resumed {
-        Some(dir) => {
-            dir.check_same_station(&station_toml)?;
-            dir
-        }
+        Some(dir) => dir,
         None => RunDir::create(data)?,
     };
     // Refuse a plan that cannot run before anything is switched on.

@@ -290,7 +290,21 @@ impl Runner {
         {
             return Err(StartError::Busy(a.run_id.clone()));
         }
-        // A run's id names its directory: nothing else is looked at.
+        let (path, plan_path, plan_text) = self.resumable(run_id)?;
+        let plan = TestPlan::from_toml(&plan_text)
+            .map_err(|e| StartError::Files(format!("{}: {e}", plan_path.display())))?;
+        let dir =
+            RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
+        dir.check_same_station(&self.station().1)
+            .map_err(|e| StartError::Refused(format!("{e:#}")))?;
+        admit(run_id).map_err(|e| StartError::NotAudited(e.0))?;
+        self.launch(&mut active, dir, plan, &plan_text, by)
+    }
+
+    /// The directory, plan file and plan text of a run this station can
+    /// resume; refused (not here) for anything else. A run's id names its
+    /// directory: nothing else is looked at.
+    pub fn resumable(&self, run_id: &str) -> Result<(PathBuf, PathBuf, String), StartError> {
         if run_id.is_empty()
             || run_id.len() > 64
             || !run_id
@@ -303,18 +317,10 @@ impl Runner {
         let plan_path = path.join(crate::run_setup::PLAN_FILE);
         let plan_text = std::fs::read_to_string(&plan_path).map_err(|_| {
             StartError::NotHere(format!(
-                "run {run_id} has no directory with its plan on this station ({}): resume it on the station that ran it",
-                path.display()
+                "run {run_id} has no directory with its plan on this station: resume it on the station that ran it"
             ))
         })?;
-        let plan = TestPlan::from_toml(&plan_text)
-            .map_err(|e| StartError::Files(format!("{}: {e}", plan_path.display())))?;
-        let dir =
-            RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
-        dir.check_same_station(&self.station().1)
-            .map_err(|e| StartError::Refused(format!("{e:#}")))?;
-        admit(run_id).map_err(|e| StartError::NotAudited(e.0))?;
-        self.launch(&mut active, dir, plan, &plan_text, by)
+        Ok((path, plan_path, plan_text))
     }
 
     /// Prepare and start the run in `dir` on its own thread.

@@ -200,28 +200,39 @@ fn start_error(e: StartError) -> ApiError {
 #[utoipa::path(post, path = "/api/runs/{id}/resume", tag = "runs",
     security(("session" = [], "csrf" = [])),
     params(("id" = String, Path, description = "the run to continue")),
+    request_body(content = Option<RetestRequest>, description = "Optional: an admin's reason to go on with a device overdue for calibration. At most 2 MiB (413 beyond)."),
     responses(
         (status = 201, description = "the run goes on", body = RunId),
+        (status = 400, description = "a bad body", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
-        (status = 403, description = "no or a wrong CSRF token", body = ErrorBody),
+        (status = 403, description = "no or a wrong CSRF token; an override by someone not an admin", body = ErrorBody),
         (status = 404, description = "no such run in this station's data directory", body = ErrorBody),
-        (status = 409, description = "a run is active, or this one completed or is being run by another process", body = ErrorBody),
+        (status = 409, description = "a run is active, this one completed or is being run by another process, or a device is overdue for calibration", body = ErrorBody),
+        (status = 413, description = "a body over 2 MiB"),
         (status = 503, description = "the hardware cannot be reached", body = ErrorBody),
     ))]
 pub(super) async fn resume_run(
     State(app): State<App>,
     headers: HeaderMap,
     Path(id): Path<String>,
-    _body: Bytes,
+    body: Bytes,
 ) -> ApiResult<(StatusCode, Json<RunId>)> {
     let session = authorize(&app, &headers, Role::Operator, true).await?;
-    let (asked, user) = (id.clone(), session.user.clone());
+    let ask = override_request(&body)?;
+    app.runner.resumable(&id).map_err(start_error)?;
+    // A resume moves the table as a new run does: the same gate.
+    let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
+    let (asked, user, reason) = (id.clone(), session.user.clone(), ask.override_overdue);
     let run_id = blocking_to_the_end(&app, move |app| {
         let admit = |run_id: &str| {
             audit_all(
                 app,
                 &user,
-                &[("resume run".to_string(), run_id.to_string())],
+                &run_entries(
+                    (&overridden, &reason),
+                    format!("{run_id} resumed"),
+                    ("resume run", run_id.to_string()),
+                ),
             )
         };
         Ok(app.runner.resume(&asked, &user, &admit))
@@ -230,6 +241,15 @@ pub(super) async fn resume_run(
     .map_err(start_error)?;
     readable(&app, &run_id).await;
     Ok((StatusCode::CREATED, Json(RunId { run_id })))
+}
+
+/// The optional body of a retest or a resume: empty, JSON null or an object.
+fn override_request(body: &[u8]) -> ApiResult<RetestRequest> {
+    if body.iter().all(u8::is_ascii_whitespace) {
+        Ok(RetestRequest::default())
+    } else {
+        Ok(parse_json::<Option<RetestRequest>>(body)?.unwrap_or_default())
+    }
 }
 
 /// `POST /api/runs/{id}/retest`: a run of the finished run's failed,
@@ -258,12 +278,7 @@ pub(super) async fn retest(
     use crate::retest::{RetestFromStoreError as E, retest_plan_from_store};
     use spinbench_engine::retest::RetestError;
     let session = authorize(&app, &headers, Role::Operator, true).await?;
-    // No body, or JSON null: no options.
-    let ask: RetestRequest = if body.iter().all(u8::is_ascii_whitespace) {
-        RetestRequest::default()
-    } else {
-        parse_json::<Option<RetestRequest>>(&body)?.unwrap_or_default()
-    };
+    let ask = override_request(&body)?;
     let asked = id.clone();
     let (found, recorded_by) = blocking(&app, move |app| {
         let store = store(app)?;

@@ -823,7 +823,7 @@ pub struct FleetStation {
     pub this_station: bool,
 }
 
-/// A retest's options (the body may be empty).
+/// A retest's or a resume's options (the body may be empty).
 #[derive(Debug, Default, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RetestRequest {
