@@ -812,3 +812,46 @@ fn the_shared_register_of_the_previous_release_is_copied_to_each_station() {
         "K-9"
     );
 }
+
+/// A store a newer release wrote (its schema one version past this
+/// release's) is never written to: `migrate` exits non-zero saying so, and
+/// a run on it is refused before anything moves. SQLite as PostgreSQL.
+#[test]
+fn a_store_written_by_a_newer_release_is_never_written_to() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    std::fs::create_dir_all(&data).expect("data");
+    let db = data.join("spinbench.db");
+    let db_s = db.to_str().expect("utf-8");
+    let (ok, _, err) = spinbench(&["migrate", "--db", db_s]);
+    assert!(ok, "{err}");
+    let newer = spinbench_store::MIGRATIONS.len() + 1;
+    {
+        let conn = rusqlite::Connection::open(&db).expect("open");
+        conn.execute_batch(&format!("PRAGMA user_version = {newer};"))
+            .expect("as a newer release leaves it");
+    }
+    let before = std::fs::read(&db).expect("db");
+    let (ok, said, err) = spinbench(&["migrate", "--db", db_s]);
+    assert!(!ok, "migrate on a newer store succeeded: {said}");
+    assert!(
+        err.contains("newer release") && !err.contains("nothing to do"),
+        "{said}{err}"
+    );
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("NEW")).expect("plan");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--data",
+        data.to_str().expect("utf-8"),
+        plan.to_str().expect("utf-8"),
+    ]);
+    assert!(!ok && err.contains("newer release"), "{err}");
+    assert_eq!(
+        std::fs::read(&db).expect("db"),
+        before,
+        "the store was written"
+    );
+}

@@ -575,6 +575,14 @@ const MIGRATION_2_SQLITE: &str = "CREATE TABLE values_1s (
         PRIMARY KEY (run_id, t_s, slot)
     ) WITHOUT ROWID;";
 
+/// What a store written by a newer release is told (never written to).
+fn newer_release(version: i64) -> String {
+    format!(
+        "its schema is version {version}, written by a newer release; this release reads up to version {}: upgrade spinbench on this station",
+        MIGRATIONS.len()
+    )
+}
+
 fn schema_version(db: &mut Db) -> Result<i64, DbError> {
     match db.dialect() {
         Dialect::Sqlite => Ok(db
@@ -590,8 +598,13 @@ impl Store {
     pub(crate) fn migrate(&self) -> Result<(), StoreError> {
         // A current store is not touched (no lock, no DDL): a role with
         // data rights only may ask.
-        if self.schema_version_if_any()? == MIGRATIONS.len() as i64 {
+        let found = self.schema_version_if_any()?;
+        if found == MIGRATIONS.len() as i64 {
             return Ok(());
+        }
+        // A newer release's store is never written to by this one.
+        if found > MIGRATIONS.len() as i64 {
+            return self.require_current_schema();
         }
         let mut db = self.db();
         let dialect = db.dialect();
@@ -609,6 +622,9 @@ impl Store {
             Dialect::Sqlite => db.batch("BEGIN EXCLUSIVE").and_then(|()| {
                 let migrated = (|| {
                     let version = schema_version(&mut db)?;
+                    if version > MIGRATIONS.len() as i64 {
+                        return Err(newer_release(version).into());
+                    }
                     for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
                         let v = (i + 1) as i64;
                         db.batch(&format!("{}; PRAGMA user_version = {v};", m.sqlite))
@@ -635,6 +651,9 @@ impl Store {
             }),
             Dialect::Postgres => (|| {
                 let version = schema_version(&mut db)?;
+                if version > MIGRATIONS.len() as i64 {
+                    return Err(newer_release(version).into());
+                }
                 for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
                     let v = (i + 1) as i64;
                     db.transaction(|db| {
@@ -684,9 +703,7 @@ impl Store {
                 self.target
             )
         } else if version > wanted {
-            format!(
-                "its schema is version {version}, written by a newer release; this release reads up to version {wanted}: upgrade spinbench on this station"
-            )
+            newer_release(version)
         } else {
             return Ok(());
         };

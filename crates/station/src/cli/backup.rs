@@ -233,9 +233,16 @@ fn refuse_inside(dir: &Path, db: &StoreTarget, data: Option<&Path>) -> Result<()
 
 /// `spinbench migrate --db PATH|URL [--history]`.
 pub(super) fn migrate(db: &StoreTarget, history: bool, out: &mut dyn Write) -> Result<()> {
-    let (store, before, after) = Store::migrate_target(db).with_context(|| {
-        "the schema could not be brought up to date: run `spinbench migrate` as the database's owner (a role that may create and alter its tables)"
-    })?;
+    let (store, before, after) = match Store::migrate_target(db) {
+        Ok(done) => done,
+        // A newer release's store: the store's own words say what to do.
+        Err(e) if e.to_string().contains("newer release") => return Err(e.into()),
+        Err(e) => {
+            return Err(anyhow::Error::new(e).context(
+                "the schema could not be brought up to date: run `spinbench migrate` as the database's owner (a role that may create and alter its tables)",
+            ));
+        }
+    };
     if before == after {
         writeln!(
             out,
