@@ -65,6 +65,8 @@ pub fn prune(
     let before = spinbench_store::now_s() - (days * 86_400.0).round() as i64;
     let runs = store.prunable_runs(before)?;
     let mut done = Pruned::default();
+    // Runs not pruned for a problem of their own: said at the end, the others go on.
+    let mut left: Vec<String> = Vec::new();
     if runs.is_empty() {
         writeln!(
             out,
@@ -100,17 +102,42 @@ pub fn prune(
         }
         let values_file = archive.join(format!("{id}-values.parquet"));
         let events_file = archive.join(format!("{id}-events.parquet"));
-        write_values(&values, id, &values_file)?;
-        write_events(&events, id, &events_file)?;
+        // An earlier prune that archived the run (or one of its files) and
+        // was stopped before it deleted: a file that holds exactly the run's
+        // rows is used, not written again.
+        let complete = |f: &Path, n: i64| regular_file(f) && rows_in(f).is_ok_and(|r| r == n);
+        let (values_done, events_done) = (
+            complete(&values_file, p.values),
+            complete(&events_file, p.events),
+        );
+        if values_done || events_done {
+            write!(out, " — archived before, in part or whole")?;
+        }
+        let mut written = Ok(());
+        if !values_done {
+            written = write_values(&values, id, &values_file);
+        }
+        if !events_done && written.is_ok() {
+            written = write_events(&events, id, &events_file);
+        }
+        if let Err(e) = written {
+            writeln!(out, " — not archived: {e:#}; kept in the store")?;
+            left.push(format!("{id}: {e:#}"));
+            continue;
+        }
         // Only what the files are read back to hold is deleted.
         let (in_values, in_events) = (rows_in(&values_file)?, rows_in(&events_file)?);
         if in_values != values.len() as i64 || in_events != events.len() as i64 {
-            bail!(
-                "{}: the archive holds {in_values} values and {in_events} events of {} and {}; nothing deleted",
-                archive.display(),
+            writeln!(
+                out,
+                " — {} and {} hold {in_values} values and {in_events} events of {} and {}; nothing deleted",
+                values_file.display(),
+                events_file.display(),
                 values.len(),
                 events.len()
-            );
+            )?;
+            left.push(format!("{id}: its archive does not hold its rows"));
+            continue;
         }
         let (v, e) = store.delete_values_and_events(id, p.values, p.events)?;
         writeln!(
@@ -131,37 +158,75 @@ pub fn prune(
         done.events,
         archive.display()
     )?;
+    if !left.is_empty() {
+        bail!(
+            "{} runs were left in the store (the others were pruned): {}",
+            left.len(),
+            left.join("; ")
+        );
+    }
     Ok(done)
 }
 
-/// A new Parquet file at `path` (written beside it, synced, then renamed:
-/// a crash leaves no half file under the final name).
+/// A regular file (not a link, not a folder) at `path`.
+fn regular_file(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_file())
+}
+
+/// A new Parquet file at `path`: written beside it under a name of this
+/// prune's own (created exclusively, never through a link), synced, then
+/// linked to the final name, which must not exist (a link or a file there
+/// is refused, never written through), and the folder synced. A crash leaves
+/// no half file under the final name, and a left-over partial file of an
+/// interrupted prune blocks nothing. Every error names the file.
 fn write_parquet(
     path: &Path,
     schema: &str,
     write: impl FnOnce(&mut SerializedFileWriter<std::fs::File>) -> Result<()>,
 ) -> Result<()> {
-    if path.exists() {
+    use std::os::unix::fs::OpenOptionsExt;
+    if std::fs::symlink_metadata(path).is_ok() {
         bail!(
             "{}: exists already (a run is archived once); move it aside to archive the run again",
             path.display()
         );
     }
-    let partial = PathBuf::from(format!("{}.partial", path.display()));
-    let file = std::fs::File::create(&partial)
+    let nonce: u64 = rand::random();
+    let partial = PathBuf::from(format!(
+        "{}.{}-{nonce:016x}.partial",
+        path.display(),
+        std::process::id()
+    ));
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .custom_flags(nix::fcntl::OFlag::O_NOFOLLOW.bits())
+        .mode(0o640)
+        .open(&partial)
         .with_context(|| format!("{}: cannot create", partial.display()))?;
-    let props = Arc::new(
-        WriterProperties::builder()
-            .set_compression(Compression::SNAPPY)
-            .build(),
-    );
-    let mut writer = SerializedFileWriter::new(file, Arc::new(parse_message_type(schema)?), props)?;
-    write(&mut writer)?;
-    let file = writer.into_inner()?;
-    file.sync_all()
-        .with_context(|| format!("{}: cannot sync", partial.display()))?;
-    std::fs::rename(&partial, path)
-        .with_context(|| format!("{}: cannot rename to {}", partial.display(), path.display()))?;
+    let written = (|| -> Result<()> {
+        let props = Arc::new(
+            WriterProperties::builder()
+                .set_compression(Compression::SNAPPY)
+                .build(),
+        );
+        let mut writer =
+            SerializedFileWriter::new(file, Arc::new(parse_message_type(schema)?), props)?;
+        write(&mut writer)?;
+        let file = writer.into_inner()?;
+        file.sync_all()?;
+        // No-clobber: fails if anything (a file, a link) took the name meanwhile.
+        std::fs::hard_link(&partial, path)
+            .with_context(|| format!("cannot link it to {}", path.display()))?;
+        Ok(())
+    })();
+    let _ = std::fs::remove_file(&partial);
+    written.with_context(|| format!("{}: cannot write", partial.display()))?;
+    if let Some(folder) = path.parent() {
+        std::fs::File::open(folder)
+            .and_then(|f| f.sync_all())
+            .with_context(|| format!("{}: cannot sync the folder", folder.display()))?;
+    }
     Ok(())
 }
 

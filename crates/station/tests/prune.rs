@@ -125,3 +125,78 @@ fn postgres_an_old_runs_values_and_events_are_archived_then_deleted() {
     let url = spinbench_store::testing::fresh_postgres_database(&admin).expect("a fresh database");
     prune_on(Some(url));
 }
+
+/// Hostile archive folders: a link at the old fixed partial name, a link
+/// at a run's final name, an interrupted prune's files; a link is never
+/// written through, one run's problem does not stop the others, and a
+/// complete archive made before is used, not written again.
+#[test]
+fn prune_never_writes_through_a_link_and_one_runs_problem_stops_no_other() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    let plan = dir.path().join("plan.toml");
+    let db = data.join("spinbench.db").display().to_string();
+    for prefix in ["PL-", "PM-", "PN-"] {
+        std::fs::write(&plan, common::short_plan(prefix)).expect("plan");
+        let (ok, _, err) = spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--data",
+            data.to_str().expect("utf-8"),
+            plan.to_str().expect("utf-8"),
+        ]);
+        assert!(ok, "{err}");
+    }
+    let store = Store::connect(&StoreTarget::parse(&db)).expect("store");
+    let ids: Vec<String> = store
+        .runs()
+        .expect("runs")
+        .into_iter()
+        .map(|r| r.id)
+        .collect();
+    assert_eq!(ids.len(), 3);
+    let archive = dir.path().join("archive");
+    std::fs::create_dir_all(&archive).expect("archive");
+    let precious = dir.path().join("precious.txt");
+    std::fs::write(&precious, "not the archive's").expect("precious");
+    let link = |name: String| {
+        std::os::unix::fs::symlink(&precious, archive.join(name)).expect("symlink");
+    };
+    // Run 1: a link at the fixed partial name an older prune used.
+    link(format!("{}-values.parquet.partial", ids[0]));
+    // Run 2: a link at its final name.
+    link(format!("{}-events.parquet", ids[1]));
+    let a = archive.to_str().expect("utf-8");
+    let (ok, said, err) = spinbench(&["prune", "--older-than", "0", "--archive", a, "--db", &db]);
+    assert!(!ok, "a link at a final name went unreported: {said}");
+    assert!(
+        said.contains("pruned 2 runs") && err.contains(&ids[1]) && err.contains("exists already"),
+        "{said}{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(&precious).expect("precious"),
+        "not the archive's",
+        "written through a link"
+    );
+    assert_eq!(store.value_count(&ids[0]).expect("count"), 0);
+    assert_eq!(store.value_count(&ids[2]).expect("count"), 0);
+    assert!(store.value_count(&ids[1]).expect("count") > 0, "kept");
+    // The link moved aside, and an interrupted prune's complete archive of
+    // run 2 in place (as if it stopped before deleting): used, not rewritten.
+    std::fs::remove_file(archive.join(format!("{}-events.parquet", ids[1]))).expect("rm");
+    let (ok, said, err) = spinbench(&["prune", "--older-than", "0", "--archive", a, "--db", &db]);
+    assert!(ok && said.contains("pruned 1 runs"), "{said}{err}");
+    assert_eq!(store.value_count(&ids[1]).expect("count"), 0);
+    let leftovers: Vec<String> = std::fs::read_dir(&archive)
+        .expect("archive")
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".partial"))
+        .collect();
+    assert_eq!(
+        leftovers,
+        vec![format!("{}-values.parquet.partial", ids[0])],
+        "only the planted link"
+    );
+}
