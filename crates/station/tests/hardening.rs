@@ -598,7 +598,18 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
     add_user(dir.path(), "eng", "engineer", "eng-password");
     let server = web::serve_station(dir.path(), &station_path);
     let mut eng = Client::login(&server, "eng", "eng-password");
-    let edited = format!("station = \"line 2\"\n{first}");
+    let edited = first.replace("max_g = 100", "max_g = 90");
+    // The name a running server holds is not changed under it.
+    let renamed = format!("station = \"line 2\"\n{first}");
+    let r = eng.send("PUT", "/api/station", Some(&renamed));
+    assert_eq!(r.status, 409, "{:?}", r.json());
+    assert!(
+        r.json()["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("holds the station name") && e.contains("restart")),
+        "{:?}",
+        r.json()
+    );
     // The file cannot be written (root included): where its new text would
     // be written first is taken by a directory.
     let blocker = dir.path().join("station.toml.saving");
@@ -613,7 +624,12 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
         r.json()
     );
     let now: serde_json::Value = eng.get_json("/api/station", 200);
-    assert_ne!(now["name"], "line 2", "applied though not written: {now}");
+    assert!(
+        now["toml"]
+            .as_str()
+            .is_some_and(|t| !t.contains("max_g = 90")),
+        "applied though not written: {now}"
+    );
     assert_eq!(std::fs::read_to_string(&station_path).expect("file"), first);
     let audited = |action: &str| {
         let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::parse(
@@ -637,7 +653,12 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
         edited
     );
     let now: serde_json::Value = eng.get_json("/api/station", 200);
-    assert_eq!(now["name"], "line 2");
+    assert!(
+        now["toml"]
+            .as_str()
+            .is_some_and(|t| t.contains("max_g = 90")),
+        "{now}"
+    );
     assert_eq!(audited("save station config"), 1);
 }
 

@@ -288,6 +288,15 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         b_row["run_id"].is_null() && b_row["steps_done"].is_null(),
         "{b_row}"
     );
+    // Offline is not retired: another install does not take B's name (its
+    // runs, register and yield) until an admin retires B.
+    let d_dir = tempfile::tempdir().expect("tempdir");
+    share_store(a_dir.path(), d_dir.path());
+    let (ok, err) = serve_refused(d_dir.path(), &["--name", "station-b"]);
+    assert!(
+        !ok && err.contains("already holds the name 'station-b'") && err.contains("retires"),
+        "{err}"
+    );
     let mut admin_a = Client::login(&a, "admin", "admin-password");
     assert_eq!(
         op_a.send("DELETE", "/api/fleet/station-b", None).status,
@@ -434,6 +443,15 @@ fn stations_keep_their_names_and_registers_on(backend: Backend) {
             .is_some_and(|addr| addr.starts_with(&a.base)),
         "{a_row}"
     );
+    // A copied DATA/station-id: a second live process of A's identity is refused.
+    std::fs::copy(
+        a_dir.path().join("station-id"),
+        c_dir.path().join("station-id"),
+    )
+    .expect("copy A's identity");
+    let (ok, err) = serve_refused(c_dir.path(), &["--name", "station-a"]);
+    assert!(!ok && err.contains("is already running at"), "{err}");
+    std::fs::remove_file(c_dir.path().join("station-id")).expect("rm");
     // A name with an invisible character is refused (item 7).
     let (ok, err) = serve_refused(c_dir.path(), &["--name", "station\u{200B}-a"]);
     assert!(!ok && err.contains("invisible character"), "{err}");

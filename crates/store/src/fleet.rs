@@ -77,10 +77,13 @@ pub struct StationRow {
 
 impl Store {
     /// Take `name` for the station `instance` at its start (and record
-    /// its first heartbeat): refused while another identity holds the name
-    /// and is live (heard within [`OFFLINE_AFTER_S`]). A name last held by
-    /// another identity that is offline is taken over; the answer says by
-    /// whom it was held, so the start can warn.
+    /// its first heartbeat). Refused while another identity holds the name,
+    /// live or not, until an admin retires it ([`Store::retire_station`],
+    /// audited): a name is one station's, with its runs, its register and
+    /// its yield. Refused too while the same identity is live at another
+    /// address (a copied `DATA/station-id`: a second process of one
+    /// station). A retired name taken by another identity says by whom it
+    /// was held, so the start can warn.
     pub fn claim_station(&self, beat: &Heartbeat) -> Result<Claim, StoreError> {
         let before = self.station_holder(&beat.station)?;
         if self.write_beat(beat)? {
@@ -95,6 +98,30 @@ impl Store {
             last_seen: now_s(),
         });
         Ok(Claim::HeldBy(holder))
+    }
+
+    /// Whether the station `instance` may use the name `station` for a run
+    /// of its own (`spinbench run`, which has no heartbeat): the holder that
+    /// keeps it from doing so (another identity, not retired), if any.
+    pub fn name_held_by_another(
+        &self,
+        station: &str,
+        instance: &str,
+    ) -> Result<Option<Holder>, StoreError> {
+        Ok(self
+            .query(
+                "read the fleet's station",
+                "SELECT instance_id, address, last_seen FROM stations
+                 WHERE name = $1 AND retired_at IS NULL AND instance_id IS NOT NULL
+                   AND instance_id <> '' AND instance_id <> $2",
+                &[station.into(), instance.into()],
+            )?
+            .first()
+            .map(|r| Holder {
+                instance: r.opt_text(0).unwrap_or_default(),
+                address: r.opt_text(1),
+                last_seen: r.int(2),
+            }))
     }
 
     /// Who holds the name `station` in the fleet, if anyone has.
@@ -146,8 +173,10 @@ impl Store {
                    run_id = excluded.run_id, steps_done = excluded.steps_done,
                    steps_total = excluded.steps_total, address = excluded.address,
                    instance_id = excluded.instance_id, kind = 'server', retired_at = NULL
-                 WHERE stations.instance_id IS NULL OR stations.instance_id = excluded.instance_id
-                   OR stations.state IS NULL OR stations.last_seen < $10",
+                 WHERE stations.instance_id IS NULL OR stations.retired_at IS NOT NULL
+                   OR (stations.instance_id = excluded.instance_id
+                       AND (COALESCE(stations.address, '') = COALESCE(excluded.address, '')
+                            OR stations.state IS NULL OR stations.last_seen < $10))",
                 &[
                     beat.station.as_str().into(),
                     now.into(),

@@ -115,6 +115,21 @@ pub(super) fn run_plan(
             .unwrap_or_else(|| crate::paths::default_store(data));
         let store = spinbench_store::Store::connect(&target)
             .with_context(|| format!("cannot open the store {target}"))?;
+        // The name is this station's identity's, or the run is refused (a
+        // run under a name another station holds would join its history).
+        std::fs::create_dir_all(data)
+            .with_context(|| format!("{}: cannot make the data folder", data.display()))?;
+        let identity = crate::paths::station_identity(data)?;
+        if let Some(holder) = store.name_held_by_another(&station.station, &identity)? {
+            anyhow::bail!(
+                "another station holds the name '{}' (identity {}, at {}): a run under it would join that \
+                 station's history, register and yield. Give this station its own name (`station` in its \
+                 station.toml); if that station is gone for good, an admin retires it on the Fleet page first",
+                station.station,
+                holder.instance,
+                holder.address.as_deref().unwrap_or("no address")
+            );
+        }
         if resumed.is_none() {
             // Runs this station's processes left behind (left-over events
             // written, crashed runs marked interrupted).

@@ -401,18 +401,30 @@ fn claim_name(
             )?;
             Ok(())
         }
-        spinbench_store::fleet::Claim::HeldBy(holder) => anyhow::bail!(
-            "another live station already holds the name '{station}' (identity {}, at {}, heard {} s ago): \
-             two stations with one name would merge in the fleet, its yield and its run numbers. \
-             Give this station its own name: `station = \"…\"` in its station.toml, or `serve --name NAME`",
-            if holder.instance.is_empty() {
-                "unknown"
-            } else {
-                holder.instance.as_str()
-            },
-            holder.address.as_deref().unwrap_or("no address"),
-            (spinbench_store::now_s() - holder.last_seen).max(0)
-        ),
+        spinbench_store::fleet::Claim::HeldBy(holder) => {
+            let heard = (spinbench_store::now_s() - holder.last_seen).max(0);
+            let at = holder.address.as_deref().unwrap_or("no address");
+            if holder.instance == identity {
+                anyhow::bail!(
+                    "this station (identity {identity}) is already running at {at} (heard {heard} s ago): \
+                     a second process of one station would flip its fleet row and share its runs. \
+                     Stop the other process; if this data folder was copied from another station, \
+                     remove its {} so this one gets an identity of its own",
+                    crate::paths::STATION_ID_FILE
+                )
+            }
+            anyhow::bail!(
+                "another station already holds the name '{station}' (identity {}, at {at}, heard {heard} s ago): \
+                 two stations with one name would merge in the fleet, its register, its yield and its run numbers. \
+                 Give this station its own name: `station = \"…\"` in its station.toml, or `serve --name NAME`; \
+                 if that station is gone for good, an admin retires it on another station's Fleet page first",
+                if holder.instance.is_empty() {
+                    "unknown"
+                } else {
+                    holder.instance.as_str()
+                },
+            )
+        }
     }
 }
 

@@ -287,6 +287,21 @@ pub(super) async fn save_station(
             "run {run} is active; change the station after it"
         )));
     }
+    // The name is the identity this server claimed in the fleet at its
+    // start (its runs, its register, its yield): not changed under it.
+    let held = app.runner.station().0.station;
+    if config.station != held {
+        return Err(ApiError::conflict(format!(
+            "this server holds the station name '{held}' in the fleet; a running server's name is not changed \
+             (its runs, its equipment register and its yield follow it). Keep `station = \"{held}\"` here; \
+             to rename the station, change `station` in its station.toml and restart `spinbench serve` \
+             (a name another live station holds is refused there)"
+        ))
+        .worded(
+            spinbench_engine::event::Wording::new("error.station_rename")
+                .with("held", &held),
+        ));
+    }
     // Written beside (issue 27 item 7: a config that cannot be kept is
     // neither used nor audited), audited (issue 39 item 6: no change
     // without its entry), then put in place and applied; a failure after
