@@ -13,7 +13,8 @@ use spinbench_engine::RunState;
 use spinbench_engine::event::Event;
 use spinbench_engine::journal::read_journal;
 use spinbench_store::Store;
-use spinbench_store::outbox::{OUTBOX_FILE, catch_up};
+use spinbench_store::leftover::catch_up;
+use spinbench_store::outbox::OUTBOX_FILE;
 use std::path::{Path, PathBuf};
 
 /// What [`recover`] did, a line each, for the terminal and the log.
@@ -52,7 +53,15 @@ impl Recovered {
 
 /// Whether no process runs the run in `dir` now (its lock is free).
 fn idle(dir: &Path) -> bool {
-    std::fs::File::open(dir).is_ok_and(|f| f.try_lock().is_ok())
+    held(dir).is_some()
+}
+
+/// The run folder's lock, held until the answer is dropped, when no other
+/// process (a run, another start catching up) holds it.
+fn held(dir: &Path) -> Option<std::fs::File> {
+    let folder = std::fs::File::open(dir).ok()?;
+    folder.try_lock().ok()?;
+    Some(folder)
 }
 
 /// Whether the journal in `dir` finished the run it last started.
@@ -83,12 +92,37 @@ pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
     if let Ok(entries) = std::fs::read_dir(&runs) {
         for entry in entries.flatten() {
             let dir = entry.path();
-            if !dir.join(OUTBOX_FILE).is_file() || !idle(&dir) {
+            if !dir.join(OUTBOX_FILE).is_file() {
+                continue;
+            }
+            // Under the folder's lock, the file looked at again: a second
+            // start that waited finds it written and gone.
+            let Some(_lock) = held(&dir) else {
+                continue;
+            };
+            if !dir.join(OUTBOX_FILE).is_file() {
                 continue;
             }
             let id = entry.file_name().to_string_lossy().into_owned();
-            match catch_up(store, &dir) {
-                Ok(n) => out.caught_up.push((id, n)),
+            match catch_up(store, &dir, station) {
+                Ok(done) => {
+                    if let Some(why) = done.refused {
+                        out.problems.push(format!(
+                            "run {id}: its left-over file was not written ({why}); it is kept as {}{} and the refusal audited",
+                            OUTBOX_FILE,
+                            spinbench_store::leftover::REFUSED_SUFFIX
+                        ));
+                    }
+                    if done.torn_kept {
+                        out.problems.push(format!(
+                            "run {id}: the left-over file's last line was torn; kept as {OUTBOX_FILE}{}",
+                            spinbench_store::leftover::TORN_SUFFIX
+                        ));
+                    }
+                    if done.written > 0 {
+                        out.caught_up.push((id, done.written));
+                    }
+                }
                 Err(e) => out.problems.push(e.to_string()),
             }
         }

@@ -156,14 +156,22 @@ pub fn execute(
         }
     }
     // What the store did not take of this run's earlier start comes first.
-    let earlier = spinbench_store::outbox::catch_up(&db, dir).with_context(|| {
+    let earlier = spinbench_store::leftover::catch_up(&db, dir, &station.station).with_context(|| {
         format!(
             "the store must take the events of this run's earlier start first ({}): bring it back, then resume again",
             dir.join(spinbench_store::outbox::OUTBOX_FILE).display()
         )
     })?;
-    if earlier > 0 && !quiet {
-        eprintln!("  wrote the {earlier} events the store had not taken when this run last ended");
+    if let Some(why) = &earlier.refused {
+        eprintln!(
+            "  warning: the run's left-over file was not written ({why}); it is kept aside and audited"
+        );
+    }
+    if earlier.written > 0 && !quiet {
+        eprintln!(
+            "  wrote the {} events the store had not taken when this run last ended",
+            earlier.written
+        );
     }
     // The store through its outbox: the run never waits on the database.
     let (outbox, to_store) = db.outbox(dir)?;

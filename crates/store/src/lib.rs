@@ -31,6 +31,7 @@ pub mod db;
 pub mod equipment;
 pub mod fleet;
 mod label;
+pub mod leftover;
 pub mod outbox;
 mod queries;
 mod record;

@@ -15,8 +15,8 @@
 //!
 //! At the run's end [`Outbox::finish`] waits, within a bound, for the store
 //! to catch up; whatever is still unwritten then is kept in the run
-//! directory's [`OUTBOX_FILE`] and written by [`catch_up`] at the next
-//! start of the station. [`StoreHealth`] says how the store is doing (up,
+//! directory's [`OUTBOX_FILE`] and written by [`crate::leftover::catch_up`]
+//! (checked against the run's journal) at the next start of the station. [`StoreHealth`] says how the store is doing (up,
 //! errors, the queue's depth and age) for `/metrics` and the fleet.
 
 use super::{Event, EventSink, Path, Store, StoreError, StoreSink, failed};
@@ -473,77 +473,6 @@ fn write_all(shared: &Shared, mut sink: StoreSink) {
             }
         }
     }
-}
-
-/// Write what a run directory's [`OUTBOX_FILE`] holds (events a store did
-/// not take before its run ended) into `store`, then remove the file.
-/// Returns how many events were written. An event that cannot be read is
-/// an error naming its line; a failing write leaves the file as it was.
-pub fn catch_up(store: &Store, run_dir: &Path) -> Result<u64, StoreError> {
-    let path = run_dir.join(OUTBOX_FILE);
-    let text = match std::fs::read_to_string(&path) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
-        Err(e) => {
-            return Err(StoreError::message(
-                store.target(),
-                "catch up from a run's outbox",
-                format!("{}: {e}", path.display()),
-            ));
-        }
-    };
-    let mut events = Vec::new();
-    for (i, line) in text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-    {
-        let event: Event = serde_json::from_str(line).map_err(|e| {
-            StoreError::message(
-                store.target(),
-                "catch up from a run's outbox",
-                format!("{} line {}: {e}", path.display(), i + 1),
-            )
-        })?;
-        events.push(event);
-    }
-    let mut sink = store.sink()?;
-    // The run the events belong to, from its journal's last start.
-    if let Ok((journal, _)) = spinbench_engine::journal::read_journal(run_dir)
-        && let Some(started) = journal
-            .iter()
-            .rev()
-            .find(|e| matches!(e, Event::RunStarted { .. }))
-    {
-        sink.prime(started);
-    }
-    for (done, event) in events.iter().enumerate() {
-        if let Err(reason) = sink.write(event) {
-            // What was written is not written again next time: the file
-            // keeps only the rest.
-            let mut rest = Vec::new();
-            for e in &events[done..] {
-                if serde_json::to_writer(&mut rest, e).is_ok() {
-                    rest.push(b'\n');
-                }
-            }
-            let tmp = path.with_extension("jsonl.tmp");
-            if std::fs::write(&tmp, &rest).is_ok() {
-                let _ = std::fs::rename(&tmp, &path);
-            }
-            return Err(StoreError {
-                target: store.target().to_string(),
-                what: format!(
-                    "catch up from {} ({done} of {} events written; the rest kept)",
-                    path.display(),
-                    events.len()
-                ),
-                reason,
-            });
-        }
-    }
-    let _ = std::fs::remove_file(&path);
-    Ok(events.len() as u64)
 }
 
 /// A process killed outright (SIGKILL, a power cut) takes the events its
