@@ -185,6 +185,38 @@ pub fn shown(name: &str) -> String {
     }
 }
 
+/// The longest device identity kept of a device's reply [characters].
+pub const MAX_DEVICE_IDENTITY_CHARS: usize = 200;
+
+/// What a device answered of itself (`*IDN?`, a firmware id), as it is
+/// stored and shown: NFKC-normalised and trimmed, every control or format
+/// character written as an escape (an escape sequence, a NUL, a
+/// right-to-left override cannot reach a terminal, a report or the
+/// register's comparison as such), at most [`MAX_DEVICE_IDENTITY_CHARS`].
+/// A device's reply is never refused: it is what the device said.
+pub fn device_reply(text: &str) -> String {
+    use unicode_normalization::UnicodeNormalization;
+    let normal: String = text.nfkc().collect();
+    let escaped: String = normal
+        .trim()
+        .chars()
+        .map(|c| {
+            if is_invisible(c) {
+                c.escape_unicode().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect();
+    let count = escaped.chars().count();
+    if count > MAX_DEVICE_IDENTITY_CHARS {
+        let head: String = escaped.chars().take(MAX_DEVICE_IDENTITY_CHARS).collect();
+        format!("{head}… ({count} characters)")
+    } else {
+        escaped
+    }
+}
+
 /// A name typed by a person (a serial number, a device's identity) as it is
 /// compared and kept: NFKC-normalised (a fullwidth `Ａ` is `A`) and
 /// trimmed; refused, naming the character, when it holds a format
@@ -286,6 +318,12 @@ mod tests {
         assert_eq!(shown("adm\nFORGED"), "adm\\u{a}FORGED");
         assert!(shown("station\u{202E}A").contains("\\u{202e}"));
         assert!(reason_text("ok\u{200B}", 10).is_err());
+        assert_eq!(
+            device_reply(" FMU\u{1b}[2J-8\u{202e}\u{0} "),
+            "FMU\\u{1b}[2J-8\\u{202e}\\u{0}"
+        );
+        assert_eq!(device_reply("ＡＣＵＴＲＯＬ,3000"), "ACUTROL,3000");
+        assert!(device_reply(&"x".repeat(500)).ends_with("(500 characters)"));
         assert_eq!(
             reason_text("  ", 10),
             Err(TextError::ReasonLength { max_chars: 10 })

@@ -258,7 +258,7 @@ fn name_check(name: &str, target: &StoreTarget, data: &Path) -> Finding {
     let what = "station name";
     let own = std::fs::read_to_string(data.join(crate::paths::STATION_ID_FILE))
         .ok()
-        .map(|t| t.trim().to_string());
+        .and_then(|t| t.lines().next().map(|l| l.trim().to_string()));
     let exists = match target {
         StoreTarget::File(p) => p.exists(),
         StoreTarget::Postgres(_) => true,

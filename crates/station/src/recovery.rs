@@ -87,11 +87,40 @@ fn journal_finished(dir: &Path) -> bool {
 
 /// Catch up and mark, for station `station` with data directory `data`.
 pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
+    let mut out = catch_up_left_over_files(data, station, store, &mut |_, _| {});
+    let marked = mark_crashed_runs(data, station, store);
+    out.interrupted = marked.interrupted;
+    out.problems.extend(marked.problems);
+    out
+}
+
+/// The run folders of `data` that hold a left-over file now.
+pub fn left_over_files(data: &Path) -> Vec<PathBuf> {
+    std::fs::read_dir(data.join(RUNS_DIR))
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| e.path())
+                .filter(|d| d.join(OUTBOX_FILE).is_file())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Write the left-over files of this station's runs no process runs now
+/// (checked, [`catch_up`]); `progress` is told (done, of) after each.
+pub fn catch_up_left_over_files(
+    data: &Path,
+    station: &str,
+    store: &Store,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Recovered {
     let mut out = Recovered::default();
-    let runs = data.join(RUNS_DIR);
-    if let Ok(entries) = std::fs::read_dir(&runs) {
-        for entry in entries.flatten() {
-            let dir = entry.path();
+    let folders = left_over_files(data);
+    let of = folders.len();
+    for (done, dir) in folders.into_iter().enumerate() {
+        progress(done, of);
+        {
             if !dir.join(OUTBOX_FILE).is_file() {
                 continue;
             }
@@ -103,7 +132,10 @@ pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
             if !dir.join(OUTBOX_FILE).is_file() {
                 continue;
             }
-            let id = entry.file_name().to_string_lossy().into_owned();
+            let id = dir
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
             match catch_up(store, &dir, station) {
                 Ok(done) => {
                     if let Some(why) = done.refused {
@@ -127,6 +159,16 @@ pub fn recover(data: &Path, station: &str, store: &Store) -> Recovered {
             }
         }
     }
+    progress(of, of);
+    out
+}
+
+/// Mark this station's runs the store still has `running` whose process
+/// ended without finishing them (their folder's lock free, their journal
+/// unfinished) `interrupted`, first writing what their journal measured.
+pub fn mark_crashed_runs(data: &Path, station: &str, store: &Store) -> Recovered {
+    let mut out = Recovered::default();
+    let runs = data.join(RUNS_DIR);
     match store.running_runs(station) {
         Ok(rows) => {
             for row in rows {

@@ -139,6 +139,17 @@ pub fn execute(
         station_config_toml: station_toml,
     };
     let db = spinbench_store::Store::connect(&store)?;
+    // The store's word on the run's end stands over a journal's (one cut
+    // short by hand would otherwise take more points into an ended record).
+    if resume
+        && let Some(row) = db.run(&run_id)?
+        && row.state == spinbench_store::StoredState::Completed
+    {
+        bail!(
+            "{}: the store holds run {run_id} as completed; nothing to resume",
+            dir.display()
+        );
+    }
     let mut executor = Executor::new(&station, compiled, bench, operator, options);
     if let Some(events) = &past {
         // What the killed process's outbox held in memory, from its journal

@@ -443,15 +443,26 @@ fn stations_keep_their_names_and_registers_on(backend: Backend) {
             .is_some_and(|addr| addr.starts_with(&a.base)),
         "{a_row}"
     );
-    // A copied DATA/station-id: a second live process of A's identity is refused.
+    // A copied DATA/station-id: a second process of A's identity is refused.
     std::fs::copy(
         a_dir.path().join("station-id"),
         c_dir.path().join("station-id"),
     )
     .expect("copy A's identity");
     let (ok, err) = serve_refused(c_dir.path(), &["--name", "station-a"]);
-    assert!(!ok && err.contains("is already running at"), "{err}");
+    assert!(
+        !ok && err.contains("was copied") && err.contains("Remove"),
+        "{err}"
+    );
     std::fs::remove_file(c_dir.path().join("station-id")).expect("rm");
+    // A name that looks like a fleet station's is refused.
+    for like in ["Station-A", "station-\u{0430}"] {
+        let (ok, err) = serve_refused(c_dir.path(), &["--name", like]);
+        assert!(
+            !ok && err.contains("looks like the fleet's station 'station-a'"),
+            "{like}: {err}"
+        );
+    }
     // A name with an invisible character is refused (item 7).
     let (ok, err) = serve_refused(c_dir.path(), &["--name", "station\u{200B}-a"]);
     assert!(!ok && err.contains("invisible character"), "{err}");

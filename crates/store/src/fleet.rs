@@ -80,10 +80,10 @@ impl Store {
     /// its first heartbeat). Refused while another identity holds the name,
     /// live or not, until an admin retires it ([`Store::retire_station`],
     /// audited): a name is one station's, with its runs, its register and
-    /// its yield. Refused too while the same identity is live at another
-    /// address (a copied `DATA/station-id`: a second process of one
-    /// station). A retired name taken by another identity says by whom it
-    /// was held, so the start can warn.
+    /// its yield. (A copied `DATA/station-id`, one identity in two places,
+    /// is refused where it is read: `station_identity`.) A retired name
+    /// taken by another identity says by whom it was held, so the start can
+    /// warn.
     pub fn claim_station(&self, beat: &Heartbeat) -> Result<Claim, StoreError> {
         let before = self.station_holder(&beat.station)?;
         if self.write_beat(beat)? {
@@ -121,6 +121,24 @@ impl Store {
                 instance: r.opt_text(0).unwrap_or_default(),
                 address: r.opt_text(1),
                 last_seen: r.int(2),
+            }))
+    }
+
+    /// Another station's name of the fleet that looks like `station` but is
+    /// not it (`Line 1` beside `line 1`, a Cyrillic `А` for a Latin `A`):
+    /// two such names would read as one station on every page.
+    pub fn look_alike_station(&self, station: &str) -> Result<Option<String>, StoreError> {
+        use spinbench_engine::bounds::look_alike;
+        let folded = |s: &str| s.trim().to_lowercase();
+        Ok(self
+            .query("list the stations' names", "SELECT name FROM stations", &[])?
+            .iter()
+            .map(|r| r.text(0))
+            .find(|other| {
+                other != station
+                    && (folded(other) == folded(station)
+                        || look_alike(other, station)
+                        || look_alike(&folded(other), &folded(station)))
             }))
     }
 
@@ -174,9 +192,7 @@ impl Store {
                    steps_total = excluded.steps_total, address = excluded.address,
                    instance_id = excluded.instance_id, kind = 'server', retired_at = NULL
                  WHERE stations.instance_id IS NULL OR stations.retired_at IS NOT NULL
-                   OR (stations.instance_id = excluded.instance_id
-                       AND (COALESCE(stations.address, '') = COALESCE(excluded.address, '')
-                            OR stations.state IS NULL OR stations.last_seen < $10))",
+                   OR stations.instance_id = excluded.instance_id",
                 &[
                     beat.station.as_str().into(),
                     now.into(),
@@ -187,7 +203,6 @@ impl Store {
                     Value::Int(of),
                     beat.address.clone().into(),
                     beat.instance.as_str().into(),
-                    (now - OFFLINE_AFTER_S).into(),
                 ],
             )
             .map(|n| n > 0)

@@ -440,7 +440,7 @@ impl<'a> Executor<'a> {
             if abort.is_set() {
                 "(not asked: the run was aborted)".to_string()
             } else {
-                f().unwrap_or_else(|e| format!("(no answer: {e})"))
+                crate::bounds::device_reply(&f().unwrap_or_else(|e| format!("(no answer: {e})")))
             }
         };
         let mut devices = vec![DeviceIdentity {

@@ -6,6 +6,10 @@ use super::{
     centrifuge,
 };
 
+/// The longest reason a plan's exclusion may give [characters], as on
+/// the web page's exclusion of a finished run.
+pub const MAX_EXCLUSION_REASON_CHARS: usize = 500;
+
 impl TestPlan {
     /// Check the plan against the station and compile it into steps. This
     /// is where a plan that would exceed the centrifuge's rate limit or the
@@ -115,6 +119,10 @@ impl TestPlan {
                     &key,
                     "a reason is required: nothing is excluded without one".into(),
                 );
+            }
+            // The same rules as an exclusion made on a finished run's page.
+            if let Err(why) = crate::bounds::reason_text(&e.reason, MAX_EXCLUSION_REASON_CHARS) {
+                return err(&format!("{key}.reason"), why.to_string());
             }
             if !levels.contains(&e.g) {
                 return err(

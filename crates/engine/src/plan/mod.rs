@@ -17,6 +17,7 @@
 //! ```
 
 mod compile;
+pub use compile::MAX_EXCLUSION_REASON_CHARS;
 mod designed;
 #[cfg(test)]
 mod tests;

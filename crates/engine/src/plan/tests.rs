@@ -18,6 +18,16 @@ fn an_exclusion_needs_a_reason_a_level_of_the_plan_and_a_known_serial() {
     assert!(e.problem.contains("not one of the plan's levels"), "{e}");
     let e = plan("serial = \"Z\"\nmount = \"P\"\ng = 5\nreason = \"r\"").expect_err("serial");
     assert!(e.problem.contains("no instrument 'Z'"), "{e}");
+    // The reason rules of any text from outside: no control or invisible
+    // characters, at most MAX_EXCLUSION_REASON_CHARS.
+    for bad in ["res\\u202Enance", "res\\u0007onance"] {
+        let e = plan(&format!("mount = \"P\"\ng = 5\nreason = \"{bad}\""))
+            .expect_err("not a plain text");
+        assert_eq!(e.key, "exclusions[0].reason", "{bad:?}: {e}");
+    }
+    let long = "x".repeat(MAX_EXCLUSION_REASON_CHARS + 1);
+    let e = plan(&format!("mount = \"P\"\ng = 5\nreason = \"{long}\"")).expect_err("long");
+    assert_eq!(e.key, "exclusions[0].reason");
 }
 
 #[test]

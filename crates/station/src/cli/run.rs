@@ -120,6 +120,14 @@ pub(super) fn run_plan(
         std::fs::create_dir_all(data)
             .with_context(|| format!("{}: cannot make the data folder", data.display()))?;
         let identity = crate::paths::station_identity(data)?;
+        if let Some(other) = store.look_alike_station(&station.station)? {
+            anyhow::bail!(
+                "the name '{}' looks like the fleet's station '{}': the two would read as one station on every page; \
+                 give this station a name that is plainly its own (`station` in its station.toml)",
+                spinbench_engine::bounds::shown(&station.station),
+                spinbench_engine::bounds::shown(&other)
+            );
+        }
         if let Some(holder) = store.name_held_by_another(&station.station, &identity)? {
             anyhow::bail!(
                 "another station holds the name '{}' (identity {}, at {}): a run under it would join that \

@@ -232,9 +232,10 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             crate::users::os_user()
         )
     })?;
-    // Runs this station's processes left behind: left-over events written,
-    // crashed runs marked interrupted.
-    for line in crate::recovery::recover(&args.data, &station.station, &store).lines() {
+    // Runs this station's processes left behind: crashed runs marked
+    // interrupted now (History must show them so at once); their left-over
+    // files written in the background once the server listens.
+    for line in crate::recovery::mark_crashed_runs(&args.data, &station.station, &store).lines() {
         writeln!(out, "{line}")?;
     }
     if store.users()?.is_empty() {
@@ -314,6 +315,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
     };
     let heartbeat = spawn_heartbeat(state.clone(), db.clone(), address, identity)?;
+    spawn_left_over_catch_up(state.clone(), db.clone(), args.data.clone())?;
     let stopping = state.clone();
     runtime.block_on(server::serve(listener, app, limits, tls, async move {
         let reason = signals.await;
@@ -381,6 +383,19 @@ fn claim_name(
     out: &mut dyn std::io::Write,
 ) -> Result<()> {
     let station = state.runner.station().0.station;
+    if let Some(other) = state
+        .store
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .look_alike_station(&station)?
+    {
+        anyhow::bail!(
+            "the name '{}' looks like the fleet's station '{}': the two would read as one station on every page. \
+             Give this station a name that is plainly its own (`station` in its station.toml, or `serve --name NAME`)",
+            spinbench_engine::bounds::shown(&station),
+            spinbench_engine::bounds::shown(&other)
+        );
+    }
     let beat = heartbeat_now(state, &station, address, identity);
     let claim = state
         .store
@@ -404,15 +419,6 @@ fn claim_name(
         spinbench_store::fleet::Claim::HeldBy(holder) => {
             let heard = (spinbench_store::now_s() - holder.last_seen).max(0);
             let at = holder.address.as_deref().unwrap_or("no address");
-            if holder.instance == identity {
-                anyhow::bail!(
-                    "this station (identity {identity}) is already running at {at} (heard {heard} s ago): \
-                     a second process of one station would flip its fleet row and share its runs. \
-                     Stop the other process; if this data folder was copied from another station, \
-                     remove its {} so this one gets an identity of its own",
-                    crate::paths::STATION_ID_FILE
-                )
-            }
             anyhow::bail!(
                 "another station already holds the name '{station}' (identity {}, at {at}, heard {heard} s ago): \
                  two stations with one name would merge in the fleet, its register, its yield and its run numbers. \
@@ -505,6 +511,53 @@ fn spawn_heartbeat(
             }
         })
         .context("cannot start the heartbeat thread")
+}
+
+/// How often a server looks again for left-over files it could not write
+/// (the store down at a run's end), so an ended run is shown ended in the
+/// fleet without waiting for the next start.
+const LEFT_OVER_RETRY: std::time::Duration = std::time::Duration::from_secs(30);
+
+/// Write the left-over files of this station's runs on a thread of its own,
+/// saying the progress of a backlog on standard error, and again every
+/// [`LEFT_OVER_RETRY`] while one is left, until the server closes.
+fn spawn_left_over_catch_up(
+    state: Arc<AppState>,
+    db: StoreTarget,
+    data: std::path::PathBuf,
+) -> Result<std::thread::JoinHandle<()>> {
+    let station = state.runner.station().0.station;
+    std::thread::Builder::new()
+        .name("left-over catch-up".into())
+        .spawn(move || {
+            let closing = state.hub.closing();
+            while !*closing.borrow() {
+                if !crate::recovery::left_over_files(&data).is_empty()
+                    && let Ok(store) = Store::connect(&db)
+                {
+                    let mut said = 0;
+                    let done = crate::recovery::catch_up_left_over_files(
+                        &data,
+                        &station,
+                        &store,
+                        &mut |done, of| {
+                            if of > 1 && done > said {
+                                eprintln!("catching up left-over files: {done} of {of} runs");
+                                said = done;
+                            }
+                        },
+                    );
+                    for line in done.lines() {
+                        eprintln!("{line}");
+                    }
+                }
+                let until = std::time::Instant::now() + LEFT_OVER_RETRY;
+                while std::time::Instant::now() < until && !*closing.borrow() {
+                    std::thread::sleep(std::time::Duration::from_millis(200));
+                }
+            }
+        })
+        .context("cannot start the left-over catch-up thread")
 }
 
 /// The station's state for the fleet and the monitoring: `faulted` (the

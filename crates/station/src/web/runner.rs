@@ -323,6 +323,28 @@ impl Runner {
         Ok((path, plan_path, plan_text))
     }
 
+    /// Write the left-over files of this station's ended runs now (before
+    /// a new run or a retest, so what they hold, such as a run's end, is in
+    /// the store first); what cannot be written waits for the next try.
+    pub fn catch_up_left_over(&self) {
+        if crate::recovery::left_over_files(&self.data_dir).is_empty() {
+            return;
+        }
+        let Ok(store) = spinbench_store::Store::connect(&self.db) else {
+            return;
+        };
+        let station = self.station().0.station;
+        let done = crate::recovery::catch_up_left_over_files(
+            &self.data_dir,
+            &station,
+            &store,
+            &mut |_, _| {},
+        );
+        for line in done.lines() {
+            eprintln!("{line}");
+        }
+    }
+
     /// Prepare and start the run in `dir` on its own thread.
     fn launch(
         &self,
@@ -332,6 +354,7 @@ impl Runner {
         plan_text: &str,
         by: &str,
     ) -> Result<String, StartError> {
+        self.catch_up_left_over();
         let (station, station_toml) = self.station();
         let prepared = prepare(Setup {
             station,

@@ -281,6 +281,8 @@ pub(super) async fn retest(
     let ask = override_request(&body)?;
     let asked = id.clone();
     let (found, recorded_by) = blocking(&app, move |app| {
+        // A run that ended with the store down has its end in its left-over file.
+        app.runner.catch_up_left_over();
         let store = store(app)?;
         let recorded_by = store.run(&asked).ok().flatten().map(|r| r.station);
         Ok((retest_plan_from_store(&store, &asked), recorded_by))
