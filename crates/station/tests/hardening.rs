@@ -905,3 +905,31 @@ fn nothing_is_done_that_cannot_be_audited_on(backend: web::Backend) {
         "{log}"
     );
 }
+
+/// A made-up session cookie is refused before the body is read: the
+/// server answers 401 while the client has sent 10 bytes of a declared
+/// 2 MiB body (before, it waited to buffer the whole body first).
+#[test]
+fn a_made_up_session_is_refused_before_its_body_is_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let server = serve(dir.path(), "0");
+    let address = server.base.trim_start_matches("http://").to_string();
+    let mut stream = TcpStream::connect(&address).expect("connect");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    let body_bytes = 2 * 1024 * 1024 - 1;
+    write!(
+        stream,
+        "POST /api/runs HTTP/1.1\r\nHost: {address}\r\nCookie: spinbench_session=made-up-{}\r\n\
+         Content-Type: application/json\r\nContent-Length: {body_bytes}\r\n\r\n{{\"plan\": ",
+        "0".repeat(40)
+    )
+    .expect("headers");
+    let mut answer = [0u8; 64];
+    let started = Instant::now();
+    let n = stream.read(&mut answer).expect("an answer before the body");
+    let head = String::from_utf8_lossy(&answer[..n]);
+    assert!(head.starts_with("HTTP/1.1 401"), "{head}");
+    assert!(started.elapsed() < Duration::from_secs(5));
+}

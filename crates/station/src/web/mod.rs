@@ -317,25 +317,35 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     let heartbeat = spawn_heartbeat(state.clone(), db.clone(), address, identity)?;
     spawn_left_over_catch_up(state.clone(), db.clone(), args.data.clone())?;
     let stopping = state.clone();
-    runtime.block_on(server::serve(listener, app, limits, tls, async move {
-        let reason = signals.await;
-        eprintln!("{reason}: stopping the run (safe state), then closing the connections…");
-        // The run first: it goes to its safe state and is recorded while the
-        // server still answers; then the event streams end.
-        let runner_state = stopping.clone();
-        let why = reason.clone();
-        let stopped =
-            tokio::task::spawn_blocking(move || runner_state.runner.shutdown(&why, RUN_STOP_LIMIT))
-                .await
-                .unwrap_or(false);
-        if !stopped {
-            eprintln!(
-                "the run did not reach its safe state within {} s: check the centrifuge",
-                RUN_STOP_LIMIT.as_secs()
-            );
-        }
-        stopping.hub.close();
-    }));
+    let gated = state.clone();
+    let gate = move |router| api::gate_sessions(router, gated);
+    runtime.block_on(server::serve(
+        listener,
+        app,
+        limits,
+        tls,
+        gate,
+        async move {
+            let reason = signals.await;
+            eprintln!("{reason}: stopping the run (safe state), then closing the connections…");
+            // The run first: it goes to its safe state and is recorded while the
+            // server still answers; then the event streams end.
+            let runner_state = stopping.clone();
+            let why = reason.clone();
+            let stopped = tokio::task::spawn_blocking(move || {
+                runner_state.runner.shutdown(&why, RUN_STOP_LIMIT)
+            })
+            .await
+            .unwrap_or(false);
+            if !stopped {
+                eprintln!(
+                    "the run did not reach its safe state within {} s: check the centrifuge",
+                    RUN_STOP_LIMIT.as_secs()
+                );
+            }
+            stopping.hub.close();
+        },
+    ));
     // Whatever still runs goes to its safe state before the process ends.
     state.runner.shutdown("the server stopping", RUN_STOP_LIMIT);
     state.hub.close();

@@ -256,13 +256,16 @@ pub async fn serve(
     app: Router,
     limits: ConnectionLimits,
     tls: Option<Arc<rustls::ServerConfig>>,
+    gate: impl FnOnce(Router) -> Router,
     shutdown: impl Future<Output = ()>,
 ) {
     let acceptor = tls.map(tokio_rustls::TlsAcceptor::from);
     let body_timeout = limits.body_timeout;
-    let app = app.layer(axum::middleware::from_fn(move |request, next| {
+    // `gate` outside the body's deadline: a request it refuses (no valid
+    // session) is answered before its body is read.
+    let app = gate(app.layer(axum::middleware::from_fn(move |request, next| {
         body_deadline(body_timeout, request, next)
-    }));
+    })));
     let connections = Arc::new(std::sync::Mutex::new(Connections::default()));
     let (stop_tx, stop_rx) = watch::channel(false);
     let mut tasks = tokio::task::JoinSet::new();

@@ -472,6 +472,40 @@ pub fn router(app: App) -> Router {
         .with_state(app)
 }
 
+/// `router` behind the session gate ([`session_before_body`]): applied by
+/// the server outside the layer that reads a request's body.
+pub fn gate_sessions(router: Router, app: App) -> Router {
+    router.layer(axum::middleware::from_fn_with_state(
+        app,
+        session_before_body,
+    ))
+}
+
+/// A request that may carry a body (anything but GET and HEAD) to the API,
+/// but the login, is answered 401 before its body is read when it has no
+/// session: a made-up cookie never makes the server take in a body of up
+/// to the limit. The handler checks the session's role and CSRF as before.
+async fn session_before_body(
+    State(app): State<App>,
+    request: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> axum::response::Response {
+    use axum::http::Method;
+    let path = request.uri().path();
+    let carries_body = !matches!(
+        *request.method(),
+        Method::GET | Method::HEAD | Method::OPTIONS
+    );
+    if carries_body && path.starts_with("/api/") && !matches!(path, "/api/login" | "/api/logout") {
+        if let Err(refused) =
+            authorize_as(&app, request.headers(), Role::Operator, false, false).await
+        {
+            return refused.into_response();
+        }
+    }
+    next.run(request).await
+}
+
 /// Count every request by its route (the table's path, not the URL: a
 /// run id does not make a series of its own) and its answer's status.
 async fn count_request(
