@@ -496,12 +496,13 @@ async fn session_before_body(
         *request.method(),
         Method::GET | Method::HEAD | Method::OPTIONS
     );
-    if carries_body && path.starts_with("/api/") && !matches!(path, "/api/login" | "/api/logout") {
-        if let Err(refused) =
+    if carries_body
+        && path.starts_with("/api/")
+        && !matches!(path, "/api/login" | "/api/logout")
+        && let Err(refused) =
             authorize_as(&app, request.headers(), Role::Operator, false, false).await
-        {
-            return refused.into_response();
-        }
+    {
+        return refused.into_response();
     }
     next.run(request).await
 }
