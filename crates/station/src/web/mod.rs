@@ -9,6 +9,7 @@ pub mod api;
 pub mod auth;
 pub mod eta;
 pub mod hub;
+mod left_over;
 pub mod metrics;
 pub mod runner;
 pub mod server;
@@ -315,7 +316,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
             .context("cannot install the handlers of SIGINT, SIGTERM and SIGHUP")?
     };
     let heartbeat = spawn_heartbeat(state.clone(), db.clone(), address, identity)?;
-    spawn_left_over_catch_up(state.clone(), db.clone(), args.data.clone())?;
+    left_over::spawn_catch_up(state.clone(), db.clone(), args.data.clone())?;
     let stopping = state.clone();
     let gated = state.clone();
     let gate = move |router| api::gate_sessions(router, gated);
@@ -521,53 +522,6 @@ fn spawn_heartbeat(
             }
         })
         .context("cannot start the heartbeat thread")
-}
-
-/// How often a server looks again for left-over files it could not write
-/// (the store down at a run's end), so an ended run is shown ended in the
-/// fleet without waiting for the next start.
-const LEFT_OVER_RETRY: std::time::Duration = std::time::Duration::from_secs(30);
-
-/// Write the left-over files of this station's runs on a thread of its own,
-/// saying the progress of a backlog on standard error, and again every
-/// [`LEFT_OVER_RETRY`] while one is left, until the server closes.
-fn spawn_left_over_catch_up(
-    state: Arc<AppState>,
-    db: StoreTarget,
-    data: std::path::PathBuf,
-) -> Result<std::thread::JoinHandle<()>> {
-    let station = state.runner.station().0.station;
-    std::thread::Builder::new()
-        .name("left-over catch-up".into())
-        .spawn(move || {
-            let closing = state.hub.closing();
-            while !*closing.borrow() {
-                if !crate::recovery::left_over_files(&data).is_empty()
-                    && let Ok(store) = Store::connect(&db)
-                {
-                    let mut said = 0;
-                    let done = crate::recovery::catch_up_left_over_files(
-                        &data,
-                        &station,
-                        &store,
-                        &mut |done, of| {
-                            if of > 1 && done > said {
-                                eprintln!("catching up left-over files: {done} of {of} runs");
-                                said = done;
-                            }
-                        },
-                    );
-                    for line in done.lines() {
-                        eprintln!("{line}");
-                    }
-                }
-                let until = std::time::Instant::now() + LEFT_OVER_RETRY;
-                while std::time::Instant::now() < until && !*closing.borrow() {
-                    std::thread::sleep(std::time::Duration::from_millis(200));
-                }
-            }
-        })
-        .context("cannot start the left-over catch-up thread")
 }
 
 /// The station's state for the fleet and the monitoring: `faulted` (the
