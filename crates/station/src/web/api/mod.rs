@@ -484,7 +484,8 @@ pub fn gate_sessions(router: Router, app: App) -> Router {
 /// A request that may carry a body (anything but GET and HEAD) to the API,
 /// but the login, is answered 401 before its body is read when it has no
 /// session: a made-up cookie never makes the server take in a body of up
-/// to the limit. The handler checks the session's role and CSRF as before.
+/// to the limit. The refusal closes the connection. The handler checks the
+/// session's role and CSRF as before.
 async fn session_before_body(
     State(app): State<App>,
     request: axum::extract::Request,
@@ -502,7 +503,15 @@ async fn session_before_body(
         && let Err(refused) =
             authorize_as(&app, request.headers(), Role::Operator, false, false).await
     {
-        return refused.into_response();
+        // The body is left unread, so the connection cannot carry another
+        // request: say so, or a client's pool reuses a connection the
+        // server is closing and its next request fails.
+        let mut response = refused.into_response();
+        response.headers_mut().insert(
+            axum::http::header::CONNECTION,
+            axum::http::HeaderValue::from_static("close"),
+        );
+        return response;
     }
     next.run(request).await
 }
