@@ -592,7 +592,9 @@ fn station_at(addr: &str, io: &str) -> String {
 #[test]
 fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let station_path = dir.path().join("station.toml");
+    let folder = dir.path().join("conf");
+    std::fs::create_dir(&folder).expect("conf");
+    let station_path = folder.join("station.toml");
     let first = station_at("127.0.0.1:9", "");
     std::fs::write(&station_path, &first).expect("station");
     add_user(dir.path(), "eng", "engineer", "eng-password");
@@ -610,10 +612,11 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
         "{:?}",
         r.json()
     );
-    // The file cannot be written (root included): where its new text would
-    // be written first is taken by a directory.
-    let blocker = dir.path().join("station.toml.saving");
-    std::fs::create_dir(&blocker).expect("blocker");
+    // The file cannot be written (root included): its folder is moved
+    // aside and its name taken by a plain file.
+    let held = dir.path().join("conf-held");
+    std::fs::rename(&folder, &held).expect("move the folder aside");
+    std::fs::write(&folder, "").expect("blocker");
     let r = eng.send("PUT", "/api/station", Some(&edited));
     assert_eq!(r.status, 409, "{:?}", r.json());
     assert!(
@@ -630,7 +633,12 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
             .is_some_and(|t| !t.contains("max_g = 90")),
         "applied though not written: {now}"
     );
-    assert_eq!(std::fs::read_to_string(&station_path).expect("file"), first);
+    assert_eq!(
+        std::fs::read_to_string(held.join("station.toml")).expect("file"),
+        first
+    );
+    let beside = std::fs::read_dir(&held).expect("conf").count();
+    assert_eq!(beside, 1, "nothing is left beside the config");
     let audited = |action: &str| {
         let store = spinbench_store::Store::open_read_only(&spinbench_store::StoreTarget::parse(
             &web::store_of(dir.path()).to_string_lossy(),
@@ -645,7 +653,8 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
     };
     assert_eq!(audited("save station config"), 0);
     // Once it can be written: written, in use, audited.
-    std::fs::remove_dir(&blocker).expect("unblock");
+    std::fs::remove_file(&folder).expect("unblock");
+    std::fs::rename(&held, &folder).expect("the folder back");
     let r = eng.send("PUT", "/api/station", Some(&edited));
     assert_eq!(r.status, 200, "{:?}", r.json());
     assert_eq!(

@@ -490,3 +490,64 @@ fn a_connection_flood_spares_the_operators_stream_and_big_bodies_take_no_memory(
     assert!(grown_mb < 40.0, "the server grew by {grown_mb:.0} MB");
     eprintln!("bench: flood_server_growth = {grown_mb:.1} MB");
 }
+
+#[test]
+fn concurrent_saves_of_one_plan_each_land_whole_and_audited() {
+    concurrent_saves_of_one_plan_each_land_whole_and_audited_on(Backend::Sqlite);
+}
+
+#[test]
+fn postgres_concurrent_saves_of_one_plan_each_land_whole_and_audited() {
+    concurrent_saves_of_one_plan_each_land_whole_and_audited_on(Backend::Postgres);
+}
+
+/// 40 engineers' saves of one plan at once (each a different title): every
+/// one answers 200 with its audit entry, the file in place is one of them
+/// whole, and no temporary file is left beside it.
+fn concurrent_saves_of_one_plan_each_land_whole_and_audited_on(backend: Backend) {
+    const SAVES: usize = 40;
+    let dir = tempfile::tempdir().expect("tempdir");
+    backend.prepare(dir.path());
+    add_user(dir.path(), "eng", "engineer", "eng-password");
+    add_user(dir.path(), "admin", "admin", "admin-password");
+    let server = serve(dir.path(), "0");
+    let plans: Vec<String> = (0..SAVES)
+        .map(|i| web::short_plan(&format!("crowded-{i:02}"), &["CR-1"]))
+        .collect();
+    let statuses: Vec<u16> = std::thread::scope(|scope| {
+        let handles: Vec<_> = plans
+            .iter()
+            .map(|plan| {
+                let server = &server;
+                scope.spawn(move || {
+                    let mut eng = Client::login(server, "eng", "eng-password");
+                    eng.send("PUT", "/api/plans/crowded", Some(plan)).status
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("a saving thread"))
+            .collect()
+    });
+    assert!(statuses.iter().all(|s| *s == 200), "{statuses:?}");
+    let folder = dir.path().join("plans");
+    let text = std::fs::read_to_string(folder.join("crowded.toml")).expect("the plan");
+    assert!(plans.contains(&text), "the file in place is no save whole");
+    let beside: Vec<String> = std::fs::read_dir(&folder)
+        .expect("plans")
+        .filter_map(Result::ok)
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("saving"))
+        .collect();
+    assert!(beside.is_empty(), "left beside: {beside:?}");
+    let mut admin = Client::login(&server, "admin", "admin-password");
+    let log = admin.get_json("/api/audit", 200);
+    let saved = log
+        .as_array()
+        .expect("rows")
+        .iter()
+        .filter(|a| a["action"] == "save plan" && a["detail"] == "crowded")
+        .count();
+    assert_eq!(saved, SAVES, "audit entries of the saves");
+}

@@ -139,24 +139,27 @@ pub(super) async fn save_plan(
     checked
         .compile(&app.runner.station().0)
         .map_err(|e| ApiError::bad(format!("the plan cannot run on this station: {e}")))?;
-    // Written beside, audited, then put in place (issue 39 item 6): a plan
-    // whose audit entry cannot be written is not saved.
+    // One save of a name at a time; written beside under a name of its
+    // own, put in place whole, then audited. A plan whose audit entry
+    // cannot be written goes back to what it was: it is not saved.
     let path = app.plans_dir.join(format!("{name}.toml"));
-    let beside = Beside::write(&path, text)
-        .map_err(|e| ApiError::internal(format!("{}: {e}", path.display())))?;
-    audit(&app, &session.user, "save plan", &name)
-        .await
-        .map_err(|e| e.prefixed("nothing was saved"))?;
-    if let Err(e) = beside.put_in_place() {
-        let why = format!("{}: {e}", path.display());
-        let _ = audit(
-            &app,
-            &session.user,
-            "save plan failed",
-            &format!("{name}: {why}"),
-        )
-        .await;
-        return Err(ApiError::internal(why));
+    let _saving = saving(&path).await;
+    let previous = std::fs::read_to_string(&path).ok();
+    Beside::write(&path, text)
+        .and_then(Beside::put_in_place)
+        .map_err(|e| ApiError::internal(format!("{}: {e}; nothing was saved", path.display())))?;
+    if let Err(e) = audit(&app, &session.user, "save plan", &name).await {
+        let restored = match &previous {
+            Some(old) => Beside::write(&path, old).and_then(Beside::put_in_place),
+            None => std::fs::remove_file(&path),
+        };
+        return Err(match restored {
+            Ok(()) => e.prefixed("nothing was saved"),
+            Err(r) => e.prefixed(&format!(
+                "the plan is in place unaudited ({}: {r}); remove or restore it by hand",
+                path.display()
+            )),
+        });
     }
     Ok(Json(PlanSaved { name, saved: true }))
 }
@@ -302,10 +305,10 @@ pub(super) async fn save_station(
                 .with("held", &held),
         ));
     }
-    // Written beside (issue 27 item 7: a config that cannot be kept is
-    // neither used nor audited), audited (issue 39 item 6: no change
-    // without its entry), then put in place and applied; a failure after
-    // the entry is audited too.
+    // Written beside (a config that cannot be kept is neither used nor
+    // audited), audited (no change without its entry), then put in place
+    // and applied; a failure after the entry is audited too.
+    let _saving = saving(&path).await;
     blocking(&app, move |app| {
         let shown = path.display().to_string();
         let beside = Beside::write(&path, &text).map_err(|e| {
@@ -347,38 +350,66 @@ pub(super) async fn save_station(
     Ok(Json(Saved { saved: true }))
 }
 
-/// A file's new text written beside it (`NAME.saving`), so that a failed
-/// write leaves the old file as it was; put in place whole by a rename, or
+/// A file's new text written beside it under a name no other save shares
+/// (`.NAME.saving-XXXXXX`, created exclusively), so that a failed write
+/// leaves the old file as it was; put in place whole by a rename, or
 /// removed when dropped unused.
 struct Beside {
-    temporary: std::path::PathBuf,
+    file: tempfile::NamedTempFile,
     path: std::path::PathBuf,
 }
 
 impl Beside {
-    /// Write `text` beside `path`.
+    /// Write `text` beside `path`, synced.
     fn write(path: &std::path::Path, text: &str) -> std::io::Result<Beside> {
-        let mut name = path.file_name().unwrap_or_default().to_os_string();
-        name.push(".saving");
-        let temporary = path.with_file_name(name);
-        std::fs::write(&temporary, text)?;
+        use std::io::Write as _;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => std::path::Path::new("."),
+        };
+        let prefix = format!(
+            ".{}.saving-",
+            path.file_name().unwrap_or_default().to_string_lossy()
+        );
+        let mut file = tempfile::Builder::new()
+            .prefix(&prefix)
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o644))
+            .tempfile_in(dir)?;
+        file.write_all(text.as_bytes())?;
+        file.as_file().sync_all()?;
         Ok(Beside {
-            temporary,
+            file,
             path: path.to_path_buf(),
         })
     }
 
     /// Replace the file with the new text (a rename).
     fn put_in_place(self) -> std::io::Result<()> {
-        std::fs::rename(&self.temporary, &self.path)
+        self.file
+            .persist(&self.path)
+            .map(|_| ())
+            .map_err(|e| e.error)
     }
 }
 
-impl Drop for Beside {
-    fn drop(&mut self) {
-        // Gone after a rename; left over after a failure: removed.
-        let _ = std::fs::remove_file(&self.temporary);
-    }
+/// Hold the one save of `path` at a time: two saves of one plan (or of the
+/// station config) never interleave their write, their audit entry and
+/// their putting back.
+async fn saving(path: &std::path::Path) -> tokio::sync::OwnedMutexGuard<()> {
+    type Locks =
+        std::collections::HashMap<std::path::PathBuf, std::sync::Arc<tokio::sync::Mutex<()>>>;
+    static LOCKS: std::sync::LazyLock<std::sync::Mutex<Locks>> =
+        std::sync::LazyLock::new(Default::default);
+    let lock = {
+        let mut locks = LOCKS
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        // Locks nobody holds or waits for are dropped, so the map stays
+        // as small as the saves in flight.
+        locks.retain(|_, l| std::sync::Arc::strong_count(l) > 1);
+        locks.entry(path.to_path_buf()).or_default().clone()
+    };
+    lock.lock_owned().await
 }
 
 /// An uploaded plan or station config as TOML text: the body as sent
