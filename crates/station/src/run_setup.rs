@@ -67,8 +67,7 @@ fn lock_run_dir(path: &Path) -> Result<std::fs::File> {
     match dir.try_lock() {
         Ok(()) => Ok(dir),
         Err(std::fs::TryLockError::WouldBlock) => bail!(
-            "{}: this run is being run by another process now (its directory is locked); wait for it to end, or stop that process first",
-            path.display()
+            "this run is being run by another process now (its directory is locked); wait for it to end, or stop that process first"
         ),
         Err(std::fs::TryLockError::Error(e)) => {
             Err(e).with_context(|| format!("{}: cannot lock the run directory", path.display()))
@@ -83,7 +82,7 @@ impl RunDir {
         let path = data.join(RUNS_DIR).join(&id);
         std::fs::create_dir_all(&path)
             .with_context(|| format!("{}: cannot create the run directory", path.display()))?;
-        let lock = lock_run_dir(&path)?;
+        let lock = lock_run_dir(&path).with_context(|| path.display().to_string())?;
         Ok(RunDir {
             path,
             id,
@@ -97,39 +96,40 @@ impl RunDir {
     /// with, and `plan` must be that very plan (two tests are never merged
     /// into one record); the difference is named otherwise.
     pub fn resume(path: &Path, plan: &TestPlan) -> Result<RunDir> {
+        // Said as "run ID" (no server path, no command): the web's resume
+        // shows these words as they are; the CLI names its argument around.
+        let run = format!(
+            "run {}",
+            path.file_name().unwrap_or_default().to_string_lossy()
+        );
         if !path.is_dir() {
-            bail!("--resume {}: no such run directory", path.display());
+            bail!("{run}: no such run directory");
         }
-        let lock = lock_run_dir(path).map_err(|e| anyhow::anyhow!("--resume {e:#}"))?;
+        let lock = lock_run_dir(path).map_err(|e| anyhow::anyhow!("{run}: {e:#}"))?;
         let plan_path = path.join(PLAN_FILE);
         if !path.join(JOURNAL_FILE).is_file() || !plan_path.is_file() {
             bail!(
-                "--resume {}: not a run directory (it has no {JOURNAL_FILE} and {PLAN_FILE}); give the directory of the run to continue, under DATA/{RUNS_DIR}",
-                path.display()
+                "{run}: not a run directory (it has no {JOURNAL_FILE} and {PLAN_FILE}); give the directory of the run to continue, under DATA/{RUNS_DIR}"
             );
         }
         let (events, _) = read_journal(path).map_err(anyhow::Error::msg)?;
         if !events.iter().any(|e| matches!(e, Event::RunStarted { .. })) {
-            bail!(
-                "--resume {}: its journal never started a run; start a new run instead",
-                path.display()
-            );
+            bail!("{run}: its journal never started a run; start a new run instead");
         }
         let text = std::fs::read_to_string(&plan_path)
-            .with_context(|| format!("{}: cannot read the run's plan", plan_path.display()))?;
-        let own = TestPlan::from_toml(&text).with_context(|| plan_path.display().to_string())?;
+            .with_context(|| format!("{run}: cannot read the run's plan ({PLAN_FILE})"))?;
+        let own =
+            TestPlan::from_toml(&text).with_context(|| format!("{run}: its plan ({PLAN_FILE})"))?;
         let differences = plan_differences(&own, plan);
         if !differences.is_empty() {
             bail!(
-                "--resume {}: the plan given is not the run's own plan ({}); resume with {} or start a new run",
-                path.display(),
-                differences.join("; "),
-                plan_path.display()
+                "{run}: the plan given is not the run's own plan ({}); resume with the {PLAN_FILE} in its directory, or start a new run",
+                differences.join("; ")
             );
         }
         // A completed run is not run again: refused before anything is
-        // connected or a raw file started in it (issue 27 item 17). An
-        // aborted or faulted run may be continued.
+        // connected or a raw file started in it. An aborted or faulted run
+        // may be continued.
         if events.iter().any(|e| {
             matches!(
                 e,
@@ -140,14 +140,13 @@ impl RunDir {
             )
         }) {
             bail!(
-                "--resume {}: this run already completed; nothing to resume (retest its instruments with `spinbench retest RUN`, or start a new run)",
-                path.display()
+                "{run}: this run already completed; nothing to resume (retest its instruments instead, or start a new run)"
             );
         }
         let id = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
-            .with_context(|| format!("--resume {}: the directory has no name", path.display()))?;
+            .with_context(|| format!("{run}: the directory has no name"))?;
         Ok(RunDir {
             path: path.to_path_buf(),
             id,
@@ -157,8 +156,8 @@ impl RunDir {
     }
 
     /// The directory.
-    /// Refuse to continue this run on another station than its own
-    /// (issue 39 item 5): `station_toml` (the config it would go on with)
+    /// Refuse to continue this run on another station than its own:
+    /// `station_toml` (the config it would go on with)
     /// must have the run's station name, be the virtual bench exactly when
     /// the run was recorded on it, and (on hardware) have the same device
     /// sections as the config the run recorded.
@@ -181,10 +180,10 @@ impl RunDir {
                 .unwrap_or("spinbench")
                 .to_string()
         };
-        let path = self.path.display();
+        let path = format!("run {}", self.id);
         if name(&recorded) != name(&now) {
             bail!(
-                "--resume {path}: the run was recorded on station '{}', this is station '{}': continue it on its own station",
+                "{path}: the run was recorded on station '{}', this is station '{}': continue it on its own station",
                 name(&recorded),
                 name(&now)
             );
@@ -192,14 +191,14 @@ impl RunDir {
         let (was_sim, is_sim) = (simulated(&recorded), simulated(&now));
         if was_sim != is_sim {
             bail!(
-                "--resume {path}: the run was recorded on {}; it cannot be continued on {} (its points would mix two benches): start a new run",
+                "{path}: the run was recorded on {}; it cannot be continued on {} (its points would mix two benches): start a new run",
                 if was_sim {
                     "the virtual bench"
                 } else {
                     "station hardware"
                 },
                 if is_sim {
-                    "the virtual bench (--simulate)"
+                    "the virtual bench"
                 } else {
                     "station hardware"
                 },
@@ -230,11 +229,10 @@ impl RunDir {
             .collect();
         if !speed_differ.is_empty() {
             bail!(
-                "--resume {path}: [{}] is not what the run was recorded with (see {}): the speed of every level \
+                "{path}: [{}] is not what the run was recorded with (see the {STATION_FILE} in its directory): the speed of every level \
                  and the g its points are labelled with would change within one run; continue it with the \
                  station config it used, or start a new run",
-                speed_differ.join("], ["),
-                recorded_path.display()
+                speed_differ.join("], [")
             );
         }
         if !is_sim {
@@ -244,9 +242,8 @@ impl RunDir {
                 .collect();
             if !differ.is_empty() {
                 bail!(
-                    "--resume {path}: the station's devices are not those the run was recorded with ([{}] differ from {}): continue it with the station config it used, or start a new run",
-                    differ.join("], ["),
-                    recorded_path.display()
+                    "{path}: the station's devices are not those the run was recorded with ([{}] differ from the {STATION_FILE} in its directory): continue it with the station config it used, or start a new run",
+                    differ.join("], [")
                 );
             }
         }

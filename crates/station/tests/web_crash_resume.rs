@@ -90,6 +90,18 @@ fn crashed_run_is_marked_interrupted_and_resumed_on(backend: Backend) {
     // A completed run is not resumed again.
     let r = op.send("POST", &format!("/api/runs/{run_id}/resume"), None);
     assert_eq!(r.status, 409, "{:?}", r.json());
+    // In the web's words: the run by its id, no command line, no path of
+    // the server's.
+    let said = r.json()["error"].as_str().unwrap_or_default().to_string();
+    let data = dir.path().display().to_string();
+    assert!(
+        said.contains(&format!("run {run_id}"))
+            && said.contains("already completed")
+            && !said.contains("--resume")
+            && !said.contains("spinbench ")
+            && !said.contains(&data),
+        "{said}"
+    );
     // Nor a run of no such id.
     let r = op.send("POST", "/api/runs/..%2Fetc/resume", None);
     assert!(r.status == 404 || r.status == 400, "{}", r.status);

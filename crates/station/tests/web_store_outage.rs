@@ -127,6 +127,7 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
     assert!(asked.elapsed() < Duration::from_secs(15));
     // The abort needs no database: applied, and the safe state reached.
     let asked = Instant::now();
+    let asked_unix_s = spinbench_store::now_s();
     let r = op.send("POST", "/api/run/abort", None);
     assert_eq!(r.status, 200, "{:?}", r.json());
     let s = op.wait_status(10, |s| s["ended"] == true);
@@ -144,6 +145,29 @@ fn serve_aborts_and_stops_with_its_postgres_stalled() {
     let reason = s["reason"].as_str().unwrap_or_default();
     assert!(!reason.contains("making safe"), "{reason}");
     assert_eq!(s["demand_deg_s"], 0.0, "{s}");
+    // The store back 8 s later: the abort's audit entry is written then,
+    // dated when the abort was made, not when the store took it.
+    std::thread::sleep(Duration::from_secs(8));
+    db.resume();
+    let target = spinbench_store::StoreTarget::Postgres(db.url.clone());
+    let entry = (0..60)
+        .find_map(|_| {
+            let found = spinbench_store::Store::connect(&target)
+                .ok()
+                .and_then(|store| store.audit_log(50).ok())
+                .and_then(|log| log.into_iter().find(|a| a.action == "abort"));
+            if found.is_none() {
+                std::thread::sleep(Duration::from_millis(500));
+            }
+            found
+        })
+        .expect("the abort's audit entry, once the store is back");
+    assert!(
+        (asked_unix_s - 1..=asked_unix_s + 2).contains(&entry.at),
+        "abort asked at {asked_unix_s}, audited at {}",
+        entry.at
+    );
+    db.pause();
     // SIGTERM: the server ends well inside the unit's 90 s.
     let signalled = Instant::now();
     server.terminate();

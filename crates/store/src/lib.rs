@@ -164,6 +164,34 @@ impl std::fmt::Display for StoreTarget {
     }
 }
 
+impl StoreTarget {
+    /// The store as its owner would name it in a command: a PostgreSQL URL
+    /// with its role put as `OWNER` (and no password), so that a station
+    /// working as a data-only role is never told to run the owner's work
+    /// as itself; a file as it is.
+    pub fn for_owner(&self) -> String {
+        match self {
+            StoreTarget::File(p) => p.display().to_string(),
+            StoreTarget::Postgres(url) => match url.split_once("://") {
+                Some((scheme, rest)) => match rest.split_once('@') {
+                    Some((_, host)) => format!("{scheme}://OWNER@{host}"),
+                    None => format!("{scheme}://OWNER@{rest}"),
+                },
+                None => url.clone(),
+            },
+        }
+    }
+
+    /// The PostgreSQL role the URL names, when it names one.
+    pub fn role(&self) -> Option<&str> {
+        let StoreTarget::Postgres(url) = self else {
+            return None;
+        };
+        let (auth, _) = url.split_once("://")?.1.split_once('@')?;
+        auth.split(':').next().filter(|u| !u.is_empty())
+    }
+}
+
 /// `postgres://user:secret@host/db` → `postgres://user:***@host/db`.
 fn hide_password(url: &str) -> String {
     let Some((scheme, rest)) = url.split_once("://") else {
@@ -275,7 +303,9 @@ impl Store {
     pub fn connect(target: &StoreTarget) -> Result<Store, StoreError> {
         let store = Store::open_connection(target)?;
         match target {
-            StoreTarget::File(_) => store.migrate()?,
+            StoreTarget::File(_) => {
+                store.migrate()?;
+            }
             StoreTarget::Postgres(_) => store.require_current_schema()?,
         }
         Ok(store)
@@ -286,8 +316,7 @@ impl Store {
     /// is at now.
     pub fn migrate_target(target: &StoreTarget) -> Result<(Store, i64, i64), StoreError> {
         let store = Store::open_connection(target)?;
-        let before = store.schema_version_if_any()?;
-        store.migrate()?;
+        let before = store.migrate()?;
         let after = store.schema_version()?;
         Ok((store, before, after))
     }

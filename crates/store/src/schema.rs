@@ -595,17 +595,21 @@ fn schema_version(db: &mut Db) -> Result<i64, DbError> {
 }
 
 impl Store {
-    pub(crate) fn migrate(&self) -> Result<(), StoreError> {
+    /// Bring the schema up to this release's; the version it was at when
+    /// this process held the migration lock (a second `migrate` waiting
+    /// behind a first finds the first's work done and says so).
+    pub(crate) fn migrate(&self) -> Result<i64, StoreError> {
         // A current store is not touched (no lock, no DDL): a role with
         // data rights only may ask.
         let found = self.schema_version_if_any()?;
         if found == MIGRATIONS.len() as i64 {
-            return Ok(());
+            return Ok(found);
         }
         // A newer release's store is never written to by this one.
         if found > MIGRATIONS.len() as i64 {
-            return self.require_current_schema();
+            return self.require_current_schema().map(|()| found);
         }
+        let mut found_locked = found;
         let mut db = self.db();
         let dialect = db.dialect();
         if dialect == Dialect::Postgres {
@@ -622,6 +626,7 @@ impl Store {
             Dialect::Sqlite => db.batch("BEGIN EXCLUSIVE").and_then(|()| {
                 let migrated = (|| {
                     let version = schema_version(&mut db)?;
+                    found_locked = version;
                     if version > MIGRATIONS.len() as i64 {
                         return Err(newer_release(version).into());
                     }
@@ -651,6 +656,7 @@ impl Store {
             }),
             Dialect::Postgres => (|| {
                 let version = schema_version(&mut db)?;
+                found_locked = version;
                 if version > MIGRATIONS.len() as i64 {
                     return Err(newer_release(version).into());
                 }
@@ -674,7 +680,9 @@ impl Store {
         if dialect == Dialect::Postgres {
             let _ = db.batch("SELECT pg_advisory_unlock(1293)");
         }
-        result.map_err(self.err("cannot bring the schema up to date"))
+        result
+            .map(|()| found_locked.max(0))
+            .map_err(self.err("cannot bring the schema up to date"))
     }
 
     /// The schema version, 0 for a database the station never migrated
@@ -698,9 +706,14 @@ impl Store {
         let version = self.schema_version_if_any()?;
         let wanted = MIGRATIONS.len() as i64;
         let problem = if version < wanted {
+            let not_this_role = self
+                .target
+                .role()
+                .map(|r| format!(" (OWNER: the role that owns the database, not `{r}`, which this station works as)"))
+                .unwrap_or_default();
             format!(
-                "its schema is version {version} and this release needs version {wanted}: run `spinbench migrate --db {}` as the database's owner (the Debian package runs it on install and upgrade), then start again",
-                self.target
+                "its schema is version {version} and this release needs version {wanted}: the database's owner runs `spinbench migrate --db {}`{not_this_role} (the Debian package runs it on install and upgrade), then start again",
+                self.target.for_owner()
             )
         } else if version > wanted {
             newer_release(version)

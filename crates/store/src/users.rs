@@ -12,10 +12,22 @@ pub(crate) fn insert_audit(
     action: &str,
     detail: &str,
 ) -> Result<(), crate::db::DbError> {
+    insert_audit_at(db, who, action, detail, now_s())
+}
+
+/// An entry of the audit log dated `at_unix_s` (when it was done, which
+/// may be before the store could take it).
+fn insert_audit_at(
+    db: &mut crate::db::Db,
+    who: &str,
+    action: &str,
+    detail: &str,
+    at_unix_s: i64,
+) -> Result<(), crate::db::DbError> {
     db.execute(
         "INSERT INTO audit (at, who, action, detail) VALUES ($1, $2, $3, $4)",
         &[
-            Value::Int(Some(now_s())),
+            Value::Int(Some(at_unix_s)),
             who.into(),
             action.into(),
             detail.into(),
@@ -143,6 +155,20 @@ impl Store {
     /// Record that `who` did `action`.
     pub fn audit(&self, who: &str, action: &str, detail: &str) -> Result<(), StoreError> {
         insert_audit(&mut self.db(), who, action, detail).map_err(self.err("write the audit log"))
+    }
+
+    /// An entry of the audit log for something done at `at_unix_s` and
+    /// written later (a safety control taken while the store was away):
+    /// dated when it was done, not when the store took it.
+    pub fn audit_at(
+        &self,
+        who: &str,
+        action: &str,
+        detail: &str,
+        at_unix_s: i64,
+    ) -> Result<(), StoreError> {
+        insert_audit_at(&mut self.db(), who, action, detail, at_unix_s)
+            .map_err(self.err("write the audit log"))
     }
 
     /// Several entries (action, detail) of `who` in one transaction: all

@@ -448,7 +448,11 @@ fn a_postgresql_store_is_changed_only_by_migrate_and_refused_until_then() {
     let said = refused.to_string();
     assert!(
         said.contains("schema is version 0")
-            && said.contains(&format!("spinbench migrate --db {target}")),
+            && said.contains(&format!("spinbench migrate --db {}", target.for_owner()))
+            && said.contains("OWNER@")
+            && target
+                .role()
+                .is_none_or(|r| said.contains(&format!("not `{r}`"))),
         "{said}"
     );
     let (store, before, after) = Store::migrate_target(&target).expect("migrate");
@@ -681,4 +685,36 @@ fn what_a_killed_process_journaled_reaches_the_store_once() {
         assert_eq!(written, 1 + 4, "{target}: the start, two values, two steps");
         assert_eq!(store.point_keys("r-unseen").expect("keys").len(), 4);
     });
+}
+
+/// Two `migrate`s of one new store at once: one brings it up, the other
+/// waits for the lock and finds nothing to do (it never claims the first's
+/// migrations as its own).
+fn two_migrates_at_once_apply_each_migration_once_on(target: &StoreTarget) {
+    let (a, b) = std::thread::scope(|scope| {
+        let first = scope.spawn(|| Store::migrate_target(target).map(|(_, from, to)| (from, to)));
+        let second = scope.spawn(|| Store::migrate_target(target).map(|(_, from, to)| (from, to)));
+        (
+            first.join().expect("a thread").expect("migrate"),
+            second.join().expect("a thread").expect("migrate"),
+        )
+    });
+    let all = MIGRATIONS.len() as i64;
+    let mut from = [a.0, b.0];
+    from.sort_unstable();
+    assert_eq!(from, [0, all], "{a:?} {b:?}");
+    assert_eq!((a.1, b.1), (all, all));
+}
+
+#[test]
+fn two_migrates_at_once_apply_each_migration_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    two_migrates_at_once_apply_each_migration_once_on(&StoreTarget::File(dir.path().join("s.db")));
+}
+
+#[test]
+fn postgres_two_migrates_at_once_apply_each_migration_once() {
+    let admin = postgres_url().unwrap_or_else(|e| panic!("{e}"));
+    let url = spinbench_store::testing::empty_postgres_database(&admin).expect("an empty database");
+    two_migrates_at_once_apply_each_migration_once_on(&StoreTarget::Postgres(url));
 }

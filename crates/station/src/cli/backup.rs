@@ -238,9 +238,14 @@ pub(super) fn migrate(db: &StoreTarget, history: bool, out: &mut dyn Write) -> R
         // A newer release's store: the store's own words say what to do.
         Err(e) if e.to_string().contains("newer release") => return Err(e.into()),
         Err(e) => {
-            return Err(anyhow::Error::new(e).context(
-                "the schema could not be brought up to date: run `spinbench migrate` as the database's owner (a role that may create and alter its tables)",
-            ));
+            let role = db
+                .role()
+                .map(|r| format!(", not as `{r}`"))
+                .unwrap_or_default();
+            return Err(anyhow::Error::new(e).context(format!(
+                "the schema could not be brought up to date: run `spinbench migrate --db {}` as the database's owner{role} (a role that may create and alter its tables)",
+                db.for_owner()
+            )));
         }
     };
     if before == after {

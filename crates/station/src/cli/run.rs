@@ -70,7 +70,9 @@ pub(super) fn run_plan(
     let abort = AbortFlag::new();
     crate::signals::abort_on_termination_signals(abort.clone())?;
     // A resumed run: only with its own plan; it keeps writing to its own store.
-    let resumed = resume.map(|d| RunDir::resume(d, &plan)).transpose()?;
+    let resumed = resume
+        .map(|d| RunDir::resume(d, &plan).with_context(|| format!("--resume {}", d.display())))
+        .transpose()?;
     let virtual_bench;
     let (station, station_toml, operator): (
         StationConfig,
@@ -104,7 +106,8 @@ pub(super) fn run_plan(
     // A resume only on the station and arm it was recorded with, before
     // anything else is asked of it.
     if let Some(dir) = &resumed {
-        dir.check_same_station(&station_toml)?;
+        dir.check_same_station(&station_toml)
+            .with_context(|| format!("--resume {}", dir.path().display()))?;
     }
     // The equipment register: no run moves the table (a new one, a retest
     // or a resume) while a device is overdue, unless overridden with a

@@ -290,21 +290,39 @@ impl Runner {
         {
             return Err(StartError::Busy(a.run_id.clone()));
         }
-        let (path, plan_path, plan_text) = self.resumable(run_id)?;
-        let plan = TestPlan::from_toml(&plan_text)
-            .map_err(|e| StartError::Files(format!("{}: {e}", plan_path.display())))?;
+        let (dir, plan, plan_text) = self.resumable_dir(run_id)?;
+        admit(run_id).map_err(|e| StartError::NotAudited(e.0))?;
+        self.launch(&mut active, dir, plan, &plan_text, by)
+    }
+
+    /// Whether run `run_id` can be resumed here (its directory, plan,
+    /// state and station), asked before the admission gate so that a run
+    /// that cannot be resumed is refused for what it is.
+    pub fn check_resumable(&self, run_id: &str) -> Result<(), StartError> {
+        self.resumable_dir(run_id).map(drop)
+    }
+
+    /// The locked directory of a run this station can resume, its plan
+    /// and the plan's text.
+    fn resumable_dir(&self, run_id: &str) -> Result<(RunDir, TestPlan, String), StartError> {
+        let (path, _, plan_text) = self.resumable(run_id)?;
+        let plan = TestPlan::from_toml(&plan_text).map_err(|e| {
+            StartError::Files(format!(
+                "run {run_id}: its plan ({}): {e}",
+                crate::run_setup::PLAN_FILE
+            ))
+        })?;
         let dir =
             RunDir::resume(&path, &plan).map_err(|e| StartError::Refused(format!("{e:#}")))?;
         dir.check_same_station(&self.station().1)
             .map_err(|e| StartError::Refused(format!("{e:#}")))?;
-        admit(run_id).map_err(|e| StartError::NotAudited(e.0))?;
-        self.launch(&mut active, dir, plan, &plan_text, by)
+        Ok((dir, plan, plan_text))
     }
 
     /// The directory, plan file and plan text of a run this station can
     /// resume; refused (not here) for anything else. A run's id names its
     /// directory: nothing else is looked at.
-    pub fn resumable(&self, run_id: &str) -> Result<(PathBuf, PathBuf, String), StartError> {
+    fn resumable(&self, run_id: &str) -> Result<(PathBuf, PathBuf, String), StartError> {
         if run_id.is_empty()
             || run_id.len() > 64
             || !run_id

@@ -219,7 +219,12 @@ pub(super) async fn resume_run(
 ) -> ApiResult<(StatusCode, Json<RunId>)> {
     let session = authorize(&app, &headers, Role::Operator, true).await?;
     let ask = override_request(&body)?;
-    app.runner.resumable(&id).map_err(start_error)?;
+    let checked = id.clone();
+    // The run's journal is read: off the server's threads.
+    blocking(&app, move |app| {
+        app.runner.check_resumable(&checked).map_err(start_error)
+    })
+    .await?;
     // A resume moves the table as a new run does: the same gate.
     let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
     let (asked, user, reason) = (id.clone(), session.user.clone(), ask.override_overdue);
@@ -411,14 +416,23 @@ pub(super) async fn control(
     // action at once, the audit entry written when the store answers.
     let session = authorize_control(app, headers).await?;
     let run_id = act(&app.runner, &session.user)?;
+    let done_at_unix_s = spinbench_store::now_s();
     let (app, action, id) = (Arc::clone(app), action.to_string(), run_id.clone());
-    // A safety control is never held back by the audit log (issue 39 item
-    // 6 is met by writing its entry until the store takes it: the run's
+    // A safety control is never held back by the audit log: its entry is
+    // written until the store takes it, dated when it was done (the run's
     // own record names who aborted or held it in any case).
     let written = tokio::spawn(async move {
         let until = tokio::time::Instant::now() + CONTROL_AUDIT_RETRY;
         let mut warned = false;
-        while let Err(e) = audit(&app, &session.user, &action, &id).await {
+        let write = || {
+            let (who, action, id) = (session.user.clone(), action.clone(), id.clone());
+            blocking(&app, move |app| {
+                store(app)?
+                    .audit_at(&who, &action, &id, done_at_unix_s)
+                    .map_err(ApiError::from)
+            })
+        };
+        while let Err(e) = write().await {
             if !warned {
                 eprintln!(
                     "warning: the audit entry of {} by {} on run {id} is not written yet ({}); tried again every 2 s",
