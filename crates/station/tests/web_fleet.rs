@@ -466,5 +466,39 @@ fn stations_keep_their_names_and_registers_on(backend: Backend) {
     // A name with an invisible character is refused (item 7).
     let (ok, err) = serve_refused(c_dir.path(), &["--name", "station\u{200B}-a"]);
     assert!(!ok && err.contains("invisible character"), "{err}");
-    drop((a, b));
+    // The register follows the identity, not the name: B stopped and
+    // retired, another install takes the name "station-b" with a register
+    // of its own; B's entry is kept under B's identity.
+    let mut b = b;
+    b.terminate();
+    assert!(
+        b.wait_exit(Duration::from_secs(60)).is_some(),
+        "B did not stop"
+    );
+    let store = spinbench_store::Store::connect(&spinbench_store::StoreTarget::parse(
+        &web::store_of(a_dir.path()).to_string_lossy(),
+    ))
+    .expect("store");
+    assert!(store.retire_station("station-b", "admin").expect("retire"));
+    let c = serve_logged(
+        c_dir.path(),
+        "0",
+        &["--name", "station-b"],
+        &logs.path().join("c.log"),
+    );
+    let mut eng_c = Client::login(&c, "eng", "eng-password");
+    assert_eq!(
+        status_of(&mut eng_c),
+        ("station-b".into(), "not in the register".into(), None),
+        "the new station-b shows the retired one's centrifuge"
+    );
+    let kept: Vec<_> = store
+        .equipment(None)
+        .expect("register")
+        .into_iter()
+        .filter(|e| e.station.starts_with("station-b (retired, identity "))
+        .map(|e| e.certificate)
+        .collect();
+    assert_eq!(kept, ["K-B"], "B's entry kept under its identity");
+    drop((a, c));
 }

@@ -87,9 +87,11 @@ impl Store {
     pub fn claim_station(&self, beat: &Heartbeat) -> Result<Claim, StoreError> {
         let before = self.station_holder(&beat.station)?;
         if self.write_beat(beat)? {
-            return Ok(Claim::Taken {
-                previous: before.filter(|h| !h.instance.is_empty() && h.instance != beat.instance),
-            });
+            let previous = before.filter(|h| !h.instance.is_empty() && h.instance != beat.instance);
+            if let Some(p) = &previous {
+                self.set_aside_register(&beat.station, &p.instance)?;
+            }
+            return Ok(Claim::Taken { previous });
         }
         // Refused by the store: someone live holds it.
         let holder = self.station_holder(&beat.station)?.unwrap_or(Holder {
@@ -122,6 +124,67 @@ impl Store {
                 address: r.opt_text(1),
                 last_seen: r.int(2),
             }))
+    }
+
+    /// Let `instance` (a `spinbench run`, which claims no name with a
+    /// heartbeat) take over the name `station` that a retired station of
+    /// another identity held: that station's register is set aside
+    /// ([`Store::set_aside_register`]) and the name recorded as this
+    /// identity's. Whether a register was set aside.
+    pub fn take_over_retired_name(
+        &self,
+        station: &str,
+        instance: &str,
+    ) -> Result<bool, StoreError> {
+        let retired_other = self
+            .query(
+                "read the fleet's station",
+                "SELECT instance_id FROM stations
+                 WHERE name = $1 AND retired_at IS NOT NULL AND instance_id IS NOT NULL
+                   AND instance_id <> '' AND instance_id <> $2",
+                &[station.into(), instance.into()],
+            )?
+            .first()
+            .and_then(|r| r.opt_text(0));
+        let Some(previous) = retired_other else {
+            return Ok(false);
+        };
+        self.set_aside_register(station, &previous)?;
+        self.db()
+            .execute(
+                "UPDATE stations SET instance_id = $2 WHERE name = $1",
+                &[station.into(), instance.into()],
+            )
+            .map_err(self.err(&format!("record station '{station}' as this one's")))?;
+        Ok(true)
+    }
+
+    /// The register follows the identity, not the text of a name: when
+    /// another identity takes over the name `station` (its holder
+    /// `previous` retired by an admin), the entries of `previous` are kept
+    /// under `NAME (retired, identity ID)`, listed with every station's,
+    /// and the new holder starts with a register of its own. Audited.
+    fn set_aside_register(&self, station: &str, previous: &str) -> Result<(), StoreError> {
+        let short: String = previous.chars().take(12).collect();
+        let aside = format!("{station} (retired, identity {short})");
+        self.db()
+            .transaction(|db| {
+                let moved = db.execute(
+                    "UPDATE equipment SET station = $2 WHERE station = $1
+                       AND NOT EXISTS (SELECT 1 FROM equipment WHERE station = $2)",
+                    &[station.into(), aside.as_str().into()],
+                )?;
+                if moved > 0 {
+                    crate::users::insert_audit(
+                        db,
+                        "spinbench",
+                        "set aside register",
+                        &format!("'{station}' taken over by another identity: its {moved} entries kept as '{aside}'"),
+                    )?;
+                }
+                Ok(())
+            })
+            .map_err(self.err(&format!("set aside the register of station '{station}'")))
     }
 
     /// Another station's name of the fleet that looks like `station` but is

@@ -141,6 +141,13 @@ pub(super) fn run_plan(
                 holder.address.as_deref().unwrap_or("no address")
             );
         }
+        if store.take_over_retired_name(&station.station, &identity)? {
+            writeln!(
+                out,
+                "warning: the name '{}' was a retired station's; its equipment register is kept under its old identity, and this station's register starts empty",
+                station.station
+            )?;
+        }
         if resumed.is_none() {
             // Runs this station's processes left behind (left-over events
             // written, crashed runs marked interrupted).

@@ -420,7 +420,7 @@ fn claim_name(
         } => {
             writeln!(
                 out,
-                "warning: the name '{station}' was last used by another station (identity {}, at {}, last heard {}); this one (identity {identity}) takes it over. If that is another centrifuge, give this one its own name (`station` in its station.toml, or --name)",
+                "warning: the name '{station}' was last used by another station (identity {}, at {}, last heard {}); this one (identity {identity}) takes it over, with a register of its own (the old station's is kept under its identity). If that is another centrifuge, give this one its own name (`station` in its station.toml, or --name)",
                 before.instance,
                 before.address.as_deref().unwrap_or("no address"),
                 spinbench_store::equipment::civil_date(before.last_seen)

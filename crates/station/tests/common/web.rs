@@ -173,9 +173,13 @@ fn spawn_serve(data: &Path, mode: &[&str], extra: &[&str], stderr: Stdio) -> Ser
             .next()
             .expect("the server said where it listens")
             .expect("a line");
+        // Its own line, not a warning that names another's address.
+        let Some(said) = line.strip_prefix("spinbench serve: ") else {
+            continue;
+        };
         let scheme = ["https://", "http://"]
             .into_iter()
-            .find_map(|s| line.split(s).nth(1).map(|rest| (s, rest)));
+            .find_map(|s| said.split(s).nth(1).map(|rest| (s, rest)));
         if let Some((scheme, rest)) = scheme {
             let addr = rest.split('/').next().expect("address");
             break format!("{scheme}{addr}");
