@@ -21,6 +21,18 @@ pub enum RetestFromStoreError {
     /// Nothing to retest, not graded, or not a run id.
     #[error(transparent)]
     Retest(#[from] RetestError),
+    /// A serial of the plan looks like an earlier run's but is not it.
+    #[error(
+        "serial '{given}' looks like the instrument '{stored}' of an earlier run but is not it: \
+         the two would be two histories of one instrument. Type the serial as it is on the instrument \
+         (if it is '{stored}', use that)"
+    )]
+    LookAlikeSerial {
+        /// The plan's serial.
+        given: String,
+        /// The stored serial it looks like.
+        stored: String,
+    },
     /// A plan's `retest_of` names a run that did not test this instrument,
     /// or where it needs no retest.
     #[error(
@@ -40,11 +52,20 @@ pub enum RetestFromStoreError {
     Store(#[from] StoreError),
 }
 
-/// Check a plan's `retest_of` against the store (issue 27 item 10): the run
+/// Check a plan against the store before it runs: no serial looks like an
+/// earlier run's without being it; and, for a retest (`retest_of`), the run
 /// exists and has ended, and every serial of the plan is one of its
 /// instruments that needs a retest ([`spinbench_engine::retest::needs_retest`]),
 /// so no record claims to retest what was never tested or passed.
 pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromStoreError> {
+    for given in plan.serials.values() {
+        if let Some(stored) = store.look_alike_serial(given)? {
+            return Err(RetestFromStoreError::LookAlikeSerial {
+                given: spinbench_engine::bounds::shown(given),
+                stored: spinbench_engine::bounds::shown(&stored),
+            });
+        }
+    }
     let Some(run_id) = plan.retest_of.as_deref() else {
         return Ok(());
     };

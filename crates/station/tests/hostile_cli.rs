@@ -418,3 +418,37 @@ fn a_huge_serial_is_refused_with_a_short_message_and_many_columns_parse_quickly(
     // parsing took many minutes here.
     assert!(started.elapsed().as_secs() < 120);
 }
+
+#[test]
+fn a_serial_that_looks_like_an_earlier_runs_is_refused_before_anything_moves() {
+    let (data, _, _) = the_run();
+    let runs_before = std::fs::read_dir(data.join("runs")).expect("runs").count();
+    // A case typed differently, and a Cyrillic "с" for a Latin "c".
+    for serial in ["@sum(1+1)", "+\u{0441}md|' /C calc'!A0"] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let plan = dir.path().join("plan.toml");
+        let text = PLAN
+            .lines()
+            .filter(|l| !l.starts_with("1 =") && !l.starts_with("2 =") && !l.starts_with("7 ="))
+            .collect::<Vec<_>>()
+            .join("\n");
+        std::fs::write(&plan, format!("{text}\n3 = {serial:?}\n")).expect("plan");
+        let (ok, _, err) = spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--data",
+            data.to_str().expect("utf8"),
+            plan.to_str().expect("utf8"),
+        ]);
+        assert!(
+            !ok && err.contains("looks like the instrument") && err.contains("earlier run"),
+            "{serial}: {err}"
+        );
+    }
+    assert_eq!(
+        std::fs::read_dir(data.join("runs")).expect("runs").count(),
+        runs_before,
+        "a run was started"
+    );
+}

@@ -221,6 +221,25 @@ impl Store {
         self.results_where("s.run_id = $1", run_id)
     }
 
+    /// A serial of an earlier run that looks like `serial` but is not it
+    /// (a Cyrillic `А` for a Latin `A`, a case typed differently): a run
+    /// under such a serial would split one instrument's history in two.
+    pub fn look_alike_serial(&self, serial: &str) -> Result<Option<String>, StoreError> {
+        use spinbench_engine::bounds::look_alike;
+        let folded = |s: &str| s.trim().to_lowercase();
+        Ok(self
+            .query(
+                "list the instruments' serials",
+                "SELECT DISTINCT serial FROM units",
+                &[],
+            )?
+            .iter()
+            .map(|r| r.text(0))
+            .find(|other| {
+                other != serial && (look_alike(other, serial) || folded(other) == folded(serial))
+            }))
+    }
+
     /// Every result of one serial number, oldest run first.
     pub fn unit_history(&self, serial: &str) -> Result<Vec<ResultRow>, StoreError> {
         self.results_where("s.serial = $1", serial)

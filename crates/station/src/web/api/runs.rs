@@ -44,16 +44,16 @@ pub(super) async fn start_run(
         plan.set_target(target)
             .map_err(|e| ApiError::bad(e.to_string()))?;
     }
-    if plan.retest_of.is_some() {
-        let checked = plan.clone();
-        blocking(&app, move |app| {
-            crate::retest::check_retest_of(&*store(app)?, &checked).map_err(|e| match e {
-                crate::retest::RetestFromStoreError::Store(e) => ApiError::from(e),
-                e => ApiError::bad(e.to_string()),
-            })
+    // Serials like an earlier run's, and a plan's retest_of, checked
+    // against the store.
+    let checked = plan.clone();
+    blocking(&app, move |app| {
+        crate::retest::check_retest_of(&*store(app)?, &checked).map_err(|e| match e {
+            crate::retest::RetestFromStoreError::Store(e) => ApiError::from(e),
+            e => ApiError::bad(e.to_string()),
         })
-        .await?;
-    }
+    })
+    .await?;
     let overridden = check_equipment(&app, &session, start.override_overdue.as_deref()).await?;
     let serial_list: Vec<String> = plan
         .serials
@@ -312,7 +312,7 @@ pub(super) async fn retest(
         E::Retest(RetestError::BadRunId(_)) => ApiError::not_found(e.to_string()),
         E::Plan(..) => ApiError::internal(e.to_string()),
         // Not made by retest_plan_from_store (a plan's own retest_of only).
-        E::NotToRetest { .. } => ApiError::conflict(e.to_string()),
+        E::NotToRetest { .. } | E::LookAlikeSerial { .. } => ApiError::conflict(e.to_string()),
         E::Store(s) => ApiError::from(s),
     })?;
     plan.operator = session.user.clone();
