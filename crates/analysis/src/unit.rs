@@ -30,30 +30,41 @@ pub struct AnalysisOptions {
 /// What the reduction does with a level found off the curve
 /// ([`crate::inadequacy::outlier_levels`]); a plan's `anomalies` key.
 ///
-/// `flag` is the default: every level stays in the fit, the level is named
-/// in the diagnostics, and the misfit it makes is in the budget as model
+/// `flag`: every level stays in the fit, the level is named in the
+/// diagnostics, and the misfit it makes is in the budget as model
 /// inadequacy (a level random effect), so the U95 covers it without
 /// anything being left out. `exclude` leaves each flagged level out
 /// automatically, says so in the record and the report (level, rule,
 /// reason), and carries the change that made to every coefficient in the
 /// budget as the anomaly-rule source: a smaller U where the anomaly was a
-/// single level, never one that hides the choice.
+/// single level, never one that hides the choice. `own` (the shipped
+/// plans') lets the data choose between the two, level by level: a level flagged
+/// in one mounting only is the instrument's own dip (an activity dip
+/// rides with the instrument; the table's error is at the same g in both
+/// mountings) and is left out as `exclude` does; a level flagged at the
+/// same g in both mountings is the table's, cancels from K2, and is kept
+/// as `flag` does (docs/method.md §6, levels off the curve).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum AnomalyRule {
-    /// Keep every level; the misfit is in the budget.
+    /// Keep every level; the misfit is in the budget (the default: a
+    /// plan stored without the key was reduced so).
     #[default]
     Flag,
     /// Leave flagged levels out, the effect of doing so in the budget.
     Exclude,
+    /// Leave out the levels flagged in one mounting only (the
+    /// instrument's own), keep those flagged in both (the table's).
+    Own,
 }
 
 impl AnomalyRule {
-    /// Its name in plans and reports: `flag` or `exclude`.
+    /// Its name in plans and reports: `flag`, `exclude` or `own`.
     pub fn name(self) -> &'static str {
         match self {
             AnomalyRule::Flag => "flag",
             AnomalyRule::Exclude => "exclude",
+            AnomalyRule::Own => "own",
         }
     }
 }
@@ -65,8 +76,9 @@ impl std::str::FromStr for AnomalyRule {
         match text.trim() {
             "flag" => Ok(AnomalyRule::Flag),
             "exclude" => Ok(AnomalyRule::Exclude),
+            "own" => Ok(AnomalyRule::Own),
             other => Err(format!(
-                "anomalies = '{other}': write \"flag\" or \"exclude\""
+                "anomalies = '{other}': write \"own\", \"flag\" or \"exclude\""
             )),
         }
     }
@@ -197,19 +209,59 @@ pub fn analyze_unit_with(
     let mut budgets = BTreeMap::new();
     let mut rule_exclusions = Vec::new();
     let mut unfit: Vec<(Mount, AnalysisError)> = Vec::new();
-    for (&mount, points) in by_mount.iter_mut() {
+    // Every mounting fitted first: which levels each flags decides, under
+    // `own`, which are the instrument's and which the table's.
+    let mut first_fits = BTreeMap::new();
+    for (&mount, points) in by_mount.iter() {
         let what = format!("{label} mounting {mount}");
         // A mounting that cannot be fitted leaves the other's fit standing.
-        let mut fit = match fit_mounting(points, mount, options.order, &what) {
-            Ok(fit) => fit,
-            Err(e) => {
-                unfit.push((mount, e));
-                continue;
+        match fit_mounting(points, mount, options.order, &what) {
+            Ok(fit) => {
+                first_fits.insert(mount, fit);
             }
+            Err(e) => unfit.push((mount, e)),
+        }
+    }
+    let flagged_in = |m: Mount| -> Vec<f64> {
+        first_fits
+            .get(&m)
+            .and_then(|f: &MountingFit| f.diagnostics.as_ref())
+            .map(|d| d.outlier_levels.iter().map(|o| o.g).collect())
+            .unwrap_or_default()
+    };
+    let flagged: BTreeMap<Mount, Vec<f64>> = [Mount::P, Mount::N]
+        .into_iter()
+        .map(|m| (m, flagged_in(m)))
+        .collect();
+    let both_fitted = first_fits.contains_key(&Mount::P) && first_fits.contains_key(&Mount::N);
+    for (&mount, points) in by_mount.iter_mut() {
+        let what = format!("{label} mounting {mount}");
+        let Some(mut fit) = first_fits.remove(&mount) else {
+            continue;
         };
         let mut anomaly_effect = None;
-        if options.anomalies == AnomalyRule::Exclude {
-            match exclude_flagged(points, &fit, options.order, &input.unit, &what)? {
+        // The levels the rule leaves out of this mounting.
+        let other_mount = match mount {
+            Mount::P => Mount::N,
+            Mount::N => Mount::P,
+        };
+        let other = flagged.get(&other_mount).cloned().unwrap_or_default();
+        let leave_out = |g: f64| match options.anomalies {
+            AnomalyRule::Flag => false,
+            AnomalyRule::Exclude => true,
+            // Without the other mounting nothing tells the two apart: kept.
+            AnomalyRule::Own => both_fitted && !other.contains(&g),
+        };
+        if options.anomalies != AnomalyRule::Flag {
+            match exclude_flagged(
+                points,
+                &fit,
+                options.order,
+                &input.unit,
+                &what,
+                &leave_out,
+                options.anomalies,
+            )? {
                 Excluded::Nothing => {}
                 Excluded::Levels {
                     kept,
@@ -390,19 +442,22 @@ enum Excluded {
     TooFew(String),
 }
 
-/// Leave the levels `fit`'s diagnostics flagged out of `points`, when
-/// enough levels remain for the model with a residual and a spare level.
+/// Leave the levels `fit`'s diagnostics flagged and `leave_out` picks out
+/// of `points` (the rule `rule` chose them), when enough levels remain for
+/// the model with a residual and a spare level.
 fn exclude_flagged(
     points: &[Point],
     fit: &MountingFit,
     order: ModelOrder,
     unit: &str,
     what: &str,
+    leave_out: &dyn Fn(f64) -> bool,
+    rule: AnomalyRule,
 ) -> Result<Excluded, AnalysisError> {
     let flagged: Vec<&crate::inadequacy::OutlierLevel> = fit
         .diagnostics
         .as_ref()
-        .map(|d| d.outlier_levels.iter().collect())
+        .map(|d| d.outlier_levels.iter().filter(|o| leave_out(o.g)).collect())
         .unwrap_or_default();
     if flagged.is_empty() {
         return Ok(Excluded::Nothing);
@@ -440,7 +495,13 @@ fn exclude_flagged(
                 "off the curve through the other levels by {:+.0} µg (t = {:.1}, p = {:.1e}, Bonferroni over the levels)",
                 o.residual_ug, o.t, o.p
             ),
-            by: "the anomaly rule (anomalies = \"exclude\")".into(),
+            by: match rule {
+                AnomalyRule::Own => {
+                    "the anomaly rule (anomalies = \"own\": flagged in this mounting only, the instrument's own)"
+                        .into()
+                }
+                _ => format!("the anomaly rule (anomalies = \"{}\")", rule.name()),
+            },
             points_removed: points
                 .iter()
                 .filter(|p| p.g_nominal.abs() == o.g)

@@ -1,4 +1,4 @@
-//! The language of a report or a page (issue 16, part 5): English or
+//! The language of a report or a page: English or
 //! Simplified Chinese, every word from the one catalogue
 //! (`locales/spinbench.yml`, read at compile time by rust-i18n).
 
@@ -233,13 +233,17 @@ pub fn exclusion(lang: Lang, e: &spinbench_analysis::exclusion::LevelExclusion) 
     if lang == Lang::En {
         return e.to_string();
     }
+    let (by, reason) = match anomaly_rule_exclusion(lang, e) {
+        Some(worded) => worded,
+        None => (e.by.clone(), e.reason.clone()),
+    };
     let args = [
-        ("by", e.by.clone()),
+        ("by", by),
         ("mount", e.mount.to_string()),
         ("g", e.g.to_string()),
         ("unit", e.unit.clone().unwrap_or_default()),
         ("readings", e.points_removed.to_string()),
-        ("reason", e.reason.clone()),
+        ("reason", reason),
     ]
     .into_iter()
     .map(|(k, v)| (k.to_string(), v))
@@ -250,6 +254,32 @@ pub fn exclusion(lang: Lang, e: &spinbench_analysis::exclusion::LevelExclusion) 
         "reason.excluded"
     };
     fill(lang, key, &args).unwrap_or_else(|| e.to_string())
+}
+
+/// Who and why of a level the anomaly rule left out, in `lang`. An
+/// engineer's exclusion is shown in the words its author wrote; the rule's
+/// are the station's own words, so they are worded in every language. The
+/// record keeps the rule's English text only, so its numbers (the residual,
+/// t and p) are read back from it; a text of another form is shown as it is.
+fn anomaly_rule_exclusion(
+    lang: Lang,
+    e: &spinbench_analysis::exclusion::LevelExclusion,
+) -> Option<(String, String)> {
+    let rule = ["own", "exclude"].into_iter().find(|r| {
+        e.by.starts_with(&format!("the anomaly rule (anomalies = \"{r}\""))
+    })?;
+    let rest = e
+        .reason
+        .strip_prefix("off the curve through the other levels by ")?;
+    let (residual, rest) = rest.split_once(" µg (t = ")?;
+    let (t, rest) = rest.split_once(", p = ")?;
+    let (p, _) = rest.split_once(", ")?;
+    let args = [("residual", residual), ("t", t), ("p", p)]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v.to_string()))
+        .collect();
+    let by = tr(lang, &format!("exclusion.by_anomaly_rule.{rule}"));
+    Some((by, fill(lang, "exclusion.anomaly_rule_reason", &args)?))
 }
 
 #[cfg(test)]

@@ -107,11 +107,7 @@ pub fn grade(
             if k2_max.is_none() {
                 reasons.push(Reason::new(ReasonCode::NoK2, "the model order has no k2"));
             }
-            reasons.extend(
-                a.notes
-                    .iter()
-                    .map(|n| Reason::new(ReasonCode::AnalysisNote, n.clone())),
-            );
+            reasons.extend(a.notes.iter().map(|n| note_reason(&a, n)));
             analysis = Some(a);
         }
         Err(e) => reasons.push(
@@ -142,6 +138,45 @@ fn grade_k2(
 }
 
 /// The levels each mounting's diagnostics flagged off the curve [g].
+/// A note of the reduction as a reason. The anomaly rule's note (what it
+/// left out of a mounting and what the refit found next) carries its
+/// parts as arguments, from the record's structured exclusions and
+/// diagnostics, so that every language can word it.
+fn note_reason(a: &spinbench_analysis::UnitAnalysis, note: &str) -> Reason {
+    let reason = Reason::new(ReasonCode::AnalysisNote, note);
+    if !note.contains("left out by the anomaly rule, the refit finds") {
+        return reason;
+    }
+    let Some(mount) = [Mount::P, Mount::N]
+        .into_iter()
+        .find(|m| note.starts_with(&format!("mounting {m}:")))
+    else {
+        return reason;
+    };
+    let left: Vec<String> = a
+        .rule_exclusions
+        .iter()
+        .filter(|e| e.mount == mount)
+        .map(|e| format!("{} g", e.g))
+        .collect();
+    let next: Vec<String> = a
+        .fits
+        .get(&mount)
+        .and_then(|f| f.diagnostics.as_ref())
+        .map(|d| {
+            d.outlier_levels
+                .iter()
+                .map(|o| format!("{} g ({:+.0} µg)", o.g, o.residual_ug))
+                .collect()
+        })
+        .unwrap_or_default();
+    reason
+        .with("mount", mount)
+        .with("left", left.join(", "))
+        .with("next", next.join(", "))
+        .with("variant", "anomaly_refit")
+}
+
 fn flagged_levels(f: &spinbench_analysis::MountingFit) -> Vec<f64> {
     f.diagnostics
         .as_ref()
@@ -247,7 +282,7 @@ fn misfit_not_in_u(
         Reason::new(
             ReasonCode::K2Inconclusive,
             format!(
-                "{name} {shown} {unit}: a level off the curve ({}) is not in its U95, so the result cannot be graded a pass; retest, or reduce with anomalies = \"exclude\"",
+                "{name} {shown} {unit}: a level off the curve ({}) is not in its U95, so the result cannot be graded a pass; retest it",
                 unhandled.join("; ")
             ),
         )

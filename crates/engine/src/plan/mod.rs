@@ -102,8 +102,10 @@ pub struct TestPlan {
     pub exclusions: Vec<PlanExclusion>,
     /// What the reduction does with a level it finds off the curve:
     /// `"flag"` (the default: kept, named, its misfit in the budget as model
-    /// inadequacy) or `"exclude"` (left out automatically, named in the
-    /// record and the report, the change in the budget);
+    /// inadequacy), `"exclude"` (left out automatically, named in the
+    /// record and the report, the change in the budget) or `"own"` (the
+    /// shipped plans': left out when flagged in one mounting only, the
+    /// instrument's own dip; kept when flagged in both, the table's);
     /// [`spinbench_analysis::AnomalyRule`].
     #[serde(default, skip_serializing_if = "is_default_rule")]
     pub anomalies: spinbench_analysis::AnomalyRule,

@@ -51,8 +51,9 @@ pub enum Command {
         #[arg(long = "type-b", value_name = "FILE")]
         type_b: Option<PathBuf>,
         /// What to do with a level found off the curve: flag (keep it, name
-        /// it, its misfit in the budget as model inadequacy) or exclude
-        /// (leave it out, say so, the change in the budget).
+        /// it, its misfit in the budget as model inadequacy), exclude
+        /// (leave it out, say so, the change in the budget) or own (exclude
+        /// a level flagged in one mounting only, flag one flagged in both).
         #[arg(long, default_value = "flag")]
         anomalies: spinbench_analysis::AnomalyRule,
         /// Who makes the --exclude-level exclusions (recorded with them;
@@ -88,9 +89,11 @@ pub enum Command {
         /// the store (the plan's `levels = "auto"`).
         #[arg(long, value_name = "UG_PER_G2", conflicts_with = "levels")]
         target_k2_u95: Option<f64>,
-        /// What the reduction does with a level found off the curve: flag or exclude
-        /// (the plan key `anomalies`).
-        #[arg(long, default_value = "flag")]
+        /// What the reduction does with a level found off the curve: own
+        /// (leave out a level flagged in one mounting only, the
+        /// instrument's own dip; keep one flagged in both, the table's),
+        /// flag or exclude (the plan key `anomalies`).
+        #[arg(long, default_value = "own")]
         anomalies: spinbench_analysis::AnomalyRule,
         /// What the k2 limit judges: K2 (the instrument's own) or k2_max
         /// (the published convention; the plan key `limits.decide_on`).
