@@ -1,4 +1,4 @@
-//! Control charts across runs (issue 16, part 3): an individuals chart's
+//! Control charts across runs: an individuals chart's
 //! limits from a baseline period and the Western Electric rules.
 //!
 //! ```text

@@ -59,7 +59,6 @@
 //! (each left out in turn, the signature estimated again), the budget's
 //! table-signature source; both mountings share it, so it cancels from K2.
 
-use crate::lsq;
 use crate::model::ModelOrder;
 use crate::points::{Mount, Point};
 use crate::unit::UnitPoints;
@@ -69,7 +68,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 mod fit;
-use fit::{fit_spikes, median_se, residual_projector};
+use fit::{fit_spikes, level_residuals, median_se, residual_projector, slope_of};
 
 /// Family-wise false-alarm rate of adding a line to the signature (over
 /// the candidate lines, Bonferroni).
@@ -254,54 +253,6 @@ struct Series {
     points: Vec<Point>,
     /// Levels of this mounting alone left out of its fit [g].
     own: Vec<f64>,
-}
-
-/// The level-mean residuals of `points`' polynomial fit of `degree`
-/// (leaving the levels `skip` out of the fit) as acceleration [µg], by level.
-fn level_residuals(points: &[Point], degree: usize, skip: &[f64]) -> Option<Vec<(f64, f64)>> {
-    let kept: Vec<&Point> = points
-        .iter()
-        .filter(|p| !skip.contains(&p.g_nominal.abs()))
-        .collect();
-    let x: Vec<f64> = kept.iter().map(|p| p.g_magnitude()).collect();
-    let y: Vec<f64> = kept.iter().map(|p| p.output).collect();
-    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
-    let c = &fit.coefficients;
-    let k1 = *c.get(1)?;
-    if !(k1.is_finite() && k1 != 0.0) {
-        return None;
-    }
-    let levels = crate::inadequacy::levels(points);
-    Some(
-        levels
-            .iter()
-            .map(|l| {
-                let r = l
-                    .members
-                    .iter()
-                    .map(|&i| {
-                        let a = points[i].g_magnitude();
-                        let predicted: f64 = c
-                            .iter()
-                            .enumerate()
-                            .map(|(j, cj)| cj * a.powi(j as i32))
-                            .sum();
-                        points[i].output - predicted
-                    })
-                    .sum::<f64>()
-                    / l.members.len() as f64;
-                (l.g, r / k1 * UG_PER_G)
-            })
-            .collect(),
-    )
-}
-
-/// The k1 (linear coefficient) of `points`' polynomial fit of `degree`.
-fn slope_of(points: &[Point], degree: usize) -> Option<f64> {
-    let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
-    let y: Vec<f64> = points.iter().map(|p| p.output).collect();
-    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
-    fit.coefficients.get(1).copied()
 }
 
 /// The signature of `series` (each mounting's residuals over its

@@ -1,4 +1,4 @@
-//! Temperature coefficients of an instrument (issue 15, part 5): its bias
+//! Temperature coefficients of an instrument: its bias
 //! k0, scale factor k1 and K2 reduced at each chamber temperature, and a
 //! straight line through each against the instrument's own temperature.
 //!
@@ -20,10 +20,10 @@
 //! whole of its difference's (not a share 1/√2, as if the two temperatures'
 //! errors were independent): what the pairs see moves with the temperature
 //! (an activity dip is reached at another acceleration as the resonators
-//! warm, issue 25), so the errors of the temperatures on either side of the
+//! warm), so the errors of the temperatures on either side of the
 //! reference have opposite signs and add in the slope instead of averaging
 //! out. With the share 1/√2 the coefficients' U95 held the truth for
-//! 77–80 % of the typical bench's instruments (issue 30 item 6).
+//! 77–80 % of the typical bench's instruments.
 //! (The full fits' standard errors, which hold the repeated table errors,
 //! overstated the slopes' by 50 times on the typical bench.)
 //!
@@ -43,7 +43,7 @@
 //! Σν = 0 (two temperatures) U95 = 1.96·u: nothing judges the line. (A
 //! multiplicative Birge ratio B = √(Σχ²/Σν), kept in the record beside τ,
 //! widens a small u by the same ratio as a large one, and left the
-//! small-u instruments' coefficients outside their U95: issue 30.)
+//! small-u instruments' coefficients outside their U95.)
 //!
 //! **The arm.** The radius is found at the reference temperature only, so
 //! the part of the radius in the chamber (the fixture), which grows with
@@ -157,8 +157,7 @@ fn pairs(reference: &[Point], other: &[Point], k1: f64, mount: Option<Mount>) ->
 /// standard error and the delete-one-level jackknife's (Hinkley's
 /// (L − p)/L·ΣΔ²). A structure the cubic does not hold — an activity dip
 /// that moves with the temperature, at one level — is scatter to the
-/// standard error but moves the coefficients; the jackknife sees how much
-/// (issue 30, item 6).
+/// standard error but moves the coefficients; the jackknife sees how much.
 fn cubic_errors(pairs: &[(f64, f64)]) -> Option<[f64; 3]> {
     const DEGREE: usize = 3;
     if pairs.len() < DEGREE + 3 {

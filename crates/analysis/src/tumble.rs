@@ -90,7 +90,7 @@ impl MeanReading {
 pub const MAX_CROSS_AXIS_G_PER_G: f64 = 0.1;
 
 /// The instrument's sensitivity to gravity across its input axis, from the
-/// two extra positions of a four-position tumble (issue 14, part 1): the
+/// two extra positions of a four-position tumble: the
 /// input axis horizontal, gravity along the cross axis that is vertical on
 /// the centrifuge, once as on the arm and once inverted.
 ///

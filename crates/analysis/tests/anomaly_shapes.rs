@@ -1,5 +1,5 @@
 //! K2's U95 against anomalies of several shapes added to an instrument
-//! whose true K2 is known (issue 36: "build for the physics, not for one
+//! whose true K2 is known ("build for the physics, not for one
 //! shape"). Each shape is drawn at random in size, place and width over
 //! many synthetic instruments, in one mounting unless said, over white
 //! scatter of 20–150 µg; the truth is the instrument's K2 without it.

@@ -371,7 +371,7 @@ fn on_points_the_signature_corrected_the_instruments_own_misfit_is_kept_whole() 
     // what it finds is the instrument's own misfit (here an activity dip at
     // one level), and all of it is model inadequacy beside the stated Type B
     // term. Cut by that term it would leave the dip's effect on k2 out of
-    // the interval (issue 36: the per-mounting misses on the typical bench).
+    // the interval (the per-mounting misses on the typical bench).
     use spinbench_analysis::uncertainty::{Source, mounting_budget_of};
     let mut rng = ChaCha8Rng::seed_from_u64(26);
     let noise = Normal::new(0.0, 30e-6 * K[1]).expect("normal");

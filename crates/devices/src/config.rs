@@ -464,7 +464,7 @@ pub const MAX_RETRIES: u32 = 20;
 /// `timeout_ms × (retries + 1)` [ms]. A shutdown sends each device a few
 /// commands on the way to the safe state; with silent devices the whole
 /// stop must end well inside the service's stop time (the packaged unit's
-/// `TimeoutStopSec=90`, issue 27 item 2), so one command may not take
+/// `TimeoutStopSec=90`), so one command may not take
 /// longer than this.
 pub const MAX_COMMAND_MS: u64 = 10_000;
 

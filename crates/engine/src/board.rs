@@ -1,4 +1,4 @@
-//! The live board of every slot (issue 16, part 1): what each instrument is
+//! The live board of every slot: what each instrument is
 //! doing now, derived from the run's events alone, so the web UI and the
 //! CLI show the same. A pull-style state machine: feed it every event with
 //! [`SlotBoard::apply`], read [`SlotBoard::slots`].

@@ -304,7 +304,7 @@ mod tests {
         assert!(check(f64::INFINITY, 0.0..=1.0, "s", "B").is_err());
         let e = check(2.0, 0.0..=1.0, "s", "MAX_B").expect_err("above");
         assert!(matches!(&e, BoundError::Outside { bound, .. } if bound == "MAX_B"));
-        // The words a user reads are the ones before the type (issue 41 item 4).
+        // The words a user reads are the ones before the type.
         assert_eq!(e.to_string(), "2 s is outside 0 to 1 s (MAX_B)");
         assert_eq!(
             check_positive(0.0, 1.0, "A", "B"),

@@ -61,7 +61,7 @@ pub struct StationConfig {
     pub equipment: EquipmentPolicy,
     /// True in the config of the virtual bench, as spinbench writes it
     /// (not by hand): a run recorded with it is continued only on the
-    /// virtual bench, and a run on hardware never is (issue 39 item 5).
+    /// virtual bench, and a run on hardware never is.
     #[serde(default)]
     pub simulated: bool,
     /// The station's time zone, a fixed offset (`"UTC+08:00"`; default
@@ -359,7 +359,7 @@ impl StationConfig {
             );
         }
         // A name with a right-to-left override or a zero-width character
-        // would let one station look like another (issue 39 item 7).
+        // would let one station look like another.
         match person_text(&self.station) {
             Ok(name) if name.is_empty() => {
                 return err("station", "empty: give the station a name".into());

@@ -10,8 +10,8 @@ use spinbench_analysis::Mount;
 use std::collections::BTreeMap;
 
 /// What a text of an event says, as a catalogue key and the values the text
-/// was made from, by name, so a page in another language words it itself
-/// (issue 16, part 5): the web UI fills `web.say.<key>`, word-valued values
+/// was made from, by name, so a page in another language words it itself:
+/// the web UI fills `web.say.<key>`, word-valued values
 /// through `web.arg.<name>.<value>`. The event's own text stays English.
 #[derive(Debug, Clone, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub struct Wording {

@@ -127,7 +127,7 @@ pub enum ReasonCode {
 
 /// One reason of an outcome: its code, its text (English) and the values
 /// its text was made from, by name, so a report in another language words it
-/// from the catalogue's `reason.<code>` (issue 16, part 5). Reads a bare text
+/// from the catalogue's `reason.<code>`. Reads a bare text
 /// (as records written before codes existed hold) with the code `other`,
 /// and a coded reason written before arguments existed with none.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]

@@ -1,4 +1,4 @@
-//! Retest (issue 16, part 2): from a finished run, a plan that tests again
+//! Retest: from a finished run, a plan that tests again
 //! only its instruments that failed, were inconclusive, were not fully
 //! measured or were flagged, with the same serials, slots and plan, and
 //! `retest_of` naming the original (the store keeps the link both ways).

@@ -1,4 +1,4 @@
-//! Temperatures in a plan (issue 15, part 4): when a chamber temperature
+//! Temperatures in a plan: when a chamber temperature
 //! counts as reached (`[soak]`), and the order the temperatures are visited
 //! in so the chamber and the operator change as little as possible.
 

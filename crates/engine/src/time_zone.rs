@@ -1,6 +1,6 @@
 //! The station's time zone: a fixed offset from UTC (`time_zone =
 //! "UTC+08:00"` in station.toml), in which its pages and reports show
-//! times, the zone said beside them (issue 40 item 8). A fixed offset, not
+//! times, the zone said beside them. A fixed offset, not
 //! a zone database name: the stations this serves keep one offset all year
 //! (China has no daylight saving), and a database would have to be kept up
 //! to date on every station PC.

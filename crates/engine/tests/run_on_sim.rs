@@ -705,7 +705,7 @@ fn a_write_that_keeps_failing_faults_into_the_safe_state_after_the_hold_limit() 
 
 /// A second subscriber that refuses what it is told while the first one's
 /// write is held (its notices, the held state): nothing is dropped in
-/// silence, the run's reason says what it missed (issue 41 item 1).
+/// silence, the run's reason says what it missed.
 #[test]
 fn what_a_second_subscriber_misses_during_a_hold_is_said_in_the_runs_reason() {
     /// Refuses what it is told of another subscriber's hold: the held
@@ -739,7 +739,7 @@ fn what_a_second_subscriber_misses_during_a_hold_is_said_in_the_runs_reason() {
     );
 }
 
-/// Issue 39 item 10: a signal that aborts a run held on a failing write is
+/// A signal that aborts a run held on a failing write is
 /// named in the run's reason as the signal, not as "the operator".
 #[test]
 fn a_signal_during_a_held_write_is_recorded_as_the_signal() {
@@ -1285,7 +1285,7 @@ fn chamber_faults_during_a_run_end_in_the_safe_state_with_the_reason() {
         reason(&summary)
     );
     // The silent chamber's safe state is not confirmed: said, and left to
-    // the keeper (issue 37 item 6).
+    // the keeper.
     assert!(!summary.safe_devices_confirmed);
     assert!(
         reason(&summary).contains("chamber: purge on and setpoint to ambient")

@@ -1,4 +1,4 @@
-//! Control charts across the runs of a batch (issue 16, part 3): the
+//! Control charts across the runs of a batch: the
 //! product's k2_max, K2, K1, k0 and asymmetry test by test, and each
 //! fixture position's found radius run by run (a drifting radius is a
 //! fixture coming loose), each against limits from a baseline period with
@@ -14,8 +14,7 @@ use spinbench_engine::Outcome;
 use std::collections::BTreeMap;
 
 /// Baseline points from which a chart's limits count as settled (the usual
-/// 20–25 of an individuals chart); below, they are said to be provisional
-/// (issue 31 item 3).
+/// 20–25 of an individuals chart); below, they are said to be provisional.
 pub const SETTLED_BASELINE_POINTS: usize = 20;
 
 /// "limits from n = 24", or "provisional limits (n = 6)" on a short
@@ -641,7 +640,7 @@ mod tests {
         );
         let svg = control_chart_svg(chart, crate::Lang::En).expect("svg");
         assert!(svg.contains("<svg") && svg.contains("radius slot 2 P"));
-        // Issue 31 item 3: ten baseline points are provisional limits, said
+        // Ten baseline points are provisional limits, said
         // with n; twenty-five are settled, n still shown.
         assert!(svg.contains("provisional limits (n = 10)"), "{svg}");
         let zh = control_chart_svg(chart, crate::Lang::ZhCn).expect("svg");

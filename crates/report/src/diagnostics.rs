@@ -210,7 +210,7 @@ fn model_verdict(lang: Lang, d: &Diagnostics) -> String {
 
 /// A budget's contribution as a reader takes it in: three significant
 /// figures, "< 0.0001" below that (a timebase's 10⁻¹³ µg/g² is nothing,
-/// and twelve zeros said so badly: issue 40 item 2).
+/// and twelve zeros said so badly).
 fn contribution(v: f64) -> String {
     if v.is_finite() && v.abs() < 1e-4 {
         "< 0.0001".to_string()

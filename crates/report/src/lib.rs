@@ -221,8 +221,7 @@ pub fn write_reports_in(
 }
 
 /// As [`report_file_stem`], with the language (`…-en`, `…-zh-CN`): a
-/// run's reports in two languages sit side by side in one folder
-/// (issue 40 item 2).
+/// run's reports in two languages sit side by side in one folder.
 pub fn report_file_stem_in(run: &spinbench_store::RunRow, lang: Lang) -> String {
     format!("{}-{}", report_file_stem(run), lang.code())
 }

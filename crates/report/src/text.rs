@@ -17,7 +17,7 @@ pub(crate) const CJK_FAMILY: &str = "spinbench CJK";
 /// Put the embedded font, cut down to the Chinese, Japanese and full-width
 /// characters of `html`, into its style (at the `/*CJK*/` mark) as a data
 /// URL: the self-contained report shows Chinese on a machine with no CJK
-/// font (issue 40 item 5). A report without such characters carries none.
+/// font. A report without such characters carries none.
 pub(crate) fn with_cjk_font(html: String) -> String {
     use base64::Engine;
     let cjk = |c: &char| matches!(*c as u32, 0x2E80..=0x9FFF | 0xFF00..=0xFFEF);

@@ -1,4 +1,4 @@
-//! The virtual bench's temperature chamber (issue 15, part 3): air that
+//! The virtual bench's temperature chamber: air that
 //! heats and cools at limited rates toward the setpoint, overshoots and
 //! settles, instruments that follow the air with a lag, alarms, the dry-air
 //! purge, and two faults (a controller that stops answering; a heater that

@@ -1,5 +1,5 @@
 //! A virtual bench lives as long as its owner: dropped, it stops serving
-//! (issue 41 item 2: no bench leaked for the life of the process).
+//! (no bench leaked for the life of the process).
 
 use spinbench_sim::SimConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};

@@ -1,4 +1,4 @@
-//! HTTP latency under load (issue 26): 50 clients, each with its own
+//! HTTP latency under load: 50 clients, each with its own
 //! session, asking `GET /api/runs` of one `spinbench serve --simulate` over
 //! a store of 200 runs, on SQLite and (when `SPINBENCH_TEST_POSTGRES` names
 //! a server) on PostgreSQL — every store call goes through the handlers'

@@ -1,4 +1,4 @@
-//! A long life (issue 39 item 11): runs back to back through `spinbench
+//! A long life: runs back to back through `spinbench
 //! serve` on the virtual bench (fast-forwarded), on an SQLite file and on
 //! PostgreSQL, with a browser's event stream open all along and the
 //! operator's status polled throughout. Measured between the first tenth

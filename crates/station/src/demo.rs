@@ -360,7 +360,7 @@ fn render_demo(
     let mut instruments_seen = std::collections::BTreeSet::new();
     for u in units {
         let r = u.radius_m.map_or("—".into(), |r| format!("{:.3}", r * 1e3));
-        // One "95 %" everywhere (issue 40): the budget's U95, the value the
+        // One "95 %" everywhere: the budget's U95, the value the
         // verdict, the live board and the reports use; the fit's Type A
         // interval only where a mounting has no budget. Its truth is what
         // this mounting's k2 is on this centrifuge: the instrument's K2 with

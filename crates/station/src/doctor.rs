@@ -250,7 +250,7 @@ const DEFAULT_NAMES: [&str; 3] = [
     "spinbench virtual bench",
 ];
 
-/// The station's name in the fleet (issue 39 item 2): held by another
+/// The station's name in the fleet: held by another
 /// station (another identity) in the store, or a default name a second
 /// install would share. Doctor changes nothing: no identity is made, no
 /// store created.

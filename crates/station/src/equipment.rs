@@ -1,8 +1,8 @@
-//! The equipment register at the start of a run (issue 16, part 4): a run
+//! The equipment register at the start of a run: a run
 //! does not start while a device of the station is past its calibration's
 //! due date, unless an admin overrides it with a reason (recorded in the
 //! audit log). One admission gate ([`admit`]) for `spinbench run` and the
-//! web API (issue 41 item 3): the same rule, the same reason check and the
+//! web API: the same rule, the same reason check and the
 //! same audit line; each caller only words the refusal its own way.
 
 use spinbench_engine::StationConfig;

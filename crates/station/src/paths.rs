@@ -40,7 +40,7 @@ pub fn parse_store(text: &str) -> Result<StoreTarget, String> {
     if let StoreTarget::Postgres(url) = &target
         && spinbench_store::pg_config(url, None).is_ok_and(|c| c.get_password().is_some())
     {
-        // Issue 27 item 26: said, not refused (a script may still do it).
+        // Said, not refused (a script may still do it).
         eprintln!(
             "warning: the --db URL holds a password, which every user of this machine can read in `ps`; \
              give the URL without it and the password in PGPASSWORD (the packaged service reads /etc/spinbench/db.env, mode 0640)"

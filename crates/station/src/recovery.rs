@@ -1,5 +1,5 @@
 //! What a station finds at its start (`run`, `serve`) of the runs its
-//! processes left behind (issue 37): events the store had not taken when a
+//! processes left behind: events the store had not taken when a
 //! run ended (the run directory's outbox file, written now), and runs the
 //! store still has `running` whose process ended without finishing them (a
 //! crash, a power cut), marked `interrupted` with how to resume them.

@@ -1,4 +1,4 @@
-//! The retest of a finished run, read from the store (issue 16, part 2):
+//! The retest of a finished run, read from the store:
 //! shared by `spinbench retest RUN` and `POST /api/runs/{id}/retest`. The
 //! selection itself is the engine's ([`spinbench_engine::retest`]).
 

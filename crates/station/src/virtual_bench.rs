@@ -1,4 +1,4 @@
-//! The virtual bench, opened in one place (issue 41 item 2): one set of
+//! The virtual bench, opened in one place: one set of
 //! bench arguments ([`BenchArgs`], flattened into every command that can
 //! run on it), resolved into one [`VirtualBench`] that serves its devices
 //! behind real pseudo-terminals and stops when dropped. `demo`, `run`,

@@ -1,4 +1,4 @@
-//! `spinbench backup` and `spinbench restore` (issue 17, part 5; issue 26):
+//! `spinbench backup` and `spinbench restore`:
 //! a run's store backed up (checked), lost, and restored whole, on SQLite
 //! and on PostgreSQL (pg_dump, pg_restore); the password never printed;
 //! nothing is ever overwritten.
@@ -102,7 +102,7 @@ fn a_postgresql_store_is_backed_up_and_restored_by_its_own_tools() {
     assert!(ok);
     assert_eq!(after, before, "the same runs, as they were");
     // Into a database that holds a store already: refused in words, said
-    // once (issue 39 item 10: not pg_restore's raw error).
+    // once (not pg_restore's raw error).
     let (ok, _, err) = spinbench(&["restore", dump, "--db", &other]);
     assert!(
         !ok && err.matches("the database must be empty").count() == 1

@@ -1,4 +1,4 @@
-//! Control charts across runs (issue 16, part 3) end to end: 22 runs on the
+//! Control charts across runs end to end: 22 runs on the
 //! virtual bench, one fixture position's radius drifting 5 µm a run from
 //! the 12th on; the Western Electric rules flag that position's chart and
 //! no other, and the batch report shows the charts and the yields.
@@ -180,7 +180,7 @@ fn a_fixture_position_coming_loose_is_flagged_and_no_other() {
     );
 
     // The Charts page's flags name the run by its label and the point's
-    // instrument (issue 40 item 8): on the web API of a server on this store.
+    // instrument: on the web API of a server on this store.
     web::add_user(&data, "op", "operator", "op-password");
     let server = web::serve(&data, "0");
     let mut op = web::Client::login(&server, "op", "op-password");

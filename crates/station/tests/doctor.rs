@@ -1,4 +1,4 @@
-//! `spinbench doctor` (issue 17, part 4): on the virtual bench every check
+//! `spinbench doctor`: on the virtual bench every check
 //! passes; on a station config naming a port that does not exist, it says
 //! which port and what to check, and exits with an error.
 
@@ -47,7 +47,7 @@ fn the_virtual_bench_is_ready() {
     ] {
         assert!(out.contains(what), "{what} in\n{out}");
     }
-    // Every device identified; no store yet, and none made (issue 27,
+    // Every device identified; no store yet, and none made (
     // item 12: doctor changes nothing).
     assert!(
         out.contains("ACUTRONIC") && out.contains("firmware 0x"),
@@ -78,7 +78,7 @@ fn the_virtual_bench_is_ready() {
             "{out}"
         );
     }
-    // Issue 39 item 2: the bench's default name is warned of; so, louder,
+    // The bench's default name is warned of; so, louder,
     // is a name another station (another identity) holds in the store.
     assert!(
         out.contains("WARN  station name: 'spinbench virtual bench' is a default name"),

@@ -1,4 +1,4 @@
-//! `spinbench equipment` and the register at `spinbench run` (issue 16,
+//! `spinbench equipment` and the register at `spinbench run` (
 //! part 4): an overdue device stops a run before anything moves, unless
 //! overridden with a reason, which the audit log keeps.
 
@@ -77,7 +77,7 @@ fn an_overdue_device_stops_a_run_unless_overridden_with_a_reason() {
     );
 }
 
-/// Issue 39 item 1: the register is per station: an entry of one station
+/// The register is per station: an entry of one station
 /// is not another's; with two stations known, `--station` is asked for.
 #[test]
 fn the_register_is_kept_per_station() {

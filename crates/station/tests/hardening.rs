@@ -1,4 +1,4 @@
-//! Hardening, round three (issue 27): each test names its item.
+//! Hardening, round three: each test names its item.
 
 mod common;
 #[path = "common/web.rs"]
@@ -160,7 +160,7 @@ fn items_18_20_21_login_only_as_json_retest_reads_its_body_and_reasons_are_chara
         Some(&ask(&"振".repeat(501))),
     );
     assert_eq!(r.status, 400);
-    // Issue 39 item 7: nor a right-to-left override or a zero-width space.
+    // Nor a right-to-left override or a zero-width space.
     for odd in ["level \u{202E}01", "noisy\u{200B}"] {
         let r = eng.send("POST", "/api/runs/no-such-run/exclusions", Some(&ask(odd)));
         assert_eq!(r.status, 400, "{odd:?}: {:?}", r.json());
@@ -847,7 +847,7 @@ fn postgres_issue_39_item_6_nothing_is_done_that_cannot_be_audited() {
     nothing_is_done_that_cannot_be_audited_on(web::Backend::Postgres);
 }
 
-/// Issue 39 item 6: while the audit log refuses every entry (a trigger, as
+/// While the audit log refuses every entry (a trigger, as
 /// a full or broken table would), a plan is not saved, a run is not
 /// started and a prompt is not answered; each answer says nothing was
 /// done. Once the log takes entries again, the same requests succeed and

@@ -263,7 +263,7 @@ fn killed_runs_resume_with_no_point_lost_or_doubled() {
 
 #[test]
 fn a_run_being_run_cannot_be_resumed_by_another_process() {
-    // Issue 27, item 3: a second `--resume` of a run that a process is
+    // A second `--resume` of a run that a process is
     // running (here the first run itself, at real time) is refused: the
     // run's directory is locked, so the journal never gets a second record.
     let dir = tempfile::tempdir().expect("tempdir");
@@ -320,7 +320,7 @@ fn a_run_being_run_cannot_be_resumed_by_another_process() {
     );
 }
 
-/// Issue 39 item 5: a run is continued only on its own station: not under
+/// A run is continued only on its own station: not under
 /// another station's name, and never on the virtual bench when it was
 /// recorded on hardware (nor the other way round). Nothing is run.
 #[test]

@@ -1,4 +1,4 @@
-//! The MES path with a client someone else's generator made (issue 38):
+//! The MES path with a client someone else's generator made:
 //! openapi-python-client (in `scripts/test-tools`' `target/venv-mes`)
 //! generates a Python client from the document the server serves, and
 //! `scripts/mes/mes_path.py` logs in, starts a run, answers every prompt

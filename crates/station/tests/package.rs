@@ -1,4 +1,4 @@
-//! The Debian package (issue 17, part 4): cargo-deb packs the binary under
+//! The Debian package: cargo-deb packs the binary under
 //! test (`--no-build`; `scripts/test` installs cargo-deb), and the package
 //! is read back with dpkg-deb: its files, the systemd unit, the conffile,
 //! the maintainer scripts with their systemd parts; the packaged binary runs
@@ -155,7 +155,7 @@ fn the_debian_package_holds_the_binary_the_unit_and_the_maintainer_scripts() {
             "{line} in the unit:\n{unit}"
         );
     }
-    // Issue 27, item 26: the unit's exposure, as systemd rates it (offline,
+    // The unit's exposure, as systemd rates it (offline,
     // on the packaged file), else its hardening lines.
     let unit_path = root.join("usr/lib/systemd/system/spinbench.service");
     let analysed = std::process::Command::new("systemd-analyze")

@@ -1,4 +1,4 @@
-//! The experiment planner through the command line (issue 29): the
+//! The experiment planner through the command line: the
 //! station's model learned from its runs in the store, `plan design`
 //! against the published plan, a target it cannot reach refused before
 //! anything moves, and a run of `levels = "auto"` designed when it starts,

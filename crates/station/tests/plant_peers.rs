@@ -1,5 +1,5 @@
-//! The station against implementations someone else wrote (issue 37 item
-//! 10): a temperature chamber served by pymodbus (`scripts/plant/chamber.py`,
+//! The station against implementations someone else wrote:
+//! a temperature chamber served by pymodbus (`scripts/plant/chamber.py`,
 //! Modbus TCP) and a power supply served by scpipy
 //! (`scripts/plant/supply.py`), both in `scripts/test-tools`' virtual
 //! environment (`target/venv-plant`), with faults injected: busy, an

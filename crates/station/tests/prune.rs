@@ -1,4 +1,4 @@
-//! `spinbench prune` (issue 38): an ended run's one-second values and
+//! `spinbench prune`: an ended run's one-second values and
 //! events archived to Parquet, read back, then deleted; its record, reports
 //! and exports unchanged; on SQLite and PostgreSQL.
 

@@ -1,4 +1,4 @@
-//! Issue 40's acceptance for the reports: a typical-bench run's reports in
+//! Acceptance for the reports: a typical-bench run's reports in
 //! English and Chinese sit side by side in one folder; the Chinese PDF,
 //! HTML and batch report carry no English sentence, caption or axis label
 //! (read through poppler's pdftotext and the HTML's text); and the PDF's

@@ -1,4 +1,4 @@
-//! `spinbench retest RUN` (issue 16, part 2): a finished run's failed
+//! `spinbench retest RUN`: a finished run's failed
 //! instruments tested again, same serials, slots and plan, linked both ways
 //! in the store and in both runs' reports; what cannot be retested is
 //! refused with what to do.
@@ -16,7 +16,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     let plan = dir.path().join("plan.toml");
     // On seed 4's bench: R1 and R7 have |k2| ≈ 28 µg/g², R2 ≈ 20 — a 25 µg/g²
     // limit fails two and passes one. Warmed up first: without it the
-    // warm-up drift is in the up/down pure error (no drift term, issue 30)
+    // warm-up drift is in the up/down pure error (no drift term)
     // and R2's U95 straddles the limit.
     let text = format!(
         "{}[limits]\nk2_max_ug_per_g2 = 25\n",
@@ -154,7 +154,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         .output()
         .expect("pdftotext (poppler-utils) runs; ./scripts/test installs it");
     let pdf_text = String::from_utf8_lossy(&pdf_text.stdout);
-    // Issue 31 item 2: the Chinese PDF cuts nothing either.
+    // The Chinese PDF cuts nothing either.
     assert!(!pdf_text.contains('…'), "{pdf_text}");
     assert!(
         pdf_text.contains("离心机测试报告")
@@ -171,7 +171,7 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     let (ok, _, err) = spinbench(&["retest", "../x", "--simulate", "--data", data_s]);
     assert!(!ok && err.contains("not a run identifier"), "{err}");
 
-    // Issue 27 item 10: a plan's retest_of is checked against the store. A
+    // A plan's retest_of is checked against the store. A
     // run that does not exist, and a serial the run passed (R2) or never
     // had, are refused before anything is switched on; no run is added.
     let claims = |retest_of: &str, serial: &str| {

@@ -1,4 +1,4 @@
-//! Readable run labels (issue 31 item 4): `runs list` shows each run's
+//! Readable run labels: `runs list` shows each run's
 //! `2026-11-24 · station · #N` beside its id; the label (as printed, or typed
 //! with `/`, or without the station) names the run wherever a run is typed;
 //! the report's files are named by it and the report shows it.
@@ -107,7 +107,7 @@ fn runs_are_listed_named_and_reported_by_their_labels() {
         .unwrap_or_else(|e| panic!("{stem}.html: {e}; wrote {said}"));
     assert!(html.contains(&label_1), "the report shows its label");
     assert!(out.join(format!("{stem}.csv")).is_file());
-    // Issue 40 item 2: the Chinese reports of the same run sit beside the
+    // The Chinese reports of the same run sit beside the
     // English ones (the file names carry the language).
     let (ok, said, err) = spinbench(&[
         "report",

@@ -148,7 +148,7 @@ fn realism_chooses_the_presets_error_sources_and_the_truth_says_which() {
     assert!(stderr.contains("ideal, typical or harsh"), "{stderr}");
 }
 
-/// One set of bench arguments for every command (issue 41 item 2): the
+/// One set of bench arguments for every command: the
 /// same flags mean the same bench on `sim`, `run`, `retest` and `doctor`,
 /// and a bench config file without `--simulate` is refused, saying how.
 #[test]

@@ -1,4 +1,4 @@
-//! The run never waits on the store (issue 37): `spinbench run` drives a
+//! The run never waits on the store: `spinbench run` drives a
 //! separate `spinbench sim` (real PTYs) and writes to a PostgreSQL server
 //! of the test's own, which is restarted, or paused (SIGSTOP: a stall, as a
 //! network partition without a reset), in the middle of the run.

@@ -519,10 +519,10 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
         String::from_utf8_lossy(&out.stderr)
     );
     let text = String::from_utf8(out.stdout).expect("utf-8 text");
-    // Issue 31 item 2: nothing a signer reads is cut short.
+    // Nothing a signer reads is cut short.
     let cut: Vec<&str> = text.lines().filter(|l| l.contains('…')).collect();
     assert!(cut.is_empty(), "cut lines in the PDF: {cut:#?}");
-    // Its metadata (issue 16, part 7): title, author, producer, dated today.
+    // Its metadata: title, author, producer, dated today.
     let info = Command::new("pdfinfo")
         .arg(&pdf)
         .output()
@@ -556,7 +556,7 @@ fn check_reports(run_dir: &Path, store: &Store, run_id: &str) {
     );
     assert!(pages[0].contains(&format!("run {run_id}")), "{}", pages[0]);
     assert!(pages[0].contains(OPERATOR), "operator in {}", pages[0]);
-    // Page 1 is the signer's (issue 40): the judged quantity and its
+    // Page 1 is the signer's: the judged quantity and its
     // limit, K2 ± U95 per instrument, the actions and the sign-off block;
     // the figures per mounting follow on page 2.
     for said in [
@@ -721,7 +721,7 @@ fn a_store_written_by_the_previous_release_migrates_and_reads_back_the_same_reco
         .find(|e| e.path().extension().is_some_and(|x| x == "csv"))
         .expect("a csv report");
     // Every column the previous release wrote, byte for byte, where it was;
-    // this release appends what the verdict judged (issue 40: K2, its U95,
+    // this release appends what the verdict judged (K2, its U95,
     // the measurand, the limit and the rule).
     let now = std::fs::read_to_string(report.path()).expect("report");
     let then =
@@ -775,7 +775,7 @@ fn a_store_written_by_the_previous_release_migrates_and_reads_back_the_same_reco
     }
 }
 
-/// Issue 39 item 1: the one register of an earlier release becomes each
+/// The one register of an earlier release becomes each
 /// known station's at the upgrade (migration 17): nothing is lost, and each
 /// station's entries are its own from then on.
 #[test]

@@ -1,4 +1,4 @@
-//! The users' commands (issue 26): `spinbench user role`, `passwd` and
+//! The users' commands: `spinbench user role`, `passwd` and
 //! `remove`, and the web API's `PUT /api/users/{name}`, each ending the
 //! user's sessions on a running server within seconds; the only admin
 //! cannot be demoted or removed.

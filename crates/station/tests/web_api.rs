@@ -3,7 +3,7 @@
 //! a run already active; and a whole run driven through the API as a line's
 //! MES would: start, answer the prompts, pause, resume, results, reports,
 //! the live event stream with catch-up, the audit log. Each on SQLite and
-//! on PostgreSQL (`postgres_…`, issue 26).
+//! on PostgreSQL (`postgres_…`).
 
 #[path = "common/web.rs"]
 mod web;
@@ -95,7 +95,7 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(b
             ["type"],
         "array"
     );
-    // Issue 27 item 29: the runs' list and a new run link to every
+    // The runs' list and a new run link to every
     // operation that takes a run id, each link to an operation that exists.
     let mut taking_id: Vec<String> = Vec::new();
     for (path, ops) in doc["paths"].as_object().expect("paths") {
@@ -176,7 +176,7 @@ fn the_openapi_document_lists_every_route_and_every_route_refuses_strangers_on(b
     assert_eq!(page.status, 200);
     assert!(String::from_utf8_lossy(&page.body).contains("<canvas id=\"curves\""));
     assert_eq!(anon.send("GET", "/app.js", None).status, 200);
-    // The page's ES modules (issue 28): each served as JavaScript; no other file.
+    // The page's ES modules: each served as JavaScript; no other file.
     let module = anon.send("GET", "/js/core.js", None);
     assert_eq!(module.status, 200);
     assert!(
@@ -434,7 +434,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     assert_eq!(r.status, 400);
     assert_eq!(op.send("POST", "/api/runs", Some("{")).status, 400);
 
-    // The planner (issue 29): a design for a target, nothing moved.
+    // The planner: a design for a target, nothing moved.
     let design = |op: &mut Client, plan: &str, target: f64| {
         op.send(
             "POST",
@@ -504,7 +504,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     );
     assert_eq!(r.status, 201, "{:?}", r.json());
     let run_id = r.json()["run_id"].as_str().expect("run id").to_string();
-    // The started run's own link answers at once (issue 38).
+    // The started run's own link answers at once.
     let r = op.send("GET", &format!("/api/runs/{run_id}"), None);
     assert_eq!(r.status, 200, "{:?}", r.json());
     let r = op.send("POST", "/api/runs", Some(&start("api", json!({}))));
@@ -517,7 +517,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         let s = op.wait_status(120, |s| {
             s["prompt"].is_string() || s["active"].is_null() && s["run_id"] == run_id.as_str()
         });
-        // What is sent matches the document, at a prompt too (issue 38).
+        // What is sent matches the document, at a prompt too.
         web::matches_document(&mut op, "StatusReply", &s, "GET /api/status");
         if s["active"].is_null() {
             break;
@@ -673,7 +673,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         Some(&ask("API-1", 2.0, "x")),
     );
     assert_eq!(r.status, 404);
-    // Issue 27 item 9: levels left out one by one until the fit could no
+    // Levels left out one by one until the fit could no
     // longer be made: that last exclusion is refused, the record stays
     // graded; an exclusion is withdrawn with a reason (audited).
     let mut refused = None;
@@ -769,7 +769,7 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     let r = op.send("GET", "/api/control-charts?baseline_runs=0", None);
     assert_eq!(r.status, 400);
 
-    // Retest (issue 16, part 2): the run's instruments to retest, in one action.
+    // Retest: the run's instruments to retest, in one action.
     let shown = op.get_json(&format!("/api/runs/{run_id}"), 200);
     let to_retest: Vec<String> = shown["to_retest"]
         .as_array()
@@ -836,7 +836,7 @@ fn an_abort_from_the_api_ends_the_run_safely_on(backend: Backend) {
     assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
     let s = op.wait_status(60, |s| s["active"].is_null());
     assert_eq!(s["state"], "aborted", "{s}");
-    // The record names who aborted (issue 27, item 13), not "abort".
+    // The record names who aborted, not "abort".
     let run_id = s["run_id"].as_str().expect("run id").to_string();
     let run = op.get_json(&format!("/api/runs/{run_id}"), 200);
     let reason = run["reason"].as_str().unwrap_or_default();
@@ -1007,7 +1007,7 @@ fn the_equipment_register_blocks_an_overdue_device_until_an_admin_overrides_on(b
     admin.wait_status(60, |s| s["prompt"].is_string());
     assert_eq!(admin.send("POST", "/api/run/abort", None).status, 200);
     admin.wait_status(60, |s| s["active"].is_null());
-    // Issue 40 item 8: after its first run the station offers each device
+    // After its first run the station offers each device
     // the identity it read from it (the virtual bench's *IDN? answers).
     let list = op.get_json("/api/equipment", 200);
     let fmu = list

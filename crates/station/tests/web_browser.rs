@@ -56,7 +56,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     // The new-run form: the plan, serial numbers per slot (a wrong prefix is refused).
     b.click("#nav-new");
     b.wait_for(10, "the plans", "return document.querySelectorAll('#plan-select option').length > 0 && !!document.getElementById('serial-2')");
-    // Issue 40 item 8: the shipped plans are there (a function check, a
+    // The shipped plans are there (a function check, a
     // check designed to decide, the full test, the temperature test), and
     // each chosen plan is summed up before anything moves: its range, the
     // judged quantity, its limit and rule, whether it can decide.
@@ -92,7 +92,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         Value::Bool(true),
         "an operator does not get the plan editor"
     );
-    // The planner (issue 29): a K2 U95 target, and the prediction shown
+    // The planner: a K2 U95 target, and the prediction shown
     // before anything moves; the field is left empty for this run.
     b.type_into("#target-k2-u95", "1000");
     b.click("#design-button");
@@ -185,7 +185,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         let prompt_shown = b.script("return !document.getElementById('prompt').hidden");
         if prompt_shown == Value::Bool(true) {
             if prompts == 0 {
-                // Issue 40 item 7: the wait is counted on the server's clock
+                // The wait is counted on the server's clock
                 // and shown, and the time to go is there from the start
                 // (by the plan), once, not in the step line too.
                 b.wait_for(
@@ -202,7 +202,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
                        && !document.getElementById('progress').textContent.includes(' to go')",
                 );
                 b.screenshot(&shots.join("2-prompt.png"));
-                // Issue 40 item 7: the prompt's Abort asks first; cancelled,
+                // The prompt's Abort asks first; cancelled,
                 // the run waits at its prompt as before.
                 b.cancel_the_prompts_abort();
                 // The run is still active (the button shows once the page's
@@ -283,7 +283,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         board_at_level.is_some(),
         "the board showed slot 2 at a level in mounting N"
     );
-    // Finished: the plan's prediction beside what the run achieved (issue 29).
+    // Finished: the plan's prediction beside what the run achieved.
     b.wait_for(
         10,
         "the prediction and the achievement",
@@ -297,7 +297,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
          return !!r && r.cells[5].textContent.startsWith('done') && r.cells[6].textContent === '11/11' \
          && r.cells[7].textContent.includes('±') && r.cells[9].textContent !== '—'",
     );
-    // Issue 40 item 1: the end banner counts the outcomes, coloured by the
+    // The end banner counts the outcomes, coloured by the
     // worst (a limit no instrument meets: none passes).
     b.wait_for(
         10,
@@ -306,7 +306,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
          return /^Run completed — \\d+ /.test(a.textContent) && !a.textContent.includes(' pass') \
            && ['fail', 'inconclusive', 'marginal', 'incomplete'].some(o => a.classList.contains(o))",
     );
-    // Issue 40 item 6: on a 400 px phone nothing runs off the side, Log out
+    // On a 400 px phone nothing runs off the side, Log out
     // and the language stay in reach, and the board's K2 and outcome show.
     b.set_window(400, 800);
     b.wait_for(
@@ -334,7 +334,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         "the report links",
         "return !!document.getElementById('report-pdf')",
     );
-    // Issue 40 item 1: the Run page offers the retest of the run's
+    // The Run page offers the retest of the run's
     // instruments to test again, and says each instrument's next step.
     b.wait_for(
         20,
@@ -591,7 +591,7 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
         "return document.getElementById('nav-history').textContent === '历史'",
     );
 
-    // Issue 31 item 1: the fault's banner stays, a reload brings it back,
+    // The fault's banner stays, a reload brings it back,
     // until someone acknowledges it; then it is gone for good, and the audit
     // log says who did.
     b.wait_for(
@@ -632,7 +632,7 @@ fn a_fault_raises_the_banner_and_ends_the_run_safely_in_the_browser() {
     );
 }
 
-/// Issue 31 item 1: a notice the station handled (a point measured again)
+/// A notice the station handled (a point measured again)
 /// is amber, never in the red error line, and gone once the run completes:
 /// the run's outcome takes its place, on every page.
 #[test]
@@ -701,7 +701,7 @@ fn a_handled_notice_is_no_alarm_once_the_run_completes_in_the_browser() {
     b.wait_for(
         10,
         "the run's outcome in the banner",
-        // Issue 40 item 1: with the counts of the outcomes, which add up to
+        // With the counts of the outcomes, which add up to
         // the board's instruments, coloured by the worst.
         "const a = document.getElementById('alarm'); if (a.hidden || !a.classList.contains('done')) return false; \
          const m = a.textContent.match(/^Run completed — (.*)$/); if (!m) return false; \
@@ -766,7 +766,7 @@ fn an_engineer_saves_a_plan_in_the_browser() {
     // run is refused until it is calibrated again.
     b.click("#nav-equipment");
     b.wait_for(10, "the register", "return document.querySelectorAll('#equipment-table tbody tr').length >= 3 && !document.getElementById('equipment-form').hidden");
-    // Issue 40 item 8: the page says that nothing is registered yet, and
+    // The page says that nothing is registered yet, and
     // each device's Register… fills the form with its role (and the
     // identity the station read from it, once it has run).
     b.wait_for(

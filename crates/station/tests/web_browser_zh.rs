@@ -1,4 +1,4 @@
-//! The web UI in Chinese (issue 16, part 5), in a real browser: an operator
+//! The web UI in Chinese, in a real browser: an operator
 //! whose language is zh-CN runs a test — the board, the step line, the
 //! prompt and the outcome in Chinese — retests it from the history, aborts
 //! the retest (the banner in Chinese), and is refused a run while the

@@ -1,4 +1,4 @@
-//! A `serve` killed (SIGKILL) under a run (issue 37 item 9): at the next
+//! A `serve` killed (SIGKILL) under a run: at the next
 //! start the run is marked interrupted, History offers to resume it, and
 //! the resumed run completes with its earlier steps kept. On SQLite and on
 //! PostgreSQL.

@@ -1,4 +1,4 @@
-//! The fleet (issue 26): two `spinbench serve --simulate` stations on one
+//! The fleet: two `spinbench serve --simulate` stations on one
 //! PostgreSQL store run a test each at the same time; each server lists
 //! both stations and both runs; the fleet view follows them from running to
 //! idle to offline; a user removed on one server is refused on the other
@@ -84,7 +84,7 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         assert_eq!(r.status, 201, "{:?}", r.json());
         runs.push(r.json()["run_id"].as_str().expect("run id").to_string());
     }
-    // Running, or waiting for the operator at a prompt (issue 39 item 2:
+    // Running, or waiting for the operator at a prompt (
     // a station waiting is shown as waiting, not running).
     let busy = |s: Option<&String>| matches!(s.map(String::as_str), Some("running" | "waiting"));
     wait_fleet(&mut op_a, 20, "both running", |f| {
@@ -117,7 +117,7 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         f.get("station-a").map(String::as_str) == Some("idle")
             && f.get("station-b").map(String::as_str) == Some("idle")
     });
-    // Issue 40 item 1: each row counts its latest run's outcomes (one
+    // Each row counts its latest run's outcomes (one
     // instrument each), as the run's own results say.
     for (k, row) in op_b
         .get_json("/api/fleet", 200)
@@ -205,7 +205,7 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         assert!(bytes > 0, "{}: no raw data", raw.display());
     }
 
-    // Issue 27 item 27: B's run is retested on B, not on A.
+    // B's run is retested on B, not on A.
     let r = op_a.send("POST", &format!("/api/runs/{}/retest", runs[1]), None);
     assert_eq!(r.status, 409, "{:?}", r.json());
     assert!(
@@ -274,7 +274,7 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         f.get("station-b").map(String::as_str) == Some("offline")
             && f.get("station-a").map(String::as_str) == Some("idle")
     });
-    // Issue 39 item 9: an offline row has no run fields; an admin retires
+    // An offline row has no run fields; an admin retires
     // it (audited); a live station is not retired.
     let rows = op_a.get_json("/api/fleet", 200);
     let b_row = rows
@@ -351,7 +351,7 @@ fn postgres_item_1_and_2_stations_of_one_store_keep_their_names_and_registers() 
     stations_keep_their_names_and_registers_on(Backend::Postgres);
 }
 
-/// Issue 39 items 1 and 2: station B's register is not station A's (A's
+/// Station B's register is not station A's (A's
 /// overdue centrifuge neither blocks B nor counts as B's calibration); a
 /// second install under a live station's name is refused at start, naming
 /// the holder and how to rename; the first keeps its fleet row.

@@ -193,7 +193,7 @@ fn slow_idle_and_surplus_connections_are_closed() {
         idle.push(TcpStream::connect(&addr).expect("connect"));
     }
     // Over the cap: the newest are served, the oldest closed to make room
-    // (issue 27: a new client is never locked out).
+    // (a new client is never locked out).
     let mut surplus: Vec<TcpStream> = (0..20)
         .map(|_| TcpStream::connect(&addr).expect("connect"))
         .collect();
@@ -237,7 +237,7 @@ fn slow_idle_and_surplus_connections_are_closed() {
 
 #[test]
 fn trickling_request_bodies_lock_no_one_out() {
-    // Issue 27, item 1: 260 connections each send a login's headers with
+    // 260 connections each send a login's headers with
     // Content-Length: 4000 and then one byte; a new client is still served
     // within 5 s, and a trickling body is cut off at the body deadline.
     let dir = tempfile::tempdir().expect("tempdir");
@@ -264,7 +264,7 @@ fn trickling_request_bodies_lock_no_one_out() {
     // A trickler still open is answered 408 and closed once its body is
     // late. (Which are open depends on the order the server read their
     // headers: a full server closes the connections that sent no request
-    // yet first, then the oldest without a session — issue 39 item 3.)
+    // yet first, then the oldest without a session.)
     let open = (0..held.len())
         .rev()
         .find(|&k| !closed_within(&mut held[k], Duration::from_millis(20)))
@@ -375,7 +375,7 @@ fn postgres_a_login_name_with_a_line_break_or_a_nul_is_refused_and_audited_escap
     a_login_name_with_a_line_break_or_a_nul_is_refused_and_audited_escaped_on(Backend::Postgres);
 }
 
-/// Issue 39 item 7: a refused login's name is written to the audit log with
+/// A refused login's name is written to the audit log with
 /// its line break, NUL or right-to-left override as an escape (no forged
 /// line, no reordered text), on both back ends (a NUL was a 500 on
 /// PostgreSQL, with no entry).
@@ -412,7 +412,7 @@ fn a_login_name_with_a_line_break_or_a_nul_is_refused_and_audited_escaped_on(bac
     assert!(refused.iter().any(|w| w == "adm\\u{0}in"), "{refused:?}");
 }
 
-/// Issue 39 items 3 and 8: a flood of connections, header-less and
+/// A flood of connections, header-less and
 /// anonymous, on a full server closes them, not the operator's event
 /// stream nor their status polls; and 2 MiB bodies sent to the login take
 /// no memory (refused by their Content-Length, before a byte is read).

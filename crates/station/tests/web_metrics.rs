@@ -1,4 +1,4 @@
-//! `GET /metrics` (issue 26): the Prometheus text format, checked by
+//! `GET /metrics`: the Prometheus text format, checked by
 //! `promtool check metrics` (Debian's prometheus package, installed by
 //! `scripts/test-tools`), with the station's state, the table's rate, the
 //! run's progress, the live instruments, each slot's temperature, the
@@ -163,7 +163,7 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
         sample(&after, "spinbench_store_write_seconds_count").unwrap_or(0.0) >= 1.0,
         "{after}"
     );
-    // Issue 39 item 10: after the run no instrument is live and no slot's
+    // After the run no instrument is live and no slot's
     // temperature is current.
     assert!(
         !after.contains("spinbench_slot_temperature_celsius{slot="),

@@ -1,4 +1,4 @@
-//! Issue 40's acceptance for the pages: after a run, every page of the web
+//! Acceptance for the pages: after a run, every page of the web
 //! UI in Chinese and in English, screenshot into `target/tmp/issue-40/`
 //! (looked at for the closing note), and no English word on a Chinese page
 //! but the run's own data (the station's, plans', users' and devices' names,

@@ -1,4 +1,4 @@
-//! `spinbench serve` rides out its database (issue 37): a PostgreSQL of
+//! `spinbench serve` rides out its database: a PostgreSQL of
 //! the test's own restarted under a run (the run completes with all its
 //! points; logins and `/api/runs` answer within 15 s of the database's
 //! return), and stalled (SIGSTOP) under a run (the abort reaches the safe

@@ -1,4 +1,4 @@
-//! `spinbench serve --tls-cert --tls-key` (issue 17, part 3): HTTPS with a
+//! `spinbench serve --tls-cert --tls-key`: HTTPS with a
 //! self-signed certificate made here, checked by a client that trusts only
 //! it; the session cookie is `Secure`; plain HTTP on the port and a client
 //! that does not trust the certificate get nothing; a wrong certificate or

@@ -3,7 +3,7 @@
 //! second, and the database size per hour of test, for SQLite and (when
 //! `SPINBENCH_TEST_POSTGRES` names a server, as `scripts/test` and
 //! `scripts/postgres` provide) PostgreSQL.
-//! With PostgreSQL also the fleet (issue 26): 8 stations × 96 instruments,
+//! With PostgreSQL also the fleet: 8 stations × 96 instruments,
 //! each on its own connection, writing their one-second values into one
 //! server at once as fast as it takes them — the write margin (capacity
 //! over the fleet's load of 8 writes a second) and the p99 of one write.

@@ -1,4 +1,4 @@
-//! Backups of an SQLite store (issue 17, part 5): a consistent copy made
+//! Backups of an SQLite store: a consistent copy made
 //! while the station may be writing, through SQLite's online backup API
 //! (rusqlite's `backup` feature), checked before it is called a backup.
 //! A PostgreSQL store is backed up by the server's own tools: `pg_dump` in
@@ -51,7 +51,7 @@ impl Store {
         if copy.schema_version()? != self.schema_version()? {
             return Err(fail("the copy's schema version differs".into()));
         }
-        // Out of WAL mode (issue 27 item 8): a backup is one self-contained
+        // Out of WAL mode: a backup is one self-contained
         // file that reads on read-only media (a WAL file needs its -shm).
         if let Db::Sqlite(conn) = &*copy.db.borrow() {
             conn.pragma_update(None, "journal_mode", "DELETE")
@@ -207,7 +207,7 @@ pub fn pg_restore(target: &StoreTarget, from: &Path) -> Result<(), StoreError> {
     let StoreTarget::Postgres(url) = target else {
         return Err(fail("not a PostgreSQL store".into()));
     };
-    // Into an empty database only (issue 39 item 10): said in words, not
+    // Into an empty database only: said in words, not
     // with pg_restore's first "already exists".
     let mut client = crate::connect_postgres(url)
         .map_err(|(what, e)| fail(format!("{what}: {}", crate::whole_reason(&e))))?;

@@ -1,4 +1,4 @@
-//! The equipment register (issue 16, part 4; per station since issue 39):
+//! The equipment register, kept per station:
 //! each device of each station by its station and its role in a run (`centrifuge`, `fmu 1`, `instrument supply`, …), its
 //! identity, calibration certificate, the date it was calibrated and the date
 //! it is due. Engineers keep it; every change is in the audit log.

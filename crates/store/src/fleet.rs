@@ -1,4 +1,4 @@
-//! The fleet (issue 26): every station that writes into this store, with a
+//! The fleet: every station that writes into this store, with a
 //! heartbeat — what it is doing now, which run, how far, when it was last
 //! heard — and the day's first-pass yield. Each `spinbench serve` beats
 //! every few seconds; a station not heard for [`OFFLINE_AFTER_S`] is offline.

@@ -1,4 +1,4 @@
-//! Readable run labels (issue 31 item 4): `2026-11-24 · station 1 · #7`,
+//! Readable run labels: `2026-11-24 · station 1 · #7`,
 //! the day the run started (UTC, as every date the station prints), the
 //! station's name and the run's sequence number among that station's runs
 //! of that day. The sequence is given when the run is first stored and

@@ -254,7 +254,7 @@ impl Store {
                     .map_err(|e| err("cannot set the busy timeout")(e.into()))?;
                 // A store in WAL mode needs its -shm beside it, which SQLite
                 // cannot make on read-only media or in a directory this user
-                // may not write (issue 27 item 8): such a file, which no one
+                // may not write: such a file, which no one
                 // can be writing, is read as immutable.
                 let first_read = conn.query_row("SELECT count(*) FROM sqlite_master", [], |r| {
                     r.get::<_, i64>(0)
@@ -514,7 +514,7 @@ fn enable_wal(conn: &rusqlite::Connection) -> Result<(), rusqlite::Error> {
 /// A PostgreSQL URL's connection settings. A URL without a password takes
 /// `env_password` (the process's `PGPASSWORD`, as libpq and pg_dump do), so
 /// the password need not be on a command line, where every user of the
-/// machine reads it in `ps` (issue 27 item 26; the packaged unit reads it
+/// machine reads it in `ps` (the packaged unit reads it
 /// from `/etc/spinbench/db.env`, mode 0640).
 pub fn pg_config(
     url: &str,
@@ -535,7 +535,7 @@ mod tests {
 
     #[test]
     fn a_url_without_a_password_takes_pgpassword() {
-        // Issue 27 item 26: the password from the environment (the unit's
+        // The password from the environment (the unit's
         // 0640 file), not the command line; one in the URL wins.
         let from_env =
             pg_config("postgres://spinbench@db/spinbench", Some("s3cret".into())).expect("url");

@@ -1,5 +1,5 @@
 //! The store's outbox: a run's events written to the store on a thread of
-//! their own, so that the run never waits on the database (issue 37).
+//! their own, so that the run never waits on the database.
 //!
 //! The engine hands each event to an [`OutboxSender`], which only queues
 //! it and returns. A writer thread takes the events in order and writes

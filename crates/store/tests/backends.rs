@@ -557,7 +557,7 @@ fn a_text_with_a_nul_is_stored_on_both_back_ends() {
     });
 }
 
-/// Issue 39 item 4: two engineers change one instrument's result at once,
+/// Two engineers change one instrument's result at once,
 /// each from the revision they read (on two connections, as two servers):
 /// one change lands, the other is told the result changed meanwhile and
 /// writes nothing — never both answered done with one of them lost.

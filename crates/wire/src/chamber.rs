@@ -1,4 +1,4 @@
-//! Temperature-chamber protocols (issue 15): what to send for each chamber
+//! Temperature-chamber protocols: what to send for each chamber
 //! operation and how to read the reply. No I/O; the `devices` crate's
 //! drivers run the exchanges over a transport.
 //!

@@ -1,11 +1,14 @@
-//! The signature's arithmetic: the median and its standard error, the
-//! polynomial's residual projector, and the spikes fitted beside the broad
-//! part (the module docs of [`super`]).
+//! The signature's arithmetic: each mounting's level residuals and slope,
+//! the median and its standard error, the polynomial's residual projector,
+//! and the spikes fitted beside the broad part (the module docs of
+//! [`super`]).
 
 use super::{
     BROAD_BUMPS, MAX_HEIGHT_UG, MAX_SPIKES, MIN_SPIKE_G, SE_FLOOR_UG, SIGNATURE_ALPHA, Spike,
 };
+use crate::UG_PER_G;
 use crate::lsq;
+use crate::points::Point;
 use nalgebra::DMatrix;
 
 /// Median and the standard error of the median (1.2533 × 1.4826 × MAD / √n).
@@ -140,4 +143,56 @@ pub(super) fn fit_spikes(
             height_ug: h,
         })
         .collect()
+}
+
+/// The level-mean residuals of `points`' polynomial fit of `degree`
+/// (leaving the levels `skip` out of the fit) as acceleration [µg], by level.
+pub(super) fn level_residuals(
+    points: &[Point],
+    degree: usize,
+    skip: &[f64],
+) -> Option<Vec<(f64, f64)>> {
+    let kept: Vec<&Point> = points
+        .iter()
+        .filter(|p| !skip.contains(&p.g_nominal.abs()))
+        .collect();
+    let x: Vec<f64> = kept.iter().map(|p| p.g_magnitude()).collect();
+    let y: Vec<f64> = kept.iter().map(|p| p.output).collect();
+    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
+    let c = &fit.coefficients;
+    let k1 = *c.get(1)?;
+    if !(k1.is_finite() && k1 != 0.0) {
+        return None;
+    }
+    let levels = crate::inadequacy::levels(points);
+    Some(
+        levels
+            .iter()
+            .map(|l| {
+                let r = l
+                    .members
+                    .iter()
+                    .map(|&i| {
+                        let a = points[i].g_magnitude();
+                        let predicted: f64 = c
+                            .iter()
+                            .enumerate()
+                            .map(|(j, cj)| cj * a.powi(j as i32))
+                            .sum();
+                        points[i].output - predicted
+                    })
+                    .sum::<f64>()
+                    / l.members.len() as f64;
+                (l.g, r / k1 * UG_PER_G)
+            })
+            .collect(),
+    )
+}
+
+/// The k1 (linear coefficient) of `points`' polynomial fit of `degree`.
+pub(super) fn slope_of(points: &[Point], degree: usize) -> Option<f64> {
+    let x: Vec<f64> = points.iter().map(Point::g_magnitude).collect();
+    let y: Vec<f64> = points.iter().map(|p| p.output).collect();
+    let fit = lsq::solve(&lsq::polynomial_design(&x, degree), &y, "table signature").ok()?;
+    fit.coefficients.get(1).copied()
 }

@@ -101,7 +101,7 @@ fn paired_differences_see_only_what_differs_between_temperatures() {
 
 #[test]
 fn each_temperature_carries_the_whole_of_its_differences_uncertainty() {
-    // Issue 30 item 6: not a share 1/√2 of it. What the pairs see moves
+    // Not a share 1/√2 of it. What the pairs see moves
     // with the temperature (a dip reached elsewhere as the resonators
     // warm), so the errors on either side of the reference add in the
     // slope: with the share the coefficients' U95 held the truth for
@@ -162,7 +162,7 @@ fn the_batch_judges_the_lines_scatter() {
 
 #[test]
 fn the_same_scatter_in_every_instrument_covers_the_small_u_ones_too() {
-    // Issue 30 item 6: every instrument's k1 line is bent by the same
+    // Every instrument's k1 line is bent by the same
     // amount (what the pairs cannot see does not shrink with u), but
     // one instrument has ten times smaller uᵢ. The additive τ²
     // covers the error of the small-u ones; the Birge ratio did not.
@@ -222,7 +222,7 @@ fn the_same_scatter_in_every_instrument_covers_the_small_u_ones_too() {
 
 #[test]
 fn a_dip_at_one_level_moves_the_paired_slope_and_its_uncertainty_says_so() {
-    // Issue 30, item 6: paired differences with an activity dip at one
+    // Paired differences with an activity dip at one
     // level (both directions) and a little noise: the dip moves the
     // fitted slope; the returned uncertainty covers that move, where
     // the residuals' standard error alone did not.

@@ -93,7 +93,7 @@ impl Executor<'_> {
         loop {
             let gave_up = if self.options.abort.is_set() {
                 // Whoever set the abort (a user, a signal), named as the
-                // flag has it (issue 39 item 10: a SIGTERM is not "the operator").
+                // flag has it (a SIGTERM is not "the operator").
                 Some(EngineError::Aborted(format!(
                     "{} while a write was failing ({last})",
                     self.options.abort.by()

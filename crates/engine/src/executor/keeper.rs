@@ -1,5 +1,5 @@
-//! The safe state's keeper for the chamber and the instruments' supply
-//! (issue 37 item 6): what the safe state could not confirm (a controller
+//! The safe state's keeper for the chamber and the instruments' supply:
+//! what the safe state could not confirm (a controller
 //! that timed out, one away beyond its outage budget) is tried again every
 //! [`KEEP_RETRY`] on a thread of its own, until the device answers or the
 //! process ends, as the centrifuge's stop is ([`super::keep_stopping`]).

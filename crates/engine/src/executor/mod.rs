@@ -434,7 +434,7 @@ impl<'a> Executor<'a> {
     /// say is recorded with the reason (the run's own checks decide whether it can work).
     fn identify(&mut self) -> Result<(), EngineError> {
         // An abort stops the asking: with devices that do not answer, each
-        // question takes a whole command's time (issue 27 item 2).
+        // question takes a whole command's time.
         let abort = self.options.abort.clone();
         let asked = |f: &mut dyn FnMut() -> Result<String, DeviceError>| {
             if abort.is_set() {
@@ -505,7 +505,7 @@ impl<'a> Executor<'a> {
     /// state, the records, the last state change and `RunFinished`. What
     /// the end itself could not do (a state change the table refused, an
     /// event a subscriber would not take after its hold) is not discarded:
-    /// it is said in the run's reason (issue 41 item 1).
+    /// it is said in the run's reason.
     fn finish(&mut self, result: Result<(), EngineError>) -> RunSummary {
         let mut end_problems: Vec<String> = Vec::new();
         let (mut state, reason) = match &result {

@@ -159,8 +159,8 @@ impl Executor<'_> {
     }
 }
 
-/// Longest the safe state goes on trying devices once it has started
-/// (issue 27 item 2). With every command bounded by
+/// Longest the safe state goes on trying devices once it has started.
+/// With every command bounded by
 /// [`spinbench_devices::line::MAX_COMMAND_MS`], a stop with silent devices
 /// ends within this plus one command, and the run is recorded well inside
 /// the service's stop time (`TimeoutStopSec=90`).

@@ -1,4 +1,4 @@
-//! The soak at a chamber temperature (issue 15, part 4): the purge on
+//! The soak at a chamber temperature: the purge on
 //! before the air goes below the dew point, the setpoint, then the air in
 //! band and the instruments' temperatures still for the plan's window; the
 //! chamber watched all the while (an alarm or a silent controller stops the

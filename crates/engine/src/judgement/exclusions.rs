@@ -130,7 +130,7 @@ pub fn exclude_after_run(
             g,
         });
     }
-    // Issue 27 item 9: an exclusion that leaves a mounting (or the joint K2)
+    // An exclusion that leaves a mounting (or the joint K2)
     // without a fit would turn a graded instrument into an ungradable one,
     // which nothing could undo: refused, the record stays as it was.
     let fitted = |r: &UnitRecord| {
@@ -151,7 +151,7 @@ pub fn exclude_after_run(
 }
 
 /// Withdraw an engineer's exclusion of level `g` in mounting `mount` from a
-/// finished run's record (issue 27 item 9): reduced and graded again with
+/// finished run's record: reduced and graded again with
 /// the other exclusions, by the run's own plan and station config.
 pub fn withdraw_exclusion_after_run(
     record: &UnitRecord,

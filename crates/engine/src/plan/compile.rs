@@ -235,7 +235,7 @@ impl TestPlan {
                     ),
                 );
             }
-            // Issue 39 item 7: Latin and Cyrillic (or Greek) letters in one
+            // Latin and Cyrillic (or Greek) letters in one
             // serial, or two serials that look alike (`SN-A1`, `SN-А1`), are
             // a typing slip or a forgery, never two instruments.
             if let Some(why) = crate::bounds::mixed_script(bare) {

@@ -1,7 +1,7 @@
 //! A plan's levels as data the planner writes: `levels = "auto"` designed
 //! for a K2 U95 target from the station's model, the order the passes
 //! visit the levels, and the prediction a plan carries into its run
-//! (issue 29; [`spinbench_analysis::design`] holds the arithmetic).
+//! ([`spinbench_analysis::design`] holds the arithmetic).
 
 use super::{AutoLevels, DecisionRule, LevelTable, Measurand, PlanError, PlanPrediction, TestPlan};
 use spinbench_analysis::{Mount, points};

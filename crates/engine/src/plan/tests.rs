@@ -89,7 +89,7 @@ fn a_value_that_is_not_a_number_never_passes() {
 #[test]
 fn guarded_k2_max_needs_every_mounting_inside_the_limit() {
     use DecisionRule::Guarded;
-    // Issue 30's case: P alone straddles the limit (15.99 + 5.39 > 20),
+    // Case: P alone straddles the limit (15.99 + 5.39 > 20),
     // while the larger |k2| (N) is well inside: inconclusive, decided by P.
     let both = [(15.99, Some(5.39)), (-17.49, Some(0.10))];
     assert_eq!(
@@ -219,7 +219,7 @@ fn bad_plans_name_the_key() {
 
 #[test]
 fn a_slot_written_two_ways_is_refused_not_dropped() {
-    // Issue 27, item 11: "01" beside "1" named slot 1 twice; one
+    // "01" beside "1" named slot 1 twice; one
     // instrument was silently dropped.
     let station = station(1);
     for key in ["01", "+1", " 1"] {
@@ -234,7 +234,7 @@ fn a_slot_written_two_ways_is_refused_not_dropped() {
 
 #[test]
 fn two_counter_modules_of_one_name_are_refused() {
-    // Issue 27, item 28.
+    //
     let fmu = "[[fmu]]\nname = \"f\"\ntransport = { kind = \"tcp\", address = \"127.0.0.1:1\" }\n";
     let text = format!(
         "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
@@ -248,7 +248,7 @@ fn two_counter_modules_of_one_name_are_refused() {
 
 #[test]
 fn a_temperature_the_station_would_stop_at_is_refused_before_anything_moves() {
-    // Issue 27, item 16: 70 °C on a station with instrument_max_c = 40.
+    // 70 °C on a station with instrument_max_c = 40.
     let fmu = "[[fmu]]\nname = \"f\"\ntransport = { kind = \"tcp\", address = \"127.0.0.1:1\" }\n";
     let text = format!(
         "[arm]\nradius_m = 0.8\nmax_g = 100\n[power]\ninstrument_supply = \"rails\"\n\
@@ -272,7 +272,7 @@ fn a_temperature_the_station_would_stop_at_is_refused_before_anything_moves() {
 
 #[test]
 fn look_alike_serials_are_one_serial_and_invisible_characters_are_refused() {
-    // Issue 27, item 24: a fullwidth Ａ is A (so the second is refused
+    // A fullwidth Ａ is A (so the second is refused
     // as the same instrument); a zero-width space or a right-to-left
     // override is refused, naming the character.
     let station = station(1);
@@ -285,7 +285,7 @@ fn look_alike_serials_are_one_serial_and_invisible_characters_are_refused() {
         let e = plan.compile(&station).expect_err(odd);
         assert!(e.to_string().contains("invisible character"), "{e}");
     }
-    // Issue 39 item 7: a Cyrillic А in a serial is refused, naming it.
+    // A Cyrillic А in a serial is refused, naming it.
     let plan =
         TestPlan::from_toml("[serials]\n1 = \"SN-A1\"\n2 = \"SN-\u{0410}1\"\n").expect("plan");
     let e = plan.compile(&station).expect_err("a look-alike");

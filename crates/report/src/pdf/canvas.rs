@@ -112,7 +112,7 @@ impl Canvas {
 
     /// `text` in lines at most `max_mm` wide, broken at spaces (within a
     /// word too long for a line, and in Chinese text, between characters):
-    /// nothing a signer must read is cut (issue 31 item 2). Every line after
+    /// nothing a signer must read is cut. Every line after
     /// the first is indented by two spaces.
     pub(super) fn wrap(&self, text: &str, size_pt: f32, max_mm: f32) -> Vec<String> {
         let mut lines = Vec::new();
@@ -348,7 +348,7 @@ impl Canvas {
         y_mm = header(self, x0, top);
         let last_y = PAGE_H_MM - MARGIN_MM - FOOTER_MM;
         for row in rows {
-            // The last column wraps (its reasons), never cut (issue 31 item 2).
+            // The last column wraps (its reasons), never cut.
             let last_lines = row
                 .get(n.saturating_sub(1))
                 .filter(|_| n > 0 && row.len() >= n)

@@ -277,7 +277,7 @@ fn unit_page(c: &mut Canvas, u: &UnitReport, lang: Lang) {
             y += 4.2;
         }
     }
-    // Wrapped, never cut: a signer reads every figure (issue 31 item 2).
+    // Wrapped, never cut: a signer reads every figure.
     for line in crate::diagnostic_lines_in(u, lang) {
         for text in c.wrap(&line, 8.0, PAGE_W_MM - 2.0 * MARGIN_MM) {
             c.text(MARGIN_MM, y, 8.0, &text, Align::Left);

@@ -1,4 +1,4 @@
-//! The PDF's first page: what a signer signs (issue 40 item 2). The run's
+//! The PDF's first page: what a signer signs. The run's
 //! identity beside the station's equipment with its due dates, the
 //! decision, one row per instrument (K2 ± U95, each mounting's k2 ± U95,
 //! verdict, one reason), the operator's actions and the station's notices

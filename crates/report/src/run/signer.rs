@@ -1,4 +1,4 @@
-//! What a signer reads on a run report's first page (issue 40 item 2),
+//! What a signer reads on a run report's first page,
 //! the same in the PDF and the HTML: the run's identity, the decision
 //! (which quantity was judged, against what limit, by which rule), one row
 //! per instrument with K2 ± U95 and each mounting's k2 ± U95, its verdict

@@ -1,4 +1,4 @@
-//! `spinbench backup DIR` and `spinbench restore FILE` (issue 17, part 5).
+//! `spinbench backup DIR` and `spinbench restore FILE`.
 
 use anyhow::{Context, Result};
 use spinbench_store::{Store, StoreTarget};
@@ -84,7 +84,7 @@ fn unused_name(dir: &Path, stamp: &str, ext: &str) -> std::path::PathBuf {
 }
 
 /// Copy each run's directory under `from` (DATA/runs) to `to`, except runs
-/// being run now (issue 27 item 4: a run's journal grows while it runs, so
+/// being run now (a run's journal grows while it runs, so
 /// a copy taken then is a torn one): a run's directory is locked by the
 /// process running it, and is copied under a shared lock of its own, so no
 /// run starts or resumes into it half-copied. Returns how many files were

@@ -84,7 +84,7 @@ pub(super) fn run_plan(
         let mut station = bench.station()?;
         let mut text = bench.station_toml().to_string();
         if let Some(source) = &station_source {
-            // Only the device sections are the bench's (issue 27 item 15):
+            // Only the device sections are the bench's:
             // the rest of the station's own config (its temperature limit,
             // Type B inputs, arm, name) stays as written.
             StationConfig::from_toml(&source.text).with_context(|| source.label.clone())?;
@@ -162,7 +162,7 @@ pub(super) fn run_plan(
             None => "a run started".to_string(),
         };
         let list = crate::equipment::station_equipment(&store, &station)?;
-        // The one admission gate (issue 41 item 3); at the station's own
+        // The one admission gate; at the station's own
         // terminal whoever starts a run may override, with a reason.
         use crate::equipment::{Admission, Refusal};
         match crate::equipment::admit(
@@ -212,7 +212,7 @@ pub(super) fn run_plan(
     let bench = match connect_bench(&prepared.station, Some(&prepared.dir.raw_dir())) {
         Ok(bench) => bench,
         Err(e) => {
-            // Nothing ran: leave no run directory behind (issue 27 item 17).
+            // Nothing ran: leave no run directory behind.
             prepared.dir.discard();
             return Err(e);
         }
@@ -318,7 +318,7 @@ mod tests {
 
     #[test]
     fn the_bench_replaces_only_the_device_sections() {
-        // Issue 27 item 15: the station's own temperature limit (and name,
+        // The station's own temperature limit (and name,
         // arm, Type B inputs) stay; the devices are the bench's.
         let own = devices("10.0.0.5:1", "[temperature]\ninstrument_max_c = 40\n")
             .replace("radius_m = 0.8", "radius_m = 0.75");

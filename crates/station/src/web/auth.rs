@@ -53,7 +53,7 @@ fn random_token() -> String {
 /// The open sessions: cached here, kept in the store (the SHA-256 of each
 /// token, never the token) so a restart keeps operators logged in. A kept
 /// session's role is its user's now: a user removed has no session. The
-/// store is the truth for a fleet of servers on one store (issue 26): a
+/// store is the truth for a fleet of servers on one store: a
 /// cached session is confirmed against it at least every [`RECHECK`], so a
 /// logout, a user's removal or a role change on another server ends it
 /// here within that time.
@@ -191,7 +191,7 @@ impl Sessions {
     /// store that cannot answer (down, or its connection held by a call
     /// that does not come back) leaves the cached session standing for
     /// reading and the safety controls, [`Confirmation::Unknown`]: a change
-    /// is refused on it (issue 39 item 6).
+    /// is refused on it.
     pub fn confirm(
         &self,
         store: &Mutex<Store>,

@@ -126,15 +126,15 @@ pub struct StatusSnapshot {
     pub slots: usize,
     /// Serial number per slot.
     pub serials: Vec<Option<String>>,
-    /// Every slot's live state (the board, issue 16 part 1).
+    /// Every slot's live state (the board).
     #[schema(value_type = Vec<Object>)]
     pub board: Vec<spinbench_engine::board::SlotState>,
     /// A fault stopped the run (`reason` says which); its banner stays
-    /// until someone acknowledges it (issue 31 item 1).
+    /// until someone acknowledges it.
     pub fault: bool,
     /// Who acknowledged the fault and when, once someone has (audited).
     pub fault_acknowledged: Option<Acknowledgement>,
-    /// The run's plan's predicted K2 U95 and centrifuge time (issue 29).
+    /// The run's plan's predicted K2 U95 and centrifuge time.
     #[schema(value_type = Option<Object>)]
     pub prediction: Option<spinbench_engine::plan::PlanPrediction>,
     /// What the run achieved, once it ended: the median K2 U95 and the

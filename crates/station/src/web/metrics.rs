@@ -1,4 +1,4 @@
-//! `GET /metrics` (issue 26): the station for the plant's monitoring, in the
+//! `GET /metrics`: the station for the plant's monitoring, in the
 //! Prometheus text format through the `prometheus` crate (TiKV's, the
 //! classic text format `promtool check metrics` reads). The gauges are read
 //! from the hub when scraped; the counters and the store's write latency
@@ -180,7 +180,7 @@ impl Metrics {
                 .set(if s == state { 1.0 } else { 0.0 });
         }
         // A rate not known (no run has read the table) is NaN, not 0: a
-        // table at rest and a table not read are two things (issue 39 item 10).
+        // table at rest and a table not read are two things.
         self.rate_deg_s.set(status.rate_deg_s.unwrap_or(f64::NAN));
         self.demand_deg_s
             .set(status.demand_deg_s.unwrap_or(f64::NAN));

@@ -292,7 +292,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         "{}://{local}/",
         if tls.is_some() { "https" } else { "http" }
     );
-    // The station's name is its own in the fleet (issue 39 item 2): not
+    // The station's name is its own in the fleet: not
     // while another live station holds it.
     claim_name(&state, &address, &identity, out)?;
     writeln!(

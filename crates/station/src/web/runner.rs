@@ -97,7 +97,7 @@ impl Operator for WebOperator {
             None if self.abort.is_set() => {
                 state.0 = None;
                 // Who asked (the web UI's user, or a signal), as the
-                // record names it (issue 27, item 13).
+                // record names it.
                 Answer {
                     proceed: false,
                     by: self.abort.by(),
@@ -165,7 +165,7 @@ pub enum ControlError {
 }
 
 /// Writes a run's audit entries once its id is known and before anything
-/// is switched on (issue 39 item 6): an error leaves the run unstarted.
+/// is switched on: an error leaves the run unstarted.
 pub type Admit<'a> = &'a dyn Fn(&str) -> Result<(), NotAudited>;
 
 /// A run's audit entries could not be written (the store's words).

@@ -4,13 +4,13 @@
 //! for its body, an idle timeout, and a shutdown that ends within a bounded
 //! time.
 //!
-//! **Slow clients** (issue 27): a client that opens many connections and
+//! **Slow clients**: a client that opens many connections and
 //! trickles a byte now and then would keep every slot taken, and an
 //! operator reaching for Abort would be refused. So a new connection is
 //! never refused for want of a slot: when its address holds
 //! [`ConnectionLimits::max_per_address`] connections, or the server holds
 //! `max_connections`, one connection (of that address, or of any) is closed
-//! to make room, the least useful first (issue 39 item 3: 300 connections
+//! to make room, the least useful first (300 connections
 //! from 300 addresses closed an operator's event stream 120 times in 45 s):
 //! one that never sent a request; then one without a session; then a
 //! logged-in one; an event stream of a logged-in user last

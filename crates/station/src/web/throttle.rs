@@ -44,7 +44,7 @@ pub struct LoginThrottle {
 }
 
 /// Most refused logins written to the audit log one by one per minute;
-/// beyond, they are counted and written as one line (issue 27, item 19: a
+/// beyond, they are counted and written as one line (a
 /// flood from many addresses wrote 120 rows a second and slowed every
 /// request).
 pub const REFUSALS_AUDITED_PER_MINUTE: u32 = 60;

@@ -1,4 +1,4 @@
-//! Finding English in a text meant to be Chinese (issue 40): shared by
+//! Finding English in a text meant to be Chinese: shared by
 //! the report and the page tests.
 
 /// Words of Latin letters that stand in a Chinese report or page: units,

@@ -36,8 +36,8 @@ stability = {{ hold_s = 3 }}
 }
 
 /// The run report `dir` holds for run `id` in format `ext`
-/// (`report-<label>-<id>-<language>.<ext>`: issue 31 item 4, issue 40
-/// item 2), English first when both are there.
+/// (`report-<label>-<id>-<language>.<ext>`),
+/// English first when both are there.
 #[allow(dead_code)] // not every test file reads reports
 pub fn report_file(dir: &std::path::Path, id: &str, ext: &str) -> std::path::PathBuf {
     let english = format!("{id}-en.{ext}");
@@ -67,7 +67,7 @@ pub fn report_file(dir: &std::path::Path, id: &str, ext: &str) -> std::path::Pat
 }
 
 /// The batch report's file of extension `ext` in `dir` (its name carries
-/// its runs and language: issue 40 item 2).
+/// its runs and language).
 #[allow(dead_code)] // not every test file reads batch reports
 pub fn batch_file(dir: &std::path::Path, ext: &str) -> std::path::PathBuf {
     std::fs::read_dir(dir)

@@ -64,7 +64,7 @@ impl Drop for Server {
 
 /// The store a test's server keeps: SQLite in its data directory, or a
 /// fresh database on the test PostgreSQL server (`SPINBENCH_TEST_POSTGRES`,
-/// started by `scripts/test`). Every web test runs on both (issue 26).
+/// started by `scripts/test`). Every web test runs on both.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Backend {
     /// `DATA/spinbench.db`.
@@ -330,8 +330,8 @@ impl Client {
             retry_after,
             body,
         };
-        // Every JSON answer of every web test is held to the document
-        // (issue 38): the schema of its operation and status.
+        // Every JSON answer of every web test is held to the document:
+        // the schema of its operation and status.
         if reply.content_type.starts_with("application/json") && path != "/api/openapi.json" {
             self.check_against_document(method, path, &reply);
         }

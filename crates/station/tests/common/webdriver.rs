@@ -193,8 +193,8 @@ impl Browser {
         }
     }
 
-    /// Click the prompt's Abort and cancel its confirmation (issue 40 item
-    /// 7): the run must still wait at its prompt.
+    /// Click the prompt's Abort and cancel its confirmation:
+    /// the run must still wait at its prompt.
     pub fn cancel_the_prompts_abort(&self) {
         self.click("#prompt-abort");
         self.dismiss_dialog();

@@ -1,4 +1,4 @@
-//! Control charts across the stored runs (issue 16, part 3): every chart
+//! Control charts across the stored runs: every chart
 //! with its limits, the Western Electric rules broken, its SVG, and the
 //! first-pass yields — the batch report's section, for the web UI; one
 //! station (centrifuge) at a time, this server's unless another is asked.

@@ -1,5 +1,5 @@
 //! The OpenAPI document, generated from the handlers' `#[utoipa::path]`
-//! attributes and the types of [`super::schema`] (issue 17, part 1): the
+//! attributes and the types of [`super::schema`]: the
 //! schemas are the types the handlers parse and send, so the document
 //! cannot drift from them; a test holds its paths to the route table.
 
@@ -34,7 +34,7 @@ impl Modify for SecuritySchemes {
 }
 
 /// Links from the answers that name runs (`GET /api/runs`, `POST
-/// /api/runs`) to every operation that takes a run id (issue 27 item 29), so
+/// /api/runs`) to every operation that takes a run id, so
 /// a client (and Schemathesis's stateful phase) can follow them with a run
 /// that exists, not only guess ids and meet 404. Added to the JSON rather
 /// than through utoipa's `Link`, which (5.5) writes `operation_id` where

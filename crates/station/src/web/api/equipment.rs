@@ -1,4 +1,4 @@
-//! The equipment register (issue 16, part 4): every device of the station
+//! The equipment register: every device of the station
 //! with its calibration certificate, dates and status, read by everyone and
 //! kept by engineers (each change in the audit log).
 

@@ -37,7 +37,7 @@ pub(super) async fn exclude_level(
 }
 
 /// Withdraw an engineer's exclusion of a level of one instrument of a
-/// finished run (an engineer, with a reason; issue 27 item 9): the record is
+/// finished run (an engineer, with a reason): the record is
 /// reduced and graded again with its other exclusions, and the audit log
 /// keeps the figures before and after.
 #[utoipa::path(post, path = "/api/runs/{id}/exclusions/withdraw", tag = "runs",
@@ -164,8 +164,8 @@ fn check_exclusion_ask(app: &App, id: &str, ask: &ExcludeLevel) -> ApiResult<()>
     }
     // Characters, not bytes (200 Chinese characters are 600 bytes); no
     // control characters into the record and the audit log.
-    // Nor a right-to-left override or a zero-width character (issue 39
-    // item 7): the one rule for every reason typed from outside.
+    // Nor a right-to-left override or a zero-width character:
+    // the one rule for every reason typed from outside.
     spinbench_engine::bounds::reason_text(&ask.reason, 500)
         .map_err(|why| ApiError::bad(format!("reason: {why}")))?;
     if app.runner.active().as_deref() == Some(id) {

@@ -176,7 +176,7 @@ pub(super) async fn fleet(
         let store = store(app)?;
         let mut rows = Vec::new();
         for r in store.stations()? {
-            // The run by its label (issue 40 item 8), the id beside it.
+            // The run by its label, the id beside it.
             let label = match &r.beat.run_id {
                 Some(id) => store.run(id)?.map(|run| run.label()),
                 None => None,

@@ -170,7 +170,7 @@ pub(super) async fn authorize_control(app: &App, headers: &HeaderMap) -> ApiResu
 
 /// The session of a request; with `confirm`, a cached session due for a
 /// check is confirmed against the store first, and refused (503) when the
-/// store cannot say (issue 39 item 6: a change on a session that may have
+/// store cannot say (a change on a session that may have
 /// ended elsewhere is not made).
 async fn authorize_as(
     app: &App,
@@ -289,7 +289,7 @@ fn parse_json<T: for<'de> Deserialize<'de>>(body: &[u8]) -> ApiResult<T> {
     serde_json::from_slice(body).map_err(|e| ApiError::bad(format!("the request body: {e}")))
 }
 
-/// The one way a handler reaches the store (issue 26): `work` runs on
+/// The one way a handler reaches the store: `work` runs on
 /// tokio's blocking pool, never on a runtime thread. The store's
 /// connections are synchronous — rusqlite, and the `postgres` client, which
 /// drives its own small runtime and panics inside another's — and a query
@@ -355,7 +355,7 @@ pub(super) async fn audit(app: &App, who: &str, action: &str, detail: &str) -> A
 
 /// Write entries of the audit log in one transaction (all or none), the
 /// problem in words: only inside [`blocking`]. An action whose entries
-/// cannot be written is not done (issue 39 item 6).
+/// cannot be written is not done.
 pub(super) fn audit_all(
     app: &AppState,
     who: &str,
@@ -528,7 +528,7 @@ async fn count_request(
         .get::<axum::extract::MatchedPath>()
         .map_or_else(|| "unmatched".to_string(), |p| p.as_str().to_string());
     // What the connection showed itself to be, for the server's choice of
-    // which connection to close when full (issue 39 item 3).
+    // which connection to close when full.
     let connection = request
         .extensions()
         .get::<Arc<crate::web::server::ConnectionState>>()

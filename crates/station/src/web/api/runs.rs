@@ -94,7 +94,7 @@ async fn check_equipment(
         )?)
     })
     .await?;
-    // The one admission gate (issue 41 item 3): an admin may override.
+    // The one admission gate: an admin may override.
     use crate::equipment::Refusal;
     match crate::equipment::admit(&list, required, override_reason, session.role >= Role::Admin) {
         Ok(crate::equipment::Admission::Clear) => Ok(None),
@@ -138,7 +138,7 @@ fn run_entries(
 /// starting opens the store, the run's files and the devices' ports. The
 /// audit entries `entries` makes of the run's id are written in one
 /// transaction before anything is switched on; if they cannot be, nothing
-/// starts (issue 39 item 6).
+/// starts.
 async fn start_plan(
     app: &App,
     plan: &TestPlan,
@@ -294,7 +294,7 @@ pub(super) async fn retest(
     })
     .await?;
     // The instruments go back to the centrifuge and fixtures they were
-    // measured on (issue 27 item 27): a run of another station is retested
+    // measured on: a run of another station is retested
     // there.
     let here = app.runner.station().0.station;
     if let Some(there) = recorded_by.filter(|s| *s != here) {
@@ -317,7 +317,7 @@ pub(super) async fn retest(
     })?;
     plan.operator = session.user.clone();
     // As a new run: an admin may override an overdue device, with a reason
-    // (issue 27, item 22: the 409 told them to).
+    // (the 409 told them to).
     let overridden = check_equipment(&app, &session, ask.override_overdue.as_deref()).await?;
     let (retested, reason, listed) = (id.clone(), ask.override_overdue.clone(), serials.join(" "));
     let run_id = start_plan(&app, &plan, &session.user, move |run_id| {
@@ -360,7 +360,7 @@ pub(super) async fn answer_prompt(
 ) -> ApiResult<Json<RunId>> {
     let session = authorize(&app, &headers, Role::Operator, true).await?;
     let answer: PromptAnswer = parse_json(&body)?;
-    // Audited first (issue 39 item 6): while the audit log cannot be
+    // Audited first: while the audit log cannot be
     // written the run waits at its prompt (the table at rest), and the
     // answer says so; abort and pause need no audit entry first.
     let Some(prompt) = app.runner.prompt() else {

@@ -47,7 +47,7 @@ async function start() {
   $("equipment-form").addEventListener("submit", saveEquipment);
   $("plan-select").addEventListener("change", fillSerials);
   $("prompt-done").addEventListener("click", () => answer(true));
-  // Issue 40 item 7: the prompt's Abort sits beside Done: it asks first.
+  // The prompt's Abort sits beside Done: it asks first.
   $("prompt-abort").addEventListener("click", () => { if (confirm(word("web.confirm.abort", "Abort the run? The station stops safely."))) answer(false); });
   $("pause-button").addEventListener("click", () => control("pause"));
   $("resume-button").addEventListener("click", () => control("resume"));

@@ -22,7 +22,7 @@ export async function loadCharts() {
       for (const v of chart.violations) {
         const tr = flags.insertRow();
         tr.className = "flagged";
-        // The run by its label and the instrument by its serial (issue 40 item 8).
+        // The run by its label and the instrument by its serial.
         tr.dataset.runId = v.run_id;
         [chart.quantity, v.point, v.run_label, v.serial || "—", Number(chart.points[v.point - 1].value).toFixed(6) + " " + chart.unit, v.says].forEach((x) => { tr.insertCell().textContent = x; });
       }

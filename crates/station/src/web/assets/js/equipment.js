@@ -19,7 +19,7 @@ export async function loadEquipment() {
       const tr = body.insertRow();
       tr.dataset.role = d.role;
       // A device not in the register shows the identity the station read
-      // from it (its *IDN?), for an engineer to confirm (issue 40 item 8).
+      // from it (its *IDN?), for an engineer to confirm.
       const identity = d.identity || (d.read_identity ? fill("web.equipment.read", "read: " + d.read_identity, { identity: d.read_identity }) : "—");
       [deviceWord(d.role), identity, d.certificate || "—", d.calibrated_on || "—", d.due_on || "—", word("web.calibration." + d.status.replace(/ /g, "_"), d.status), d.updated_by || "—"]
         .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 5) td.className = "cal " + d.status.replace(/ /g, "-"); });

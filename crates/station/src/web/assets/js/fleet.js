@@ -24,7 +24,7 @@ export async function loadFleet() {
       const fpy = st.first_pass_yield === null || st.first_pass_yield === undefined ? "—"
         : (100 * st.first_pass_yield).toFixed(0) + " % (" + st.passed_today + "/" + st.tested_today + ")";
       const kind = word("web.fleet.kind." + st.kind.replace(/ /g, "_"), st.kind);
-      // The latest run's outcomes at a glance (issue 40 item 1), coloured by the worst.
+      // The latest run's outcomes at a glance, coloured by the worst.
       const n = st.last_run_outcomes || {};
       const last = ["pass", "marginal", "fail", "inconclusive", "incomplete"].filter((o) => n[o])
         .map((o) => n[o] + " " + word("web.outcome." + o, o)).join(", ") || "—";

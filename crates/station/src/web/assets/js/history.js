@@ -3,7 +3,7 @@
 import { $, api, show, state } from "./core.js";
 import { fill, stateWord, word } from "./i18n.js";
 
-// A time [Unix s] in the station's zone, the zone said (issue 40 item 8;
+// A time [Unix s] in the station's zone, the zone said (
 // the zone comes with the status: UTC until it is known).
 export function fmtTime(t) { return new Date(t * 1000 + (state.utcOffsetMin || 0) * 60000).toISOString().replace("T", " ").slice(0, 16) + " " + (state.timeZone || "UTC"); }
 

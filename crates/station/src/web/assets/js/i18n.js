@@ -20,7 +20,7 @@ export async function setLanguage(language) {
     state.dirty = true;
     // The pages word again what they showed (the board, the event log,
     // what the server words: the status, the charts): announced, so this
-    // module knows no page (issue 41 item 5).
+    // module knows no page.
     document.dispatchEvent(new CustomEvent("spinbench:language", { detail: r.language }));
   } catch (e) { show(e.message); }
 }

@@ -140,7 +140,7 @@ export function promptText(fixtures, text) {
   return fill("web.say.prompt.mount_list", text, { list });
 }
 
-// The banner above every page (issue 31 item 1), by `kind`: "fault" (red,
+// The banner above every page, by `kind`: "fault" (red,
 // stays until someone acknowledges it: who and when go into the audit
 // log), "notice" (amber, a reading the station took again: gone at the
 // next step), "left-out" (amber, a slot left out: until the run ends),
@@ -158,7 +158,7 @@ export function alarm(text, kind) {
   }
 }
 
-// The end of a completed run at a glance (issue 40 item 1): how many
+// The end of a completed run at a glance: how many
 // instruments passed, were marginal, failed, were inconclusive or
 // incomplete, coloured by the worst.
 const OUTCOMES = ["pass", "marginal", "fail", "inconclusive", "incomplete"];
@@ -186,7 +186,7 @@ async function acknowledgeFault() {
 }
 
 // The board: every slot's serial, mounting, latest output, state, points,
-// k2 and K2 with U95 once fitted, outcome (issue 16, part 1).
+// k2 and K2 with U95 once fitted, outcome.
 export function renderBoard(board) {
   const body = $("board").tBodies[0];
   body.textContent = "";
@@ -243,7 +243,7 @@ export async function refreshStatus() {
   learnZone(s);
   const fix = (v, d) => (v === null || v === undefined) ? "—" : Number(v).toFixed(d);
   $("st-station").textContent = s.station + (s.simulated && !/virtual/.test(s.station) ? " (" + word("web.status.virtual", "virtual bench") + ")" : "");
-  // The run by its label once known (issue 40 item 8), else its id.
+  // The run by its label once known, else its id.
   $("st-run").textContent = s.run_id ? (state.runNames[s.run_id] || s.run_id) : word("web.status.none", "none");
   $("st-state").textContent = stateWord(s.state || "idle");
   $("st-rate").textContent = fill("web.status.rate", fix(s.rate_deg_s, 3) + " deg/s (demand " + fix(s.demand_deg_s, 3) + ")",
@@ -344,7 +344,7 @@ export function predictionRange(range) {
   return fill("web.run.prediction_range", "; the run's median K2 U95 with 80 % probability in " + vars.low + "–" + vars.high + " µg/g² (its instruments' anomalies differ)", vars);
 }
 
-// The plan's prediction, and once the run ended what it achieved (issue 29).
+// The plan's prediction, and once the run ended what it achieved.
 export function renderPrediction(p, a) {
   const box = $("run-prediction");
   if (!p) { box.hidden = true; return; }

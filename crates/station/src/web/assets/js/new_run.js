@@ -48,7 +48,7 @@ export async function saveStation(ev) {
   try { await api("PUT", "/api/station", $("station-text").value); show("station config saved", true); } catch (e) { show(e.message); }
 }
 
-// The chosen plan at a glance (issue 40 item 8): range, levels, mountings,
+// The chosen plan at a glance: range, levels, mountings,
 // duration, the judged quantity, its limit and rule, and whether it can
 // decide, before anything moves.
 export function planSummary(plan) {

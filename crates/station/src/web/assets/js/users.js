@@ -18,7 +18,7 @@ export async function loadUsers() {
     const audit = await api("GET", "/api/audit");
     const ab = $("audit-table").tBodies[0];
     ab.textContent = "";
-    // The action by its word (issue 40); its detail as it was recorded.
+    // The action by its word; its detail as it was recorded.
     for (const a of audit) {
       const tr = ab.insertRow();
       [fmtTime(a.at), word("web.who." + a.who, a.who), word("web.audit." + a.action, a.action), a.detail].forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 3) td.className = "detail"; });
