@@ -832,10 +832,22 @@ fn an_abort_from_the_api_ends_the_run_safely_on(backend: Backend) {
     let mut op = Client::login(&server, "op", "op-password");
     let r = op.send("POST", "/api/runs", Some(r#"{"plan": "api"}"#));
     assert_eq!(r.status, 201, "{:?}", r.json());
-    op.wait_status(60, |s| s["prompt"].is_string());
+    op.wait_status(60, |s| {
+        s["prompt"].is_string() && s["rate_deg_s"].is_number()
+    });
     assert_eq!(op.send("POST", "/api/run/abort", None).status, 200);
     let s = op.wait_status(60, |s| s["active"].is_null());
     assert_eq!(s["state"], "aborted", "{s}");
+    // Nothing is read once the run has ended: no last reading is shown as
+    // if the table were still spinning or the rails still on.
+    assert!(
+        s["rate_deg_s"].is_null()
+            && s["g_at_r0"].is_null()
+            && s["on_speed"].is_null()
+            && s["interlocks_closed"].is_null()
+            && s["supply"].as_array().is_some_and(Vec::is_empty),
+        "{s}"
+    );
     // The record names who aborted, not "abort".
     let run_id = s["run_id"].as_str().expect("run id").to_string();
     let run = op.get_json(&format!("/api/runs/{run_id}"), 200);

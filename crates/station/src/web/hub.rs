@@ -65,7 +65,9 @@ pub struct StatusSnapshot {
     pub step_wording: Option<Wording>,
     /// Settling or averaging at a level.
     pub progress: Option<ProgressNow>,
-    /// Measured rate [deg/s].
+    /// Measured rate [deg/s]; null before the first reading and once the
+    /// run has ended (nothing is read then), as are the g, the speed's
+    /// stability, the supplies and the interlocks.
     pub rate_deg_s: Option<f64>,
     /// Demanded rate [deg/s].
     pub demand_deg_s: Option<f64>,
@@ -467,6 +469,13 @@ impl Hub {
                 s.eta_s = None;
                 s.ended = true;
                 s.demand_deg_s = Some(0.0);
+                // Nothing is read once the run has ended: the last readings
+                // would show a stopped table spinning and dead rails on.
+                s.rate_deg_s = None;
+                s.g_at_r0 = None;
+                s.on_speed = None;
+                s.supply.clear();
+                s.interlocks_closed = None;
                 s.achieved = Some(spinbench_engine::planning::achieved(&state.records));
             }
             Event::UnitResult { record } => state.records.push((**record).clone()),
