@@ -333,6 +333,14 @@ pub struct OutlierLevel {
     pub p: f64,
 }
 
+impl OutlierLevel {
+    /// The level and how far off it is, as notes and reasons name it:
+    /// `40 g (+262 µg)`.
+    pub fn shown(&self) -> String {
+        format!("{} g ({:+.0} µg)", self.g, self.residual_ug)
+    }
+}
+
 /// Judge every level once against the curve through the other levels and
 /// the scatter they show (module docs); returns each level's judgement,
 /// flagged or not, in level order. `k1_abs` turns output into acceleration.

@@ -279,7 +279,7 @@ pub fn analyze_unit_with(
                         .map(|d| {
                             d.outlier_levels
                                 .iter()
-                                .map(|o| format!("{} g ({:+.0} µg)", o.g, o.residual_ug))
+                                .map(crate::inadequacy::OutlierLevel::shown)
                                 .collect()
                         })
                         .unwrap_or_default();

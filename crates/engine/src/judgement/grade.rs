@@ -166,7 +166,7 @@ fn note_reason(a: &spinbench_analysis::UnitAnalysis, note: &str) -> Reason {
         .map(|d| {
             d.outlier_levels
                 .iter()
-                .map(|o| format!("{} g ({:+.0} µg)", o.g, o.residual_ug))
+                .map(spinbench_analysis::inadequacy::OutlierLevel::shown)
                 .collect()
         })
         .unwrap_or_default();
