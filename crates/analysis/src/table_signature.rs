@@ -67,7 +67,9 @@ use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+mod change;
 mod fit;
+pub use change::{CHANGE_RELATIVE, CHANGE_Z, SignatureChange, change_of, disagreement};
 use fit::{fit_spikes, level_residuals, median_se, residual_projector, slope_of};
 
 /// Family-wise false-alarm rate of adding a line to the signature (over
@@ -186,6 +188,10 @@ pub struct TableSignature {
     /// The instrument-side levels found off the curve once the table was
     /// taken out: (serial, mounting, level [g]).
     pub instrument_levels: Vec<(String, Mount, f64)>,
+    /// The table changed since the earlier runs it was to be pooled with:
+    /// where, and that this signature rests on its own run alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub change: Option<SignatureChange>,
 }
 
 /// What past runs on the same centrifuge measured of its signature: per
@@ -199,12 +205,35 @@ pub struct Prior {
     pub runs: usize,
     /// The instruments it rests on.
     pub instruments: usize,
+    /// The older runs left out because their signature disagrees with the
+    /// newer ones' (the table changed since).
+    #[serde(default)]
+    pub set_aside_runs: usize,
 }
 
 impl Prior {
     /// Pool the runs' own signatures (each run's `levels`, its measurement
-    /// alone); `None` without any.
+    /// alone), `past` newest first: the newest run and each older one while
+    /// it agrees with those newer than it and none of those found the table
+    /// changed ([`disagreement`]); `None` without any.
     pub fn of(past: &[TableSignature]) -> Option<Prior> {
+        let mut agreeing: Vec<&TableSignature> = Vec::new();
+        for sig in past {
+            if let Some(newer) = Prior::pooled(&agreeing)
+                && (agreeing.iter().any(|s| s.change.is_some())
+                    || !disagreement(&newer.levels, &sig.levels).is_empty())
+            {
+                break;
+            }
+            agreeing.push(sig);
+        }
+        let mut prior = Prior::pooled(&agreeing)?;
+        prior.set_aside_runs = past.len() - agreeing.len();
+        Some(prior)
+    }
+
+    /// The inverse-variance pool of `past`, every one of them.
+    fn pooled(past: &[&TableSignature]) -> Option<Prior> {
         if past.is_empty() {
             return None;
         }
@@ -227,6 +256,7 @@ impl Prior {
             levels,
             runs: past.len(),
             instruments: past.iter().map(|s| s.instruments).sum(),
+            set_aside_runs: 0,
         })
     }
 
@@ -255,38 +285,75 @@ struct Series {
     own: Vec<f64>,
 }
 
+impl Series {
+    /// 0 for mounting P, 1 for N.
+    fn side(&self) -> usize {
+        usize::from(self.points.first().is_some_and(|p| p.mount != Mount::P))
+    }
+}
+
 /// The signature of `series` (each mounting's residuals over its
 /// instrument's coupling `gains`): the level set, the
 /// median residual and its standard error per level, and the mountings
 /// per level. Levels measured by fewer than half the mountings are left out.
+/// The table couples into both mountings alike: at a level where the two
+/// mountings' medians differ by more than [`CHANGE_Z`] standard errors,
+/// one mounting carries a feature of the instruments' own, and the
+/// mounting nearer zero gives the table's part there. The mountings of
+/// side `set_aside` (0 P, 1 N), whose whole batch shares a feature of its
+/// own, are left out.
 fn signature_of(
     residuals: &[(usize, Vec<(f64, f64)>)],
     series: &[Series],
     gains: &BTreeMap<String, f64>,
+    set_aside: Option<usize>,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<usize>) {
-    let mut at: BTreeMap<u64, Vec<f64>> = BTreeMap::new();
-    for (j, r) in residuals {
+    let residuals: Vec<&(usize, Vec<(f64, f64)>)> = residuals
+        .iter()
+        .filter(|(j, _)| Some(series[*j].side()) != set_aside)
+        .collect();
+    // Per level, the values of mountings P and N.
+    let mut at: BTreeMap<u64, [Vec<f64>; 2]> = BTreeMap::new();
+    for (j, r) in &residuals {
         let s = &series[*j];
         let gain = gains.get(&s.unit).copied().unwrap_or(1.0);
         for &(g, e) in r {
             if !s.own.contains(&g) {
-                at.entry(g.to_bits()).or_default().push(e / gain);
+                at.entry(g.to_bits()).or_default()[s.side()].push(e / gain);
             }
         }
     }
     let need = residuals.len().div_ceil(2).max(MIN_INSTRUMENTS);
     let (mut levels, mut s, mut se, mut count) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
-    let mut ordered: Vec<(f64, Vec<f64>)> = at
+    let mut ordered: Vec<(f64, [Vec<f64>; 2])> = at
         .into_iter()
         .map(|(g, v)| (f64::from_bits(g), v))
         .collect();
     ordered.sort_by(|a, b| a.0.total_cmp(&b.0));
-    for (g, mut v) in ordered {
+    for (g, [mut p, mut n_side]) in ordered {
+        let mut v: Vec<f64> = p.iter().chain(&n_side).copied().collect();
         if v.len() < need {
             continue;
         }
         let n = v.len();
-        if let Some((m, e)) = median_se(&mut v) {
+        let both = median_se(&mut v);
+        let one_mounting = match (median_se(&mut p), median_se(&mut n_side)) {
+            (Some((mp, ep)), Some((mn, en)))
+                if p.len() >= MIN_INSTRUMENTS && n_side.len() >= MIN_INSTRUMENTS =>
+            {
+                let scale = CHANGE_RELATIVE * mp.abs().max(mn.abs());
+                let z = (mp - mn).abs()
+                    / (ep.max(SE_FLOOR_UG).powi(2) + en.max(SE_FLOOR_UG).powi(2) + scale.powi(2))
+                        .sqrt();
+                (z > CHANGE_Z).then_some(if mp.abs() <= mn.abs() {
+                    (mp, ep)
+                } else {
+                    (mn, en)
+                })
+            }
+            _ => None,
+        };
+        if let Some((m, e)) = one_mounting.or(both) {
             levels.push(g);
             s.push(m);
             se.push(e.max(SE_FLOOR_UG));
@@ -396,8 +463,34 @@ pub fn estimate(units: &[UnitPoints], order: ModelOrder) -> Option<TableSignatur
 /// [`estimate`], the run's signature pooled with what past runs on the
 /// same centrifuge measured (`prior`) before the correction is made; the
 /// signature's `levels` stay the run's own measurement (what the next
-/// run's prior pools), its correction rests on both.
+/// run's prior pools), its correction rests on both. When the run's own
+/// signature disagrees with the prior ([`disagreement`]) the table has
+/// changed: the run learns alone and its signature's `change` says where.
 pub fn estimate_with(
+    units: &[UnitPoints],
+    order: ModelOrder,
+    prior: Option<&Prior>,
+) -> Option<TableSignature> {
+    let pooled = estimate_once(units, order, prior)?;
+    let Some(prior) = prior else {
+        return Some(pooled);
+    };
+    if disagreement(&prior.levels, &pooled.levels).is_empty() {
+        return Some(pooled);
+    }
+    let Some(mut alone) = estimate_once(units, order, None) else {
+        return Some(pooled);
+    };
+    let Some(change) = change_of(&disagreement(&prior.levels, &alone.levels), prior.runs) else {
+        return Some(pooled);
+    };
+    alone.change = Some(change);
+    alone.runs = 1;
+    Some(alone)
+}
+
+/// One estimate of the signature, pooled with `prior` when given.
+fn estimate_once(
     units: &[UnitPoints],
     order: ModelOrder,
     prior: Option<&Prior>,
@@ -430,13 +523,15 @@ pub fn estimate_with(
     let mut result = None;
     // Three rounds: the table from the mountings, then each mounting's own
     // levels off the curve with the table taken out, then the table again.
+    // A side whose mountings share a level off the curve of their own.
+    let mut set_aside: Option<usize> = None;
     for _round in 0..3 {
         let residuals: Vec<(usize, Vec<(f64, f64)>)> = series
             .iter()
             .enumerate()
             .filter_map(|(j, s)| level_residuals(&s.points, degree, &s.own).map(|r| (j, r)))
             .collect();
-        let (levels, s, se, count) = signature_of(&residuals, &series, &gains);
+        let (levels, s, se, count) = signature_of(&residuals, &series, &gains, set_aside);
         if levels.len() < degree + 4 {
             return None;
         }
@@ -457,21 +552,37 @@ pub fn estimate_with(
                 .map(|o| o.g)
                 .collect();
         }
-        // A level off the curve in many mountings at once is the table's
-        // (what the correction does not yet explain), not an instrument's.
-        let mut flagged_in: BTreeMap<u64, usize> = BTreeMap::new();
+        // A level off the curve in many mountings of both sides at once is
+        // the table's (what the correction does not yet explain), not an
+        // instrument's; one flagged in many of one side only is a feature
+        // the batch's instruments share in that mounting, theirs.
+        let mut flagged_in: BTreeMap<u64, [usize; 2]> = BTreeMap::new();
+        let mut on_side = [0_usize; 2];
         for sr in &series {
+            on_side[sr.side()] += 1;
             for g in &sr.own {
-                *flagged_in.entry(g.to_bits()).or_default() += 1;
+                flagged_in.entry(g.to_bits()).or_default()[sr.side()] += 1;
             }
         }
-        // A spike's level is the table's in every mounting.
-        let shared = (series.len() as f64 * MAX_OWN_SHARE).max(1.0);
+        let shared = on_side.map(|n| (n as f64 * MAX_OWN_SHARE).max(1.0));
+        // A level flagged in most of one side's mountings and few of the
+        // other's: that side's batch shares a feature of its own, and the
+        // table is learned from the other side alone (a mounting fitted
+        // without a level sees the table's resonances through another
+        // projection).
+        set_aside = set_aside.or_else(|| {
+            flagged_in.values().find_map(|n| {
+                (0..2).find(|&side| {
+                    n[side] as f64 > 0.5 * on_side[side] as f64
+                        && n[1 - side] as f64 <= shared[1 - side]
+                })
+            })
+        });
         for sr in &mut series {
             sr.own.retain(|g| {
                 flagged_in
                     .get(&g.to_bits())
-                    .is_some_and(|&n| n as f64 <= shared)
+                    .is_some_and(|n| n[0] as f64 <= shared[0] || n[1] as f64 <= shared[1])
                     && !correction.spikes.iter().any(|sp| sp.g == *g)
             });
         }
@@ -497,7 +608,7 @@ pub fn estimate_with(
                 .filter(|(j, _)| &series[*j].unit != left_out)
                 .cloned()
                 .collect();
-            let (lv, sv, sev, _) = signature_of(&kept, &series, &gains);
+            let (lv, sv, sev, _) = signature_of(&kept, &series, &gains, set_aside);
             let (sv, sev) = match prior {
                 Some(p) => p.pool(&lv, &sv, &sev),
                 None => (sv, sev),
@@ -545,6 +656,7 @@ pub fn estimate_with(
         detection_ug: DETECTION_Z * median_se,
         replicates,
         instrument_levels,
+        change: None,
     })
 }
 
@@ -649,8 +761,15 @@ impl TableSignature {
                 .join(", ");
             format!("resonance {sharp}; the broad error's seen part up to {largest:.0} µg")
         };
+        let changed = self.change.as_ref().map_or(String::new(), |c| {
+            format!(
+                "; changed at {} since the {} earlier run(s), which are set aside",
+                c.levels_shown(),
+                c.earlier_runs
+            )
+        });
         format!(
-            "the centrifuge's signature from {} instrument(s), {} mounting(s), {} run(s): {lines}; detection limit {:.0} µg",
+            "the centrifuge's signature from {} instrument(s), {} mounting(s), {} run(s): {lines}; detection limit {:.0} µg{changed}",
             self.instruments, self.mountings, self.runs, self.detection_ug
         )
     }

@@ -121,7 +121,7 @@ pub fn describe(signature: &TableSignature, lang: crate::Lang) -> String {
         .remainder
         .iter()
         .fold(0.0_f64, |m, (_, r)| m.max(r.abs()));
-    rust_i18n::t!(
+    let text = rust_i18n::t!(
         "signature.describe",
         instruments = signature.instruments,
         mountings = signature.mountings,
@@ -131,5 +131,18 @@ pub fn describe(signature: &TableSignature, lang: crate::Lang) -> String {
         detection = format!("{:.0}", signature.detection_ug),
         locale = lang.code()
     )
-    .into_owned()
+    .into_owned();
+    match &signature.change {
+        Some(change) => format!(
+            "{text} {}",
+            rust_i18n::t!(
+                "signature.changed",
+                levels = change.levels_shown(),
+                runs = change.earlier_runs,
+                z = format!("{:.0}", change.largest_z),
+                locale = lang.code()
+            )
+        ),
+        None => text,
+    }
 }

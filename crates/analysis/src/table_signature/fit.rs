@@ -78,14 +78,24 @@ pub(super) fn fit_spikes(
     // misfit counts, not only the standard errors) is significant at
     // SIGNATURE_ALPHA over the candidate levels (Bonferroni).
     let candidates = levels.iter().filter(|g| **g >= MIN_SPIKE_G).count().max(1) as f64;
-    let significant = |ss: f64, new_ss: f64, k: usize| -> bool {
+    // `added` spikes at once (k shapes in all): two resonances mask each
+    // other, neither significant alone while the other's misfit counts,
+    // so a pair is tried when no single spike is (its candidates the
+    // pairs of levels).
+    let significant = |ss: f64, new_ss: f64, k: usize, added: usize| -> bool {
         use statrs::distribution::{ContinuousCDF, FisherSnedecor};
         let dof = n as f64 - (degree + 1) as f64 - k as f64;
         if dof < 1.0 || new_ss <= 0.0 {
             return ss > new_ss;
         }
-        let f = (ss - new_ss) / (new_ss / dof).max(1.0);
-        FisherSnedecor::new(1.0, dof).is_ok_and(|d| d.sf(f) * candidates < SIGNATURE_ALPHA)
+        let q = added as f64;
+        let f = (ss - new_ss) / q / (new_ss / dof).max(1.0);
+        let tried = if added == 1 {
+            candidates
+        } else {
+            candidates * (candidates - 1.0) / 2.0
+        };
+        FisherSnedecor::new(q, dof).is_ok_and(|d| d.sf(f) * tried < SIGNATURE_ALPHA)
     };
     // Weighted least squares of s on the broad part and the spikes at
     // `chosen`: the spikes' heights and the weighted residual SS.
@@ -128,12 +138,42 @@ pub(super) fn fit_spikes(
         let Some((l, new_ss, h)) = best else {
             break;
         };
-        if !significant(ss, new_ss, broad.len() + chosen.len() + 1) {
+        if significant(ss, new_ss, broad.len() + chosen.len() + 1, 1) {
+            chosen.push(l);
+            heights = h;
+            ss = new_ss;
+            continue;
+        }
+        if chosen.len() + 2 > MAX_SPIKES {
             break;
         }
-        chosen.push(l);
-        heights = h;
-        ss = new_ss;
+        let open: Vec<usize> = (0..n)
+            .filter(|&l| !chosen.contains(&l) && levels[l] >= MIN_SPIKE_G)
+            .collect();
+        let mut best_pair: Option<([usize; 2], f64, Vec<f64>)> = None;
+        for (i, &a) in open.iter().enumerate() {
+            // Two spikes side by side are a broad feature, not two
+            // resonances each met at one speed.
+            for &b in open[i + 1..].iter().filter(|&&b| b > a + 1) {
+                let mut trial = chosen.clone();
+                trial.extend([a, b]);
+                if let Some((h, new_ss)) = solve(&trial)
+                    && best_pair.as_ref().is_none_or(|p| new_ss < p.1)
+                {
+                    best_pair = Some(([a, b], new_ss, h));
+                }
+            }
+        }
+        match best_pair {
+            Some((pair, new_ss, h))
+                if significant(ss, new_ss, broad.len() + chosen.len() + 2, 2) =>
+            {
+                chosen.extend(pair);
+                heights = h;
+                ss = new_ss;
+            }
+            _ => break,
+        }
     }
     chosen
         .iter()

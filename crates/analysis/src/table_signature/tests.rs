@@ -6,7 +6,8 @@ use rand_distr::{Distribution, Normal};
 /// A run of `n` instruments (both mountings, the published levels up and
 /// down), each with its own K2 and bias, white noise `noise_ug`, on a table
 /// with `table` lines (gain per instrument from 0.8 to 1.2), and
-/// instrument `dip.0` with a dip of `dip.2` µg at level `dip.1` in P.
+/// instrument `dip.0` (every one: `usize::MAX`) with a dip of `dip.2` µg
+/// at level `dip.1` in P.
 /// A line of the table's error in |a|: (centre [g], half-width [g], height [µg]).
 type Line = (f64, f64, f64);
 
@@ -38,7 +39,11 @@ pub(super) fn run(
                 for &g in levels.iter().chain(levels.iter().rev()) {
                     let table_ug = gain * line_at(table, g);
                     let dip_ug = match dip {
-                        Some((who, at, size)) if who == i && mount == Mount::P && at == g => size,
+                        Some((who, at, size))
+                            if (who == i || who == usize::MAX) && mount == Mount::P && at == g =>
+                        {
+                            size
+                        }
                         _ => 0.0,
                     };
                     let a = g + (table_ug + dip_ug) * 1e-6 + noise.sample(&mut rng);
@@ -201,4 +206,175 @@ fn past_runs_on_the_same_table_sharpen_the_correction() {
         spread(&pooled),
         spread(&alone)
     );
+}
+
+/// Six runs' signatures on `table`, newest first (each its own run's).
+fn six_runs_on(table: &[Line]) -> Vec<TableSignature> {
+    let mut past: Vec<TableSignature> = Vec::new();
+    for s in 0..6 {
+        let prior = Prior::of(&past);
+        let sig = estimate_with(
+            &run(60 + s, 12, table, 10.0, None),
+            ModelOrder::Cubic,
+            prior.as_ref(),
+        )
+        .expect("a signature");
+        past.insert(0, sig);
+    }
+    past
+}
+
+fn spike_at(s: &TableSignature, g: f64) -> Option<f64> {
+    s.correction
+        .spikes
+        .iter()
+        .find(|sp| sp.g == g)
+        .map(|sp| sp.height_ug)
+}
+
+#[test]
+fn an_unchanged_table_pools_every_run_and_says_nothing() {
+    let table = typical_table();
+    let past = six_runs_on(&table);
+    assert!(
+        past.iter().all(|s| s.change.is_none()),
+        "no false alarm among the six"
+    );
+    assert_eq!(past[0].runs, 6, "{}", past[0].describe());
+    for seed in 0..12 {
+        let prior = Prior::of(&past).expect("a prior");
+        assert_eq!((prior.runs, prior.set_aside_runs), (6, 0));
+        let sig = estimate_with(
+            &run(100 + seed, 12, &table, 10.0, None),
+            ModelOrder::Cubic,
+            Some(&prior),
+        )
+        .expect("a signature");
+        assert!(sig.change.is_none(), "seed {seed}: {}", sig.describe());
+        assert_eq!(sig.runs, 7);
+    }
+}
+
+#[test]
+fn a_moved_resonance_is_said_and_the_run_learns_alone() {
+    let old = typical_table();
+    let past = six_runs_on(&old);
+    let moved = vec![(55.0, 0.6, 16_000.0), (52.0, 14.0, -3_500.0)];
+    let units = run(200, 12, &moved, 10.0, None);
+    let prior = Prior::of(&past).expect("a prior");
+    let sig = estimate_with(&units, ModelOrder::Cubic, Some(&prior)).expect("a signature");
+    let change = sig.change.clone().expect("the change is said");
+    assert!(
+        change.levels_g.contains(&40.0) && change.levels_g.contains(&55.0),
+        "{change:?}"
+    );
+    assert_eq!(change.earlier_runs, 6);
+    assert_eq!(sig.runs, 1);
+    assert!(
+        sig.describe().contains("changed at 40 g, 55 g"),
+        "{}",
+        sig.describe()
+    );
+    // It corrects the new resonance, not the old one, as a new station would.
+    assert!(spike_at(&sig, 40.0).is_none(), "{}", sig.describe());
+    let new = spike_at(&sig, 55.0).expect("the new resonance");
+    assert!(
+        (new - 16_000.0).abs() < 0.1 * 16_000.0,
+        "{}",
+        sig.describe()
+    );
+    let fresh = estimate(&units, ModelOrder::Cubic).expect("a new station's");
+    assert_eq!(sig.correction, fresh.correction);
+    // Couplings are the instruments' own (0.8–1.2), not pinned at a clamp.
+    assert!(
+        sig.gains.values().all(|g| (0.7..=1.3).contains(g)),
+        "{:?}",
+        sig.gains
+    );
+    // The next run pools only the runs since the change.
+    let mut newest = past.clone();
+    newest.insert(0, sig);
+    let prior = Prior::of(&newest).expect("a prior");
+    assert_eq!((prior.runs, prior.set_aside_runs), (1, 6));
+    let next = estimate_with(
+        &run(201, 12, &moved, 10.0, None),
+        ModelOrder::Cubic,
+        Some(&prior),
+    )
+    .expect("a signature");
+    assert!(next.change.is_none(), "{}", next.describe());
+    assert_eq!(next.runs, 2);
+}
+
+#[test]
+fn a_repaired_or_shrunk_resonance_is_a_change_too() {
+    let past = six_runs_on(&typical_table());
+    let prior = Prior::of(&past).expect("a prior");
+    for (what, height) in [("repaired", 0.0), ("shrunk", 8_000.0)] {
+        let table = vec![(40.0, 0.6, height), (52.0, 14.0, -3_500.0)];
+        let sig = estimate_with(
+            &run(300, 12, &table, 10.0, None),
+            ModelOrder::Cubic,
+            Some(&prior),
+        )
+        .expect("a signature");
+        let change = sig
+            .change
+            .clone()
+            .unwrap_or_else(|| panic!("{what}: {}", sig.describe()));
+        assert!(change.levels_g.contains(&40.0), "{what}: {change:?}");
+        let seen = spike_at(&sig, 40.0).unwrap_or(0.0);
+        assert!(
+            (seen - height).abs() < 1_000.0,
+            "{what}: {}",
+            sig.describe()
+        );
+    }
+}
+
+#[test]
+fn two_sharp_resonances_are_both_found() {
+    let table = vec![
+        (40.0, 0.6, 16_000.0),
+        (55.0, 0.6, -9_000.0),
+        (52.0, 14.0, -3_500.0),
+    ];
+    let sig = estimate(&run(400, 12, &table, 10.0, None), ModelOrder::Cubic).expect("a signature");
+    let a = spike_at(&sig, 40.0).unwrap_or_else(|| panic!("{}", sig.describe()));
+    let b = spike_at(&sig, 55.0).expect("55 g");
+    assert!(
+        (a - 16_000.0).abs() < 800.0 && (b + 9_000.0).abs() < 800.0,
+        "{}",
+        sig.describe()
+    );
+}
+
+#[test]
+fn a_defect_the_whole_batch_shares_in_one_mounting_is_not_the_tables() {
+    let table = typical_table();
+    let units = run(500, 12, &table, 10.0, Some((usize::MAX, 30.0, 8_000.0)));
+    let sig = estimate(&units, ModelOrder::Cubic).expect("a signature");
+    let clean = estimate(&run(500, 12, &table, 10.0, None), ModelOrder::Cubic).expect("clean");
+    assert!(spike_at(&sig, 30.0).is_none(), "{}", sig.describe());
+    // At most 6 % of the 8,000 µg is taken for the table (half of it
+    // when P and N were one population).
+    for l in [25.0, 30.0, 35.0] {
+        let (with, without) = (sig.correction.at_level(l), clean.correction.at_level(l));
+        assert!(
+            (with - without).abs() < 480.0,
+            "{l} g: {with} against {without} without it"
+        );
+    }
+    assert!(spike_at(&sig, 40.0).is_some(), "{}", sig.describe());
+    // Mounting N, which has no defect, comes out as it does without it.
+    let mut worst = 0.0_f64;
+    for (u, c) in units.iter().zip(run(500, 12, &table, 10.0, None)) {
+        let n_of = |p: &[Point]| -> Vec<Point> {
+            p.iter().filter(|p| p.mount == Mount::N).copied().collect()
+        };
+        let with = k2_of(&sig.correct(&u.unit, &n_of(&u.points)));
+        let without = k2_of(&clean.correct(&c.unit, &n_of(&c.points)));
+        worst = worst.max((with - without).abs());
+    }
+    assert!(worst < 0.5, "mounting N's k2 moved by up to {worst} µg/g²");
 }

@@ -3,6 +3,7 @@
 
 use super::Executor;
 use super::stability::mean_std;
+use crate::event::{Event, Wording};
 use crate::judgement::{
     analysis_options, grade, graded_points, plan_exclusions, table_signature, temperature_reasons,
     unmeasured,
@@ -324,5 +325,28 @@ impl Executor<'_> {
             record.temperature_coefficients = pooled.next();
         }
         out
+    }
+}
+
+/// The notice of a centrifuge whose signature left the earlier runs'
+/// (docs/method.md §6, "A learned centrifuge checks itself").
+pub(super) fn table_change_notice(
+    change: &spinbench_analysis::table_signature::SignatureChange,
+) -> Event {
+    let levels = change.levels_shown();
+    let z = format!("{:.0}", change.largest_z);
+    Event::Notice {
+        message: format!(
+            "the centrifuge's signature changed at {levels} since the {} earlier run(s) on this table \
+             (up to {z} standard errors): this run corrects by its own signature alone and the earlier \
+             runs are set aside; check the table (a fixture, the balance, a repair) if nobody changed it",
+            change.earlier_runs
+        ),
+        wording: Some(
+            Wording::new("notice.table_signature_changed")
+                .with("levels", &levels)
+                .with("runs", change.earlier_runs)
+                .with("z", &z),
+        ),
     }
 }

@@ -563,6 +563,15 @@ impl<'a> Executor<'a> {
             (None, false) => Some(format!("while making safe: {}", safe_problems.join("; "))),
         };
         let records = self.records(complete, reason.as_deref());
+        // A table that changed since the runs this one was to pool with is
+        // said once, before the results it corrected.
+        if let Some(change) = records
+            .iter()
+            .find_map(|r| r.table_signature.as_ref()?.change.clone())
+            && let Err(not_said) = self.emit(judge::table_change_notice(&change))
+        {
+            end_problems.push(format!("the table-change notice: {not_said}"));
+        }
         for r in &records {
             if let Err(not_said) = self.emit(Event::UnitResult {
                 record: Box::new(r.clone()),

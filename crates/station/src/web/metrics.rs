@@ -34,6 +34,8 @@ pub struct Metrics {
     store_queue_depth: IntGauge,
     store_queue_age_s: Gauge,
     store_run_errors: IntGauge,
+    /// The process's failed run writes already counted into `store_errors`.
+    run_failures_counted: std::sync::atomic::AtomicU64,
 }
 
 /// The run states the state gauge has a series for (1 for the one now).
@@ -94,7 +96,7 @@ impl Metrics {
         )?;
         let store_errors = IntCounter::new(
             "spinbench_store_errors_total",
-            "the heartbeat's writes to the store that failed",
+            "the station's writes to the store that failed: the heartbeat's and every run's",
         )?;
         let store_queue_depth = IntGauge::new(
             "spinbench_store_queue_events",
@@ -141,6 +143,7 @@ impl Metrics {
             store_queue_depth,
             store_queue_age_s,
             store_run_errors,
+            run_failures_counted: std::sync::atomic::AtomicU64::new(0),
         })
     }
 
@@ -166,6 +169,12 @@ impl Metrics {
         if !self.store_answering() {
             self.store_up.set(0);
         }
+        // Every run's failed writes, counted once each.
+        let run_failures = spinbench_store::outbox::run_write_failures();
+        let seen = self
+            .run_failures_counted
+            .swap(run_failures, std::sync::atomic::Ordering::Relaxed);
+        self.store_errors.inc_by(run_failures.saturating_sub(seen));
         if let Some(h) = store {
             if !h.up {
                 self.store_up.set(0);

@@ -49,6 +49,10 @@ pub(super) async fn signature(
                     height_ug: s.height_ug,
                 })
                 .collect(),
+            changed_at_g: sig
+                .change
+                .as_ref()
+                .map_or_else(Vec::new, |c| c.levels_g.clone()),
             text: spinbench_report::signature::describe(&sig, lang),
             svg: spinbench_report::signature::svg(&sig, lang),
         },
@@ -57,6 +61,7 @@ pub(super) async fn signature(
             runs: 0,
             instruments: 0,
             spikes: Vec::new(),
+            changed_at_g: Vec::new(),
             text: spinbench_report::lang::tr(lang, "signature.none"),
             svg: None,
         },

@@ -97,6 +97,10 @@ pub struct SignatureReply {
     pub instruments: usize,
     /// The sharp resonances, each at one level, corrected whole.
     pub spikes: Vec<SignatureSpike>,
+    /// The levels at which that run found the table changed since the
+    /// runs before it [g] (empty: no change; the earlier runs are set
+    /// aside when not).
+    pub changed_at_g: Vec<f64>,
     /// What it rests on and what it corrected, in the user's language.
     pub text: String,
     /// Its plot (SVG), when learned.
