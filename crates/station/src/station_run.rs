@@ -217,6 +217,20 @@ pub fn execute(
     });
     match caught_up {
         Ok(f) if f.left == 0 => {}
+        Ok(f) if f.refused.is_some() => {
+            // The store answered and refused (a permission, a constraint):
+            // no outage, and waiting mends nothing. Never "completed, exit 0".
+            anyhow::bail!(
+                "the store {store} refused this run's events ({}): {} of them are kept in {} and written at the \
+                 station's next start once the store takes them; the run's results are in {}. If the store was \
+                 upgraded, its owner grants the station's role its rights: `spinbench migrate --db {} --grant ROLE`",
+                f.refused.as_deref().unwrap_or_default(),
+                f.left,
+                dir.join(spinbench_store::outbox::OUTBOX_FILE).display(),
+                dir.join("results.json").display(),
+                store.for_owner()
+            );
+        }
         Ok(f) => {
             eprintln!(
                 "  note: the store {store} did not take {} events of this run within {} s; they are kept in {} \

@@ -855,3 +855,79 @@ fn a_store_written_by_a_newer_release_is_never_written_to() {
         "the store was written"
     );
 }
+
+#[test]
+fn postgres_a_role_the_upgrade_left_without_rights_fails_loudly_until_migrate_grants_them() {
+    // The README's data-only role, granted on the tables the store had;
+    // then a table it may not write, as after an upgrade whose migration
+    // added one (its owner's rights only).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let url = fresh_postgres();
+    let role = format!(
+        "up_{}",
+        url.rsplit('/')
+            .next()
+            .unwrap_or("x")
+            .trim_start_matches("spinbench_test_")
+    );
+    let mut owner = postgres::Client::connect(&url, postgres::NoTls).expect("owner");
+    owner
+        .batch_execute(&format!(
+            "CREATE ROLE {role} LOGIN;
+             GRANT USAGE ON SCHEMA public TO {role};
+             GRANT SELECT, INSERT, UPDATE, DELETE ON ALL TABLES IN SCHEMA public TO {role};
+             GRANT USAGE ON ALL SEQUENCES IN SCHEMA public TO {role};
+             REVOKE ALL ON results FROM {role};"
+        ))
+        .expect("the role an upgrade left");
+    drop(owner);
+    let app = url.replacen("://spinbench@", &format!("://{role}@"), 1);
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("UP-")).expect("plan");
+    let data = dir.path().join("data");
+    let run = || {
+        spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--data",
+            data.to_str().expect("utf-8"),
+            "--db",
+            &app,
+            plan.to_str().expect("utf-8"),
+        ])
+    };
+    // Never "completed, exit 0": the permission named, and what to run.
+    let (ok, said, err) = run();
+    assert!(
+        !ok,
+        "a run whose results the store refused exited 0: {said}{err}"
+    );
+    assert!(
+        err.contains("permission denied") && err.contains("--grant"),
+        "{err}"
+    );
+    // A backup as that role leaves nothing named like a backup.
+    let backups = dir.path().join("backups");
+    let (ok, _, err) = spinbench(&["backup", backups.to_str().expect("utf-8"), "--db", &app]);
+    assert!(!ok && err.contains("owner"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&backups)
+        .map(|d| d.filter_map(|e| e.ok().map(|e| e.path())).collect())
+        .unwrap_or_default();
+    assert!(left.is_empty(), "a failed backup left {left:?}");
+    // The owner grants the role its rights; the role then runs a whole test.
+    let (ok, said, err) = spinbench(&["migrate", "--db", &url, "--grant", &role]);
+    assert!(
+        ok && said.contains(&format!("role {role} granted")),
+        "{said}{err}"
+    );
+    let (ok, said, err) = spinbench(&["migrate", "--db", &url, "--grant", "x; DROP TABLE runs"]);
+    assert!(
+        !ok && err.contains("not a PostgreSQL role name"),
+        "{said}{err}"
+    );
+    let (ok, said, err) = run();
+    assert!(ok, "{said}{err}");
+    let (ok, listed, err) = spinbench(&["runs", "list", "--db", &app]);
+    assert!(ok && listed.contains("completed"), "{listed}{err}");
+}

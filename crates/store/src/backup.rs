@@ -160,7 +160,11 @@ fn run_pg_tool(tool: &str, url: &str, args: &[&std::ffi::OsStr]) -> Result<(), P
 }
 
 /// Back a PostgreSQL store up into the new file `to` with `pg_dump`
-/// (custom format), then check the file with `pg_restore --list`.
+/// (custom format), then check the file with `pg_restore --list`. The dump
+/// is written under a name of its own beside `to` and put at `to` only
+/// once both succeeded (a hard link, which never replaces a file): a
+/// failed dump leaves no file named like a good one, so a rotation that
+/// keeps the newest backups never keeps an empty one.
 pub fn pg_dump(target: &StoreTarget, to: &Path) -> Result<(), StoreError> {
     let fail = |problem: String| StoreError::message(target, "back up", problem);
     let StoreTarget::Postgres(url) = target else {
@@ -172,30 +176,56 @@ pub fn pg_dump(target: &StoreTarget, to: &Path) -> Result<(), StoreError> {
             to.display()
         )));
     }
-    let file = std::ffi::OsString::from(format!("--file={}", to.display()));
+    let partial = to.with_file_name(format!(
+        ".{}.partial-{}",
+        to.file_name()
+            .map_or_else(|| "backup".into(), |n| n.to_string_lossy()),
+        std::process::id()
+    ));
+    let _ = std::fs::remove_file(&partial);
+    let result = dump_and_check(url, &partial).and_then(|()| {
+        std::fs::hard_link(&partial, to).map_err(|e| {
+            format!(
+                "{}: cannot put the checked dump in place: {e}",
+                to.display()
+            )
+        })
+    });
+    let _ = std::fs::remove_file(&partial);
+    result.map_err(|problem| {
+        let hint = if problem.contains("permission denied") {
+            "; a backup reads every table and sequence: run it as the store's owner (--db postgres://OWNER@…), not the station's data-only role"
+        } else {
+            ""
+        };
+        fail(format!("{problem}{hint}; no backup file was left"))
+    })
+}
+
+/// `pg_dump` of `url` into `file`, then `pg_restore --list` of it.
+fn dump_and_check(url: &str, file: &Path) -> Result<(), String> {
+    let arg = std::ffi::OsString::from(format!("--file={}", file.display()));
     run_pg_tool(
         "pg_dump",
         url,
         &[
             "--format=custom".as_ref(),
             "--no-owner".as_ref(),
-            file.as_os_str(),
+            arg.as_os_str(),
         ],
     )
-    .map_err(|e| fail(e.to_string()))?;
-    let list = pg_tool("pg_restore")
-        .ok_or_else(|| fail("pg_restore is not installed to check the dump".into()))?;
+    .map_err(|e| e.to_string())?;
+    let list = pg_tool("pg_restore").ok_or("pg_restore is not installed to check the dump")?;
     let checked = std::process::Command::new(list)
         .arg("--list")
-        .arg(to)
+        .arg(file)
         .output()
-        .map_err(|e| fail(e.to_string()))?;
+        .map_err(|e| e.to_string())?;
     if !checked.status.success() {
-        return Err(fail(format!(
-            "the dump {} does not read back: {}",
-            to.display(),
+        return Err(format!(
+            "the dump does not read back: {}",
             String::from_utf8_lossy(&checked.stderr).trim()
-        )));
+        ));
     }
     Ok(())
 }

@@ -49,7 +49,7 @@ pub use record::{
     RunRecord, RunStart, StoredPlan, StoredState,
 };
 pub use retention::{EventRow, PrunableRun};
-pub use schema::{MIGRATIONS, Migration, MigrationApplied};
+pub use schema::{MIGRATIONS, Migration, MigrationApplied, is_role_name};
 pub use sink::StoreSink;
 pub use users::{AuditRow, Replaced, UserRow};
 
@@ -90,6 +90,43 @@ fn whole_reason(reason: &DbError) -> String {
     text
 }
 
+/// Whether the database error `reason` is the database's own refusal of
+/// what was asked (PostgreSQL answered with a SQLSTATE outside the outage
+/// classes: a permission, a constraint, a missing table; SQLite failed
+/// other than busy or locked). Anything else (a lost connection, an error
+/// of the store's own) is not known to be one.
+pub(crate) fn is_refusal(reason: &DbError) -> bool {
+    let known = reason
+        .downcast_ref::<postgres::Error>()
+        .is_some_and(|e| e.code().is_some())
+        || matches!(
+            reason.downcast_ref::<rusqlite::Error>(),
+            Some(rusqlite::Error::SqliteFailure(..))
+        );
+    known && !is_unavailable(reason)
+}
+
+/// Whether the database error `reason` is an outage or a busy store
+/// ([`StoreError::is_unavailable`]), not a refusal.
+pub(crate) fn is_unavailable(reason: &DbError) -> bool {
+    if let Some(e) = reason.downcast_ref::<postgres::Error>() {
+        return match e.code() {
+            None => true,
+            Some(code) => {
+                let c = code.code();
+                c.starts_with("08") || c.starts_with("53") || c.starts_with("57P")
+            }
+        };
+    }
+    if let Some(rusqlite::Error::SqliteFailure(e, _)) = reason.downcast_ref::<rusqlite::Error>() {
+        return matches!(
+            e.code,
+            rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
+        );
+    }
+    false
+}
+
 impl StoreError {
     /// Whether the store could not be reached or is busy, rather than
     /// refusing what was asked: a closed or failed PostgreSQL connection, a
@@ -98,24 +135,7 @@ impl StoreError {
     /// an error passes when the store is back: try again (the web answers
     /// 503 with Retry-After).
     pub fn is_unavailable(&self) -> bool {
-        if let Some(e) = self.reason.downcast_ref::<postgres::Error>() {
-            return match e.code() {
-                None => true,
-                Some(code) => {
-                    let c = code.code();
-                    c.starts_with("08") || c.starts_with("53") || c.starts_with("57P")
-                }
-            };
-        }
-        if let Some(rusqlite::Error::SqliteFailure(e, _)) =
-            self.reason.downcast_ref::<rusqlite::Error>()
-        {
-            return matches!(
-                e.code,
-                rusqlite::ErrorCode::DatabaseBusy | rusqlite::ErrorCode::DatabaseLocked
-            );
-        }
-        false
+        is_unavailable(&self.reason)
     }
 
     /// An error of the store's own (not the database's): `problem` says what to do.

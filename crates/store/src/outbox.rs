@@ -41,6 +41,10 @@ pub const OUTBOX_FILE: &str = "store-outbox.jsonl";
 /// or stalled), whatever the writer has seen.
 pub const STALLED_AFTER: Duration = Duration::from_secs(10);
 
+/// How long a finished run waits for a store that refuses its writes (it
+/// answers with an error of its own) before it ends saying so.
+pub const REFUSED_WAIT: Duration = Duration::from_secs(5);
+
 /// The longest pause between two tries of a failing write.
 pub const RETRY_AT_MOST: Duration = Duration::from_secs(5);
 
@@ -53,6 +57,18 @@ pub struct StoreHealth {
     depth: AtomicU64,
     oldest: Mutex<Option<Instant>>,
     last_error: Mutex<String>,
+    /// The last failure in which the store answered and refused (a
+    /// permission, a constraint), not an outage: waiting does not help.
+    refused: Mutex<Option<String>>,
+}
+
+/// Every run write that failed in this process, over all its outboxes
+/// (`/metrics`' `store_errors_total` counts them with the heartbeat's).
+static RUN_WRITE_FAILURES: AtomicU64 = AtomicU64::new(0);
+
+/// The run writes that failed in this process so far, every outbox's.
+pub fn run_write_failures() -> u64 {
+    RUN_WRITE_FAILURES.load(Ordering::Relaxed)
 }
 
 /// A reading of [`StoreHealth`].
@@ -69,6 +85,10 @@ pub struct HealthReading {
     pub age_s: f64,
     /// The last failure's message (empty when none).
     pub last_error: String,
+    /// The last failure in which the store refused the write (it answered
+    /// with an error of its own: a permission, a constraint), which no
+    /// waiting mends; `None` when every failure was an outage.
+    pub refused: Option<String>,
 }
 
 fn locked<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -87,12 +107,17 @@ impl StoreHealth {
             depth: self.depth.load(Ordering::Relaxed),
             age_s,
             last_error: locked(&self.last_error).clone(),
+            refused: locked(&self.refused).clone(),
         }
     }
-    fn failed(&self, why: &str) {
+    fn failed(&self, why: &str, refused: bool) {
         self.down.store(true, Ordering::Relaxed);
         self.errors.fetch_add(1, Ordering::Relaxed);
+        RUN_WRITE_FAILURES.fetch_add(1, Ordering::Relaxed);
         *locked(&self.last_error) = why.to_string();
+        if refused {
+            *locked(&self.refused) = Some(why.to_string());
+        }
     }
     fn succeeded(&self) {
         self.down.store(false, Ordering::Relaxed);
@@ -279,6 +304,9 @@ pub struct Finished {
     pub left: u64,
     /// The writes that failed during the run.
     pub errors: u64,
+    /// The last write the store refused (it answered with an error of its
+    /// own: a permission, a constraint), which no waiting mends.
+    pub refused: Option<String>,
 }
 
 impl Store {
@@ -342,7 +370,14 @@ impl Outbox {
             q.closing = true;
             self.shared.wake.notify_all();
             let mut told = Instant::now();
+            let began = Instant::now();
             while Shared::depth(&q) > 0 && Instant::now() < until {
+                // A store that answers and refuses (a permission) does not
+                // mend by waiting: after a few tries the run ends saying so.
+                let h = self.shared.health.reading();
+                if h.refused.is_some() && !h.up && began.elapsed() >= REFUSED_WAIT {
+                    break;
+                }
                 q = self
                     .shared
                     .wake
@@ -373,9 +408,13 @@ impl Outbox {
                 let _ = w.join();
             }
         }
-        let errors = self.shared.health.reading().errors;
+        let reading = self.shared.health.reading();
         let left = self.keep_left()?;
-        Ok(Finished { left, errors })
+        Ok(Finished {
+            left,
+            errors: reading.errors,
+            refused: reading.refused,
+        })
     }
 
     /// Everything not written, in order, into the outbox file.
@@ -459,9 +498,10 @@ fn write_all(shared: &Shared, mut sink: StoreSink) {
                 shared.wake.notify_all();
             }
             Err(e) => {
-                shared
-                    .health
-                    .failed(&format!("store {}: {e}", sink.store.target));
+                shared.health.failed(
+                    &format!("store {}: {}", sink.store.target, crate::whole_reason(&e)),
+                    crate::is_refusal(&e),
+                );
                 // Wait before the next try, waking early to leave.
                 let q = locked(&shared.queue);
                 let (q, _) = shared

@@ -321,6 +321,11 @@ pub enum Command {
         /// Also list every migration the store has, with when and by which release.
         #[arg(long)]
         history: bool,
+        /// A PostgreSQL role (the stations' data-only role) to grant its
+        /// data rights on every table and sequence after migrating, and by
+        /// default on what later migrations create; may be repeated.
+        #[arg(long, value_name = "ROLE")]
+        grant: Vec<String>,
     },
     /// Retention: for each run that ended and started more than DAYS ago,
     /// archive its one-second values and events to Parquet files in the

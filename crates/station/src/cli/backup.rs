@@ -232,7 +232,21 @@ fn refuse_inside(dir: &Path, db: &StoreTarget, data: Option<&Path>) -> Result<()
 }
 
 /// `spinbench migrate --db PATH|URL [--history]`.
-pub(super) fn migrate(db: &StoreTarget, history: bool, out: &mut dyn Write) -> Result<()> {
+pub(super) fn migrate(
+    db: &StoreTarget,
+    history: bool,
+    grant: &[String],
+    out: &mut dyn Write,
+) -> Result<()> {
+    // Every role name checked before anything is changed.
+    if let Some(bad) = grant.iter().find(|r| !spinbench_store::is_role_name(r)) {
+        anyhow::bail!(
+            "--grant {bad:?}: not a PostgreSQL role name (letters, digits and _, not starting with a digit, at most 63)"
+        );
+    }
+    if !grant.is_empty() && !matches!(db, StoreTarget::Postgres(_)) {
+        anyhow::bail!("--grant: an SQLite file has no roles; --grant is for a PostgreSQL store");
+    }
     let (store, before, after) = match Store::migrate_target(db) {
         Ok(done) => done,
         // A newer release's store: the store's own words say what to do.
@@ -258,6 +272,15 @@ pub(super) fn migrate(db: &StoreTarget, history: bool, out: &mut dyn Write) -> R
             out,
             "{db}: schema version {before} → {after} ({} migrations applied)",
             after - before
+        )?;
+    }
+    for role in grant {
+        store.grant_data_rights(role).with_context(|| {
+            format!("run `spinbench migrate --grant {role}` as the store's owner, who may grant its tables")
+        })?;
+        writeln!(
+            out,
+            "{db}: role {role} granted its data rights on every table and sequence, and on those later migrations create"
         )?;
     }
     if history {

@@ -279,7 +279,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             crate::doctor::run(station.as_deref(), simulated, &db, &data, out)
         }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
-        Command::Migrate { db, history } => backup::migrate(&db, history, out),
+        Command::Migrate { db, history, grant } => backup::migrate(&db, history, &grant, out),
         Command::Prune {
             older_than,
             archive,

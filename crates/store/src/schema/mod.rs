@@ -2,8 +2,10 @@
 //! applied once under an exclusive transaction (SQLite) or an advisory lock
 //! (PostgreSQL), and the schema's version and soundness.
 
+mod grants;
 mod migrations;
 
+pub use grants::is_role_name;
 pub use migrations::{MIGRATIONS, Migration};
 
 use super::{Db, DbError, Dialect, Store, StoreError};

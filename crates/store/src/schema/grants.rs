@@ -1,0 +1,85 @@
+//! The station's role's rights on a PostgreSQL store, granted by the
+//! store's owner when it migrates (`spinbench migrate --grant ROLE`).
+//!
+//! A migration that adds a table or a sequence adds it with its owner's
+//! rights only: a station whose data-only role was granted the tables of
+//! the last release cannot write the new one. Granting once after every
+//! migration, and the owner's default privileges for what later
+//! migrations create, keep the role's rights whole across upgrades.
+
+use crate::db::Dialect;
+use crate::{Store, StoreError};
+
+/// The longest role name PostgreSQL keeps (NAMEDATALEN − 1).
+const MAX_ROLE_LEN: usize = 63;
+
+/// Whether `role` is a plain PostgreSQL role name (letters, digits, `_`,
+/// not starting with a digit, at most [`MAX_ROLE_LEN`]), so that it can be
+/// written into a GRANT without quoting surprises.
+pub fn is_role_name(role: &str) -> bool {
+    !role.is_empty()
+        && role.len() <= MAX_ROLE_LEN
+        && role
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && role.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+impl Store {
+    /// Grant `role` the data rights a station needs on every table and
+    /// sequence of the store (`SELECT, INSERT, UPDATE, DELETE`; `USAGE,
+    /// SELECT`), and make them the owner's default for what later
+    /// migrations create. PostgreSQL only; run as the store's owner.
+    pub fn grant_data_rights(&self, role: &str) -> Result<(), StoreError> {
+        if !is_role_name(role) {
+            return Err(StoreError::message(
+                &self.target,
+                "grant the station's role",
+                format!(
+                    "{role:?} is not a role name (letters, digits and _, not starting with a digit, at most {MAX_ROLE_LEN})"
+                ),
+            ));
+        }
+        let mut db = self.db();
+        if db.dialect() != Dialect::Postgres {
+            return Err(StoreError::message(
+                &self.target,
+                "grant the station's role",
+                "an SQLite file has no roles: --grant is for a PostgreSQL store".into(),
+            ));
+        }
+        let r = format!("\"{role}\"");
+        db.batch(&format!(
+            "GRANT USAGE ON SCHEMA public TO {r};
+             GRANT SELECT, INSERT, UPDATE, DELETE ON ALL TABLES IN SCHEMA public TO {r};
+             GRANT USAGE, SELECT ON ALL SEQUENCES IN SCHEMA public TO {r};
+             ALTER DEFAULT PRIVILEGES IN SCHEMA public GRANT SELECT, INSERT, UPDATE, DELETE ON TABLES TO {r};
+             ALTER DEFAULT PRIVILEGES IN SCHEMA public GRANT USAGE, SELECT ON SEQUENCES TO {r};"
+        ))
+        .map_err(self.err(&format!("grant the role {role} its data rights")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_role_name;
+
+    #[test]
+    fn only_plain_role_names_are_granted() {
+        for good in ["spinbench_station", "app_1", "_x", "Station"] {
+            assert!(is_role_name(good), "{good}");
+        }
+        let long = "a".repeat(64);
+        for bad in [
+            "",
+            "1st",
+            "a b",
+            "x\"; DROP TABLE runs; --",
+            "rôle",
+            long.as_str(),
+        ] {
+            assert!(!is_role_name(bad), "{bad}");
+        }
+    }
+}
