@@ -10,6 +10,8 @@ Faults, one command a line on stdin:
   busy N      the next N replies are exception 06 (server device busy)
   outage S    the server goes away for S seconds (connections refused)
   alarm W     the alarm word becomes W (0 clears it)
+  reboot S    the controller restarts: away for S seconds, then back with
+              its power-on setpoint (23.0 degC) and stopped
 Each command is acknowledged on stdout ("ok <command>"); the first line of
 stdout is "listening PORT".
 """
@@ -90,6 +92,14 @@ class Chamber:
                 self.busy = int(value)
             elif what == "alarm":
                 self.block.setValues(ALARMS, [int(value)])
+            elif what == "reboot":
+                await self.server.shutdown()
+                self.block.setValues(SETPOINT, [230])
+                self.block.setValues(RUN, [0])
+                print("ok " + line + " (down)", flush=True)
+                await asyncio.sleep(float(value))
+                asyncio.create_task(self.serve())
+                await asyncio.sleep(0.2)
             elif what == "outage":
                 await self.server.shutdown()
                 print("ok " + line + " (down)", flush=True)

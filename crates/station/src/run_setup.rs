@@ -346,6 +346,7 @@ pub fn prepare(setup: Setup) -> Result<Prepared, PrepareError> {
         store,
     } = setup;
     let store = store.unwrap_or_else(|| dir.default_store());
+    spinbench_store::name_connections(&station.station);
     // A new run's plan carries its prediction from the station's model of
     // its own runs; `levels = "auto"` is designed here, before anything moves.
     let designing = plan.is_auto();

@@ -201,6 +201,33 @@ fn a_run_soaks_through_busy_and_an_outage_and_an_alarm_while_measuring_fails_it(
     drop(run);
     drop(sim);
 
+    // A controller that restarts during the soak and comes back at its
+    // power-on 23 °C, stopped: the setpoint and the run are written again
+    // and the run completes.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let sim = start_sim("10");
+    let mut peer = Peer::start(&python, "chamber.py", &[]);
+    let mut run = run_with_chamber(dir.path(), &peer, &sim);
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(120), |l| l.contains("soaking at")),
+        "no soak:\n{}",
+        run.transcript()
+    );
+    peer.tell("reboot 1");
+    let status = run
+        .wait(&sim, Duration::from_secs(300))
+        .unwrap_or_else(|| panic!("the run did not end:\n{}", run.transcript()));
+    assert!(status.success(), "{}", run.transcript());
+    assert!(
+        run.seen
+            .iter()
+            .any(|l| l.contains("held 23.0 °C") && l.contains("written again")),
+        "{}",
+        run.transcript()
+    );
+    drop(run);
+    drop(sim);
+
     // An alarm while a pass measures: not completed, exit non-zero.
     let dir = tempfile::tempdir().expect("tempdir");
     let sim = start_sim("10");

@@ -931,3 +931,58 @@ fn postgres_a_role_the_upgrade_left_without_rights_fails_loudly_until_migrate_gr
     let (ok, listed, err) = spinbench(&["runs", "list", "--db", &app]);
     assert!(ok && listed.contains("completed"), "{listed}{err}");
 }
+
+#[test]
+fn pgbouncer_runs_one_after_another_are_stored_whole_through_transaction_pooling() {
+    // PgBouncer in transaction pooling over one server connection: each
+    // process's statements meet the previous process's on it (named
+    // prepared statements collided: "s0 already exists"), and a
+    // statement's transactions may be given any server connection.
+    let direct = fresh_postgres();
+    let url = spinbench_store::testing::behind_pgbouncer(&direct).unwrap_or_else(|e| panic!("{e}"));
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(&plan, common::short_plan("PGB-")).expect("plan");
+    let data = dir.path().join("data");
+    for _ in 0..2 {
+        let (ok, said, err) = spinbench(&[
+            "run",
+            "--simulate",
+            "--quiet",
+            "--data",
+            data.to_str().expect("utf-8"),
+            "--db",
+            &url,
+            plan.to_str().expect("utf-8"),
+        ]);
+        assert!(ok, "{said}{err}");
+    }
+    // Both runs completed with their results, as the server itself holds them.
+    let mut server = postgres::Client::connect(&direct, postgres::NoTls).expect("direct");
+    let rows = server
+        .query(
+            "SELECT state, (SELECT count(*) FROM results r WHERE r.run_id = runs.id) FROM runs",
+            &[],
+        )
+        .expect("runs");
+    assert_eq!(rows.len(), 2);
+    for row in rows {
+        let (state, results): (String, i64) = (row.get(0), row.get(1));
+        assert_eq!((state.as_str(), results), ("completed", 3));
+    }
+    // The connections carry the station's name for the DBA.
+    let named: i64 = server
+        .query_one(
+            "SELECT count(*) FROM pg_stat_activity WHERE application_name LIKE 'spinbench%'",
+            &[],
+        )
+        .expect("pg_stat_activity")
+        .get(0);
+    assert!(
+        named >= 1,
+        "PgBouncer's server connection is named by its first client"
+    );
+    // migrate through the pooler too (a transaction-level lock).
+    let (ok, said, err) = spinbench(&["migrate", "--db", &url]);
+    assert!(ok && said.contains("nothing to do"), "{said}{err}");
+}

@@ -391,6 +391,13 @@ fn postgres_a_run_through_the_api_from_start_to_report() {
     a_run_through_the_api_from_start_to_report_on(Backend::Postgres);
 }
 
+#[test]
+fn pgbouncer_a_run_through_the_api_from_start_to_report() {
+    // Transaction pooling over one server connection: every client of the
+    // server (its requests, the heartbeat, the run's outbox) shares it.
+    a_run_through_the_api_from_start_to_report_on(Backend::PgBouncer);
+}
+
 fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     let dir = tempfile::tempdir().expect("tempdir");
     backend.prepare(dir.path());

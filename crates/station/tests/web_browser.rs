@@ -42,7 +42,7 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
     let server = web::serve(dir.path(), "10");
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(match backend {
         web::Backend::Sqlite => "web-browser",
-        web::Backend::Postgres => "web-browser-postgres",
+        web::Backend::Postgres | web::Backend::PgBouncer => "web-browser-postgres",
     });
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 

@@ -47,7 +47,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
     assert_eq!(r.status, 200, "{:?}", r.json());
     let shots = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(match backend {
         web::Backend::Sqlite => "web-browser",
-        web::Backend::Postgres => "web-browser-postgres",
+        web::Backend::Postgres | web::Backend::PgBouncer => "web-browser-postgres",
     });
     std::fs::create_dir_all(&shots).expect("screenshot dir");
 

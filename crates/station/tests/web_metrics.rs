@@ -39,6 +39,55 @@ fn promtool(text: &str) -> (bool, String) {
     )
 }
 
+/// A file of the shipped `packaging/` folder.
+fn packaging(file: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../packaging")
+        .join(file)
+}
+
+/// The `spinbench_…` metric names `text` reads.
+fn metric_names(text: &str) -> std::collections::BTreeSet<String> {
+    let mut names = std::collections::BTreeSet::new();
+    let mut rest = text;
+    while let Some(at) = rest.find("spinbench_") {
+        let tail = &rest[at..];
+        let end = tail
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .unwrap_or(tail.len());
+        names.insert(tail[..end].to_string());
+        rest = &tail[end..];
+    }
+    names
+}
+
+#[test]
+fn the_shipped_alert_rules_are_valid_and_fire_on_the_series_that_should_raise_them() {
+    // promtool (Debian's prometheus, installed by scripts/test-tools).
+    let rules = packaging("prometheus-alerts.yml");
+    let out = Command::new("promtool")
+        .arg("check")
+        .arg("rules")
+        .arg(&rules)
+        .output()
+        .expect("promtool (scripts/test-tools installs Debian's prometheus)");
+    let said =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && said.contains("5 rules found"),
+        "{said}"
+    );
+    let out = Command::new("promtool")
+        .arg("test")
+        .arg("rules")
+        .arg(packaging("prometheus-alerts.test.yml"))
+        .output()
+        .expect("promtool");
+    let said =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && said.contains("SUCCESS"), "{said}");
+}
+
 /// The value of the sample line starting with `series` (name and labels).
 fn sample(text: &str, series: &str) -> Option<f64> {
     text.lines()
@@ -90,6 +139,7 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
     let idle = scrape(&mut anon);
     let (ok, said) = promtool(&idle);
     assert!(ok, "promtool: {said}\n{idle}");
+    let mut served = idle.clone();
     assert_eq!(
         sample(&idle, "spinbench_station_state{state=\"idle\"}"),
         Some(1.0),
@@ -138,6 +188,7 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
             );
             let (ok, said) = promtool(&m);
             assert!(ok, "promtool: {said}\n{m}");
+            served.push_str(&m);
             seen_turning = true;
         }
         if s["prompt"].is_string() {
@@ -152,6 +203,20 @@ fn the_metrics_are_valid_prometheus_text_and_follow_a_run_on(backend: Backend) {
     assert!(seen_turning, "no scrape saw the table turning");
     std::thread::sleep(std::time::Duration::from_secs(3));
     let after = scrape(&mut anon);
+    // Every metric the shipped dashboard and alert rules read is one the
+    // station serves.
+    for file in ["grafana-dashboard.json", "prometheus-alerts.yml"] {
+        let text = std::fs::read_to_string(packaging(file)).expect("packaging file");
+        let used = metric_names(&text);
+        assert!(!used.is_empty(), "{file} reads no spinbench metric");
+        for name in used {
+            let family = name.trim_end_matches("_bucket");
+            assert!(
+                served.contains(&format!("# TYPE {family} ")),
+                "{file} reads {name}, which /metrics does not serve"
+            );
+        }
+    }
     let (ok, said) = promtool(&after);
     assert!(ok, "promtool: {said}\n{after}");
     assert_eq!(

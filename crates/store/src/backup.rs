@@ -117,8 +117,27 @@ enum PgToolError {
 
 /// A PostgreSQL URL as libpq keywords without the password, and the password.
 fn pg_connection(url: &str) -> Result<(String, Option<String>), PgToolError> {
-    let config: postgres::Config = url.parse().map_err(PgToolError::NotAUrl)?;
+    let tls = crate::tls::split(url).ok();
+    let plain = tls.as_ref().map_or(url, |t| t.url.as_str());
+    let config: postgres::Config = plain.parse().map_err(PgToolError::NotAUrl)?;
     let mut words = Vec::new();
+    // libpq reads every sslmode itself, and the root certificate.
+    if let Some(t) = &tls {
+        use crate::tls::SslMode;
+        words.push(format!(
+            "sslmode={}",
+            match t.mode {
+                SslMode::Disable => "disable",
+                SslMode::Prefer => "prefer",
+                SslMode::Require => "require",
+                SslMode::VerifyCa => "verify-ca",
+                SslMode::VerifyFull => "verify-full",
+            }
+        ));
+        if let Some(root) = &t.root_cert {
+            words.push(format!("sslrootcert='{}'", root.display()));
+        }
+    }
     if let Some(postgres::config::Host::Tcp(h)) = config.get_hosts().first() {
         words.push(format!("host='{h}'"));
     }

@@ -123,22 +123,94 @@ pub type DbError = Box<dyn std::error::Error + Send + Sync>;
 pub enum Db {
     /// An SQLite file.
     Sqlite(rusqlite::Connection),
-    /// A PostgreSQL server, with its prepared statements by SQL text.
-    Postgres(Box<postgres::Client>, HashMap<String, postgres::Statement>),
+    /// A PostgreSQL server, with what it said of each statement's
+    /// parameters.
+    Postgres(Box<postgres::Client>, PgStatements),
 }
 
-/// The prepared statement for `sql`, prepared once per connection.
-fn pg_statement(
-    client: &mut postgres::Client,
-    cache: &mut HashMap<String, postgres::Statement>,
-    sql: &str,
-) -> Result<postgres::Statement, DbError> {
-    if let Some(s) = cache.get(sql) {
-        return Ok(s.clone());
+/// What a PostgreSQL connection knows of the statements it ran: each one's
+/// parameter types by SQL text, and whether a transaction is open.
+///
+/// Statements run unnamed (one round trip: parse, bind, execute), never as
+/// named prepared statements kept on the server connection: behind a
+/// pooler in transaction pooling (PgBouncer's default in most plants) the
+/// next transaction may be on another server connection, where a named
+/// statement does not exist, or meets another process's of the same name.
+/// A statement's parameter types are asked once, by preparing it inside a
+/// transaction and closing it before the transaction ends, so that nothing
+/// stays on the server connection the pooler hands on.
+#[derive(Default)]
+pub struct PgStatements {
+    parameters: HashMap<String, Vec<Type>>,
+    in_transaction: bool,
+}
+
+impl PgStatements {
+    /// Forget everything (a connection made again).
+    pub fn clear(&mut self) {
+        *self = PgStatements::default();
     }
-    let s = client.prepare(sql)?;
-    cache.insert(sql.to_string(), s.clone());
-    Ok(s)
+
+    /// Follow the transaction state through a batch of SQL that began,
+    /// committed or rolled one back.
+    fn follow(&mut self, sql: &str) {
+        let word = sql
+            .trim_start()
+            .split(|c: char| !c.is_ascii_alphabetic())
+            .next()
+            .unwrap_or("")
+            .to_ascii_uppercase();
+        match word.as_str() {
+            "BEGIN" | "START" => self.in_transaction = true,
+            "COMMIT" | "ROLLBACK" | "END" | "ABORT" => self.in_transaction = false,
+            _ => {}
+        }
+    }
+}
+
+/// The parameter types of `sql`, asked of the server once per connection
+/// ([`PgStatements`]).
+fn pg_parameters(
+    client: &mut postgres::Client,
+    known: &mut PgStatements,
+    sql: &str,
+) -> Result<Vec<Type>, DbError> {
+    if let Some(types) = known.parameters.get(sql) {
+        return Ok(types.clone());
+    }
+    let own_transaction = !known.in_transaction;
+    if own_transaction {
+        client.batch_execute("BEGIN")?;
+    }
+    // The statement is closed when dropped, at the end of this block,
+    // inside the transaction.
+    let asked = client.prepare(sql).map(|s| s.params().to_vec());
+    if own_transaction {
+        client.batch_execute(if asked.is_ok() { "COMMIT" } else { "ROLLBACK" })?;
+    }
+    let types = asked?;
+    known.parameters.insert(sql.to_string(), types.clone());
+    Ok(types)
+}
+
+/// `params` bound to the types `types` the server gave for them.
+fn typed<'a>(
+    bound: &'a [PgParam<'a>],
+    types: &[Type],
+) -> Result<Vec<(&'a (dyn ToSql + Sync), Type)>, DbError> {
+    if bound.len() != types.len() {
+        return Err(format!(
+            "the statement takes {} parameter(s), {} given",
+            types.len(),
+            bound.len()
+        )
+        .into());
+    }
+    Ok(bound
+        .iter()
+        .zip(types)
+        .map(|(b, t)| (b as &(dyn ToSql + Sync), t.clone()))
+        .collect())
 }
 
 /// `$12` → `?12` (SQLite's numbered parameters); other text unchanged.
@@ -340,7 +412,10 @@ impl Db {
     pub fn batch(&mut self, sql: &str) -> Result<(), DbError> {
         match self {
             Db::Sqlite(c) => c.execute_batch(sql)?,
-            Db::Postgres(c, _) => c.batch_execute(sql)?,
+            Db::Postgres(c, known) => {
+                c.batch_execute(sql)?;
+                known.follow(sql);
+            }
         }
         Ok(())
     }
@@ -353,12 +428,10 @@ impl Db {
                 let n = stmt.execute(rusqlite::params_from_iter(sqlite_params(params)))?;
                 Ok(n as u64)
             }
-            Db::Postgres(c, cache) => {
+            Db::Postgres(c, known) => {
+                let types = pg_parameters(c, known, sql)?;
                 let bound: Vec<PgParam<'_>> = params.iter().map(PgParam).collect();
-                let refs: Vec<&(dyn ToSql + Sync)> =
-                    bound.iter().map(|b| b as &(dyn ToSql + Sync)).collect();
-                let stmt = pg_statement(c, cache, sql)?;
-                Ok(c.execute(&stmt, &refs)?)
+                Ok(c.execute_typed(sql, &typed(&bound, &types)?)?)
             }
         }
     }
@@ -387,12 +460,13 @@ impl Db {
                 }
                 Ok(out)
             }
-            Db::Postgres(c, cache) => {
+            Db::Postgres(c, known) => {
+                let types = pg_parameters(c, known, sql)?;
                 let bound: Vec<PgParam<'_>> = params.iter().map(PgParam).collect();
-                let refs: Vec<&(dyn ToSql + Sync)> =
-                    bound.iter().map(|b| b as &(dyn ToSql + Sync)).collect();
-                let stmt = pg_statement(c, cache, sql)?;
-                c.query(&stmt, &refs)?.iter().map(pg_row).collect()
+                c.query_typed(sql, &typed(&bound, &types)?)?
+                    .iter()
+                    .map(pg_row)
+                    .collect()
             }
         }
     }

@@ -39,6 +39,7 @@ mod retention;
 mod schema;
 mod sink;
 pub mod testing;
+pub mod tls;
 mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
@@ -460,9 +461,37 @@ pub const TCP_USER_TIMEOUT: std::time::Duration = std::time::Duration::from_secs
 /// the URL has none), with the deadlines a plant network needs: a connect
 /// time-out, TCP keepalives and a TCP user time-out (each unless the URL
 /// sets its own). On failure, what was being done and why.
+/// The name this process's PostgreSQL connections give the server
+/// (`application_name`, what `pg_stat_activity` and the server's log
+/// show), unless the URL names one.
+static APPLICATION_NAME: std::sync::RwLock<Option<String>> = std::sync::RwLock::new(None);
+
+/// PostgreSQL keeps this many bytes of an `application_name`.
+const MAX_APPLICATION_NAME: usize = 63;
+
+/// Name this process's PostgreSQL connections from now on `spinbench
+/// STATION` (cut at PostgreSQL's 63 bytes), so that a DBA tells the
+/// stations apart in `pg_stat_activity`; a URL's own `application_name`
+/// wins.
+pub fn name_connections(station: &str) {
+    let mut name = format!("spinbench {station}");
+    while name.len() > MAX_APPLICATION_NAME {
+        name.pop();
+    }
+    *APPLICATION_NAME.write().unwrap_or_else(|e| e.into_inner()) = Some(name);
+}
+
 pub(crate) fn connect_postgres(url: &str) -> Result<postgres::Client, (&'static str, DbError)> {
     let mut config = pg_config(url, std::env::var("PGPASSWORD").ok())
         .map_err(|e| ("not a PostgreSQL URL", e.into()))?;
+    if config.get_application_name().is_none() {
+        let name = APPLICATION_NAME
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .clone()
+            .unwrap_or_else(|| "spinbench".to_string());
+        config.application_name(&name);
+    }
     if config.get_connect_timeout().is_none() {
         config.connect_timeout(CONNECT_TIMEOUT);
     }
@@ -478,12 +507,17 @@ pub(crate) fn connect_postgres(url: &str) -> Result<postgres::Client, (&'static 
     if config.get_keepalives_retries().is_none() {
         config.keepalives_retries(3);
     }
-    config.connect(postgres::NoTls).map_err(|e| {
+    let tls = tls::split(url).map_err(|e| ("not a PostgreSQL URL", e.into()))?;
+    let cannot = |e: postgres::Error| -> (&'static str, DbError) {
         (
-            "cannot connect (is the server running, and the URL's user, host, port and database right?)",
+            "cannot connect (is the server running, and the URL's user, host, port, database and sslmode right?)",
             e.into(),
         )
-    })
+    };
+    match tls::connector(&tls).map_err(|e| ("cannot set up TLS", e.into()))? {
+        None => config.connect(postgres::NoTls).map_err(cannot),
+        Some(connector) => config.connect(connector).map_err(cannot),
+    }
 }
 
 /// Switch an SQLite file to WAL. SQLite answers "busy" at once (without
@@ -540,7 +574,10 @@ pub fn pg_config(
     url: &str,
     env_password: Option<String>,
 ) -> Result<postgres::Config, postgres::Error> {
-    let mut config: postgres::Config = url.parse()?;
+    // The TLS parameters libpq reads and the client does not (sslmode
+    // verify-ca, verify-full; sslrootcert) are the TLS module's.
+    let plain = tls::split(url).map_or_else(|_| url.to_string(), |t| t.url);
+    let mut config: postgres::Config = plain.parse()?;
     if config.get_password().is_none()
         && let Some(p) = env_password.filter(|p| !p.is_empty())
     {

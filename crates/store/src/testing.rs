@@ -4,6 +4,30 @@
 /// (`scripts/test` starts one and sets it).
 pub const POSTGRES_ENV: &str = "SPINBENCH_TEST_POSTGRES";
 
+/// The environment variable that names the tests' PgBouncer in transaction
+/// pooling in front of the test server (`scripts/test` starts one).
+pub const PGBOUNCER_ENV: &str = "SPINBENCH_TEST_PGBOUNCER";
+
+/// `direct_url` (a database on the test server) reached through the tests'
+/// PgBouncer instead, or an error that says how to get one.
+pub fn behind_pgbouncer(direct_url: &str) -> Result<String, String> {
+    let bouncer = std::env::var(PGBOUNCER_ENV).map_err(|_| {
+        format!("{PGBOUNCER_ENV} is not set: run the tests with ./scripts/test, which starts PgBouncer (scripts/pgbouncer)")
+    })?;
+    let authority = |url: &str| -> Option<(String, String)> {
+        let rest = url.strip_prefix("postgres://")?;
+        let (authority, path) = rest.split_once('/')?;
+        Some((authority.to_string(), path.to_string()))
+    };
+    let (Some((bouncer_at, _)), Some((_, database))) = (authority(&bouncer), authority(direct_url))
+    else {
+        return Err(format!(
+            "cannot read {bouncer} or {direct_url} as postgres://USER@HOST:PORT/DB"
+        ));
+    };
+    Ok(format!("postgres://{bouncer_at}/{database}"))
+}
+
 /// Create a new database (a random name) on the server at `admin_url`,
 /// migrated to this release's schema (as `spinbench migrate` does), and
 /// return the URL that reaches it.

@@ -4,7 +4,7 @@
 
 use super::{EngineError, Executor, Window};
 use crate::config::StationConfig;
-use crate::event::{Event, ModuleHealth};
+use crate::event::{Event, ModuleHealth, Wording};
 use spinbench_devices::{DeviceError, DeviceErrorKind};
 use spinbench_wire::fmu::{
     INSTRUMENTS_PER_MODULE, Message, WindowAccumulator, WindowConfig, WindowValue,
@@ -303,7 +303,42 @@ impl Executor<'_> {
                 setpoint_c,
             });
         }
+        if let Some(held) = restore_setpoint(chamber.as_mut(), setpoint_c)? {
+            self.emit(setpoint_restored(held, setpoint_c))?;
+        }
         Ok(())
+    }
+}
+
+/// Read the setpoint the controller holds back, and when it is not the
+/// run's (a controller that restarted forgets its setpoint and stops),
+/// write the setpoint and the run command again; the setpoint it held
+/// when it had to be restored.
+pub(super) fn restore_setpoint(
+    chamber: &mut dyn spinbench_devices::chamber::Chamber,
+    setpoint_c: f64,
+) -> Result<Option<f64>, DeviceError> {
+    let held = chamber.setpoint_c()?;
+    if (held - setpoint_c).abs() <= SETPOINT_READBACK_C {
+        return Ok(None);
+    }
+    set_and_confirm_setpoint(chamber, setpoint_c)?;
+    chamber.set_running(true)?;
+    Ok(Some(held))
+}
+
+/// The notice of a setpoint written again ([`restore_setpoint`]).
+pub(super) fn setpoint_restored(held_c: f64, setpoint_c: f64) -> Event {
+    let held = format!("{held_c:.1}");
+    Event::Notice {
+        message: format!(
+            "the chamber controller held {held} °C, not the run's {setpoint_c} °C (it restarted or was changed at its panel): the setpoint and the run command were written again"
+        ),
+        wording: Some(
+            Wording::new("notice.chamber_setpoint_restored")
+                .with("held", &held)
+                .with("setpoint", setpoint_c),
+        ),
     }
 }
 

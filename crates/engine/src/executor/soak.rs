@@ -70,6 +70,10 @@ impl Executor<'_> {
                     chamber.set_purge(false)?;
                     self.chamber.purge_on = false;
                 }
+                // A controller that restarted holds its own setpoint, stopped.
+                if let Some(held) = ports::restore_setpoint(chamber.as_mut(), setpoint_c)? {
+                    self.emit(ports::setpoint_restored(held, setpoint_c))?;
+                }
             }
             let in_band = (air_c - setpoint_c).abs() <= soak.tolerance_c;
             history.push_back((

@@ -209,6 +209,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         None => station_toml,
     };
     let station = StationConfig::from_toml(&station_toml).context("the station config")?;
+    spinbench_store::name_connections(&station.station);
     let identity = crate::paths::station_identity(&args.data)?;
     let plans_dir = args.data.join("plans");
     std::fs::create_dir_all(&plans_dir)

@@ -71,6 +71,9 @@ pub enum Backend {
     Sqlite,
     /// A fresh PostgreSQL database.
     Postgres,
+    /// A fresh PostgreSQL database reached through PgBouncer in
+    /// transaction pooling.
+    PgBouncer,
 }
 
 /// Where `data`'s store is written down for [`store_of`].
@@ -80,10 +83,14 @@ impl Backend {
     /// Make `data`'s store on this back end: every later [`add_user`] and
     /// [`serve`] on `data` uses it.
     pub fn prepare(self, data: &Path) {
-        if self == Backend::Postgres {
+        if self != Backend::Sqlite {
             let admin = spinbench_store::testing::postgres_url().unwrap_or_else(|e| panic!("{e}"));
-            let url = spinbench_store::testing::fresh_postgres_database(&admin)
+            let mut url = spinbench_store::testing::fresh_postgres_database(&admin)
                 .expect("a fresh PostgreSQL database");
+            if self == Backend::PgBouncer {
+                url = spinbench_store::testing::behind_pgbouncer(&url)
+                    .unwrap_or_else(|e| panic!("{e}"));
+            }
             std::fs::write(data.join(STORE_URL_FILE), url).expect("write the store's URL");
         }
     }

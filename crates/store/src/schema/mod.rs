@@ -99,13 +99,6 @@ impl Store {
         let mut found_locked = found;
         let mut db = self.db();
         let dialect = db.dialect();
-        if dialect == Dialect::Postgres {
-            db.batch(
-                "SELECT pg_advisory_lock(1293);
-                 CREATE TABLE IF NOT EXISTS spinbench_schema (version BIGINT NOT NULL);",
-            )
-            .map_err(self.err("cannot prepare the schema table"))?;
-        }
         let result = match dialect {
             // One exclusive transaction over reading the version and every
             // migration: two processes creating the same new file never
@@ -141,32 +134,43 @@ impl Store {
                     }
                 }
             }),
-            Dialect::Postgres => (|| {
-                let version = schema_version(&mut db)?;
+            // Every pending migration in one transaction that takes a
+            // transaction-level advisory lock and reads the version under
+            // it: two processes never both run one (the second waits, then
+            // finds nothing to do), an upgrade that fails leaves the schema
+            // as it was, and nothing outlives the transaction on the server
+            // connection (behind a pooler in transaction pooling, a
+            // session-level lock could stay on a connection that another
+            // client gets next).
+            Dialect::Postgres => db.transaction(|db| {
+                db.batch(
+                    "SELECT pg_advisory_xact_lock(1293);
+                     CREATE TABLE IF NOT EXISTS spinbench_schema (version BIGINT NOT NULL);",
+                )?;
+                let version = schema_version(db)?;
                 found_locked = version;
                 if version > MIGRATIONS.len() as i64 {
                     return Err(newer_release(version).into());
                 }
                 for (i, m) in MIGRATIONS.iter().enumerate().skip(version.max(0) as usize) {
                     let v = (i + 1) as i64;
-                    db.transaction(|db| {
-                        db.batch(&format!(
-                            "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
-                            m.postgres
-                        ))?;
+                    db.batch(&format!(
+                        "{}; DELETE FROM spinbench_schema; INSERT INTO spinbench_schema VALUES ({v});",
+                        m.postgres
+                    ))
+                    .and_then(|()| {
                         if i + 1 >= HISTORY_FROM {
                             history_row(db, i + 1, version.max(0) as usize)?;
                         }
                         Ok(())
                     })
-                    .map_err(|e| -> DbError { format!("migration {v} ({}): {}", m.what, crate::whole_reason(&e)).into() })?;
+                    .map_err(|e| -> DbError {
+                        format!("migration {v} ({}): {}", m.what, crate::whole_reason(&e)).into()
+                    })?;
                 }
-                Ok::<(), DbError>(())
-            })(),
+                Ok(())
+            }),
         };
-        if dialect == Dialect::Postgres {
-            let _ = db.batch("SELECT pg_advisory_unlock(1293)");
-        }
         result
             .map(|()| found_locked.max(0))
             .map_err(self.err("cannot bring the schema up to date"))
