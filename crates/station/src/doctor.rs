@@ -361,6 +361,36 @@ fn store_check(target: &StoreTarget) -> Finding {
             ),
         );
     }
+    // Every right the release uses, on every table and sequence: a role an
+    // upgrade left without the new table's rights passes a write check on
+    // the old ones.
+    match store.missing_rights() {
+        Ok(missing) if !missing.is_empty() => {
+            let shown: Vec<String> = missing
+                .iter()
+                .take(8)
+                .map(|(on, right)| format!("{right} on {on}"))
+                .collect();
+            let more = missing.len().saturating_sub(shown.len());
+            let more = if more > 0 {
+                format!(" and {more} more")
+            } else {
+                String::new()
+            };
+            return Finding::new(
+                Verdict::Fail,
+                what,
+                format!(
+                    "this role lacks {}{more} — the store's owner grants them: `spinbench migrate --db {} --grant {}`",
+                    shown.join(", "),
+                    target.for_owner(),
+                    target.role().unwrap_or("ROLE")
+                ),
+            );
+        }
+        Ok(_) => {}
+        Err(e) => return Finding::new(Verdict::Fail, what, e.to_string()),
+    }
     let writable = store.check_writable();
     let integrity = store.integrity_check();
     match (writable, integrity) {

@@ -907,6 +907,13 @@ fn postgres_a_role_the_upgrade_left_without_rights_fails_loudly_until_migrate_gr
         err.contains("permission denied") && err.contains("--grant"),
         "{err}"
     );
+    // doctor names the right the role lacks and the command that grants it.
+    let (ok, said, err) = spinbench(&["doctor", "--simulate", "--db", &app]);
+    assert!(
+        !ok && said.contains("lacks DELETE on results")
+            && said.contains(&format!("--grant {role}")),
+        "{said}{err}"
+    );
     // A backup as that role leaves nothing named like a backup.
     let backups = dir.path().join("backups");
     let (ok, _, err) = spinbench(&["backup", backups.to_str().expect("utf-8"), "--db", &app]);
@@ -928,6 +935,8 @@ fn postgres_a_role_the_upgrade_left_without_rights_fails_loudly_until_migrate_gr
     );
     let (ok, said, err) = run();
     assert!(ok, "{said}{err}");
+    let (_, said, _) = spinbench(&["doctor", "--simulate", "--db", &app]);
+    assert!(!said.contains("lacks"), "{said}");
     let (ok, listed, err) = spinbench(&["runs", "list", "--db", &app]);
     assert!(ok && listed.contains("completed"), "{listed}{err}");
 }

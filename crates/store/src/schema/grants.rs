@@ -61,6 +61,36 @@ impl Store {
     }
 }
 
+impl Store {
+    /// The rights a station needs that this connection's role lacks, as
+    /// (table or sequence, right), sorted: `SELECT, INSERT, UPDATE,
+    /// DELETE` on every table and `USAGE` on every sequence of the store.
+    /// Empty on SQLite (a file has no roles) and for a role with them all.
+    pub fn missing_rights(&self) -> Result<Vec<(String, String)>, StoreError> {
+        let mut db = self.db();
+        if db.dialect() != Dialect::Postgres {
+            return Ok(Vec::new());
+        }
+        let rows = db
+            .query(
+                "SELECT c.relname::text, p.priv
+                 FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace
+                 CROSS JOIN (VALUES ('SELECT'), ('INSERT'), ('UPDATE'), ('DELETE')) AS p(priv)
+                 WHERE n.nspname = 'public' AND c.relkind IN ('r', 'p')
+                   AND NOT has_table_privilege(c.oid, p.priv)
+                 UNION ALL
+                 SELECT c.relname::text, 'USAGE'
+                 FROM pg_class c JOIN pg_namespace n ON n.oid = c.relnamespace
+                 WHERE n.nspname = 'public'
+                   AND CASE WHEN c.relkind = 'S' THEN NOT has_sequence_privilege(c.oid, 'USAGE') ELSE false END
+                 ORDER BY 1, 2",
+                &[],
+            )
+            .map_err(self.err("read the role's rights"))?;
+        Ok(rows.into_iter().map(|r| (r.text(0), r.text(1))).collect())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::is_role_name;
