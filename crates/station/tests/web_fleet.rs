@@ -182,6 +182,44 @@ fn two_stations_on_one_postgresql_run_at_once_and_see_each_other() {
         .filter_map(|r| r["id"].as_str())
         .collect();
     assert_eq!(ids, [runs[0].as_str()], "{only_a}");
+    // The list one page at a time: the next page is the Link header's.
+    let first = op_b.send("GET", "/api/runs?limit=1", None);
+    assert_eq!(first.status, 200);
+    let page = first.json();
+    assert_eq!(page.as_array().map(Vec::len), Some(1), "{page}");
+    let link = first.link.clone().expect("a Link to the next page");
+    let next = link
+        .strip_prefix('<')
+        .and_then(|l| l.split_once('>'))
+        .map(|(path, rel)| {
+            assert!(rel.contains("rel=\"next\""), "{link}");
+            path.to_string()
+        })
+        .expect("<path>; rel=\"next\"");
+    let second = op_b.send("GET", &next, None);
+    assert_eq!(second.status, 200);
+    assert!(
+        second.link.is_none(),
+        "no page after the last: {:?}",
+        second.link
+    );
+    let mut both: Vec<String> = [page, second.json()]
+        .iter()
+        .filter_map(|p| p[0]["id"].as_str().map(str::to_string))
+        .collect();
+    both.sort();
+    let mut all: Vec<String> = runs.iter().map(|r| r.to_string()).collect();
+    all.sort();
+    assert_eq!(both, all, "every run once over the two pages");
+    for bad in [
+        "/api/runs?limit=0",
+        "/api/runs?limit=1001",
+        "/api/runs?after=yesterday",
+        "/api/runs?after=12.x%20y",
+        "/api/control-charts?runs=0",
+    ] {
+        assert_eq!(op_b.send("GET", bad, None).status, 400, "{bad}");
+    }
     for (c, station) in [(&mut op_a, "station-a"), (&mut op_b, "station-b")] {
         let charts = c.get_json("/api/control-charts", 200);
         assert_eq!(charts["runs"], 1, "{station}: {charts}");

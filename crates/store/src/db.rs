@@ -119,6 +119,21 @@ pub enum Dialect {
 /// A database error: the backend's own message.
 pub type DbError = Box<dyn std::error::Error + Send + Sync>;
 
+thread_local! {
+    /// Statements this thread has sent to a database (a test's measure of
+    /// what a query costs; each call runs on its caller's thread).
+    static STATEMENTS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many statements this thread has sent to a database so far.
+pub fn statements_on_this_thread() -> u64 {
+    STATEMENTS.with(std::cell::Cell::get)
+}
+
+fn count_statement() {
+    STATEMENTS.with(|n| n.set(n.get() + 1));
+}
+
 /// An open connection.
 pub enum Db {
     /// An SQLite file.
@@ -410,6 +425,7 @@ impl Db {
 
     /// Run statements without parameters (DDL, BEGIN, COMMIT).
     pub fn batch(&mut self, sql: &str) -> Result<(), DbError> {
+        count_statement();
         match self {
             Db::Sqlite(c) => c.execute_batch(sql)?,
             Db::Postgres(c, known) => {
@@ -422,6 +438,7 @@ impl Db {
 
     /// Run one statement; returns the rows it changed.
     pub fn execute(&mut self, sql: &str, params: &[Value]) -> Result<u64, DbError> {
+        count_statement();
         match self {
             Db::Sqlite(c) => {
                 let mut stmt = c.prepare_cached(&sqlite_sql(sql))?;
@@ -438,6 +455,7 @@ impl Db {
 
     /// Run a query; returns every row.
     pub fn query(&mut self, sql: &str, params: &[Value]) -> Result<Vec<Row>, DbError> {
+        count_statement();
         match self {
             Db::Sqlite(c) => {
                 let mut stmt = c.prepare_cached(&sqlite_sql(sql))?;

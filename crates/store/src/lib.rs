@@ -44,7 +44,7 @@ mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
 pub use label::{LABEL_SEPARATOR, TypedLabel, label_file_part, parse_label, run_label};
-pub use queries::{PointRow, ResultRow, RunRow, UnitRow, ValueRow};
+pub use queries::{MAX_RUNS_PAGE, PointRow, ResultRow, RunRow, UnitRow, ValueRow};
 pub use record::{
     DeviceEntry, NoticeKind, OperatorAction, RECORD_VERSION, ResultFigures, RunEnd, RunNotice,
     RunRecord, RunStart, StoredPlan, StoredState,

@@ -116,15 +116,67 @@ pub struct UnitRow {
     pub radius_m: f64,
 }
 
+/// The most runs one page of the run list holds.
+pub const MAX_RUNS_PAGE: usize = 1000;
+
 impl Store {
     /// Every run, newest first.
     pub fn runs(&self) -> Result<Vec<RunRow>, StoreError> {
         self.runs_where("TRUE", &[])
     }
 
+    /// One page of the runs, newest first (its size at most
+    /// [`MAX_RUNS_PAGE`]): at most `limit` of them, only
+    /// station `station`'s when given, those after `after` (the last run
+    /// of the previous page: its start [Unix s] and id); the filter and the
+    /// page are the database's (an index on the start), so a page costs
+    /// the same however many runs the store holds. The second value says
+    /// whether more runs follow.
+    pub fn runs_page(
+        &self,
+        station: Option<&str>,
+        after: Option<(i64, &str)>,
+        limit: usize,
+    ) -> Result<(Vec<RunRow>, bool), StoreError> {
+        let mut clause = vec!["TRUE".to_string()];
+        let mut params: Vec<Value> = Vec::new();
+        if let Some(s) = station {
+            params.push(s.into());
+            clause.push(format!("r.station = ${}", params.len()));
+        }
+        if let Some((t, id)) = after {
+            params.push(t.into());
+            let at = params.len();
+            params.push(id.into());
+            let by = params.len();
+            clause.push(format!(
+                "(r.started_at < ${at} OR (r.started_at = ${at} AND r.id < ${by}))"
+            ));
+        }
+        let limit = limit.clamp(1, MAX_RUNS_PAGE);
+        let mut rows = self.runs_listed(
+            &clause.join(" AND "),
+            &format!(" LIMIT {}", limit + 1),
+            &params,
+        )?;
+        let more = rows.len() > limit;
+        rows.truncate(limit);
+        Ok((rows, more))
+    }
+
     pub(crate) fn runs_where(
         &self,
         clause: &str,
+        params: &[Value],
+    ) -> Result<Vec<RunRow>, StoreError> {
+        self.runs_listed(clause, "", params)
+    }
+
+    /// The runs `clause` selects, newest first, then `tail` (a LIMIT).
+    fn runs_listed(
+        &self,
+        clause: &str,
+        tail: &str,
         params: &[Value],
     ) -> Result<Vec<RunRow>, StoreError> {
         let rows = self.query(
@@ -134,7 +186,7 @@ impl Store {
                         (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
                         (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id),
                         r.retest_of, r.reason_wording, r.seq
-                 FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC"
+                 FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC{tail}"
             ),
             params,
         )?;

@@ -1,5 +1,7 @@
 //! For tests and benchmarks: a fresh, empty database on a PostgreSQL server.
 
+pub use crate::db::statements_on_this_thread;
+
 /// The environment variable that names the test server
 /// (`scripts/test` starts one and sets it).
 pub const POSTGRES_ENV: &str = "SPINBENCH_TEST_POSTGRES";

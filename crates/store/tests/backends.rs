@@ -718,3 +718,58 @@ fn postgres_two_migrates_at_once_apply_each_migration_once() {
     let url = spinbench_store::testing::empty_postgres_database(&admin).expect("an empty database");
     two_migrates_at_once_apply_each_migration_once_on(&StoreTarget::Postgres(url));
 }
+
+#[test]
+fn the_run_list_is_paged_by_the_database_at_a_cost_that_does_not_grow_with_history() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        let page_cost = |store: &Store| {
+            let before = spinbench_store::testing::statements_on_this_thread();
+            let (page, more) = store.runs_page(Some("bench 1"), None, 3).expect("page");
+            (
+                spinbench_store::testing::statements_on_this_thread() - before,
+                page.len(),
+                more,
+            )
+        };
+        for i in 0..5 {
+            write_run(&store, &format!("r-{i:02}"), &["A", "B"]);
+        }
+        let (small, n, more) = page_cost(&store);
+        assert_eq!((n, more), (3, true), "{target}");
+        for i in 5..12 {
+            write_run(&store, &format!("r-{i:02}"), &["A", "B"]);
+        }
+        let (large, n, _) = page_cost(&store);
+        assert_eq!(n, 3, "{target}");
+        assert_eq!(
+            small, large,
+            "{target}: a page cost {small} statements at 5 runs, {large} at 12"
+        );
+        assert!(small <= 2, "{target}: {small} statements for one page");
+        // Walked page by page with the cursor: every run once, newest first.
+        let mut seen = Vec::new();
+        let mut after: Option<(i64, String)> = None;
+        loop {
+            let (page, more) = store
+                .runs_page(None, after.as_ref().map(|(t, id)| (*t, id.as_str())), 5)
+                .expect("page");
+            seen.extend(page.iter().map(|r| r.id.clone()));
+            after = page.last().map(|r| (r.started_at, r.id.clone()));
+            if !more {
+                break;
+            }
+        }
+        let all: Vec<String> = store
+            .runs()
+            .expect("runs")
+            .into_iter()
+            .map(|r| r.id)
+            .collect();
+        assert_eq!(seen, all, "{target}");
+        assert_eq!(seen.len(), 12, "{target}");
+        // Another station's filter is the database's too.
+        let (none, more) = store.runs_page(Some("bench 2"), None, 3).expect("page");
+        assert!(none.is_empty() && !more, "{target}");
+    });
+}

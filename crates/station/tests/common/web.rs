@@ -218,6 +218,8 @@ pub struct Reply {
     pub content_type: String,
     /// The `Retry-After` header, if any.
     pub retry_after: Option<String>,
+    /// The `Link` header, if any.
+    pub link: Option<String>,
     /// The body.
     pub body: Vec<u8>,
 }
@@ -323,6 +325,7 @@ impl Client {
         let set_cookie = header("set-cookie");
         let content_type = header("content-type").unwrap_or_default();
         let retry_after = header("retry-after");
+        let link = header("link");
         let status = response.status().as_u16();
         let body = response
             .body_mut()
@@ -335,6 +338,7 @@ impl Client {
             set_cookie,
             content_type,
             retry_after,
+            link,
             body,
         };
         // Every JSON answer of every web test is held to the document:

@@ -308,6 +308,13 @@ pub const MIGRATIONS: &[Migration] = &[
     );
     CREATE INDEX run_notices_run ON run_notices (run_id, seq);",
     },
+    Migration {
+        what: "indexes for history that does not read everything: the runs newest first (the paged run list), an instrument's units by serial",
+        sqlite: "CREATE INDEX runs_started ON runs (started_at, id);
+    CREATE INDEX units_serial ON units (serial);",
+        postgres: "CREATE INDEX runs_started ON runs (started_at, id);
+    CREATE INDEX units_serial ON units (serial);",
+    },
 ];
 
 /// Migration 17 on SQLite: the register's key changes, so its table is

@@ -20,7 +20,14 @@ pub(super) struct Baseline {
     /// positions are its own (default: this server's station).
     #[param(max_length = 64)]
     station: Option<String>,
+    /// Chart its newest this many runs (default 200, 1 to 1000): what a
+    /// chart reads does not grow with the station's history.
+    #[param(minimum = 1, maximum = 1000)]
+    runs: Option<usize>,
 }
+
+/// Runs charted unless `runs` says.
+const DEFAULT_CHARTED_RUNS: usize = 200;
 
 /// Most runs a baseline may name.
 const MAX_BASELINE_RUNS: usize = 100_000;
@@ -55,14 +62,18 @@ pub(super) async fn control_charts(
         .station
         .clone()
         .unwrap_or_else(|| app.runner.station().0.station);
+    let window = q.runs.unwrap_or(DEFAULT_CHARTED_RUNS);
+    if !(1..=spinbench_store::MAX_RUNS_PAGE).contains(&window) {
+        return Err(ApiError::bad(format!(
+            "runs = {window}: from 1 to {} runs",
+            spinbench_store::MAX_RUNS_PAGE
+        )));
+    }
     let batch = blocking(&app, move |app| {
         let store = store(app)?;
-        let ids: Vec<String> = store
-            .runs()?
-            .into_iter()
-            .filter(|r| r.station == station)
-            .map(|r| r.id)
-            .collect();
+        // The newest runs, filtered and counted by the database, oldest first.
+        let (newest, _) = store.runs_page(Some(&station), None, window)?;
+        let ids: Vec<String> = newest.into_iter().rev().map(|r| r.id).collect();
         // No run of that station: nothing to chart (an empty list of ids
         // would mean every run).
         Ok((!ids.is_empty()).then(|| spinbench_report::gather_batch(&store, &ids)))

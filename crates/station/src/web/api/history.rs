@@ -8,21 +8,58 @@ use super::{
 };
 use axum::response::IntoResponse;
 
-/// Which station's runs (`GET /api/runs`).
+/// Which runs, one page at a time (`GET /api/runs`).
 #[derive(Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Query)]
 pub(super) struct StationFilter {
     /// Only this station's runs (its id; every station's without it).
     #[param(max_length = 64)]
     station: Option<String>,
+    /// The most runs in the page (1 to 1000; default 200).
+    #[param(minimum = 1, maximum = 1000)]
+    limit: Option<usize>,
+    /// The page after this one's last run: the `next` cursor of the
+    /// previous page's `Link` header (`STARTED.ID`, the run's start [Unix
+    /// s] and id).
+    #[param(max_length = 100)]
+    after: Option<String>,
 }
 
-/// Every run of the fleet (or of one station), newest first.
+/// The latest start a cursor may name [Unix s] (year 9999).
+const MAX_CURSOR_UNIX_S: i64 = 253_402_300_799;
+
+/// Runs in a page unless `limit` says.
+const DEFAULT_RUNS_PAGE: usize = 200;
+
+/// `STARTED.ID` as a cursor, refused in words when it is not one.
+fn cursor(text: &str) -> Result<(i64, String), ApiError> {
+    let bad = || {
+        ApiError::bad(format!(
+            "after '{}': a cursor is STARTED.ID, as the previous page's Link header gives it",
+            spinbench_engine::bounds::shown(text)
+        ))
+    };
+    let (t, id) = text.split_once('.').ok_or_else(bad)?;
+    let t: i64 = t.parse().map_err(|_| bad())?;
+    let id_ok = !id.is_empty()
+        && id.len() <= 64
+        && id
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_');
+    if !id_ok || !(0..=MAX_CURSOR_UNIX_S).contains(&t) {
+        return Err(bad());
+    }
+    Ok((t, id.to_string()))
+}
+
+/// The runs of the fleet (or of one station), newest first, one page at a
+/// time: the filter and the page are the database's, and a `Link` header
+/// (`rel="next"`) gives the next page while there is one.
 #[utoipa::path(get, path = "/api/runs", tag = "runs",
     security(("session" = [])),
     params(StationFilter),
     responses(
-        (status = 200, description = "the runs", body = Vec<RunEntry>),
+        (status = 200, description = "a page of the runs; the header `Link: </api/runs?…&after=CURSOR>; rel=\"next\"` while more follow", body = Vec<RunEntry>),
         (status = 400, description = "a bad query string", body = ErrorBody),
         (status = 401, description = "not logged in", body = ErrorBody),
     ))]
@@ -30,16 +67,52 @@ pub(super) async fn runs(
     State(app): State<App>,
     headers: HeaderMap,
     q: Result<Query<StationFilter>, QueryRejection>,
-) -> ApiResult<Json<Vec<RunEntry>>> {
+) -> ApiResult<Response> {
     authorize(&app, &headers, Role::Operator, false).await?;
     let Query(q) = q.map_err(query_error)?;
-    let runs = blocking(&app, |app| Ok(store(app)?.runs()?)).await?;
-    Ok(Json(
-        runs.iter()
-            .filter(|r| q.station.as_ref().is_none_or(|s| &r.station == s))
-            .map(RunEntry::from)
-            .collect(),
-    ))
+    let limit = q.limit.unwrap_or(DEFAULT_RUNS_PAGE);
+    if !(1..=spinbench_store::MAX_RUNS_PAGE).contains(&limit) {
+        return Err(ApiError::bad(format!(
+            "limit {limit}: from 1 to {} runs a page",
+            spinbench_store::MAX_RUNS_PAGE
+        )));
+    }
+    let after = q.after.as_deref().map(cursor).transpose()?;
+    let station = q.station.clone();
+    let (runs, more) = blocking(&app, move |app| {
+        Ok(store(app)?.runs_page(
+            station.as_deref(),
+            after.as_ref().map(|(t, id)| (*t, id.as_str())),
+            limit,
+        )?)
+    })
+    .await?;
+    let next = runs.last().filter(|_| more).map(|last| {
+        let mut query = format!("limit={limit}&after={}.{}", last.started_at, last.id);
+        if let Some(s) = &q.station {
+            query = format!("station={}&{query}", url_encoded(s));
+        }
+        format!("</api/runs?{query}>; rel=\"next\"")
+    });
+    let entries: Vec<RunEntry> = runs.iter().map(RunEntry::from).collect();
+    let mut response = Json(entries).into_response();
+    if let Some(link) = next.and_then(|l| l.parse().ok()) {
+        response.headers_mut().insert(header::LINK, link);
+    }
+    Ok(response)
+}
+
+/// `text` with everything but unreserved characters percent-encoded.
+fn url_encoded(text: &str) -> String {
+    text.bytes()
+        .map(|b| {
+            if b.is_ascii_alphanumeric() || b"-._~".contains(&b) {
+                (b as char).to_string()
+            } else {
+                format!("%{b:02X}")
+            }
+        })
+        .collect()
 }
 
 /// One run: its results (reasons in the user's language), links and reports.
