@@ -21,7 +21,10 @@ pub(super) struct StationFilter {
     /// The page after this one's last run: the `next` cursor of the
     /// previous page's `Link` header (`STARTED.ID`, the run's start [Unix
     /// s] and id).
-    #[param(max_length = 100)]
+    #[param(
+        max_length = 80,
+        pattern = r"^(0|[1-9][0-9]{0,10})\.[A-Za-z0-9_-]{1,64}$"
+    )]
     after: Option<String>,
 }
 
