@@ -9,6 +9,7 @@ use spinbench_analysis::Mount;
 use spinbench_engine::plan::Fixture;
 use spinbench_engine::{Answer, Operator};
 use spinbench_wire::fmu::INSTRUMENTS_PER_MODULE;
+use std::io::IsTerminal;
 
 /// A complete station config (TOML) for the bench: its arm, the power roles
 /// and its device sections; `power_extra` adds lines to `[power]`.
@@ -150,8 +151,15 @@ impl Operator for SimOperator<'_> {
             }
         });
         if !self.quiet {
+            // On a terminal the prompt replaces the progress line; into a
+            // file or pipe it is a line of its own (a log holds no escape codes).
+            let clear = if std::io::stderr().is_terminal() {
+                "\r\x1b[2K"
+            } else {
+                ""
+            };
             eprintln!(
-                "\r\x1b[2K  operator prompt: {text}\n    → answered automatically: the simulator remounted the instruments"
+                "{clear}  operator prompt: {text}\n    → answered automatically: the simulator remounted the instruments"
             );
         }
         Answer {

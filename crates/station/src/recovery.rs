@@ -183,7 +183,7 @@ pub fn mark_crashed_runs(data: &Path, station: &str, store: &Store) -> Recovered
                 {
                     out.problems.push(e.to_string());
                 }
-                let why = "interrupted: the station's process ended without finishing the run (a crash or a power cut)";
+                let why = "the station's process ended without finishing the run (a crash or a power cut)";
                 match store.mark_interrupted(&row.id, why) {
                     Ok(true) => out.interrupted.push((row.id, dir)),
                     Ok(false) => {}

@@ -146,6 +146,13 @@ fn temperature_range(range: Option<(f64, f64)>) -> String {
 }
 
 impl ProgressPrinter {
+    /// What starts a line that replaces the progress line: on a terminal,
+    /// back to the start of the line and erase it; into a file or pipe,
+    /// nothing (a log holds no escape codes).
+    fn clear(&self) -> &'static str {
+        if self.tty { "\r\x1b[2K" } else { "" }
+    }
+
     /// A printer (`quiet` prints nothing but faults).
     pub fn new(quiet: bool) -> Self {
         ProgressPrinter {
@@ -178,17 +185,20 @@ impl EventSink for ProgressPrinter {
             .sum();
         // A pass ended and its k2 were fitted: show every slot.
         if !self.quiet && matches!(event, Event::StepDone { .. }) && fitted_after > fitted_before {
-            eprintln!("\r\x1b[2K  pass done — the board:");
+            eprintln!("{}  pass done — the board:", self.clear());
             for line in board_lines(&self.board) {
                 eprintln!("{line}");
             }
         }
         match event {
             Event::Fault { reason, .. } => {
-                eprintln!("\r\x1b[2K  FAULT: {reason} — bringing the station to the safe state")
+                eprintln!(
+                    "{}  FAULT: {reason} — bringing the station to the safe state",
+                    self.clear()
+                )
             }
             _ if self.quiet => {}
-            Event::Notice { message, .. } => eprintln!("\r\x1b[2K  note: {message}"),
+            Event::Notice { message, .. } => eprintln!("{}  note: {message}", self.clear()),
             Event::StepStarted {
                 index, of, label, ..
             } => {
@@ -205,7 +215,7 @@ impl EventSink for ProgressPrinter {
             }
             Event::Progress { phase, done, of } => self.phase = format!("{phase} {done}/{of}"),
             Event::UnitFailed { slot, reason, .. } => {
-                eprintln!("\r\x1b[2K  slot {}: FAILED — {reason}", slot + 1)
+                eprintln!("{}  slot {}: FAILED — {reason}", self.clear(), slot + 1)
             }
             Event::Values {
                 time_s,
@@ -241,7 +251,8 @@ impl EventSink for ProgressPrinter {
             }
             Event::RunFinished { state, reason, .. } => {
                 eprintln!(
-                    "\r\x1b[2K  run {state:?}{}",
+                    "{}  run {state:?}{}",
+                    self.clear(),
                     reason
                         .as_ref()
                         .map(|r| format!(": {r}"))

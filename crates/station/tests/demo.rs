@@ -385,11 +385,13 @@ fn the_harsh_bench_completes_and_only_its_bad_instruments_are_failed() {
     // refit found), is a fault of the instrument.
     let mut failed = std::collections::BTreeMap::new();
     for r in results.as_array().expect("records") {
-        // Only the dead instrument, which gave nothing to judge, is incomplete.
-        let dead = r["reasons"]
-            .as_array()
-            .is_some_and(|rs| rs.iter().any(|x| x["code"] == "dead"));
-        assert_eq!(r["outcome"] == "incomplete", dead, "{r}");
+        // Only the dead and the noisy instrument, which gave nothing to
+        // judge against the limits, are incomplete.
+        let unmeasured = r["reasons"].as_array().is_some_and(|rs| {
+            rs.iter()
+                .any(|x| x["code"] == "dead" || x["code"] == "noisy")
+        });
+        assert_eq!(r["outcome"] == "incomplete", unmeasured, "{r}");
         for reason in r["reasons"].as_array().expect("reasons") {
             let code = reason["code"].as_str().unwrap_or("?");
             if !(code.ends_with("_limit") || code == "k2_inconclusive" || code == "analysis_note") {

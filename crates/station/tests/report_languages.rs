@@ -90,6 +90,12 @@ fn chinese_reports_carry_no_english_and_page_one_holds_what_a_signer_signs() {
         data_s,
     ]);
     assert!(ok, "{out}{err}");
+    // Progress into a pipe, as into a log file: the lines, no escape codes.
+    assert!(err.contains("run Completed"), "{err}");
+    assert!(
+        !err.contains('\x1b'),
+        "escape codes in a redirected stderr: {err:?}"
+    );
     let db = data.join("spinbench.db");
     let db_s = db.to_str().expect("utf-8");
     let (ok, listed, err) = spinbench(&["runs", "list", "--db", db_s]);

@@ -324,7 +324,7 @@ impl Store {
                 "count today's first tests",
                 "SELECT COUNT(*), COALESCE(SUM(CASE WHEN t.bad = 0 THEN 1 ELSE 0 END), 0)
                  FROM (SELECT res.run_id, res.serial,
-                         SUM(CASE WHEN res.outcome = 'pass' THEN 0 ELSE 1 END) AS bad
+                         SUM(CASE WHEN res.outcome IN ('pass', 'marginal') THEN 0 ELSE 1 END) AS bad
                        FROM results res JOIN runs ru ON ru.id = res.run_id
                        WHERE ru.station = $1 AND ru.started_at >= $2 AND ru.retest_of IS NULL
                        GROUP BY res.run_id, res.serial) t",

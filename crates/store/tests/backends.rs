@@ -80,6 +80,16 @@ fn record(slot: usize, serial: &str, k2: f64) -> UnitRecord {
 
 /// A short run's events: two instruments, three levels, one step redone.
 fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
+    write_run_graded(store, run_id, serials, [Outcome::Pass, Outcome::Pass]);
+}
+
+/// [`write_run`] with the two instruments graded `outcomes`.
+fn write_run_graded(store: &Store, run_id: &str, serials: &[&str], outcomes: [Outcome; 2]) {
+    let graded = |slot: usize, k2: f64| {
+        let mut r = record(slot, serials[slot], k2);
+        r.outcome = outcomes[slot];
+        Box::new(r)
+    };
     let mut sink = store.sink().expect("sink");
     let events = vec![
         Event::RunStarted {
@@ -132,10 +142,10 @@ fn write_run(store: &Store, run_id: &str, serials: &[&str]) {
             points: vec![point(0, 5.0, 11.5), point(1, 5.0, 12.5)],
         },
         Event::UnitResult {
-            record: Box::new(record(0, serials[0], 3.25)),
+            record: graded(0, 3.25),
         },
         Event::UnitResult {
-            record: Box::new(record(1, serials[1], -7.5)),
+            record: graded(1, -7.5),
         },
         Event::RunFinished {
             state: RunState::Completed,
@@ -771,5 +781,44 @@ fn the_run_list_is_paged_by_the_database_at_a_cost_that_does_not_grow_with_histo
         // Another station's filter is the database's too.
         let (none, more) = store.runs_page(Some("bench 2"), None, 3).expect("page");
         assert!(none.is_empty() && !more, "{target}");
+    });
+}
+
+#[test]
+fn the_fleets_first_pass_yield_counts_a_marginal_pass_as_passed_as_the_charts_do() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        write_run_graded(
+            &store,
+            "y-1",
+            &["A", "B"],
+            [Outcome::Pass, Outcome::Marginal],
+        );
+        write_run_graded(
+            &store,
+            "y-2",
+            &["C", "D"],
+            [Outcome::Fail, Outcome::Inconclusive],
+        );
+        store
+            .heartbeat(&spinbench_store::fleet::Heartbeat {
+                station: "bench 1".into(),
+                instance: "i-1".into(),
+                state: "idle".into(),
+                run_id: None,
+                progress: None,
+                address: None,
+            })
+            .expect("heartbeat");
+        let stations = store.stations().expect("stations");
+        let bench = stations
+            .iter()
+            .find(|s| s.beat.station == "bench 1")
+            .unwrap_or_else(|| panic!("{target}: bench 1 not listed"));
+        assert_eq!(
+            (bench.tested_today, bench.passed_today),
+            (4, 2),
+            "{target}: pass and marginal passed, fail and inconclusive not"
+        );
     });
 }

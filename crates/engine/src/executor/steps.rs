@@ -444,7 +444,7 @@ impl Executor<'_> {
                     slot,
                     Reason::new(
                         ReasonCode::Noisy,
-                        format!("noisy: its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g (limit {noise_limit} µg, stability.noise_limit_ug)"),
+                        format!("its own 1-s scatter is {std_ug:.0} µg at {g_nominal} g, over the noise limit of {noise_limit} µg: not measured against the limits (check its cable and connector, then retest)"),
                     )
                     .with("scatter", format!("{std_ug:.0}"))
                     .with("g", g_nominal)

@@ -40,6 +40,21 @@ pub fn grade(
         run: None,
         points,
     };
+    // The same reduction without some of its levels: what a flagged level
+    // that K2's U95 does not carry would change (`Without`).
+    let without = |levels: &[(Mount, f64)]| {
+        let input = UnitPoints {
+            unit: serial.to_string(),
+            run: None,
+            points: input
+                .points
+                .iter()
+                .filter(|p| !levels.contains(&(p.mount, p.g_nominal.abs())))
+                .copied()
+                .collect(),
+        };
+        spinbench_analysis::unit::analyze_unit_with(&input, options, table).ok()
+    };
     match spinbench_analysis::unit::analyze_unit_with(&input, options, table) {
         Ok(a) => {
             k2_max = a.k2_max_ug_per_g2;
@@ -78,7 +93,7 @@ pub fn grade(
                 ),
             ];
             outcome = Outcome::Pass;
-            grade_k2(&a, limits, &mut outcome, &mut reasons);
+            grade_k2(&a, limits, &without, &mut outcome, &mut reasons);
             for (name, value, limit, unit, [over, near]) in checks {
                 let (Some(v), Some(l)) = (value, limit) else {
                     continue;
@@ -128,16 +143,20 @@ pub fn grade(
 fn grade_k2(
     a: &spinbench_analysis::UnitAnalysis,
     limits: &crate::plan::Limits,
+    without: Without,
     outcome: &mut Outcome,
     reasons: &mut Vec<Reason>,
 ) {
     match limits.decide_on {
-        Measurand::K2 => grade_instrument_k2(a, limits, outcome, reasons),
+        Measurand::K2 => grade_instrument_k2(a, limits, without, outcome, reasons),
         Measurand::K2Max => grade_k2_max(a, limits, outcome, reasons),
     }
 }
 
-/// The levels each mounting's diagnostics flagged off the curve [g].
+/// The instrument's reduction again without the given levels (mounting,
+/// |g|), `None` when it cannot be made.
+type Without<'a> = &'a dyn Fn(&[(Mount, f64)]) -> Option<spinbench_analysis::UnitAnalysis>;
+
 /// A note of the reduction as a reason. The anomaly rule's note (what it
 /// left out of a mounting and what the refit found next) carries its
 /// parts as arguments, from the record's structured exclusions and
@@ -197,11 +216,17 @@ fn carries_misfit(u: &spinbench_analysis::uncertainty::Uncertainty) -> bool {
 /// GUM U95 against the limit. Without both mountings there is no K2:
 /// inconclusive, said so. A level flagged off the curve in one mounting
 /// only (the instrument's, which does not cancel from K2) while K2's U95
-/// carries no misfit is never a pass on that U; a level flagged in both
-/// mountings at the same g is the table's and cancels from K2.
+/// carries no misfit does not stand as a pass on that U alone: K2 is
+/// reduced again without it, and the pass stands only when that K2 with
+/// its own U95 passes too — the verdict does not depend on whether the
+/// level is a dip (left out) or a true point (kept); the outcome is the
+/// worse of the two, the reach the larger (docs/method.md §6). A level
+/// flagged in both mountings at the same g is the table's and cancels
+/// from K2.
 fn grade_instrument_k2(
     a: &spinbench_analysis::UnitAnalysis,
     limits: &crate::plan::Limits,
+    without: Without,
     outcome: &mut Outcome,
     reasons: &mut Vec<Reason>,
 ) {
@@ -228,24 +253,9 @@ fn grade_instrument_k2(
     };
     let v = joint.k2_even_ug_per_g2;
     let u = joint.k2_even_u95;
-    let flagged: Vec<(Mount, Vec<f64>)> = a
-        .fits
-        .iter()
-        .map(|(m, f)| (*m, flagged_levels(f)))
-        .collect();
-    let in_both = |g: f64| flagged.iter().all(|(_, gs)| gs.contains(&g));
-    let unhandled: Vec<String> = flagged
-        .iter()
-        .filter_map(|(m, gs)| {
-            let own: Vec<f64> = gs.iter().copied().filter(|g| !in_both(*g)).collect();
-            (!own.is_empty()).then(|| format!("{m}: {own:?} g"))
-        })
-        .collect();
-    let misfit_in_u = joint
-        .uncertainty
-        .as_ref()
-        .is_some_and(|j| carries_misfit(&j.k2_even_ug_per_g2));
-    let judged = Judged {
+    let unhandled = unhandled_own_levels(a);
+    let shown_levels: Vec<String> = unhandled_shown(&unhandled);
+    let judged = |v: f64, u: Option<f64>| Judged {
         name: "|K2| (both mountings)".to_string(),
         shown: shown_value(rule, v.abs(), u),
         reach: reach(rule, v, u),
@@ -256,12 +266,95 @@ fn grade_instrument_k2(
         variant: Some("instrument"),
     };
     let verdict = rule.decide(v, u, l, limits.marginal_fraction);
-    if !unhandled.is_empty() && !misfit_in_u && matches!(verdict, Verdict::Pass | Verdict::Marginal)
-    {
-        misfit_not_in_u(&judged, &unhandled, outcome, reasons);
+    let accepted = matches!(verdict, Verdict::Pass | Verdict::Marginal);
+    if unhandled.is_empty() || !accepted {
+        record_verdict(
+            verdict,
+            &judged(v, u),
+            limits.marginal_fraction,
+            outcome,
+            reasons,
+        );
         return;
     }
-    record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
+    // The same verdict with the level left out, from a reduction that has
+    // no such level of its own: the pass stands on both.
+    let again = without(&unhandled).filter(|b| unhandled_own_levels(b).is_empty());
+    let Some((v_out, u_out)) = again
+        .as_ref()
+        .and_then(|b| b.joint.as_ref())
+        .map(|j| (j.k2_even_ug_per_g2, j.k2_even_u95))
+    else {
+        misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
+        return;
+    };
+    let verdict_out = rule.decide(v_out, u_out, l, limits.marginal_fraction);
+    if !matches!(verdict_out, Verdict::Pass | Verdict::Marginal) {
+        misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
+        return;
+    }
+    let worse = if verdict == Verdict::Marginal || verdict_out == Verdict::Marginal {
+        Verdict::Marginal
+    } else {
+        Verdict::Pass
+    };
+    let kept = judged(v, u);
+    let left_out = judged(v_out, u_out);
+    reasons.push(
+        Reason::new(
+            ReasonCode::AnalysisNote,
+            format!(
+                "a level off the curve ({}) is not in K2's U95; K2 without it is {} µg/g², the same verdict, so the instrument is graded on the larger reach",
+                shown_levels.join("; "),
+                left_out.shown
+            ),
+        )
+        .with("levels", shown_levels.join("; "))
+        .with("value", &left_out.shown)
+        .with("variant", "verdict_unchanged"),
+    );
+    let wider = if left_out.reach > kept.reach {
+        left_out
+    } else {
+        kept
+    };
+    record_verdict(worse, &wider, limits.marginal_fraction, outcome, reasons);
+}
+
+/// The levels flagged off the curve in one mounting only (the
+/// instrument's own, which do not cancel from K2) while K2's U95 carries
+/// no misfit source, as (mounting, |g|); empty when K2's budget carries
+/// the misfit.
+fn unhandled_own_levels(a: &spinbench_analysis::UnitAnalysis) -> Vec<(Mount, f64)> {
+    let misfit_in_u = a
+        .joint
+        .as_ref()
+        .and_then(|j| j.uncertainty.as_ref())
+        .is_some_and(|j| carries_misfit(&j.k2_even_ug_per_g2));
+    if misfit_in_u {
+        return Vec::new();
+    }
+    let flagged: Vec<(Mount, Vec<f64>)> = a
+        .fits
+        .iter()
+        .map(|(m, f)| (*m, flagged_levels(f)))
+        .collect();
+    let in_both = |g: f64| flagged.iter().all(|(_, gs)| gs.contains(&g));
+    flagged
+        .iter()
+        .flat_map(|(m, gs)| gs.iter().filter(|g| !in_both(**g)).map(|g| (*m, *g)))
+        .collect()
+}
+
+/// "P: [40.0] g" per mounting, as the reasons name such levels.
+fn unhandled_shown(levels: &[(Mount, f64)]) -> Vec<String> {
+    [Mount::P, Mount::N]
+        .into_iter()
+        .filter_map(|m| {
+            let gs: Vec<f64> = levels.iter().filter(|l| l.0 == m).map(|l| l.1).collect();
+            (!gs.is_empty()).then(|| format!("{m}: {gs:?} g"))
+        })
+        .collect()
 }
 
 /// A pass that cannot stand: a level off the curve is not in the U95.
@@ -474,94 +567,5 @@ fn record_verdict(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::plan::Limits;
-    use spinbench_analysis::model::ieee1293_output;
-
-    /// One instrument of own K2 `k2` on an arm that adds `c` µg/g² to the
-    /// applied magnitude in both mountings (stretch, Koq: method.md (15)),
-    /// the published levels up and down, noise-free but for a 1 µg ripple
-    /// that keeps the fit's scatter above zero.
-    fn instrument(k2: f64, c: f64, mounts: &[Mount]) -> Vec<Point> {
-        let k = [0.02, 100.0, k2 * 1e-6, 0.2e-6];
-        let levels = spinbench_analysis::points::published_levels(70.0);
-        let mut out = Vec::new();
-        for &mount in mounts {
-            let sign = mount.input_sign();
-            let sequence = levels.iter().chain(levels.iter().rev());
-            for (i, &g) in sequence.enumerate() {
-                let a = g + c * 1e-6 * g * g + if i % 2 == 0 { 1e-6 } else { -1e-6 };
-                out.push(Point {
-                    mount,
-                    g_nominal: g,
-                    g_applied: g,
-                    output: ieee1293_output(k, sign * a),
-                    direction: None,
-                });
-            }
-        }
-        out
-    }
-
-    fn limits(decide_on: Measurand) -> Limits {
-        Limits {
-            decide_on,
-            ..Limits::default()
-        }
-    }
-
-    #[test]
-    fn the_default_verdict_is_on_the_instruments_own_k2_not_on_the_centrifuges_part() {
-        // K2 = 12, c' = 15: k2_P = 27 (over 20), k2_N = 3.
-        let points = instrument(12.0, 15.0, &[Mount::P, Mount::N]);
-        let options = AnalysisOptions::default();
-        let on_k2 = grade("A", points.clone(), options, &limits(Measurand::K2), None);
-        assert_eq!(on_k2.outcome, Outcome::Pass, "{:?}", on_k2.reasons);
-        let on_max = grade("A", points, options, &limits(Measurand::K2Max), None);
-        assert_eq!(on_max.outcome, Outcome::Fail, "{:?}", on_max.reasons);
-        let reason = on_max
-            .reasons
-            .iter()
-            .find(|r| r.code == ReasonCode::K2OverLimit)
-            .expect("over the limit");
-        assert!(reason.text.contains("k2_max"), "{}", reason.text);
-        // And the other way: K2 = 25 judged on K2 fails with its reason naming K2.
-        let over = grade(
-            "B",
-            instrument(25.0, 15.0, &[Mount::P, Mount::N]),
-            options,
-            &limits(Measurand::K2),
-            None,
-        );
-        assert_eq!(over.outcome, Outcome::Fail, "{:?}", over.reasons);
-        assert!(
-            over.reasons
-                .iter()
-                .any(|r| r.code == ReasonCode::K2OverLimit && r.text.contains("|K2|")),
-            "{:?}",
-            over.reasons
-        );
-    }
-
-    #[test]
-    fn one_mounting_has_no_k2_and_is_never_graded_pass_or_fail_on_it() {
-        for k2 in [2.0, 40.0] {
-            let g = grade(
-                "C",
-                instrument(k2, 0.0, &[Mount::P]),
-                AnalysisOptions::default(),
-                &limits(Measurand::K2),
-                None,
-            );
-            assert_eq!(g.outcome, Outcome::Inconclusive, "{:?}", g.reasons);
-            assert!(
-                g.reasons
-                    .iter()
-                    .any(|r| r.text.contains("needs both mountings")),
-                "{:?}",
-                g.reasons
-            );
-        }
-    }
-}
+#[path = "grade_tests.rs"]
+mod tests;

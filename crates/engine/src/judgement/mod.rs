@@ -180,12 +180,14 @@ pub(crate) fn point_list(records: &[PointRecord]) -> Vec<Point> {
     records.iter().map(PointRecord::point).collect()
 }
 
-/// A failure that means the instrument gave no output to judge (dead,
-/// unpowered, unplugged or silent), so its record is
-/// [`Outcome::Incomplete`], never [`Outcome::Fail`].
+/// A failure that means the instrument gave nothing to judge against the
+/// limits (dead, unpowered, unplugged, silent, or so noisy that no point
+/// could be taken — a noisy channel is as likely its cable as the
+/// instrument), so its record is [`Outcome::Incomplete`], never
+/// [`Outcome::Fail`].
 pub(crate) fn unmeasured(code: ReasonCode) -> bool {
     matches!(
         code,
-        ReasonCode::Dead | ReasonCode::NoOutput | ReasonCode::RadiusFailed
+        ReasonCode::Dead | ReasonCode::NoOutput | ReasonCode::RadiusFailed | ReasonCode::Noisy
     )
 }

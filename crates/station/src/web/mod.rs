@@ -243,7 +243,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     if store.users()?.is_empty() {
         writeln!(
             out,
-            "note: no users yet; create the first admin with `spinbench user add NAME --role admin`"
+            "note: no users yet; create the first admin with `spinbench user add NAME --role admin --db {db}`"
         )?;
     }
     let slots = station.slots().max(1);
