@@ -97,6 +97,22 @@ impl<'de> Deserialize<'de> for UtcOffset {
     }
 }
 
+/// The `time_zone` of a station config's text, read alone (a config
+/// another release wrote, with keys this one does not know, still says its
+/// zone); UTC when the text names none. The error when it names one this
+/// release cannot read.
+pub fn of_station_config(text: &str) -> Result<UtcOffset, NotAnOffset> {
+    let table: toml::Table = match toml::from_str(text) {
+        Ok(t) => t,
+        Err(_) => return Err(NotAnOffset("(the station config is not TOML)".into())),
+    };
+    match table.get("time_zone") {
+        None => Ok(UtcOffset::UTC),
+        Some(toml::Value::String(zone)) => UtcOffset::parse(zone),
+        Some(other) => Err(NotAnOffset(other.to_string())),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -562,6 +562,7 @@ mod tests {
             retest_of: None,
             reason_wording: None,
             seq: Some(i as i64 + 1),
+            utc_offset_s: 0,
         }
     }
 

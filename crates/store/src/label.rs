@@ -1,5 +1,6 @@
 //! Readable run labels: `2026-11-24 · station 1 · #7`,
-//! the day the run started (UTC, as every date the station prints), the
+//! the day the run started by the station's clock (its `time_zone` then,
+//! kept with the run as `runs.utc_offset_s`), the
 //! station's name and the run's sequence number among that station's runs
 //! of that day. The sequence is given when the run is first stored and
 //! kept in `runs.seq`; the id stays the run's key, the label is how people
@@ -11,7 +12,8 @@ use super::{RunRow, Store, StoreError};
 /// The separator between a label's parts.
 pub const LABEL_SEPARATOR: &str = " · ";
 
-/// A run's label from its start time [Unix s], station and sequence number.
+/// A run's label from its start time on the station's clock [Unix s plus
+/// the station's offset from UTC], station and sequence number.
 pub fn run_label(started_at_s: i64, station: &str, seq: i64) -> String {
     format!(
         "{}{LABEL_SEPARATOR}{station}{LABEL_SEPARATOR}#{seq}",
@@ -85,7 +87,7 @@ impl RunRow {
     /// a run stored before labels were given.
     pub fn label(&self) -> String {
         match self.seq {
-            Some(seq) => run_label(self.started_at, &self.station, seq),
+            Some(seq) => run_label(self.started_at + self.utc_offset_s, &self.station, seq),
             None => self.id.clone(),
         }
     }
@@ -94,7 +96,7 @@ impl RunRow {
     /// run without a label.
     pub fn label_file_part(&self) -> Option<String> {
         self.seq
-            .map(|seq| label_file_part(self.started_at, &self.station, seq))
+            .map(|seq| label_file_part(self.started_at + self.utc_offset_s, &self.station, seq))
     }
 }
 
@@ -128,11 +130,17 @@ impl Store {
                 ),
             ));
         };
-        let (from, to) = (label.day * 86_400, (label.day + 1) * 86_400);
+        // The day is each run's station's: every zone's runs of that day,
+        // then those whose own day it is.
+        let (from, to) = (
+            label.day * 86_400 - 14 * 3_600,
+            (label.day + 1) * 86_400 + 12 * 3_600,
+        );
         let mut rows = self.runs_where(
             "r.seq = $1 AND r.started_at >= $2 AND r.started_at < $3",
             &[label.seq.into(), from.into(), to.into()],
         )?;
+        rows.retain(|r| (r.started_at + r.utc_offset_s).div_euclid(86_400) == label.day);
         if let Some(station) = &label.station {
             rows.retain(|r| r.station.trim() == station.as_str());
         }

@@ -28,6 +28,9 @@ pub struct RunRow {
     pub reason_wording: Option<spinbench_engine::event::Wording>,
     /// Its number among its station's runs of its day (the label's `#7`).
     pub seq: Option<i64>,
+    /// The station's offset from UTC when the run started [s]: its label's
+    /// day is the station's (0 for a run stored before it was kept).
+    pub utc_offset_s: i64,
 }
 
 /// One instrument's result in one run.
@@ -185,7 +188,7 @@ impl Store {
                 "SELECT r.id, r.station, r.state, r.reason, r.started_at,
                         (SELECT COUNT(*) FROM results s WHERE s.run_id = r.id),
                         (SELECT COUNT(*) FROM points p WHERE p.run_id = r.id),
-                        r.retest_of, r.reason_wording, r.seq
+                        r.retest_of, r.reason_wording, r.seq, r.utc_offset_s
                  FROM runs r WHERE {clause} ORDER BY r.started_at DESC, r.id DESC{tail}"
             ),
             params,
@@ -205,6 +208,7 @@ impl Store {
                         .opt_text(8)
                         .and_then(|json| serde_json::from_str(&json).ok()),
                     seq: r.opt_int(9),
+                    utc_offset_s: r.int(10),
                 })
             })
             .collect()

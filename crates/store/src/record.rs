@@ -263,6 +263,9 @@ pub struct RunStart {
     pub starts: i64,
     /// The layout version it was written with ([`RECORD_VERSION`]).
     pub record_version: i64,
+    /// The station's offset from UTC when it started [s] (its `time_zone`):
+    /// the label's day is the station's.
+    pub utc_offset_s: i64,
 }
 
 /// How the run ended (or that it has not).
@@ -313,13 +316,18 @@ impl RunRecord {
             retest_of: self.start.retest_of.clone(),
             reason_wording: self.end.reason_wording.clone(),
             seq: self.start.seq,
+            utc_offset_s: self.start.utc_offset_s,
         }
     }
 
     /// Its label (`2026-11-24 · station 1 · #7`).
     pub fn label(&self) -> String {
         match self.start.seq {
-            Some(seq) => run_label(self.start.started_at, &self.start.station, seq),
+            Some(seq) => run_label(
+                self.start.started_at + self.start.utc_offset_s,
+                &self.start.station,
+                seq,
+            ),
             None => self.start.id.clone(),
         }
     }
@@ -455,7 +463,7 @@ impl Store {
                 "read a run",
                 "SELECT id, station, started_at, seq, plan_json, station_config, software_version,
                         retest_of, starts, record_version, devices_json, state, reason,
-                        reason_wording, finished_at
+                        reason_wording, finished_at, utc_offset_s
                  FROM runs WHERE id = $1",
                 &[id.into()],
             )?
@@ -480,6 +488,7 @@ impl Store {
             retest_of: row.opt_text(7),
             starts: row.int(8),
             record_version: row.opt_int(9).unwrap_or(1),
+            utc_offset_s: row.int(15),
         };
         let devices = match row.opt_text(10) {
             Some(text) => stored_devices(&text).map_err(unreadable)?,

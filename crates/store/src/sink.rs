@@ -90,6 +90,12 @@ impl StoreSink {
                 self.serials = plan.serials.clone();
                 let plan_json = serde_json::to_string(&plan.plan).unwrap_or_default();
                 let now = now_s();
+                // The station's zone, for its label's day: the station read
+                // its own config before it started, so a zone it names is
+                // one this release reads (UTC for a config without one).
+                let offset_s = spinbench_engine::time_zone::of_station_config(station_config)
+                    .unwrap_or_default()
+                    .seconds();
                 db.transaction(|db| {
                     db.execute(
                         // A station first seen through a run (not a server's
@@ -107,18 +113,24 @@ impl StoreSink {
                             &[run_id.into()],
                         )?;
                     } else {
-                        // The label's number: one more than the station's runs of today.
-                        let day_start = now.div_euclid(86_400) * 86_400;
+                        // The label's number: one more than the station's runs
+                        // of today, each run's day by its station's clock then.
+                        // (The column is a timestamp on PostgreSQL: the
+                        // window is computed here, wide enough for every zone.)
+                        let today = (now + offset_s).div_euclid(86_400);
+                        let (from, to) = (today * 86_400 - 14 * 3_600, (today + 1) * 86_400 + 12 * 3_600);
                         let seq = 1 + db
-                            .query_one(
-                                "SELECT COUNT(*) FROM runs WHERE station = $1 AND started_at >= $2 AND started_at < $3",
-                                &[station.into(), day_start.into(), (day_start + 86_400).into()],
+                            .query(
+                                "SELECT started_at, utc_offset_s FROM runs WHERE station = $1 AND started_at >= $2 AND started_at < $3",
+                                &[station.into(), from.into(), to.into()],
                             )?
-                            .map_or(0, |r| r.int(0));
+                            .iter()
+                            .filter(|r| (r.int(0) + r.int(1)).div_euclid(86_400) == today)
+                            .count() as i64;
                         db.execute(
                             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
-                               station_config, retest_of, seq, record_version)
-                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8, $9, $10)",
+                               station_config, retest_of, seq, record_version, utc_offset_s)
+                             VALUES ($1, $2, $3, $4, 'running', $5, $6, $7, $8, $9, $10, $11)",
                             &[
                                 run_id.into(),
                                 station.into(),
@@ -130,6 +142,7 @@ impl StoreSink {
                                 plan.plan.retest_of.clone().into(),
                                 seq.into(),
                                 crate::record::RECORD_VERSION.into(),
+                                offset_s.into(),
                             ],
                         )?;
                     }

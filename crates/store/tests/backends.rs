@@ -822,3 +822,69 @@ fn the_fleets_first_pass_yield_counts_a_marginal_pass_as_passed_as_the_charts_do
         );
     });
 }
+
+/// A run of station "bench 1" whose config says `time_zone = zone`, started now.
+fn write_run_in_zone(store: &Store, run_id: &str, zone: &str) {
+    let mut sink = store.sink().expect("sink");
+    for e in [
+        Event::RunStarted {
+            run_id: run_id.into(),
+            station: "bench 1".into(),
+            plan: Box::new(plan(&["A"])),
+            resumed: false,
+            station_config: format!("station = \"bench 1\"\ntime_zone = \"{zone}\"\n"),
+        },
+        Event::RunFinished {
+            state: RunState::Completed,
+            reason: None,
+            wording: None,
+        },
+    ] {
+        sink.emit(&e).expect("the store takes the event");
+    }
+}
+
+#[test]
+fn a_runs_label_and_its_number_are_of_the_stations_day_not_utcs() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        // At one instant, 26 hours apart on the station's clock: two days.
+        write_run_in_zone(&store, "z-east-1", "UTC+14:00");
+        write_run_in_zone(&store, "z-west-1", "UTC-12:00");
+        write_run_in_zone(&store, "z-east-2", "UTC+14:00");
+        let row = |id: &str| store.run(id).expect("read").expect("stored");
+        let (east_1, west_1, east_2) = (row("z-east-1"), row("z-west-1"), row("z-east-2"));
+        let day = |r: &spinbench_store::RunRow, offset_s: i64| {
+            spinbench_store::equipment::civil_date(r.started_at + offset_s)
+        };
+        assert_eq!(
+            (east_1.utc_offset_s, west_1.utc_offset_s),
+            (50_400, -43_200)
+        );
+        assert_eq!(
+            east_1.label(),
+            format!("{} · bench 1 · #1", day(&east_1, 50_400))
+        );
+        assert_eq!(
+            west_1.label(),
+            format!("{} · bench 1 · #1", day(&west_1, -43_200))
+        );
+        // Numbered among the station's runs of its own day.
+        assert_eq!(
+            east_2.label(),
+            format!("{} · bench 1 · #2", day(&east_2, 50_400))
+        );
+        assert_ne!(day(&east_1, 50_400), day(&west_1, -43_200), "{target}");
+        // The label, typed, names its run.
+        for r in [&east_1, &west_1, &east_2] {
+            assert_eq!(
+                store.resolve_run(&r.label()).expect("resolved"),
+                r.id,
+                "{target}"
+            );
+        }
+        // The whole record says the same day.
+        let record = store.run_record("z-west-1").expect("read").expect("stored");
+        assert_eq!(record.label(), west_1.label());
+    });
+}

@@ -315,6 +315,13 @@ pub const MIGRATIONS: &[Migration] = &[
         postgres: "CREATE INDEX runs_started ON runs (started_at, id);
     CREATE INDEX units_serial ON units (serial);",
     },
+    Migration {
+        what: "each run's station time zone (its offset from UTC when it started), for its label's day",
+        sqlite: "ALTER TABLE runs ADD COLUMN utc_offset_s INTEGER NOT NULL DEFAULT 0
+        CHECK (utc_offset_s BETWEEN -43200 AND 50400);",
+        postgres: "ALTER TABLE runs ADD COLUMN utc_offset_s integer NOT NULL DEFAULT 0
+        CONSTRAINT runs_utc_offset_s_range CHECK (utc_offset_s BETWEEN -43200 AND 50400);",
+    },
 ];
 
 /// Migration 17 on SQLite: the register's key changes, so its table is
