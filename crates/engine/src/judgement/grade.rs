@@ -149,9 +149,12 @@ fn grade_k2(
 ) {
     match limits.decide_on {
         Measurand::K2 => grade_instrument_k2(a, limits, without, outcome, reasons),
-        Measurand::K2Max => grade_k2_max(a, limits, outcome, reasons),
+        Measurand::K2Max => grade_k2_max(a, limits, without, outcome, reasons),
     }
 }
+
+/// Levels of a mounting, as (mounting, |g|).
+type Levels = Vec<(Mount, f64)>;
 
 /// The instrument's reduction again without the given levels (mounting,
 /// |g|), `None` when it cannot be made.
@@ -293,26 +296,41 @@ fn grade_instrument_k2(
         misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
         return;
     }
+    let both = [(verdict, judged(v, u)), (verdict_out, judged(v_out, u_out))];
+    graded_on_both(both, &shown_levels, limits, outcome, reasons);
+}
+
+/// A pass that stands with and without the levels off the curve: said in
+/// a note (with the value without them), graded the worse of the two
+/// verdicts on the larger reach. `both`: (verdict, judged) with the
+/// levels, then without.
+fn graded_on_both(
+    both: [(Verdict, Judged); 2],
+    levels: &[String],
+    limits: &crate::plan::Limits,
+    outcome: &mut Outcome,
+    reasons: &mut Vec<Reason>,
+) {
+    let [(verdict, kept), (verdict_out, left_out)] = both;
+    reasons.push(
+        Reason::new(
+            ReasonCode::AnalysisNote,
+            format!(
+                "a level off the curve ({}) is not in the U95 of {}; without it that is {} µg/g², the same verdict, so the instrument is graded on the larger reach",
+                levels.join("; "),
+                kept.name,
+                left_out.shown
+            ),
+        )
+        .with("levels", levels.join("; "))
+        .with("value", &left_out.shown)
+        .with("variant", "verdict_unchanged"),
+    );
     let worse = if verdict == Verdict::Marginal || verdict_out == Verdict::Marginal {
         Verdict::Marginal
     } else {
         Verdict::Pass
     };
-    let kept = judged(v, u);
-    let left_out = judged(v_out, u_out);
-    reasons.push(
-        Reason::new(
-            ReasonCode::AnalysisNote,
-            format!(
-                "a level off the curve ({}) is not in K2's U95; K2 without it is {} µg/g², the same verdict, so the instrument is graded on the larger reach",
-                shown_levels.join("; "),
-                left_out.shown
-            ),
-        )
-        .with("levels", shown_levels.join("; "))
-        .with("value", &left_out.shown)
-        .with("variant", "verdict_unchanged"),
-    );
     let wider = if left_out.reach > kept.reach {
         left_out
     } else {
@@ -396,13 +414,50 @@ fn misfit_not_in_u(
 /// pass with its U and any one failing with its U fails;
 /// [`DecisionRule::decide_all`]). A mounting whose fit has a level flagged
 /// off the curve while its U95 carries no misfit (no model-inadequacy or
-/// fit-scatter source) is never a pass on that U: inconclusive, said so.
+/// fit-scatter source) does not stand as a pass on that U alone: as for
+/// K2, the reduction is made again without those levels and the pass
+/// stands only when it passes there too (the worse outcome, the larger
+/// reach).
 fn grade_k2_max(
     a: &spinbench_analysis::UnitAnalysis,
     limits: &crate::plan::Limits,
+    without: Without,
     outcome: &mut Outcome,
     reasons: &mut Vec<Reason>,
 ) {
+    let Some((verdict, judged, unhandled)) = k2_max_judged(a, limits) else {
+        return;
+    };
+    let accepted = |v: Verdict| matches!(v, Verdict::Pass | Verdict::Marginal);
+    if unhandled.is_empty() || !accepted(verdict) {
+        record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
+        return;
+    }
+    let shown = unhandled_shown(&unhandled);
+    let again = without(&unhandled)
+        .as_ref()
+        .and_then(|b| k2_max_judged(b, limits))
+        .filter(|(v, _, left)| left.is_empty() && accepted(*v));
+    let Some((verdict_out, left_out, _)) = again else {
+        misfit_not_in_u(&judged, &shown, outcome, reasons);
+        return;
+    };
+    graded_on_both(
+        [(verdict, judged), (verdict_out, left_out)],
+        &shown,
+        limits,
+        outcome,
+        reasons,
+    );
+}
+
+/// k2_max's verdict, the mounting that decided it as judged, and the
+/// levels flagged in a mounting whose k2 U95 carries no misfit (mounting,
+/// |g|); `None` without a k2.
+fn k2_max_judged(
+    a: &spinbench_analysis::UnitAnalysis,
+    limits: &crate::plan::Limits,
+) -> Option<(Verdict, Judged, Levels)> {
     let rule = limits.decision_rule;
     let l = limits.k2_max_ug_per_g2;
     let mut values = Vec::new();
@@ -417,16 +472,14 @@ fn grade_k2_max(
         let u = budget
             .map(|u| u.u95)
             .or_else(|| f.fit.ci95.k2_ug_per_g2.map(|[lo, hi]| 0.5 * (hi - lo)));
-        let flagged = flagged_levels(f);
-        let misfit_in_u = budget.is_some_and(carries_misfit);
-        if !flagged.is_empty() && !misfit_in_u {
-            unhandled.push(format!("{mount}: {flagged:?} g"));
+        if !budget.is_some_and(carries_misfit) {
+            unhandled.extend(flagged_levels(f).into_iter().map(|g| (*mount, g)));
         }
         values.push((k2, u));
         mounts.push(*mount);
     }
     if values.is_empty() {
-        return;
+        return None;
     }
     let (verdict, decided_by) = rule.decide_all(&values, l, limits.marginal_fraction);
     let i = decided_by.unwrap_or(0);
@@ -442,11 +495,7 @@ fn grade_k2_max(
         codes: [ReasonCode::K2OverLimit, ReasonCode::K2NearLimit],
         variant: None,
     };
-    if !unhandled.is_empty() && matches!(verdict, Verdict::Pass | Verdict::Marginal) {
-        misfit_not_in_u(&judged, &unhandled, outcome, reasons);
-        return;
-    }
-    record_verdict(verdict, &judged, limits.marginal_fraction, outcome, reasons);
+    Some((verdict, judged, unhandled))
 }
 
 /// A figure held against its limit: what the reasons say of it.

@@ -57,17 +57,15 @@ fn points(k2_even: f64, at_45_ug: f64, seed: u64) -> Vec<Point> {
 }
 
 fn graded(k2_even: f64, at_45_ug: f64, seed: u64) -> Graded {
+    graded_on(k2_even, at_45_ug, seed, &Limits::default())
+}
+
+fn graded_on(k2_even: f64, at_45_ug: f64, seed: u64, limits: &Limits) -> Graded {
     let options = AnalysisOptions {
         anomalies: AnomalyRule::Own,
         ..AnalysisOptions::default()
     };
-    grade(
-        "D",
-        points(k2_even, at_45_ug, seed),
-        options,
-        &Limits::default(),
-        None,
-    )
+    grade("D", points(k2_even, at_45_ug, seed), options, limits, None)
 }
 
 fn variant(g: &Graded, name: &str) -> bool {
@@ -88,6 +86,45 @@ fn a_flagged_level_that_cannot_change_the_verdict_does_not_refuse_the_pass() {
     assert_eq!(g.outcome, Outcome::Pass, "{:?}", g.reasons);
     assert!(variant(&g, "verdict_unchanged"), "{:?}", g.reasons);
     assert!(!variant(&g, "misfit"), "{:?}", g.reasons);
+}
+
+#[test]
+fn on_k2_max_too_a_flagged_level_refuses_a_pass_only_when_the_verdict_changes_without_it() {
+    let limits = Limits {
+        decide_on: Measurand::K2Max,
+        ..Limits::default()
+    };
+    // A mounting's own budget puts a misfit in sooner than K2's: a
+    // smaller second level, so the refit's flag is not in k2's U95.
+    let g = graded_on(5.0, -100.0, 3, &limits);
+    let a = g.analysis.as_ref().expect("reduced");
+    assert!(
+        k2_max_judged(a, &limits).is_some_and(|(_, _, levels)| !levels.is_empty()),
+        "the case needs a flagged level k2's U95 does not carry: {:?}",
+        g.reasons
+    );
+    assert_eq!(g.outcome, Outcome::Pass, "{:?}", g.reasons);
+    assert!(variant(&g, "verdict_unchanged"), "{:?}", g.reasons);
+    assert!(!variant(&g, "misfit"), "{:?}", g.reasons);
+    // Near the limit, nothing over it is accepted, and both branches occur.
+    let (mut unchanged, mut refused) = (0, 0);
+    for tenth in 150..=215 {
+        let k2 = f64::from(tenth) / 10.0;
+        for (at_45_ug, seed) in [(-100.0, 3), (-120.0, 37)] {
+            let g = graded_on(k2, at_45_ug, seed, &limits);
+            let accepted = matches!(g.outcome, Outcome::Pass | Outcome::Marginal);
+            let k2_max = g.k2_max_ug_per_g2.expect("k2_max");
+            assert!(
+                !accepted || k2 < 20.0,
+                "k2 {k2} (k2_max {k2_max}) accepted: {:?}",
+                g.reasons
+            );
+            unchanged += usize::from(variant(&g, "verdict_unchanged"));
+            refused += usize::from(variant(&g, "misfit"));
+        }
+    }
+    println!("k2_max: graded on both {unchanged}; refused {refused}");
+    assert!(unchanged > 0, "graded on both: {unchanged}");
 }
 
 #[test]
