@@ -42,6 +42,20 @@ pub fn label_file_part(started_at_s: i64, station: &str, seq: i64) -> String {
     )
 }
 
+/// The UTC times [Unix s] within which every station's day `day` (days
+/// since 1970-01-01 on its own clock) lies, whatever its zone (UTC−12:00
+/// to UTC+14:00): a query's window, whose rows are then kept by their own
+/// day ([`run_day`]). (The column is a timestamp on PostgreSQL, so the
+/// day cannot be computed in SQL both back ends share.)
+pub fn day_window(day: i64) -> (i64, i64) {
+    (day * 86_400 - 14 * 3_600, (day + 1) * 86_400 + 12 * 3_600)
+}
+
+/// A run's day on its station's clock (days since 1970-01-01).
+pub fn run_day(started_at_s: i64, utc_offset_s: i64) -> i64 {
+    (started_at_s + utc_offset_s).div_euclid(86_400)
+}
+
 /// A typed label taken apart: the day (days since 1970-01-01), the station
 /// if given, and the sequence number.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -130,17 +144,13 @@ impl Store {
                 ),
             ));
         };
-        // The day is each run's station's: every zone's runs of that day,
-        // then those whose own day it is.
-        let (from, to) = (
-            label.day * 86_400 - 14 * 3_600,
-            (label.day + 1) * 86_400 + 12 * 3_600,
-        );
+        // The day is each run's station's.
+        let (from, to) = day_window(label.day);
         let mut rows = self.runs_where(
             "r.seq = $1 AND r.started_at >= $2 AND r.started_at < $3",
             &[label.seq.into(), from.into(), to.into()],
         )?;
-        rows.retain(|r| (r.started_at + r.utc_offset_s).div_euclid(86_400) == label.day);
+        rows.retain(|r| run_day(r.started_at, r.utc_offset_s) == label.day);
         if let Some(station) = &label.station {
             rows.retain(|r| r.station.trim() == station.as_str());
         }

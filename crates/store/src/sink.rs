@@ -117,15 +117,15 @@ impl StoreSink {
                         // of today, each run's day by its station's clock then.
                         // (The column is a timestamp on PostgreSQL: the
                         // window is computed here, wide enough for every zone.)
-                        let today = (now + offset_s).div_euclid(86_400);
-                        let (from, to) = (today * 86_400 - 14 * 3_600, (today + 1) * 86_400 + 12 * 3_600);
+                        let today = crate::label::run_day(now, offset_s);
+                        let (from, to) = crate::label::day_window(today);
                         let seq = 1 + db
                             .query(
                                 "SELECT started_at, utc_offset_s FROM runs WHERE station = $1 AND started_at >= $2 AND started_at < $3",
                                 &[station.into(), from.into(), to.into()],
                             )?
                             .iter()
-                            .filter(|r| (r.int(0) + r.int(1)).div_euclid(86_400) == today)
+                            .filter(|r| crate::label::run_day(r.int(0), r.int(1)) == today)
                             .count() as i64;
                         db.execute(
                             "INSERT INTO runs (id, station, plan_json, software_version, state, started_at, starts,
