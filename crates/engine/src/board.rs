@@ -270,17 +270,19 @@ impl SlotBoard {
             s.phase = match step {
                 Step::WarmUp { .. } => SlotPhase::Warming,
                 Step::Tumble { .. } | Step::CrossTumble { .. } => SlotPhase::Tumble,
-                Step::Radius { pass } | Step::Level { pass, .. } => match in_pass(*pass, s.slot) {
-                    Some(mount) => {
-                        s.mount = Some(mount);
-                        if matches!(step, Step::Radius { .. }) {
-                            SlotPhase::Radius
-                        } else {
-                            SlotPhase::Settling
+                Step::Radius { pass } | Step::Level { pass, .. } | Step::Decide { pass, .. } => {
+                    match in_pass(*pass, s.slot) {
+                        Some(mount) => {
+                            s.mount = Some(mount);
+                            if matches!(step, Step::Radius { .. }) {
+                                SlotPhase::Radius
+                            } else {
+                                SlotPhase::Settling
+                            }
                         }
+                        None => SlotPhase::Waiting,
                     }
-                    None => SlotPhase::Waiting,
-                },
+                }
                 _ => SlotPhase::Waiting,
             };
         }
@@ -291,12 +293,19 @@ impl SlotBoard {
         let Some(plan) = &self.plan else {
             return;
         };
-        let Some(Step::Level { pass, .. }) = plan.steps.get(index) else {
+        let Some(pass @ Some(_)) = plan
+            .steps
+            .get(index)
+            .filter(|s| matches!(s, Step::Level { .. } | Step::Decide { .. }))
+            .map(Step::measured_pass)
+        else {
             return;
         };
-        let last_of_pass = !plan.steps[index + 1..]
-            .iter()
-            .any(|s| matches!(s, Step::Level { pass: p, .. } if p == pass));
+        // A pass's rounds of deciding come after its levels: the fit is
+        // shown after its last measuring step.
+        let last_of_pass = !plan.steps[index + 1..].iter().any(|s| {
+            matches!(s, Step::Level { .. } | Step::Decide { .. }) && s.measured_pass() == pass
+        });
         if !last_of_pass {
             return;
         }

@@ -10,6 +10,8 @@ use std::ops::RangeInclusive;
 pub const MAX_LEVEL_G: f64 = 1_000.0;
 /// Most levels in a plan.
 pub const MAX_LEVELS: usize = 500;
+/// Most levels a plan's `[sequential]` adds per mounting.
+pub const MAX_SEQUENTIAL_LEVELS: u32 = 50;
 /// Longest warm-up [s] (one day).
 pub const MAX_WARMUP_S: f64 = 86_400.0;
 /// Longest dwell at one level, and the longest adaptive dwell [s] (one hour).

@@ -397,6 +397,7 @@ mod tests {
                 g_nominal: 5.0,
                 direction: spinbench_analysis::Direction::Down,
             },
+            Step::Decide { pass: 1, round: 0 },
             Step::Stop,
         ];
         for step in &steps {

@@ -170,6 +170,8 @@ pub struct DemoPlanChoice {
     pub anomalies: spinbench_analysis::AnomalyRule,
     /// What the k2 limit judges.
     pub decide_on: spinbench_engine::plan::Measurand,
+    /// Levels chosen by the data per mounting (the plan's `[sequential]`; 0: none).
+    pub sequential_levels_per_pass: u32,
 }
 
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
@@ -232,6 +234,11 @@ pub fn demo(
     );
     plan.anomalies = plan_choice.anomalies;
     plan.limits.decide_on = plan_choice.decide_on;
+    if plan_choice.sequential_levels_per_pass > 0 {
+        plan.sequential = Some(spinbench_engine::plan::SequentialConfig {
+            max_levels_per_pass: plan_choice.sequential_levels_per_pass,
+        });
+    }
     if let Some(levels) = plan_choice.levels_g {
         plan.range_g = levels.iter().copied().fold(0.0, f64::max);
         plan.levels = Some(spinbench_engine::plan::LevelTable::List(levels));

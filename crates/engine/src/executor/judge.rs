@@ -149,13 +149,13 @@ impl Executor<'_> {
             .enumerate()
             .filter(|(_, step)| match step {
                 Step::Tumble { .. } | Step::CrossTumble { .. } => true,
-                Step::Radius { pass } | Step::Level { pass, .. } => self
-                    .plan
-                    .passes
-                    .get(*pass)
-                    .and_then(|p| p.get(slot))
-                    .is_some_and(Option::is_some),
-                _ => false,
+                _ => step.measured_pass().is_some_and(|pass| {
+                    self.plan
+                        .passes
+                        .get(pass)
+                        .and_then(|p| p.get(slot))
+                        .is_some_and(Option::is_some)
+                }),
             })
             .filter(|(index, _)| !self.progress.completed.contains(index))
             .count()

@@ -18,6 +18,7 @@
 //! | [`stability`] | the stability statistics (pure functions) |
 //! | `dwell` | the settle-and-average loop around them |
 //! | `steps` | one handler per kind of step |
+//! | [`sequential`] | `Deciding`: measuring until the verdict is certain, the level chosen by the data |
 //! | `judge` | the run's units into records, through [`crate::judgement`]'s plain functions |
 //!
 //! Time is counted in counter-module windows (one second of ticks each), so
@@ -32,6 +33,7 @@ mod ports;
 mod rating;
 mod resume;
 mod safety;
+pub mod sequential;
 mod soak;
 pub mod stability;
 pub mod state;
@@ -342,6 +344,8 @@ pub struct Executor<'a> {
     safe: SafeOutcome,
     /// The subscribers and the run-state table they are told of.
     fanout: Fanout<'a>,
+    /// The passes whose rounds of deciding are over.
+    deciding: sequential::Deciding,
 }
 
 impl<'a> Executor<'a> {
@@ -367,6 +371,7 @@ impl<'a> Executor<'a> {
             demand_deg_s: 0.0,
             safe: SafeOutcome::default(),
             fanout: Fanout::default(),
+            deciding: sequential::Deciding::default(),
         }
     }
 
@@ -682,6 +687,7 @@ impl<'a> Executor<'a> {
                     g_nominal,
                     direction,
                 } => self.level(index, *pass, *g_nominal, *direction)?,
+                Step::Decide { pass, round } => self.decide(index, *pass, *round)?,
                 Step::Stop => self.command_rate(0.0)?,
             }
             self.emit(Event::StepDone { index })?;

@@ -580,6 +580,9 @@ pub fn wording(step: &Step) -> Wording {
             .with("g", g_nominal)
             .with("direction", direction.as_str())
             .with("pass", pass + 1),
+        Step::Decide { pass, round } => Wording::new("step.decide")
+            .with("pass", pass + 1)
+            .with("round", round + 1),
         Step::Stop => Wording::new("step.stop"),
     }
 }
@@ -607,6 +610,9 @@ pub fn label(step: &Step) -> String {
             g_nominal,
             direction,
         } => format!("{g_nominal} g {direction:?} (pass {})", pass + 1),
+        Step::Decide { pass, round } => {
+            format!("deciding, level {} (pass {})", round + 1, pass + 1)
+        }
         Step::Stop => "stop".into(),
     }
 }

@@ -423,6 +423,13 @@ impl TestPlan {
                         direction,
                     });
                 }
+                // Measuring until the verdict is certain, while the pass's
+                // instruments are still mounted (refused with temperatures).
+                if let Some(q) = &self.sequential {
+                    for round in 0..q.max_levels_per_pass as usize {
+                        steps.push(Step::Decide { pass: p, round });
+                    }
+                }
                 steps.push(Step::Stop);
             }
         }

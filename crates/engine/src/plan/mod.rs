@@ -113,6 +113,33 @@ pub struct TestPlan {
     /// instruments, [`crate::retest`]); absent for a first test.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub retest_of: Option<String>,
+    /// Measure until the verdict is certain: after each mounting's planned
+    /// levels, while the instruments are still mounted, levels chosen by
+    /// the data for the instruments still undecided ([`SequentialConfig`];
+    /// absent: only the planned levels).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequential: Option<SequentialConfig>,
+}
+
+/// The plan's `[sequential]` table: the rule and the budget of the levels
+/// the station adds after a mounting's planned ones (docs/method.md §6,
+/// "Measure until the verdict is certain").
+///
+/// The rule: an instrument is undecided when its verdict is inconclusive
+/// (in the last mounting; in an earlier one, before K2 exists, when a level
+/// is off its curve there). What would decide it is support beside the
+/// level off its curve, so that the reductions with and without that
+/// level agree: the level halfway to each measured neighbour. Each round
+/// measures the one such level that serves the most undecided
+/// instruments, then judges again; the rounds stop when no instrument is
+/// undecided, no level would serve one, or the budget is spent.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SequentialConfig {
+    /// The budget: at most this many added levels per mounting (1 to
+    /// [`crate::bounds::MAX_SEQUENTIAL_LEVELS`]); each takes one planned
+    /// level's settling and dwell.
+    pub max_levels_per_pass: u32,
 }
 
 /// The `levels` key: a list, or `"auto"` (designed by the station).
@@ -589,8 +616,30 @@ pub enum Step {
         /// Ascending or descending.
         direction: Direction,
     },
+    /// One round of measuring until the verdict is certain (the plan's
+    /// `[sequential]`): a level chosen by the data for the pass's
+    /// undecided instruments, or nothing when none is left.
+    Decide {
+        /// Pass number.
+        pass: usize,
+        /// The round, from 0 (at most `max_levels_per_pass` per pass).
+        round: usize,
+    },
     /// Controlled stop of the centrifuge.
     Stop,
+}
+
+impl Step {
+    /// The pass whose instruments this step measures (a radius, a level,
+    /// a round of deciding); `None` for the steps of every instrument or none.
+    pub fn measured_pass(&self) -> Option<usize> {
+        match self {
+            Step::Radius { pass } | Step::Level { pass, .. } | Step::Decide { pass, .. } => {
+                Some(*pass)
+            }
+            _ => None,
+        }
+    }
 }
 
 /// A compiled plan: the steps, and per pass the mounting of each slot.
@@ -640,6 +689,7 @@ impl Default for TestPlan {
             exclusions: Vec::new(),
             anomalies: Default::default(),
             retest_of: None,
+            sequential: None,
         }
     }
 }

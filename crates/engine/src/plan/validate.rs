@@ -161,6 +161,20 @@ impl TestPlan {
         }
         check(l.marginal_fraction, 0.0..=1.0, "", "a fraction")
             .map_err(at("limits.marginal_fraction"))?;
+        if let Some(q) = &self.sequential {
+            if !(1..=MAX_SEQUENTIAL_LEVELS).contains(&q.max_levels_per_pass) {
+                return Err(at("sequential.max_levels_per_pass")(format!(
+                    "{} is outside 1 to {MAX_SEQUENTIAL_LEVELS} (MAX_SEQUENTIAL_LEVELS)",
+                    q.max_levels_per_pass
+                )));
+            }
+            if !self.temperatures_c.is_empty() {
+                return Err(at("sequential")(
+                    "a plan with temperatures_c cannot add levels (each would need every \
+                     temperature again); remove [sequential] or temperatures_c",
+                ));
+            }
+        }
         Ok(())
     }
 }

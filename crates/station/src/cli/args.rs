@@ -99,6 +99,12 @@ pub enum Command {
         /// (the published convention; the plan key `limits.decide_on`).
         #[arg(long, default_value = "K2")]
         decide_on: spinbench_engine::plan::Measurand,
+        /// Measure until the verdict is certain: after each mounting's
+        /// levels, at most N levels chosen by the data for the instruments
+        /// still undecided (the plan's `[sequential] max_levels_per_pass`;
+        /// 0: only the planned levels).
+        #[arg(long, value_name = "N", default_value_t = 0)]
+        sequential: u32,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,

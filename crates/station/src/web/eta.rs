@@ -16,7 +16,7 @@ use std::time::Instant;
 /// a bench's typical times (the virtual bench's at its real speed, and the
 /// published station's procedure), replaced by the measured as soon as one
 /// step of the kind is done.
-const NOMINAL_S: [(&str, f64); 9] = [
+const NOMINAL_S: [(&str, f64); 10] = [
     ("step.power_on", 5.0),
     ("step.check_alive", 15.0),
     // The operator's remounting of every instrument.
@@ -25,6 +25,8 @@ const NOMINAL_S: [(&str, f64); 9] = [
     ("step.cross_tumble", 60.0),
     ("step.radius", 120.0),
     ("step.level", 60.0),
+    // A round of deciding: most measure nothing (every instrument decided).
+    ("step.decide", 5.0),
     ("step.soak", 1800.0),
     ("step.stop", 30.0),
 ];
