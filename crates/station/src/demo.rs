@@ -170,8 +170,35 @@ pub struct DemoPlanChoice {
     pub anomalies: spinbench_analysis::AnomalyRule,
     /// What the k2 limit judges.
     pub decide_on: spinbench_engine::plan::Measurand,
-    /// Levels chosen by the data per mounting (the plan's `[sequential]`; 0: none).
-    pub sequential_levels_per_pass: u32,
+    /// Levels chosen by the data per mounting (the plan's `[sequential]`;
+    /// 0: none; absent: [`DEFAULT_SEQUENTIAL_LEVELS`] on the default design).
+    pub sequential_levels_per_pass: Option<u32>,
+    /// The published plan as it was: its levels, nothing designed or added.
+    pub published: bool,
+}
+
+/// The demo's default budget of levels chosen by the data per mounting.
+pub const DEFAULT_SEQUENTIAL_LEVELS: u32 = 12;
+
+impl DemoPlanChoice {
+    /// The design target and the sequential budget the demo runs: the
+    /// default (no levels, temperatures or `--published` given) is the
+    /// check design measured until the verdict is certain.
+    fn resolved(&self) -> (Option<f64>, u32) {
+        // The published plan stays the demo's default until the designed
+        // default is checked by the whole suite; a designed plan is
+        // measured until the verdict is certain unless told otherwise.
+        let designed = !self.published && self.levels_g.is_none() && self.temperatures_c.is_empty();
+        let target = self.target_k2_u95;
+        let sequential =
+            self.sequential_levels_per_pass
+                .unwrap_or(if designed && target.is_some() {
+                    DEFAULT_SEQUENTIAL_LEVELS
+                } else {
+                    0
+                });
+        (target, sequential)
+    }
 }
 
 /// The demo's plan: every slot, ±70 g (both mountings), published levels,
@@ -234,16 +261,17 @@ pub fn demo(
     );
     plan.anomalies = plan_choice.anomalies;
     plan.limits.decide_on = plan_choice.decide_on;
-    if plan_choice.sequential_levels_per_pass > 0 {
+    let (target_k2_u95, sequential) = plan_choice.resolved();
+    if sequential > 0 {
         plan.sequential = Some(spinbench_engine::plan::SequentialConfig {
-            max_levels_per_pass: plan_choice.sequential_levels_per_pass,
+            max_levels_per_pass: sequential,
         });
     }
     if let Some(levels) = plan_choice.levels_g {
         plan.range_g = levels.iter().copied().fold(0.0, f64::max);
         plan.levels = Some(spinbench_engine::plan::LevelTable::List(levels));
     }
-    if let Some(target) = plan_choice.target_k2_u95 {
+    if let Some(target) = target_k2_u95 {
         plan.set_target(target)?;
     }
     let plan_order = spinbench_analysis::ModelOrder::from_degree(plan.order).unwrap_or_default();

@@ -12,6 +12,7 @@
 
 use super::{EngineError, Executor};
 use crate::event::{Event, Wording};
+use crate::plan::Step;
 use crate::record::{Outcome, UnitRecord};
 use spinbench_analysis::{Direction, Mount};
 use std::collections::{BTreeMap, BTreeSet};
@@ -27,6 +28,8 @@ pub const MIN_SPACING_G: f64 = 2.5;
 pub(super) struct Deciding {
     /// Passes with nothing left to decide, or nothing that would decide it.
     finished: BTreeSet<usize>,
+    /// The slots the current pass's added levels were for.
+    served: BTreeSet<usize>,
 }
 
 /// A level to measure and the undecided instruments it serves (slots, 0-based).
@@ -139,8 +142,10 @@ fn mounting_k2_u95(record: &UnitRecord, mount: Mount) -> Option<f64> {
 
 impl Executor<'_> {
     /// Round `round` of pass `pass`: judge the run so far and measure the
-    /// level that serves the most undecided instruments, or end the pass's
-    /// rounds (said once) when none is left or none would help.
+    /// level that serves the most undecided instruments. The pass's rounds
+    /// end, said once in one notice (the levels added, for whom, and how
+    /// many are still undecided and why), when none is undecided, no level
+    /// would serve one, or the budget is spent.
     pub(super) fn decide(
         &mut self,
         step: usize,
@@ -157,71 +162,113 @@ impl Executor<'_> {
             .map_or(0, |q| q.max_levels_per_pass as usize);
         let (undecided, choice) = self.next_deciding_level(pass);
         let Some(choice) = choice else {
-            self.deciding.finished.insert(pass);
-            let message = format!(
-                "pass {}: {undecided} instrument(s) still undecided, and no level would decide them \
-                 (added {round} of at most {budget})",
-                pass + 1
-            );
-            return self.emit(Event::Notice {
-                message,
-                wording: Some(
-                    Wording::new("notice.deciding_done")
-                        .with("pass", pass + 1)
-                        .with("undecided", undecided)
-                        .with("added", round)
-                        .with("budget", budget),
-                ),
-            });
+            return self.end_deciding(pass, undecided, false);
         };
-        let slots = choice
-            .slots
+        self.deciding.served.extend(choice.slots.iter().copied());
+        self.level(step, pass, choice.g_nominal, Direction::Up)?;
+        if round + 1 >= budget {
+            let (undecided, _) = self.next_deciding_level(pass);
+            return self.end_deciding(pass, undecided, true);
+        }
+        Ok(())
+    }
+
+    /// The end of pass `pass`'s rounds, said: the levels the data added
+    /// (those of the pass not in the plan), the instruments they served,
+    /// how many are still undecided, and whether the budget ran out.
+    fn end_deciding(
+        &mut self,
+        pass: usize,
+        undecided: usize,
+        budget_spent: bool,
+    ) -> Result<(), EngineError> {
+        self.deciding.finished.insert(pass);
+        let planned: Vec<f64> = self
+            .plan
+            .steps
             .iter()
-            .map(|s| (s + 1).to_string())
-            .collect::<Vec<_>>()
-            .join(", ");
-        let beside = choice
-            .beside_g
+            .filter_map(|s| match s {
+                Step::Level {
+                    pass: p, g_nominal, ..
+                } if *p == pass => Some(g_nominal.abs()),
+                _ => None,
+            })
+            .collect();
+        let mut added: Vec<f64> = Vec::new();
+        for (slot, u) in self.units.iter().enumerate() {
+            let Some(mount) = self
+                .plan
+                .passes
+                .get(pass)
+                .and_then(|p| p.get(slot))
+                .copied()
+                .flatten()
+            else {
+                continue;
+            };
+            for p in u.points.iter().filter(|p| p.mount == mount) {
+                let g = p.g_nominal.abs();
+                if !planned.iter().chain(&added).any(|m| (m - g).abs() < 0.05) {
+                    added.push(g);
+                }
+            }
+        }
+        let levels = added
             .iter()
             .map(|g| format!("{g}"))
             .collect::<Vec<_>>()
             .join(", ");
-        let (key, why) = if choice.mirrored {
-            (
-                "notice.deciding_mirror",
-                "added in an earlier pass, so that the table cancels from K2 there too".to_string(),
-            )
-        } else if choice.beside_g.is_empty() {
-            (
-                "notice.deciding_wide",
-                format!(
-                    "for slot(s) {slots}, whose k2 is too wide for a verdict with no level to blame"
+        let slots = std::mem::take(&mut self.deciding.served)
+            .iter()
+            .map(|s| (s + 1).to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        if added.is_empty() && undecided == 0 {
+            return Ok(());
+        }
+        if added.is_empty() {
+            return self.emit(Event::Notice {
+                message: format!(
+                    "pass {}: {undecided} instrument(s) undecided, and no level would decide them; none added",
+                    pass + 1
                 ),
-            )
-        } else {
-            (
-                "notice.deciding",
-                format!("for slot(s) {slots}, beside their level(s) off the curve at {beside} g"),
-            )
-        };
-        self.emit(Event::Notice {
-            message: format!(
-                "pass {}: measuring {} g, {why}; level {} of at most {budget}",
-                pass + 1,
-                choice.g_nominal,
-                round + 1
+                wording: Some(
+                    Wording::new("notice.deciding_none")
+                        .with("pass", pass + 1)
+                        .with("undecided", undecided),
+                ),
+            });
+        }
+        let (key, end) = match (undecided, budget_spent) {
+            (0, _) => ("notice.deciding_done", "none is undecided".to_string()),
+            (n, true) => (
+                "notice.deciding_budget",
+                format!(
+                    "{n} still undecided: the budget of {} level(s) is spent",
+                    added.len()
+                ),
             ),
+            (n, false) => (
+                "notice.deciding_stuck",
+                format!("{n} still undecided: no other level would decide them"),
+            ),
+        };
+        let message = format!(
+            "pass {}: {} level(s) added by the data ({levels} g) for slot(s) {slots}; {end}",
+            pass + 1,
+            added.len()
+        );
+        self.emit(Event::Notice {
+            message,
             wording: Some(
                 Wording::new(key)
                     .with("pass", pass + 1)
-                    .with("g", choice.g_nominal)
-                    .with("slots", &slots)
-                    .with("beside", &beside)
-                    .with("round", round + 1)
-                    .with("budget", budget),
+                    .with("added", added.len())
+                    .with("levels", levels)
+                    .with("slots", slots)
+                    .with("undecided", undecided),
             ),
-        })?;
-        self.level(step, pass, choice.g_nominal, Direction::Up)
+        })
     }
 
     /// How many of the pass's instruments are undecided, and the level that

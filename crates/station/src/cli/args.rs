@@ -102,9 +102,15 @@ pub enum Command {
         /// Measure until the verdict is certain: after each mounting's
         /// levels, at most N levels chosen by the data for the instruments
         /// still undecided (the plan's `[sequential] max_levels_per_pass`;
-        /// 0: only the planned levels).
-        #[arg(long, value_name = "N", default_value_t = 0)]
-        sequential: u32,
+        /// 0: only the planned levels; default 12 with `--target-k2-u95`,
+        /// else 0).
+        #[arg(long, value_name = "N")]
+        sequential: Option<u32>,
+        /// The published plan as it was (0, 1, 5, then every 5 g to 70,
+        /// 10-s dwell, nothing added), for comparison with a designed plan
+        /// measured until the verdict is certain.
+        #[arg(long, conflicts_with_all = ["levels", "target_k2_u95", "sequential"])]
+        published: bool,
         /// Print one JSON document instead of tables.
         #[arg(long)]
         json: bool,
