@@ -279,15 +279,16 @@ impl Executor<'_> {
     /// earlier one added.
     fn next_deciding_level(&self, pass: usize) -> (usize, Option<Choice>) {
         let last_pass = pass + 1 >= self.plan.passes.len();
+        let mount_in = |p: usize, slot: usize| {
+            self.plan
+                .passes
+                .get(p)
+                .and_then(|m| m.get(slot))
+                .copied()
+                .flatten()
+        };
         let measured_in = |p: usize| -> Vec<f64> {
-            let in_p = |slot: usize| {
-                self.plan
-                    .passes
-                    .get(p)
-                    .and_then(|m| m.get(slot))
-                    .copied()
-                    .flatten()
-            };
+            let in_p = |slot: usize| mount_in(p, slot);
             (0..self.units.len())
                 .flat_map(|s| {
                     let mount = in_p(s);
@@ -302,14 +303,7 @@ impl Executor<'_> {
                 .collect()
         };
         let measured = measured_in(pass);
-        let in_pass = |slot: usize| {
-            self.plan
-                .passes
-                .get(pass)
-                .and_then(|p| p.get(slot))
-                .copied()
-                .flatten()
-        };
+        let in_pass = |slot: usize| mount_in(pass, slot);
         let records = self.records(true, None);
         let live: Vec<&UnitRecord> = records
             .iter()
