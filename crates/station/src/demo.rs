@@ -180,23 +180,26 @@ pub struct DemoPlanChoice {
 /// The demo's default budget of levels chosen by the data per mounting.
 pub const DEFAULT_SEQUENTIAL_LEVELS: u32 = 12;
 
+/// The K2 U95 the demo's default plan is designed for [µg/g²]: the shipped
+/// check plan's (`packaging/plans/check-70g.toml`), two fifths of its limit.
+pub const DEFAULT_TARGET_K2_U95_UG_PER_G2: f64 = 8.0;
+
 impl DemoPlanChoice {
     /// The design target and the sequential budget the demo runs: the
     /// default (no levels, temperatures or `--published` given) is the
     /// check design measured until the verdict is certain.
     fn resolved(&self) -> (Option<f64>, u32) {
-        // The published plan stays the demo's default until the designed
-        // default is checked by the whole suite; a designed plan is
-        // measured until the verdict is certain unless told otherwise.
         let designed = !self.published && self.levels_g.is_none() && self.temperatures_c.is_empty();
-        let target = self.target_k2_u95;
-        let sequential =
-            self.sequential_levels_per_pass
-                .unwrap_or(if designed && target.is_some() {
-                    DEFAULT_SEQUENTIAL_LEVELS
-                } else {
-                    0
-                });
+        let target = self
+            .target_k2_u95
+            .or(designed.then_some(DEFAULT_TARGET_K2_U95_UG_PER_G2));
+        let sequential = self.sequential_levels_per_pass.unwrap_or(
+            if target.is_some() && self.temperatures_c.is_empty() {
+                DEFAULT_SEQUENTIAL_LEVELS
+            } else {
+                0
+            },
+        );
         (target, sequential)
     }
 }

@@ -53,6 +53,26 @@ fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
     // The same seed gives the same results, byte for byte (virtual time in lockstep).
     let (doc, _dir) = twice_the_same(&["--seed", "3"]);
     assert_eq!(doc["run"]["state"], "completed");
+    // The default plan is the shipped check's: designed for a K2 U95 of
+    // 8 µg/g² and measured until the verdict is certain, in less centrifuge
+    // time than the published plan.
+    let run = &doc["run"];
+    assert_eq!(run["prediction"]["target_k2_u95_ug_per_g2"], 8.0, "{run}");
+    let spun = run["achieved"]["centrifuge_time_s"].as_f64().expect("time");
+    let published = run["prediction"]["published_centrifuge_time_s"]
+        .as_f64()
+        .expect("published time");
+    assert!(
+        spun < published,
+        "{spun} s against the published {published} s"
+    );
+    let journal =
+        std::fs::read_to_string(Path::new(run["dir"].as_str().expect("dir")).join("journal.jsonl"))
+            .expect("journal");
+    assert!(
+        journal.contains(r#""sequential":{"max_levels_per_pass":12}"#),
+        "the plan in the journal is not sequential"
+    );
     assert!(
         doc["run"]["dir"]
             .as_str()
@@ -154,7 +174,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 #[test]
 fn the_typical_bench_reproduces_and_shows_the_published_datas_signature() {
-    let (doc, dir) = twice_the_same(&["--seed", "2", "--realism", "typical"]);
+    let (doc, dir) = twice_the_same(&["--seed", "2", "--realism", "typical", "--published"]);
     assert_eq!(doc["run"]["state"], "completed");
     assert_eq!(doc["run"]["realism"], "typical");
     let units = doc["units"].as_array().expect("units");
@@ -373,7 +393,10 @@ fn arm_stretch_is_the_part_of_k2_common_to_both_mountings_end_to_end() {
 #[test]
 fn the_harsh_bench_completes_and_only_its_bad_instruments_are_failed() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let doc = demo(&["--seed", "5", "--realism", "harsh"], dir.path());
+    let doc = demo(
+        &["--seed", "5", "--realism", "harsh", "--published"],
+        dir.path(),
+    );
     assert_eq!(doc["run"]["state"], "completed");
     let run_dir = Path::new(doc["run"]["dir"].as_str().expect("dir"));
     let results: Value = serde_json::from_str(

@@ -86,7 +86,8 @@ pub enum Command {
         levels: Vec<f64>,
         /// Design the levels, the readings on the way down and the dwell for
         /// this K2 U95 [µg/g²] from the station's model of its own runs in
-        /// the store (the plan's `levels = "auto"`).
+        /// the store (the plan's `levels = "auto"`; default 8, the shipped
+        /// check plan's, unless `--levels`, `--temperatures` or `--published`).
         #[arg(long, value_name = "UG_PER_G2", conflicts_with = "levels")]
         target_k2_u95: Option<f64>,
         /// What the reduction does with a level found off the curve: own
@@ -102,8 +103,7 @@ pub enum Command {
         /// Measure until the verdict is certain: after each mounting's
         /// levels, at most N levels chosen by the data for the instruments
         /// still undecided (the plan's `[sequential] max_levels_per_pass`;
-        /// 0: only the planned levels; default 12 with `--target-k2-u95`,
-        /// else 0).
+        /// 0: only the planned levels; default 12 on a designed plan, else 0).
         #[arg(long, value_name = "N")]
         sequential: Option<u32>,
         /// The published plan as it was (0, 1, 5, then every 5 g to 70,
