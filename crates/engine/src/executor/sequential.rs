@@ -229,7 +229,7 @@ impl Executor<'_> {
         if added.is_empty() {
             return self.emit(Event::Notice {
                 message: format!(
-                    "pass {}: {undecided} instrument(s) undecided, and no level would decide them; none added",
+                    "pass {}: {undecided} instrument(s) still open, and no level would help them; none added",
                     pass + 1
                 ),
                 wording: Some(
@@ -240,17 +240,17 @@ impl Executor<'_> {
             });
         }
         let (key, end) = match (undecided, budget_spent) {
-            (0, _) => ("notice.deciding_done", "none is undecided".to_string()),
+            (0, _) => ("notice.deciding_done", "none is open".to_string()),
             (n, true) => (
                 "notice.deciding_budget",
                 format!(
-                    "{n} still undecided: the budget of {} level(s) is spent",
+                    "{n} still open: the budget of {} level(s) is spent",
                     added.len()
                 ),
             ),
             (n, false) => (
                 "notice.deciding_stuck",
-                format!("{n} still undecided: no other level would decide them"),
+                format!("{n} still open: no other level would help them"),
             ),
         };
         let message = format!(
@@ -271,9 +271,9 @@ impl Executor<'_> {
         })
     }
 
-    /// How many of the pass's instruments are undecided, and the level that
+    /// How many of the pass's instruments are open, and the level that
     /// would serve the most of them. In the last pass an instrument is
-    /// undecided when its verdict is inconclusive; before it (no K2 yet),
+    /// open when its verdict is inconclusive; before it (no K2 yet),
     /// when a level of this pass is off its curve or its k2 here is wide
     /// ([`WIDE_FRACTION_OF_LIMIT`]). The last pass first measures what an
     /// earlier one added.
