@@ -98,12 +98,25 @@ pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromS
     Ok(())
 }
 
-/// The retest plan of `run_id`, the serials it tests again, and the
-/// station config the run used.
-pub fn retest_plan_from_store(
-    store: &Store,
-    run_id: &str,
-) -> Result<(TestPlan, Vec<String>, Option<String>), RetestFromStoreError> {
+/// A finished run's retest, ready to start.
+#[derive(Debug, Clone)]
+pub struct Retest {
+    /// The retest plan (only the instruments that need one; `retest_of` set).
+    pub plan: TestPlan,
+    /// The serials it tests again.
+    pub serials: Vec<String>,
+    /// The station config the run used.
+    pub station_config: Option<String>,
+    /// For each inconclusive instrument: what would decide it and whether
+    /// the retest is predicted to.
+    pub advice: Vec<spinbench_engine::retest::RetestAdvice>,
+}
+
+/// The retest of `run_id`: its plan, the serials it tests again, the
+/// station config the run used, and the advice for its inconclusive
+/// instruments against the retest plan's prediction from the station's
+/// model of its own runs.
+pub fn retest_plan_from_store(store: &Store, run_id: &str) -> Result<Retest, RetestFromStoreError> {
     if !is_run_id(run_id) {
         return Err(RetestError::BadRunId(run_id.chars().take(80).collect()).into());
     }
@@ -123,6 +136,30 @@ pub fn retest_plan_from_store(
         )
     })?;
     let records: Vec<_> = record.results.into_iter().map(|r| r.record).collect();
-    let (plan, serials) = retest_plan(run_id, &original, &records)?;
-    Ok((plan, serials, record.start.station_config))
+    let (mut plan, serials) = retest_plan(run_id, &original, &records)?;
+    let learned = crate::station_model::learn_from(
+        store,
+        &record.start.station,
+        crate::station_model::DEFAULT_MODEL_RUNS,
+    );
+    // A target the station cannot reach keeps the original plan's: the
+    // advice then says which instruments it cannot decide.
+    let designed = match plan.designed(&learned.model) {
+        Ok(d) => Some(d),
+        Err(_) if plan.target_k2_u95_ug_per_g2 != original.target_k2_u95_ug_per_g2 => {
+            plan.target_k2_u95_ug_per_g2 = original.target_k2_u95_ug_per_g2;
+            plan.designed(&learned.model).ok()
+        }
+        Err(_) => None,
+    };
+    let predicted = designed
+        .and_then(|d| d.prediction)
+        .map(|p| p.k2_u95_ug_per_g2);
+    let advice = spinbench_engine::retest::retest_advice(&records, predicted);
+    Ok(Retest {
+        plan,
+        serials,
+        station_config: record.start.station_config,
+        advice,
+    })
 }

@@ -75,6 +75,12 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         said.contains("retesting 2 instrument(s) of run") && said.contains("R1, R7"),
         "{said}{err}"
     );
+    // The same plan would reproduce the same intervals: the retest adds
+    // levels chosen by the data, and says so.
+    assert!(
+        said.contains("measured until the verdict is certain: up to 12 level(s)"),
+        "{said}"
+    );
     let _ = ok;
     let store = Store::connect(&target).expect("store");
     let runs = store.runs().expect("runs");

@@ -261,7 +261,7 @@ pub(super) fn retest(
     let target = db
         .clone()
         .unwrap_or_else(|| crate::paths::default_store(data));
-    let (run_id, (plan, serials, station_config)) = {
+    let (run_id, retest) = {
         let store = spinbench_store::Store::open_read_only(&target)
             .with_context(|| format!("cannot open the store {target} to find run {run_id}"))?;
         // A run id or a label (`2026-11-24 · station 1 · #7`).
@@ -269,12 +269,28 @@ pub(super) fn retest(
         let retest = crate::retest::retest_plan_from_store(&store, &run_id)?;
         (run_id, retest)
     };
+    let crate::retest::Retest {
+        plan,
+        serials,
+        station_config,
+        advice,
+    } = retest;
     writeln!(
         out,
         "retesting {} instrument(s) of run {run_id}: {}",
         serials.len(),
         serials.join(", ")
     )?;
+    for a in &advice {
+        writeln!(out, "  {}", a.text())?;
+    }
+    if let Some(sequential) = plan.sequential {
+        writeln!(
+            out,
+            "  measured until the verdict is certain: up to {} level(s) per mounting chosen by the data",
+            sequential.max_levels_per_pass
+        )?;
+    }
     let plan_source = Source {
         text: toml::to_string(&plan).context("the retest plan as TOML")?,
         label: format!("the retest plan of run {run_id}"),

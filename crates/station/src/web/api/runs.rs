@@ -302,7 +302,9 @@ pub(super) async fn retest(
             "run {id} was recorded by station '{there}'; this is station '{here}': retest it on '{there}' (its Fleet page entry), so its instruments are measured again on the centrifuge they were tested on"
         )));
     }
-    let (mut plan, serials, _) = found.map_err(|e| match e {
+    let crate::retest::Retest {
+        mut plan, serials, ..
+    } = found.map_err(|e| match e {
         E::NotFound(_) => ApiError::new(StatusCode::NOT_FOUND, e.to_string()),
         E::NotEnded(..)
         | E::Retest(RetestError::NothingToRetest(_) | RetestError::NotGraded(_)) => {
