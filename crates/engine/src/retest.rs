@@ -189,6 +189,9 @@ pub struct RetestAdvice {
     /// Whether the retest is predicted to decide it, its value unchanged:
     /// its predicted U95 under the deciding one (none: no prediction).
     pub can_decide: Option<bool>,
+    /// The runs it came out inconclusive in: this one and the runs it
+    /// retests, one after the other (1: this run only).
+    pub inconclusive_runs: usize,
 }
 
 impl RetestAdvice {
@@ -216,8 +219,13 @@ impl RetestAdvice {
             ),
             _ => "no prediction for the retest".to_string(),
         };
+        let tries = if self.inconclusive_runs > 1 {
+            format!(" (inconclusive in {} runs)", self.inconclusive_runs)
+        } else {
+            String::new()
+        };
         format!(
-            "{}: {:.3} ± {:.3} µg/g² against {}: decided by a U95 under {:.3}; {off}; {verdict}",
+            "{}{tries}: {:.3} ± {:.3} µg/g² against {}: decided by a U95 under {:.3}; {off}; {verdict}",
             self.serial,
             self.value_ug_per_g2,
             self.u95_ug_per_g2,
@@ -229,8 +237,14 @@ impl RetestAdvice {
 
 /// The advice for every inconclusive instrument of `records`, against the
 /// retest plan's predicted K2 U95 (`predicted_u95`, from
-/// [`TestPlan::designed`]).
-pub fn retest_advice(records: &[UnitRecord], predicted_u95: Option<f64>) -> Vec<RetestAdvice> {
+/// [`TestPlan::designed`]). On the plan's own levels (`designed` false) an
+/// instrument with no level off its curve gets its own U95 again: the
+/// same levels reproduce it, and the levels the data add serve a dip.
+pub fn retest_advice(
+    records: &[UnitRecord],
+    predicted_u95: Option<f64>,
+    designed: bool,
+) -> Vec<RetestAdvice> {
     records
         .iter()
         .filter_map(|r| {
@@ -244,6 +258,12 @@ pub fn retest_advice(records: &[UnitRecord], predicted_u95: Option<f64>) -> Vec<
                 })
                 .collect();
             let deciding = j.deciding_u95();
+            let off_curve: Vec<LevelOffCurve> = off_curve;
+            let predicted_u95 = if designed || !off_curve.is_empty() {
+                predicted_u95
+            } else {
+                Some(j.u95_ug_per_g2)
+            };
             Some(RetestAdvice {
                 serial: r.serial.clone(),
                 slot: r.slot + 1,
@@ -254,6 +274,7 @@ pub fn retest_advice(records: &[UnitRecord], predicted_u95: Option<f64>) -> Vec<
                 off_curve,
                 predicted_u95_ug_per_g2: predicted_u95,
                 can_decide: predicted_u95.map(|p| p < deciding),
+                inconclusive_runs: 1,
             })
         })
         .collect()
@@ -417,7 +438,7 @@ mod tests {
             again.sequential.map(|q| q.max_levels_per_pass),
             Some(RETEST_SEQUENTIAL_LEVELS)
         );
-        let advice = retest_advice(&records, Some(0.5));
+        let advice = retest_advice(&records, Some(0.5), true);
         assert_eq!(advice.len(), 1, "only the inconclusive: {advice:?}");
         let a = &advice[0];
         assert_eq!((a.serial.as_str(), a.slot), ("X", 1));
@@ -439,13 +460,38 @@ mod tests {
         assert_eq!(a.can_decide, Some(0.5 < deciding));
         assert!(a.text().contains("P 40 g"), "{}", a.text());
         // A prediction wider than the distance: no retest decides it, said so.
-        let hopeless = retest_advice(&records, Some(deciding + 1.0));
+        let hopeless = retest_advice(&records, Some(deciding + 1.0), true);
         assert_eq!(hopeless[0].can_decide, Some(false));
         assert!(
             hopeless[0].text().contains("judge it by review"),
             "{}",
             hopeless[0].text()
         );
+        let again_and_again = RetestAdvice {
+            inconclusive_runs: 3,
+            ..hopeless[0].clone()
+        };
+        assert!(
+            again_and_again
+                .text()
+                .starts_with("X (inconclusive in 3 runs): "),
+            "{}",
+            again_and_again.text()
+        );
+        // On the plan's own levels, an instrument with no level off its
+        // curve would get its interval again.
+        let mut clean = records[0].clone();
+        if let Some(a) = clean.analysis.as_mut() {
+            a.rule_exclusions.clear();
+            for f in a.fits.values_mut() {
+                if let Some(d) = f.diagnostics.as_mut() {
+                    d.outlier_levels.clear();
+                }
+            }
+        }
+        let same = retest_advice(std::slice::from_ref(&clean), Some(0.01), false);
+        assert_eq!(same[0].predicted_u95_ug_per_g2, Some(a.u95_ug_per_g2));
+        assert_eq!(same[0].can_decide, Some(false));
         // A plan at several temperatures is not made sequential.
         let hot = TestPlan {
             temperatures_c: vec![25.0, 60.0],

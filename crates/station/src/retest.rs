@@ -98,6 +98,9 @@ pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromS
     Ok(())
 }
 
+/// The most runs of a chain of retests read back for an instrument's tries.
+pub const MAX_RETEST_CHAIN: usize = 20;
+
 /// A finished run's retest, ready to start.
 #[derive(Debug, Clone)]
 pub struct Retest {
@@ -155,7 +158,20 @@ pub fn retest_plan_from_store(store: &Store, run_id: &str) -> Result<Retest, Ret
     let predicted = designed
         .and_then(|d| d.prediction)
         .map(|p| p.k2_u95_ug_per_g2);
-    let advice = spinbench_engine::retest::retest_advice(&records, predicted);
+    let mut advice = spinbench_engine::retest::retest_advice(&records, predicted, plan.is_auto());
+    // Each instrument's tries: the runs this one retests, one after the other.
+    let mut earlier = record.start.retest_of.clone();
+    for _ in 0..MAX_RETEST_CHAIN {
+        let Some(id) = earlier.take() else { break };
+        let results = store.results(&id)?;
+        for a in &mut advice {
+            let inconclusive = results.iter().any(|r| {
+                r.serial == a.serial && r.outcome == spinbench_engine::Outcome::Inconclusive
+            });
+            a.inconclusive_runs += usize::from(inconclusive);
+        }
+        earlier = store.run_start(&id)?.and_then(|s| s.retest_of);
+    }
     Ok(Retest {
         plan,
         serials,

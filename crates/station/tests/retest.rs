@@ -209,3 +209,83 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     }
     assert_eq!(store.runs().expect("runs").len(), 2);
 }
+
+#[test]
+fn an_inconclusive_instrument_is_told_what_decides_it_and_its_tries_are_counted() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = dir.path().join("plan.toml");
+    // Seed 4's R2 has |K2| ≈ 20 µg/g²: on a 20 µg/g² limit its interval
+    // straddles it.
+    let text = format!(
+        "{}[limits]\nk2_max_ug_per_g2 = 20\n",
+        common::short_plan("R").replace("warmup_s = 0", "warmup_s = 600")
+    );
+    std::fs::write(&plan, text).expect("plan");
+    let data = dir.path().join("data");
+    let data_s = data.to_str().expect("utf-8");
+    let (ok, _, err) = spinbench(&[
+        "run",
+        "--simulate",
+        "--quiet",
+        "--seed",
+        "4",
+        "--data",
+        data_s,
+        plan.to_str().expect("utf-8"),
+    ]);
+    let _ = ok;
+    let target = StoreTarget::File(data.join("spinbench.db"));
+    let latest = || {
+        let store = Store::connect(&target).expect("store");
+        let runs = store.runs().expect("runs");
+        let last = runs
+            .iter()
+            .max_by_key(|r| (r.started_at, r.id.clone()))
+            .expect("a run")
+            .id
+            .clone();
+        let r2 = store
+            .results(&last)
+            .expect("results")
+            .into_iter()
+            .find(|r| r.serial == "R2")
+            .map(|r| r.outcome.as_str().to_string());
+        (last, r2)
+    };
+    let (first, r2) = latest();
+    assert_eq!(r2.as_deref(), Some("inconclusive"), "{err}");
+    let retest = |run: &str| {
+        let (_, said, err) = spinbench(&[
+            "retest",
+            run,
+            "--simulate",
+            "--quiet",
+            "--seed",
+            "4",
+            "--data",
+            data_s,
+        ]);
+        format!("{said}{err}")
+    };
+    // Before it runs: the value ± U95, what U95 would decide it, whether
+    // the retest is predicted to get there.
+    let said = retest(&first);
+    let line = said
+        .lines()
+        .find(|l| l.trim_start().starts_with("R2"))
+        .unwrap_or_else(|| panic!("no advice for R2: {said}"));
+    assert!(
+        line.contains("against 20: decided by a U95 under")
+            && (line.contains("can decide it if its value holds")
+                || line.contains("judge it by review")),
+        "{line}"
+    );
+    assert!(!line.contains("inconclusive in"), "{line}");
+    // Inconclusive again: the next retest counts the tries.
+    let (second, r2) = latest();
+    assert_ne!(second, first);
+    if r2.as_deref() == Some("inconclusive") {
+        let said = retest(&second);
+        assert!(said.contains("R2 (inconclusive in 2 runs): "), "{said}");
+    }
+}
