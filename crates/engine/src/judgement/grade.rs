@@ -280,25 +280,64 @@ fn grade_instrument_k2(
         );
         return;
     }
-    // The same verdict with the level left out, from a reduction that has
-    // no such level of its own: the pass stands on both.
-    let again = without(&unhandled).filter(|b| unhandled_own_levels(b).is_empty());
-    let Some((v_out, u_out)) = again
-        .as_ref()
-        .and_then(|b| b.joint.as_ref())
-        .map(|j| (j.k2_even_ug_per_g2, j.k2_even_u95))
-    else {
-        misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
-        return;
-    };
-    let verdict_out = rule.decide(v_out, u_out, l, limits.marginal_fraction);
-    if !matches!(verdict_out, Verdict::Pass | Verdict::Marginal) {
-        misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
-        return;
+    // The same verdict with the level left out. A reduction without it may
+    // find the next level off the curve (a dip's wing, once its centre is
+    // out): that one is left out too, at most `MAX_SET_ASIDE_ROUNDS` times,
+    // and the pass stands only when every reduction of the chain passes.
+    let mut left_out = unhandled.clone();
+    let mut widest: Option<(Verdict, Judged)> = None;
+    for _ in 0..MAX_SET_ASIDE_ROUNDS {
+        let Some(b) = without(&left_out) else { break };
+        let Some((v_out, u_out)) = b
+            .joint
+            .as_ref()
+            .map(|j| (j.k2_even_ug_per_g2, j.k2_even_u95))
+        else {
+            break;
+        };
+        let verdict_out = rule.decide(v_out, u_out, l, limits.marginal_fraction);
+        if !matches!(verdict_out, Verdict::Pass | Verdict::Marginal) {
+            break;
+        }
+        let this = judged(v_out, u_out);
+        let marginal = verdict_out == Verdict::Marginal
+            || widest
+                .as_ref()
+                .is_some_and(|(w, _)| *w == Verdict::Marginal);
+        let verdict_so_far = if marginal {
+            Verdict::Marginal
+        } else {
+            Verdict::Pass
+        };
+        widest = match widest {
+            Some((_, w)) if w.reach >= this.reach => Some((verdict_so_far, w)),
+            _ => Some((verdict_so_far, this)),
+        };
+        let next: Vec<(Mount, f64)> = unhandled_own_levels(&b)
+            .into_iter()
+            .filter(|g| !left_out.contains(g))
+            .collect();
+        if next.is_empty() {
+            let shown = unhandled_shown(&left_out);
+            if let Some(out) = widest {
+                graded_on_both(
+                    [(verdict, judged(v, u)), out],
+                    &shown,
+                    limits,
+                    outcome,
+                    reasons,
+                );
+            }
+            return;
+        }
+        left_out.extend(next);
     }
-    let both = [(verdict, judged(v, u)), (verdict_out, judged(v_out, u_out))];
-    graded_on_both(both, &shown_levels, limits, outcome, reasons);
+    misfit_not_in_u(&judged(v, u), &shown_levels, outcome, reasons);
 }
+
+/// The most reductions a pass is held on, each without one more level
+/// found off the curve by the one before (a dip's centre, then its wings).
+pub const MAX_SET_ASIDE_ROUNDS: usize = 3;
 
 /// A pass that stands with and without the levels off the curve: said in
 /// a note (with the value without them), graded the worse of the two
