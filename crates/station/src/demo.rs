@@ -524,8 +524,13 @@ pub fn prediction_line(
                 100.0 * spinbench_analysis::design::RUN_RANGE_PROBABILITY
             )
         });
+    let sequential = p
+        .sequential_centrifuge_time_max_s
+        .map_or_else(String::new, |t| {
+            format!(" plus at most {t:.0} s of levels chosen by the data")
+        });
     format!(
-        "Plan: predicted K2 U95 {:.3} µg/g²{range} (achieved median {}), centrifuge time {:.0} s (achieved {} s); the published plan's prediction {} µg/g² in {} s; {}.",
+        "Plan: predicted K2 U95 {:.3} µg/g²{range} (achieved median {}), centrifuge time {:.0} s{sequential} (achieved {} s); the published plan's prediction {} µg/g² in {} s; {}.",
         p.k2_u95_ug_per_g2,
         shown(a.k2_u95_ug_per_g2, 3),
         p.centrifuge_time_s,

@@ -66,6 +66,14 @@ fn the_demo_finds_k2_and_the_radii_of_every_instrument() {
         spun < published,
         "{spun} s against the published {published} s"
     );
+    // Within the prediction's time and what the data's levels may add.
+    let most = run["prediction"]["centrifuge_time_s"]
+        .as_f64()
+        .expect("time")
+        + run["prediction"]["sequential_centrifuge_time_max_s"]
+            .as_f64()
+            .expect("the sequential levels' time");
+    assert!(spun <= most, "{spun} s against at most {most} s");
     let journal =
         std::fs::read_to_string(Path::new(run["dir"].as_str().expect("dir")).join("journal.jsonl"))
             .expect("journal");

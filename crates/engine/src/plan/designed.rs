@@ -195,6 +195,12 @@ impl TestPlan {
                 published_centrifuge_time_s: published.map(|p| p.centrifuge_time_s),
                 target_k2_u95_ug_per_g2: self.target_k2_u95_ug_per_g2,
                 model_runs: model.runs,
+                sequential_centrifuge_time_max_s: plan.sequential.map(|q| {
+                    let per_level_s = model.settle_s
+                        + model.settle_s_per_g * plan.range_g
+                        + f64::from(plan.dwell.seconds);
+                    f64::from(q.max_levels_per_pass) * candidate.passes as f64 * per_level_s
+                }),
             });
         Ok(plan)
     }

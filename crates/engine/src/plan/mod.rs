@@ -187,6 +187,12 @@ pub struct PlanPrediction {
     pub k2_u95_run_range_ug_per_g2: Option<[f64; 2]>,
     /// Runs the station's model was learned from (0: the defaults of a station with no history).
     pub model_runs: usize,
+    /// The most centrifuge time the plan's `[sequential]` levels can add,
+    /// every pass, on top of `centrifuge_time_s` [s]: each added level
+    /// settled from anywhere in the range, then its dwell (none: no
+    /// `[sequential]`, or a record written before it existed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sequential_centrifuge_time_max_s: Option<f64>,
 }
 
 /// A level left out of the reduction by the plan.

@@ -485,6 +485,7 @@ fn a_plan_names_what_its_k2_limit_judges_and_says_beforehand_when_it_cannot_deci
             target_k2_u95_ug_per_g2: None,
             k2_u95_run_range_ug_per_g2: None,
             model_runs: 0,
+            sequential_centrifuge_time_max_s: None,
         });
         p
     };

@@ -272,7 +272,16 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
                 locale = lang.code()
             )
             .into_owned()
-                + &range,
+                + &range
+                + &p.sequential_centrifuge_time_max_s
+                    .map_or_else(String::new, |t| {
+                        rust_i18n::t!(
+                            "report.prediction_sequential",
+                            time = format!("{t:.0}"),
+                            locale = lang.code()
+                        )
+                        .into_owned()
+                    }),
         ));
     }
     rows

@@ -145,6 +145,7 @@ mod tests {
             published_centrifuge_time_s: None,
             target_k2_u95_ug_per_g2: None,
             model_runs: 0,
+            sequential_centrifuge_time_max_s: None,
             k2_u95_run_range_ug_per_g2: None,
         };
         let mut clock = StepClock::default();

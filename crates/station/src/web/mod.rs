@@ -617,6 +617,13 @@ mod shipped_plans {
                 .designed(&spinbench_analysis::design::StationModel::default())
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
             assert!(designed.range_g >= 10.0, "{name}");
+            // The levels chosen by the data are in the prediction's time.
+            let extra = designed
+                .prediction
+                .as_ref()
+                .and_then(|p| p.sequential_centrifuge_time_max_s);
+            assert_eq!(extra.is_some(), name == "check-70g", "{name}");
+            assert!(extra.is_none_or(|t| t > 0.0), "{name}: {extra:?}");
             // The ±10 g function check cannot decide K2 (and says so on
             // the form); every other shipped plan can.
             assert_eq!(

@@ -357,7 +357,10 @@ export function renderPrediction(p, a) {
   };
   box.textContent = fill("web.run.prediction",
     "plan prediction: K2 U95 " + vars.u95 + " µg/g² predicted, " + vars.achieved_u95 + " achieved (median); centrifuge time " + vars.time + " s predicted, " + vars.achieved_time + " s achieved; the published plan: " + vars.published_u95 + " µg/g² in " + vars.published_time + " s (model from " + vars.runs + " run(s))", vars)
-    + predictionRange(p.k2_u95_run_range_ug_per_g2);
+    + predictionRange(p.k2_u95_run_range_ug_per_g2)
+    + (p.sequential_centrifuge_time_max_s == null ? "" : fill("web.run.prediction_sequential",
+      "; the levels chosen by the data add at most " + f(p.sequential_centrifuge_time_max_s, 0) + " s of centrifuge time",
+      { time: f(p.sequential_centrifuge_time_max_s, 0) }));
   box.hidden = false;
 }
 
