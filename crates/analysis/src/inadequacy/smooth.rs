@@ -11,20 +11,21 @@
 //! absorbs is a fixed multiple of the part it leaves.
 //!
 //! So the residuals are read against a family of shapes — Gaussian bumps
-//! of widths 2–17 % of the range and smoothed steps (edges 1 % and 4 % of
-//! the range), centred every 0.5 % of the range — each with its size
-//! fitted (least squares) and its effect on the coefficient at that size.
-//! The members the data cannot tell from the best one (within χ²₁ at 5 %
-//! of the pure error) and that explain at least 70 % of the misfit beyond
-//! what the pure error leaves by chance are the readings the data allow;
-//! the largest effect among their broad ones is the misfit's estimated
-//! bias, entered as a standard uncertainty like the jackknife's (the
+//! of widths 2–17 % of the range, smoothed steps (edges 1 % and 4 % of
+//! the range) and hinges (nothing below a level, then a slope), centred
+//! every 0.5 % of the range — each with its size fitted (least squares)
+//! and its effect on the coefficient at that size. The members the data
+//! cannot tell from the best one (within χ²₁ at 5 % of the pure error) are
+//! the readings the data allow; each one's effect counts in proportion to
+//! the share of the misfit beyond what the pure error leaves by chance it
+//! explains, over 70 % (whole from 70 % on: a broad shape beside a
+//! feature it does not explain is not dropped whole); the largest such
+//! effect among their broad ones is the misfit's estimated bias, entered as a standard uncertainty like the jackknife's (the
 //! larger of the two counts, never both). A step and a dip at the level
 //! beside it fit alike, and which it is cannot be known: the uncertainty
 //! carries the larger effect. When only bumps within about one level
-//! remain, the misfit is the jackknife's, which sees such a feature whole;
-//! when no one shape explains most of it (two separate dips), it is read
-//! by the jackknife too. Levels flagged off the curve (a dip: the
+//! remain, the misfit is the jackknife's, which sees such a feature whole.
+//! Levels flagged off the curve (a dip: the
 //! jackknife's) are set aside first and the rest read through the fit
 //! without them: a dip's pull on the fit leaves the other levels a residual
 //! in that fit's span, which this removes whole, so that an instrument
@@ -192,6 +193,9 @@ pub fn smooth_misfit(
             let scale = w * range;
             consider(&|g: f64| 1.0 / (1.0 + (-(g - c) / scale).exp()), false);
         }
+        // A hinge: nothing below a level, then a slope (a stiffening or a
+        // drift that starts there).
+        consider(&|g: f64| (g - c).max(0.0) / range, false);
     }
     let best = read.iter().map(|r| r.0).fold(0.0_f64, f64::max);
     // The misfit beyond what the pure error leaves in the L − p residual
@@ -206,8 +210,21 @@ pub fn smooth_misfit(
     // beside it fit alike, which it is cannot be known, and the larger
     // effect is the one the uncertainty must carry. When only features
     // within one level remain, the misfit is the jackknife's.
+    // A member that explains less than most of the misfit is not dropped
+    // whole: its effect counts in proportion to the share of the misfit
+    // it explains over the share that would make it the reading (a broad
+    // shape that explains half of a misfit, beside a dip it does not,
+    // still moved the coefficient by about half its effect).
     read.into_iter()
-        .filter(|r| !r.2 && r.0 >= MOSTLY * total && r.0 >= best - CHI2_1_95 * sigma2)
+        .filter(|r| !r.2 && r.0 >= best - CHI2_1_95 * sigma2)
+        .map(|(explained_ss, effect, narrow)| {
+            let share = if total > 0.0 {
+                (explained_ss / (MOSTLY * total)).min(1.0)
+            } else {
+                1.0
+            };
+            (explained_ss, effect * share, narrow)
+        })
         .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
         .map(|(explained_ss, effect, _)| SmoothMisfit {
             effect,

@@ -152,6 +152,26 @@ fn a_broad_bumps_absorbed_part_is_read_from_what_it_leaves() {
 }
 
 #[test]
+fn a_ramp_from_a_level_on_is_read_as_a_hinge() {
+    // 0 up to 30 g, then rising to 5,000 µg at the top: the cubic absorbs
+    // most of it; a bump or a step would read a part of it only.
+    let top = *LEVELS.last().expect("levels");
+    let (x, r, truth) = residual_of(|g| {
+        if g > 30.0 {
+            5e-3 * (g - 30.0) / (top - 30.0)
+        } else {
+            0.0
+        }
+    });
+    let s = read_all(&x, &r).expect("read as a hinge");
+    assert!(
+        (s.effect - truth).abs() < 0.15 * truth.abs(),
+        "effect {} truth {truth}",
+        s.effect
+    );
+}
+
+#[test]
 fn a_dip_at_one_level_is_left_to_the_jackknife() {
     let (x, r, _) = residual_of(|g| if g == 40.0 { 5e-3 } else { 0.0 });
     assert_eq!(read_all(&x, &r), None);
