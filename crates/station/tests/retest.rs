@@ -10,22 +10,20 @@ use std::process::Command;
 
 use common::spinbench;
 
-#[test]
-fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let plan = dir.path().join("plan.toml");
-    // On seed 4's bench: R1 and R7 have |k2| ≈ 28 µg/g², R2 ≈ 20 — a 25 µg/g²
-    // limit fails two and passes one. Warmed up first: without it the
-    // warm-up drift is in the up/down pure error (no drift term)
-    // and R2's U95 straddles the limit.
+/// Run the short plan of R1, R2, R7 on seed 4's bench, warmed up, with a
+/// k2 limit of `limit_ug_per_g2`, into `dir`/data: whether it exited 0,
+/// its stderr and the data directory.
+fn run_short_plan(
+    dir: &std::path::Path,
+    limit_ug_per_g2: u32,
+) -> (bool, String, std::path::PathBuf) {
+    let plan = dir.join("plan.toml");
     let text = format!(
-        "{}[limits]\nk2_max_ug_per_g2 = 25\n",
+        "{}[limits]\nk2_max_ug_per_g2 = {limit_ug_per_g2}\n",
         common::short_plan("R").replace("warmup_s = 0", "warmup_s = 600")
     );
     std::fs::write(&plan, text).expect("plan");
-    let data = dir.path().join("data");
-    let data_s = data.to_str().expect("utf-8");
-    let plan_s = plan.to_str().expect("utf-8");
+    let data = dir.join("data");
     let (ok, _, err) = spinbench(&[
         "run",
         "--simulate",
@@ -33,9 +31,21 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         "--seed",
         "4",
         "--data",
-        data_s,
-        plan_s,
+        data.to_str().expect("utf-8"),
+        plan.to_str().expect("utf-8"),
     ]);
+    (ok, err, data)
+}
+
+#[test]
+fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // On seed 4's bench: R1 and R7 have |k2| ≈ 28 µg/g², R2 ≈ 20 — a 25 µg/g²
+    // limit fails two and passes one. Warmed up first: without it the
+    // warm-up drift is in the up/down pure error (no drift term)
+    // and R2's U95 straddles the limit.
+    let (ok, err, data) = run_short_plan(dir.path(), 25);
+    let data_s = data.to_str().expect("utf-8");
     assert!(ok, "{err}");
     let target = StoreTarget::File(data.join("spinbench.db"));
     let first = {
@@ -213,27 +223,10 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
 #[test]
 fn an_inconclusive_instrument_is_told_what_decides_it_and_its_tries_are_counted() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let plan = dir.path().join("plan.toml");
     // Seed 4's R2 has |K2| ≈ 20 µg/g²: on a 20 µg/g² limit its interval
-    // straddles it.
-    let text = format!(
-        "{}[limits]\nk2_max_ug_per_g2 = 20\n",
-        common::short_plan("R").replace("warmup_s = 0", "warmup_s = 600")
-    );
-    std::fs::write(&plan, text).expect("plan");
-    let data = dir.path().join("data");
+    // straddles it (the run's exit status says some instrument did not pass).
+    let (_, err, data) = run_short_plan(dir.path(), 20);
     let data_s = data.to_str().expect("utf-8");
-    let (ok, _, err) = spinbench(&[
-        "run",
-        "--simulate",
-        "--quiet",
-        "--seed",
-        "4",
-        "--data",
-        data_s,
-        plan.to_str().expect("utf-8"),
-    ]);
-    let _ = ok;
     let target = StoreTarget::File(data.join("spinbench.db"));
     let latest = || {
         let store = Store::connect(&target).expect("store");
