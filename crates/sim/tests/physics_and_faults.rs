@@ -267,6 +267,18 @@ fn fault_an_interlock_opens_mid_run() {
 }
 
 #[test]
+fn fault_an_interlock_timed_by_spin_waits_for_the_table_to_turn() {
+    let (mut world, _) = faulty(|c| c.faults.interlock_open_after_spin_s = Some(20.0));
+    // At rest for longer than the fault's time: nothing opens.
+    settle(&mut world, 60.0);
+    spin(&mut world, 360.0);
+    settle(&mut world, 10.0);
+    assert_eq!(world.handle_centrifuge_line(":INT?").as_deref(), Some("1"));
+    settle(&mut world, 20.0);
+    assert_eq!(world.handle_centrifuge_line(":INT?").as_deref(), Some("0"));
+}
+
+#[test]
 fn fault_the_supply_trips_on_over_current() {
     let (mut world, mut cap) = faulty(|c| c.faults.supply_trip_at_s = Some(2.0));
     cap.run(&mut world, 0, 4.0);

@@ -355,6 +355,9 @@ pub struct FaultConfig {
     pub centrifuge_silent_at_s: Option<f64>,
     /// The interlocks open at this time [s].
     pub interlock_open_at_s: Option<f64>,
+    /// The interlocks open once the table has turned for this long in
+    /// all [s]: a fault that meets a run however late the run starts.
+    pub interlock_open_after_spin_s: Option<f64>,
     /// The instrument supply trips on over-current at this time [s].
     pub supply_trip_at_s: Option<f64>,
 }

@@ -369,6 +369,10 @@ impl SimConfig {
                 "faults.interlock_open_at_s",
                 self.faults.interlock_open_at_s,
             ),
+            (
+                "faults.interlock_open_after_spin_s",
+                self.faults.interlock_open_after_spin_s,
+            ),
             ("faults.supply_trip_at_s", self.faults.supply_trip_at_s),
         ];
         for (key, t) in times {

@@ -8,6 +8,10 @@ use super::{
 };
 use rand_distr::Distribution;
 
+/// A table turning faster than this is spinning, for faults timed by
+/// spin [rad/s] (1 deg/s).
+const SPINNING_RAD_S: f64 = std::f64::consts::PI / 180.0;
+
 impl World {
     /// The laboratory's temperature now [°C].
     pub fn ambient_c(&self) -> f64 {
@@ -226,6 +230,16 @@ impl World {
         }
         if !self.faults_fired[0] && f.interlock_open_at_s.is_some_and(|at| now >= at) {
             self.faults_fired[0] = true;
+            self.table.trip_interlocks();
+        }
+        if self.table.rate_rad_s.abs() > SPINNING_RAD_S {
+            self.spun_s += TICK_S;
+        }
+        if !self.faults_fired[2]
+            && f.interlock_open_after_spin_s
+                .is_some_and(|after| self.spun_s >= after)
+        {
+            self.faults_fired[2] = true;
             self.table.trip_interlocks();
         }
         if !self.faults_fired[1] && f.supply_trip_at_s.is_some_and(|at| now >= at) {

@@ -105,6 +105,8 @@ pub struct World {
     centrifuge_silent: bool,
     module_silent: Vec<bool>,
     faults_fired: [bool; 3],
+    /// How long the table has turned in all [s].
+    spun_s: f64,
     /// Virtual time in lockstep with the station (`speed = 0`).
     lockstep: bool,
     /// Lockstep: bytes of the seconds produced, per module, for the serving layer.
@@ -257,6 +259,7 @@ impl World {
             centrifuge_silent: false,
             module_silent: vec![false; config.modules],
             faults_fired: [false; 3],
+            spun_s: 0.0,
             tick: 0,
             lockstep: config.speed == 0.0,
             outbox: vec![Vec::new(); config.modules],
