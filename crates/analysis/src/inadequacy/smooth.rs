@@ -31,6 +31,13 @@
 //! in that fit's span, which this removes whole, so that an instrument
 //! with a dip in one mounting and a broad bump in the other is still read.
 //!
+//! The misfit may also be read through a polynomial of lower degree than
+//! the fit's ([`Readings::read_degree`]) when the caller has put back the
+//! fit's top coefficient's part that is known to be wrong (K2's reading:
+//! the two mountings' k3 are the instrument's one K3, [`crate::unit`]);
+//! the effect is then still taken through the fit's own degree, which is
+//! what the coefficient suffered.
+//!
 //! It counts only when the shape read explains more of the residuals than
 //! the pure error would by chance ([`SmoothMisfit::significant`]): its
 //! explained sum of squares over σ² against F(1, ν_pe) at 5 % divided by
@@ -108,6 +115,12 @@ pub struct Readings<'a> {
     pub misfit: &'a [f64],
     /// Whether the point's level is set aside (flagged off the curve).
     pub set_aside: &'a [bool],
+    /// The degree of the polynomial the misfit is read through (shapes
+    /// and misfit alike projected off it): the fit's degree, or less when
+    /// the fit's top coefficient is known from elsewhere and `misfit`
+    /// carries what the fit gave that coefficient (the two mountings'
+    /// shared cubic, [`crate::unit`]). The effect is always the fit's.
+    pub read_degree: usize,
 }
 
 /// The family member that best explains the points' `misfit` (each
@@ -131,11 +144,13 @@ pub fn smooth_misfit(
         x,
         misfit,
         set_aside,
+        read_degree,
     } = *readings;
     if x.len() != misfit.len()
         || set_aside.len() != x.len()
         || coefficient > degree
-        || levels.saturating_sub(degree + 1) < MIN_DIRECTIONS
+        || read_degree > degree
+        || levels.saturating_sub(read_degree + 1) < MIN_DIRECTIONS
     {
         return None;
     }
@@ -149,8 +164,10 @@ pub fn smooth_misfit(
         return None;
     }
     let x: Vec<f64> = kept.iter().map(|&i| x[i]).collect();
-    let design = lsq::polynomial_design(&x, degree);
+    let design = lsq::polynomial_design(&x, read_degree);
     let op = lsq::solution_operator(&design, what).ok()?;
+    // The fit's own operator: what a shape does to its coefficient.
+    let fit_op = lsq::solution_operator(&lsq::polynomial_design(&x, degree), what).ok()?;
     let misfit: Vec<f64> = {
         let m = nalgebra::DVector::from_iterator(kept.len(), kept.iter().map(|&i| misfit[i]));
         let r = &m - &design * (&op * &m);
@@ -177,7 +194,8 @@ pub fn smooth_misfit(
             return;
         }
         let dot: f64 = r.iter().zip(misfit).map(|(a, b)| a * b).sum();
-        read.push((dot * dot / ss, dot / ss * coef[coefficient], narrow));
+        let effect = (&fit_op * &sv)[coefficient];
+        read.push((dot * dot / ss, dot / ss * effect, narrow));
     };
     let centres =
         (0..=((1.0 / CENTRE_STEP).round() as usize)).map(|i| i as f64 * CENTRE_STEP * range);
@@ -201,7 +219,7 @@ pub fn smooth_misfit(
     // The misfit beyond what the pure error leaves in the L − p residual
     // directions by chance.
     let total: f64 = misfit.iter().map(|m| m * m).sum::<f64>()
-        - sigma2 * levels.saturating_sub(degree + 1) as f64;
+        - sigma2 * levels.saturating_sub(read_degree + 1) as f64;
     // The members the data cannot tell from the best (within χ²₁ at 5 %
     // of the pure error, 3.84 σ²) that explain most of that misfit (a
     // broad shape explaining some of two separate dips would read their

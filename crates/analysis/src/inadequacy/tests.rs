@@ -126,6 +126,7 @@ fn read_all(x: &[f64], r: &[f64]) -> Option<SmoothMisfit> {
         x,
         misfit: r,
         set_aside: &vec![false; x.len()],
+        read_degree: 3,
     };
     smooth_misfit(&readings, 1e-10, 16, 3, 2, "test")
 }
@@ -181,7 +182,8 @@ fn a_dip_at_one_level_is_left_to_the_jackknife() {
             &Readings {
                 x: &x,
                 misfit: &vec![0.0; x.len()],
-                set_aside: &vec![false; x.len()]
+                set_aside: &vec![false; x.len()],
+                read_degree: 3,
             },
             1e-10,
             16,
@@ -204,6 +206,7 @@ fn a_broad_bump_is_read_past_a_dip_once_the_dips_level_is_set_aside() {
             x: &x,
             misfit: &r,
             set_aside: &aside,
+            read_degree: 3,
         },
         1e-10,
         15,
@@ -238,6 +241,7 @@ fn a_plan_of_few_levels_reads_no_shape() {
         x: &x,
         misfit: &r,
         set_aside: &vec![false; x.len()],
+        read_degree: 3,
     };
     assert_eq!(smooth_misfit(&readings, 1e-10, 7, 3, 2, "test"), None);
 }

@@ -137,7 +137,7 @@ pub(super) fn paired_inadequacy(
         .map(|q| {
             shared
                 .iter()
-                .position(|g| *g == q.g_nominal.abs())
+                .position(|s| *s == q.g_nominal.abs())
                 .map_or(0.0, |i| half_difference[i])
         })
         .collect();
@@ -155,21 +155,50 @@ pub(super) fn paired_inadequacy(
     let levels_read = shared.iter().filter(|g| !flagged.contains(g)).count();
     // One reading's pure error in the half-difference [g²].
     let sigma2_half = 0.25 * (p.sigma2 / (p.k1 * p.k1) + n.sigma2 / (n.k1 * n.k1));
-    let readings = crate::inadequacy::Readings {
-        x: &x,
-        misfit: &at,
-        set_aside: &set_aside,
-    };
-    let smooth =
+    let read = |misfit: &[f64], read_degree: usize| {
+        let readings = crate::inadequacy::Readings {
+            x: &x,
+            misfit,
+            set_aside: &set_aside,
+            read_degree,
+        };
         crate::inadequacy::smooth_misfit(&readings, sigma2_half, levels_read, degree, 2, &what)
             .filter(|s| {
                 s.effect.is_finite()
                     && s.significant(
                         sigma2_half,
                         p.dof_pe + n.dof_pe,
-                        levels_read.saturating_sub(degree + 1),
+                        levels_read.saturating_sub(read_degree + 1),
                     )
-            });
+            })
+    };
+    // The two mountings share the instrument's cubic coefficient (K3 reads
+    // as +K3 in both per-mounting fits against |a|, and a table error
+    // shifts both alike), so a half-difference of the cubics is part of a
+    // misfit that one mounting's cubic absorbed (a ramp, a broad step):
+    // it is also read with that part put back, through a quadratic, the
+    // effect on K2 staying the cubic fits'; the larger effect counts.
+    // With a quadratic model there is no shared coefficient to read against.
+    let shared_cubic = match (
+        degree,
+        fits.get(&Mount::P)?.fit.k3_ug_per_g3,
+        fits.get(&Mount::N)?.fit.k3_ug_per_g3,
+    ) {
+        (3, Some(k3p), Some(k3n)) => {
+            let half = 0.5 * (k3p - k3n) / crate::UG_PER_G;
+            let with_cubic: Vec<f64> = at
+                .iter()
+                .zip(&x)
+                .map(|(m, g)| m + half * g.powi(3))
+                .collect();
+            read(&with_cubic, 2)
+        }
+        _ => None,
+    };
+    let smooth = [read(&at, degree), shared_cubic]
+        .into_iter()
+        .flatten()
+        .max_by(|a, b| a.effect.abs().total_cmp(&b.effect.abs()));
     if let Some(s) = smooth {
         let effect = s.effect * crate::UG_PER_G;
         jk[0] = jk[0].max(effect * effect);

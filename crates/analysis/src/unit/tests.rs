@@ -170,3 +170,78 @@ fn k2s_misfit_test_takes_the_pure_error_of_the_residuals_not_of_the_outputs() {
         "K2's inadequacy carried in {carried}/{trials}"
     );
 }
+
+/// Both mountings of one instrument (k2 10 µg/g², k3 0.05 µg/g³) at 0–70 g
+/// in 5 g steps, up and down, with a repeatable scatter of about 150 µg,
+/// and `extra_p` (µg) added to mounting P's input at each |g|.
+fn both_mountings_with(extra_p: impl Fn(f64) -> f64) -> UnitPoints {
+    let k = [0.01, 100.0, 10e-6, 0.05e-6];
+    let levels: Vec<f64> = (0..=14).map(|i| 5.0 * f64::from(i)).collect();
+    let mut points = Vec::new();
+    let mut i = 0u64;
+    for mount in [Mount::P, Mount::N] {
+        let sign = mount.input_sign();
+        let up = levels.iter().copied();
+        let down = levels.iter().rev().skip(1).copied();
+        for g in up.chain(down) {
+            i += 1;
+            // A fixed pseudo-random scatter, uniform in ±260 µg (150 µg RMS).
+            let scatter_g = 260e-6 * (((i * 7919 + 13) % 101) as f64 / 50.0 - 1.0);
+            let extra_g = if mount == Mount::P {
+                extra_p(g) * 1e-6
+            } else {
+                0.0
+            };
+            let a = sign * g;
+            points.push(Point {
+                mount,
+                g_nominal: g,
+                g_applied: a,
+                output: ieee1293_output(k, a + sign * extra_g) + k[1] * scatter_g,
+                direction: None,
+            });
+        }
+    }
+    infer_directions(&mut points);
+    UnitPoints {
+        unit: "R".into(),
+        run: None,
+        points,
+    }
+}
+
+#[test]
+fn a_ramp_the_cubic_absorbs_in_one_mounting_is_in_k2_s_uncertainty() {
+    // From nothing at 20 g to 8,000 µg at 70 g, in P only: the cubic
+    // absorbs most of it, and only the two mountings' cubic coefficients,
+    // which are the instrument's one K3, tell that it did.
+    let ramp = |g: f64| 8000.0 * ((g - 20.0) / 50.0).max(0.0);
+    let options = AnalysisOptions {
+        anomalies: AnomalyRule::Own,
+        ..AnalysisOptions::default()
+    };
+    let a = analyze_unit(&both_mountings_with(ramp), options).expect("reduced");
+    let joint = a.joint.as_ref().expect("K2");
+    let u95 = joint.k2_even_u95.expect("U95");
+    let error = (joint.k2_even_ug_per_g2 - 10.0).abs();
+    assert!(
+        error > 1.0,
+        "the ramp moves K2 ({error} µg/g²), or this tests nothing"
+    );
+    assert!(
+        error <= u95,
+        "K2 {} ± {u95} against 10",
+        joint.k2_even_ug_per_g2
+    );
+    // Without the ramp the interval stays narrow.
+    let clean = analyze_unit(&both_mountings_with(|_| 0.0), options).expect("reduced");
+    let clean_u95 = clean
+        .joint
+        .as_ref()
+        .and_then(|j| j.k2_even_u95)
+        .expect("U95");
+    assert!(
+        clean_u95 < 0.5 * u95,
+        "clean {clean_u95} against ramp {u95}"
+    );
+}
