@@ -37,4 +37,4 @@ pub use config::StationConfig;
 pub use event::{DeviceRole, Event, EventSink, RunState};
 pub use executor::{Answer, Bench, EngineError, Executor, Operator, RunOptions, RunSummary};
 pub use plan::{CompiledPlan, Fixture, TestPlan};
-pub use record::{Outcome, PointRecord, Reason, ReasonCode, UnitRecord};
+pub use record::{Judged, Outcome, PointRecord, Reason, ReasonCode, UnitRecord};

@@ -317,6 +317,99 @@ pub struct UnitRecord {
     pub exclusions: Vec<spinbench_analysis::exclusion::LevelExclusion>,
 }
 
+/// What an instrument's k2 verdict judged: the quantity, its value and
+/// U95 as measured, the limit and the rule. The one reading of them every
+/// surface shows beside the outcome.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Judged {
+    /// The quantity judged.
+    pub measurand: crate::plan::Measurand,
+    /// Its value (`None` when it was not measured: K2 without both
+    /// mountings) [µg/g²].
+    pub value_ug_per_g2: Option<f64>,
+    /// Its expanded uncertainty at 95 % (`None` when not known) [µg/g²].
+    pub u95_ug_per_g2: Option<f64>,
+    /// The plan's limit on it [µg/g²].
+    pub limit_ug_per_g2: f64,
+    /// The decision rule.
+    pub rule: crate::plan::DecisionRule,
+}
+
+impl Judged {
+    /// One line for a table or a log: `K2 +9.603 ± 1.108 µg/g² (limit 20,
+    /// guarded)`; a value not measured reads `not measured`.
+    pub fn text(&self) -> String {
+        let value = match (self.value_ug_per_g2, self.u95_ug_per_g2) {
+            (Some(v), Some(u)) => format!("{v:+.3} ± {u:.3} µg/g²"),
+            (Some(v), None) => format!("{v:+.3} µg/g² (no U95)"),
+            (None, _) => "not measured".to_string(),
+        };
+        format!(
+            "{} {value} (limit {}, {})",
+            self.measurand.name(),
+            self.limit_ug_per_g2,
+            self.rule.name()
+        )
+    }
+}
+
+impl UnitRecord {
+    /// What its verdict judged, as [`Judged::text`] says it; a record made
+    /// before the decision was recorded judged k2_max, and says so.
+    pub fn judged_text(&self) -> String {
+        match self.judged() {
+            Some(j) => j.text(),
+            None => self.k2_max_ug_per_g2.map_or_else(
+                || "k2_max not measured".to_string(),
+                |k| format!("k2_max {k:.3} µg/g² (limit not recorded)"),
+            ),
+        }
+    }
+
+    /// What its verdict judged; `None` for a record made before the
+    /// decision was recorded (it does not say its limit).
+    pub fn judged(&self) -> Option<Judged> {
+        let decision = self.decision?;
+        let analysis = self.analysis.as_ref();
+        let (value, u95) = match decision.measurand {
+            crate::plan::Measurand::K2 => {
+                let joint = analysis.and_then(|a| a.joint.as_ref());
+                (
+                    joint.map(|j| j.k2_even_ug_per_g2),
+                    joint.and_then(|j| j.k2_even_u95),
+                )
+            }
+            crate::plan::Measurand::K2Max => {
+                let u95 = analysis
+                    .and_then(|a| a.fits.get(&a.k2_max_mount?))
+                    .and_then(|f| f.uncertainty.as_ref())
+                    .and_then(|u| u.k2_ug_per_g2.as_ref())
+                    .map(|u| u.u95);
+                (self.k2_max_ug_per_g2, u95)
+            }
+        };
+        Some(Judged {
+            measurand: decision.measurand,
+            value_ug_per_g2: value,
+            u95_ug_per_g2: u95,
+            limit_ug_per_g2: decision.limit_ug_per_g2,
+            rule: decision.rule,
+        })
+    }
+
+    /// The stable codes of its reasons, in order (for a line's MES): each
+    /// code's serde name, as stored.
+    pub fn reason_codes(&self) -> Vec<String> {
+        self.reasons
+            .iter()
+            .filter_map(|r| match serde_json::to_value(r.code) {
+                Ok(serde_json::Value::String(name)) => Some(name),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

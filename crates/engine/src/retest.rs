@@ -4,7 +4,7 @@
 //! `retest_of` naming the original (the store keeps the link both ways).
 
 use crate::executor::sequential::flagged_levels;
-use crate::plan::{Measurand, SequentialConfig, TestPlan};
+use crate::plan::{SequentialConfig, TestPlan};
 use crate::record::{Outcome, ReasonCode, UnitRecord};
 use serde::Serialize;
 use spinbench_analysis::Mount;
@@ -107,7 +107,8 @@ pub const RETEST_TARGET_FRACTION: f64 = 0.8;
 /// limit, not the dwell.
 pub const MIN_RETEST_TARGET_UG_PER_G2: f64 = 0.2;
 
-/// What was judged of an instrument: the value, its U95 and the limit.
+/// What was judged of an inconclusive instrument: the value, its U95
+/// and the limit.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Judged {
     value_ug_per_g2: f64,
@@ -128,30 +129,11 @@ fn judged(record: &UnitRecord) -> Option<Judged> {
     if record.outcome != Outcome::Inconclusive {
         return None;
     }
-    let decision = record.decision?;
-    let analysis = record.analysis.as_ref()?;
-    let (value, u95) = match decision.measurand {
-        Measurand::K2 => {
-            let j = analysis.joint.as_ref()?;
-            (j.k2_even_ug_per_g2, j.k2_even_u95?)
-        }
-        Measurand::K2Max => {
-            let mount = analysis.k2_max_mount?;
-            let u = analysis
-                .fits
-                .get(&mount)?
-                .uncertainty
-                .as_ref()?
-                .k2_ug_per_g2
-                .as_ref()?
-                .u95;
-            (record.k2_max_ug_per_g2?, u)
-        }
-    };
+    let j = record.judged()?;
     Some(Judged {
-        value_ug_per_g2: value,
-        u95_ug_per_g2: u95,
-        limit_ug_per_g2: decision.limit_ug_per_g2,
+        value_ug_per_g2: j.value_ug_per_g2?,
+        u95_ug_per_g2: j.u95_ug_per_g2?,
+        limit_ug_per_g2: j.limit_ug_per_g2,
     })
 }
 
@@ -409,6 +391,41 @@ mod tests {
             decision: Some(limits.decision()),
             ..record(slot, serial, g.outcome, Vec::new())
         }
+    }
+
+    #[test]
+    fn a_record_says_what_its_verdict_judged_in_one_reading() {
+        let y = graded("Y", 1, 5.0, 0.0);
+        let j = y.judged().expect("judged");
+        assert_eq!(j.measurand, crate::plan::Measurand::K2);
+        let (value, u95) = (
+            j.value_ug_per_g2.expect("K2"),
+            j.u95_ug_per_g2.expect("U95"),
+        );
+        assert!((value - 5.0).abs() <= u95, "{value} ± {u95}");
+        assert_eq!(j.limit_ug_per_g2, 20.0);
+        assert!(y.judged_text().starts_with("K2 +"), "{}", y.judged_text());
+        // Judged on k2_max: the larger mounting's k2, with its own U95.
+        let mut decision = crate::plan::Limits::default().decision();
+        decision.measurand = crate::plan::Measurand::K2Max;
+        let by_max = UnitRecord {
+            decision: Some(decision),
+            ..y.clone()
+        };
+        let j = by_max.judged().expect("judged");
+        assert_eq!(j.value_ug_per_g2, y.k2_max_ug_per_g2);
+        assert!(j.u95_ug_per_g2.is_some());
+        // A record from before decisions were recorded says so.
+        let old = UnitRecord {
+            decision: None,
+            ..y
+        };
+        assert_eq!(old.judged(), None);
+        assert!(
+            old.judged_text().contains("limit not recorded"),
+            "{}",
+            old.judged_text()
+        );
     }
 
     #[test]

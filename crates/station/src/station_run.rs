@@ -277,8 +277,8 @@ pub fn render_records(out: &mut dyn Write, finished: &Finished) -> Result<()> {
     )?;
     writeln!(
         out,
-        "{:<10} {:>4} {:>12} {:>12} {:>24} {:>9}  reasons",
-        "serial", "slot", "R P [mm]", "R N [mm]", "k2_max [µg/g²]", "outcome"
+        "{:<10} {:>4} {:>12} {:>12} {:>12}  {:<48}  reasons",
+        "serial", "slot", "R P [mm]", "R N [mm]", "outcome", "judged"
     )?;
     for r in &s.records {
         let radius = |m: Mount| {
@@ -288,13 +288,13 @@ pub fn render_records(out: &mut dyn Write, finished: &Finished) -> Result<()> {
         };
         writeln!(
             out,
-            "{:<10} {:>4} {:>12} {:>12} {:>24} {:>9}  {}",
+            "{:<10} {:>4} {:>12} {:>12} {:>12}  {:<48}  {}",
             r.serial,
             r.slot + 1,
             radius(Mount::P),
             radius(Mount::N),
-            r.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
-            format!("{:?}", r.outcome).to_lowercase(),
+            r.outcome.as_str(),
+            r.judged_text(),
             r.reasons.join("; ")
         )?;
     }

@@ -16,7 +16,7 @@ use common::spinbench;
 fn run_short_plan(
     dir: &std::path::Path,
     limit_ug_per_g2: u32,
-) -> (bool, String, std::path::PathBuf) {
+) -> (bool, String, std::path::PathBuf, String) {
     let plan = dir.join("plan.toml");
     let text = format!(
         "{}[limits]\nk2_max_ug_per_g2 = {limit_ug_per_g2}\n",
@@ -24,7 +24,7 @@ fn run_short_plan(
     );
     std::fs::write(&plan, text).expect("plan");
     let data = dir.join("data");
-    let (ok, _, err) = spinbench(&[
+    let (ok, out, err) = spinbench(&[
         "run",
         "--simulate",
         "--quiet",
@@ -34,7 +34,7 @@ fn run_short_plan(
         data.to_str().expect("utf-8"),
         plan.to_str().expect("utf-8"),
     ]);
-    (ok, err, data)
+    (ok, err, data, out)
 }
 
 #[test]
@@ -44,9 +44,22 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
     // limit fails two and passes one. Warmed up first: without it the
     // warm-up drift is in the up/down pure error (no drift term)
     // and R2's U95 straddles the limit.
-    let (ok, err, data) = run_short_plan(dir.path(), 25);
+    let (ok, err, data, table) = run_short_plan(dir.path(), 25);
     let data_s = data.to_str().expect("utf-8");
     assert!(ok, "{err}");
+    // The end-of-run table says, beside each outcome, what was judged
+    // against which limit.
+    let rows: Vec<&str> = table
+        .lines()
+        .filter(|l| l.starts_with('R') && l[1..].starts_with(|c: char| c.is_ascii_digit()))
+        .collect();
+    assert!(!rows.is_empty(), "{table}");
+    for row in rows {
+        assert!(
+            row.contains("K2 ") && row.contains("(limit 25, guarded)"),
+            "{row}\n{table}"
+        );
+    }
     let target = StoreTarget::File(data.join("spinbench.db"));
     let first = {
         let store = Store::connect(&target).expect("store");
@@ -225,7 +238,7 @@ fn an_inconclusive_instrument_is_told_what_decides_it_and_its_tries_are_counted(
     let dir = tempfile::tempdir().expect("tempdir");
     // Seed 4's R2 has |K2| ≈ 20 µg/g²: on a 20 µg/g² limit its interval
     // straddles it (the run's exit status says some instrument did not pass).
-    let (_, err, data) = run_short_plan(dir.path(), 20);
+    let (_, err, data, _) = run_short_plan(dir.path(), 20);
     let data_s = data.to_str().expect("utf-8");
     let target = StoreTarget::File(data.join("spinbench.db"));
     let latest = || {

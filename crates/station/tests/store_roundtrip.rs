@@ -282,6 +282,18 @@ fn roundtrip(dir: &Path, db_arg: Option<&str>, target: &StoreTarget) {
     let serial_2 = format!("{SERIAL_PREFIX}2");
     let (ok, history, _) = spinbench(&["unit", &serial_2, "--db", db_s]);
     assert!(ok && history.contains(&run.id), "{history}");
+    // Each result says what its verdict judged, against which limit: the
+    // quantity, its value ± U95, never k2_max beside a verdict on K2.
+    for said in [&shown, &history] {
+        let rows: Vec<&str> = said.lines().filter(|l| l.contains("slot")).collect();
+        assert!(!rows.is_empty(), "{said}");
+        for row in rows {
+            assert!(
+                row.contains("K2 ") && row.contains("(limit ") && !row.contains("k2_max"),
+                "{row}"
+            );
+        }
+    }
 
     // Every export format is valid input for `analyze`, which reproduces the stored fits.
     for format in ["csv", "xlsx", "parquet"] {

@@ -592,6 +592,23 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         "2 instruments × 2 mountings"
     );
     assert!(run["results"][0]["k2_ug_per_g2"].is_number());
+    // Each row says what its verdict judged: the quantity, its value ± U95,
+    // the plan's limit and the rule, and its reasons' codes for an MES.
+    for row in run["results"].as_array().into_iter().flatten() {
+        let judged = &row["judged"];
+        assert_eq!(judged["measurand"], "K2", "{row}");
+        assert!(judged["limit_ug_per_g2"].is_number(), "{row}");
+        assert!(
+            ["guarded", "simple"].contains(&judged["rule"].as_str().unwrap_or_default()),
+            "{row}"
+        );
+        assert_eq!(
+            judged["value_ug_per_g2"], row["instrument_k2_ug_per_g2"],
+            "{row}"
+        );
+        assert_eq!(judged["U95"], row["instrument_k2_U95"], "{row}");
+        assert!(row["reason_codes"].is_array(), "{row}");
+    }
     let r = op.send("GET", &format!("/api/runs/{run_id}/report/pdf"), None);
     assert_eq!(r.status, 200);
     assert_eq!(r.content_type, "application/pdf");
@@ -613,6 +630,12 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
     assert_eq!(runs[0]["id"], run_id.as_str());
     let unit = op.get_json("/api/units/API-1", 200);
     assert_eq!(unit["tests"][0]["run_id"], run_id.as_str());
+    let api_1 = run["results"]
+        .as_array()
+        .and_then(|rows| rows.iter().find(|r| r["serial"] == "API-1"))
+        .expect("API-1's results");
+    assert_eq!(unit["tests"][0]["judged"], api_1["judged"], "{unit}");
+    assert!(unit["tests"][0]["reason_codes"].is_array(), "{unit}");
     assert_eq!(op.send("GET", "/api/units/NOBODY", None).status, 404);
 
     // The event stream: everything from the start, numbered; a reconnect

@@ -369,6 +369,22 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         "return document.getElementById('run-detail').textContent.includes('WEB-2')",
     );
     b.screenshot(&shots.join("5-history.png"));
+    // Beside each outcome, what the verdict judged and against which limit.
+    let judged = b.script(
+        "const t = document.querySelector('#run-detail table'); const i = [...t.tHead.rows[0].cells].findIndex(c => c.textContent === 'judged'); \
+         return i < 0 ? null : [...t.rows].slice(1).map(r => r.cells[i].textContent)",
+    );
+    let judged = judged
+        .as_array()
+        .unwrap_or_else(|| panic!("no judged column: {judged}"));
+    assert!(!judged.is_empty());
+    for cell in judged {
+        let cell = cell.as_str().unwrap_or_default();
+        assert!(
+            cell.starts_with("K2 ") && cell.contains("limit 0.001 µg/g², guarded"),
+            "{cell}"
+        );
+    }
     assert_eq!(
         b.script("return !!document.getElementById('exclude-form')"),
         Value::Bool(false),

@@ -45,6 +45,9 @@ pub struct SummaryRow {
     /// The quantity the verdict judged (`K2`, `k2_max`; empty when the
     /// record does not say).
     pub judged: String,
+    /// What the verdict judged, whole (`None` for a record made before
+    /// the decision was recorded).
+    pub verdict: Option<spinbench_engine::Judged>,
     /// Its limit [µg/g²].
     pub limit_ug_per_g2: Option<f64>,
     /// The decision rule (`guarded`, `simple`; empty when not recorded).
@@ -53,6 +56,8 @@ pub struct SummaryRow {
     pub outcome: String,
     /// Why, when not a plain pass.
     pub reasons: String,
+    /// The reasons' stable codes, in order (for a line's MES).
+    pub reason_codes: Vec<String>,
 }
 
 /// The summary rows: one per instrument and mounting measured.
@@ -103,6 +108,7 @@ pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
                 judged: r
                     .decision
                     .map_or_else(String::new, |d| d.measurand.name().to_string()),
+                verdict: r.judged(),
                 limit_ug_per_g2: r.decision.map(|d| d.limit_ug_per_g2),
                 rule: r
                     .decision
@@ -111,6 +117,7 @@ pub fn summary_in(report: &RunReport, lang: Lang) -> Vec<SummaryRow> {
                     .map_or_else(String::new, |rule| rule.name().to_string()),
                 outcome: u.result.outcome.to_string(),
                 reasons: u.reasons_text_in(lang),
+                reason_codes: r.reason_codes(),
             });
         }
     }

@@ -54,12 +54,11 @@ pub(super) fn runs_show(run: &str, db: &StoreTarget, out: &mut dyn Write) -> Res
     for u in store.results(run)? {
         writeln!(
             out,
-            "  slot {:>2} {:<12} {:<9} k2_max {}",
+            "  slot {:>2} {:<12} {:<12} {}",
             u.slot + 1,
             u.serial,
             u.outcome,
-            u.k2_max_ug_per_g2
-                .map_or("—".into(), |k| format!("{k:.3} µg/g²"))
+            u.record.judged_text()
         )?;
     }
     Ok(())
@@ -81,12 +80,12 @@ pub(super) fn unit(serial: &str, db: &StoreTarget, out: &mut dyn Write) -> Resul
             .map(|f| f.fit.k1);
         writeln!(
             out,
-            "{:<28} slot {:>2} {:<9} k2_max {:>10} k1(P) {}",
+            "{:<28} slot {:>2} {:<12} k1(P) {:>12}  {}",
             h.run_id,
             h.slot + 1,
             h.outcome,
-            h.k2_max_ug_per_g2.map_or("—".into(), |k| format!("{k:.3}")),
-            p_k1.map_or("—".into(), |v| format!("{v:.6}"))
+            p_k1.map_or("—".into(), |v| format!("{v:.6}")),
+            h.record.judged_text()
         )?;
     }
     // The one definition of repeatability (as `analyze` and the batch

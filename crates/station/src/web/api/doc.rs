@@ -168,6 +168,22 @@ mod tests {
         let mut sent = outcomes;
         sent.sort();
         assert_eq!(documented, sent);
+        assert_eq!(
+            listed(&doc, "MeasurandName"),
+            [
+                spinbench_engine::plan::Measurand::K2,
+                spinbench_engine::plan::Measurand::K2Max
+            ]
+            .map(|m| m.name().to_string())
+        );
+        assert_eq!(
+            listed(&doc, "DecisionRuleName"),
+            [
+                spinbench_engine::plan::DecisionRule::Guarded,
+                spinbench_engine::plan::DecisionRule::Simple
+            ]
+            .map(|r| r.name().to_string())
+        );
     }
 
     #[test]

@@ -1,7 +1,9 @@
 //! The runs' history: every run of the fleet or one station, one run's
 //! results with its links, its reports, every test of one serial number.
 
-use super::schema::{ErrorBody, ResultRow, RunDetail, RunEntry, UnitHistory, UnitTest};
+use super::schema::{
+    ErrorBody, JudgedValue, ResultRow, RunDetail, RunEntry, UnitHistory, UnitTest,
+};
 use super::{
     ApiError, ApiResult, App, Deserialize, HeaderMap, Json, Path, Query, QueryRejection,
     ReportFormat, Response, Role, State, authorize, blocking, header, query_error, store,
@@ -164,6 +166,10 @@ pub(super) async fn run(
             hysteresis_ug: r.hysteresis_ug,
             outcome: r.outcome,
             reasons: r.reasons,
+            reason_codes: r.reason_codes,
+            judged: r.verdict.map(JudgedValue::from),
+            instrument_k2_ug_per_g2: r.instrument_k2_ug_per_g2,
+            instrument_k2_u95_ug_per_g2: r.instrument_k2_u95_ug_per_g2,
         })
         .collect();
     let run = &report.run;
@@ -293,6 +299,8 @@ pub(super) async fn unit(
                 slot: h.slot + 1,
                 outcome: h.outcome.to_string(),
                 k2_max_ug_per_g2: h.k2_max_ug_per_g2,
+                judged: h.record.judged().map(JudgedValue::from),
+                reason_codes: h.record.reason_codes(),
             })
             .collect(),
     }))

@@ -195,6 +195,73 @@ pub struct ResultRow {
     pub outcome: String,
     /// Why, in the user's language.
     pub reasons: String,
+    /// The reasons' stable codes, in order, to filter on (`k2_over_limit`,
+    /// `noisy`, …; the record's codes, whatever the language).
+    pub reason_codes: Vec<String>,
+    /// What the verdict judged (`None` for a record made before the
+    /// decision was recorded).
+    pub judged: Option<JudgedValue>,
+    /// The instrument's own K2 of both mountings (the same on each of its
+    /// rows) [µg/g²].
+    pub instrument_k2_ug_per_g2: Option<f64>,
+    /// Its U95 [µg/g²].
+    #[serde(rename = "instrument_k2_U95")]
+    pub instrument_k2_u95_ug_per_g2: Option<f64>,
+}
+
+/// What an instrument's verdict judged, beside its outcome.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct JudgedValue {
+    /// The quantity judged: `K2` (the instrument's own, both mountings) or
+    /// `k2_max` (the larger mounting's k2).
+    #[schema(value_type = MeasurandName)]
+    pub measurand: String,
+    /// Its value (`None`: not measured, e.g. K2 without both mountings) [µg/g²].
+    pub value_ug_per_g2: Option<f64>,
+    /// Its expanded uncertainty at 95 % [µg/g²].
+    #[serde(rename = "U95")]
+    pub u95_ug_per_g2: Option<f64>,
+    /// The plan's limit on it [µg/g²].
+    pub limit_ug_per_g2: f64,
+    /// The decision rule: `guarded` or `simple`.
+    #[schema(value_type = DecisionRuleName)]
+    pub rule: String,
+}
+
+impl From<spinbench_engine::Judged> for JudgedValue {
+    fn from(j: spinbench_engine::Judged) -> JudgedValue {
+        JudgedValue {
+            measurand: j.measurand.name().to_string(),
+            value_ug_per_g2: j.value_ug_per_g2,
+            u95_ug_per_g2: j.u95_ug_per_g2,
+            limit_ug_per_g2: j.limit_ug_per_g2,
+            rule: j.rule.name().to_string(),
+        }
+    }
+}
+
+/// The quantity a verdict judges ([`spinbench_engine::plan::Measurand`];
+/// documentation of its names, held together with it by a test).
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+pub enum MeasurandName {
+    /// The instrument's own K2 of both mountings.
+    #[serde(rename = "K2")]
+    K2,
+    /// The larger mounting's k2.
+    #[serde(rename = "k2_max")]
+    K2Max,
+}
+
+/// How a value with its U95 is judged against the limit
+/// ([`spinbench_engine::plan::DecisionRule`]; held together by a test).
+#[derive(Debug, Clone, Copy, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum DecisionRuleName {
+    /// Pass only when |value| + U95 is within the limit, fail only when
+    /// |value| − U95 is beyond it.
+    Guarded,
+    /// The value alone against the limit.
+    Simple,
 }
 
 /// `GET /api/runs/{id}`.
@@ -223,8 +290,14 @@ pub struct UnitTest {
     /// Its outcome.
     #[schema(value_type = OutcomeName)]
     pub outcome: String,
-    /// k2_max [µg/g²].
+    /// The larger |k2| of its mountings, a figure: the verdict judged
+    /// `judged` [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
+    /// What its verdict judged (`None` for a record made before the
+    /// decision was recorded).
+    pub judged: Option<JudgedValue>,
+    /// Its reasons' stable codes, in order.
+    pub reason_codes: Vec<String>,
 }
 
 /// `GET /api/units/{serial}`.

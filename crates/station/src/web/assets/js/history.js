@@ -54,6 +54,19 @@ export function runName(r) {
 // board says so) and its retest offer appear without a reload.
 let shownRun = null;
 
+// What a verdict judged, beside its outcome: the quantity, its value ± U95
+// and the limit (a record from before decisions were recorded judged k2_max
+// and does not say its limit).
+export function judgedText(j, k2Max) {
+  if (!j) return k2Max === null || k2Max === undefined ? "—" : "k2_max " + Number(k2Max).toFixed(3) + " µg/g²";
+  const value = j.value_ug_per_g2 === null
+    ? word("web.judged.not_measured", "not measured")
+    : (j.value_ug_per_g2 >= 0 ? "+" : "") + j.value_ug_per_g2.toFixed(3) + (j.U95 === null ? "" : " ± " + j.U95.toFixed(3)) + " µg/g²";
+  return word("web.judged.value", "%{measurand} %{value} (limit %{limit} µg/g², %{rule})")
+    .replace("%{measurand}", j.measurand).replace("%{value}", value)
+    .replace("%{limit}", String(j.limit_ug_per_g2)).replace("%{rule}", word("web.judged.rule." + j.rule, j.rule));
+}
+
 export async function showRun(id) {
   shownRun = id;
   try {
@@ -67,13 +80,13 @@ export async function showRun(id) {
     showLinks(box, r);
     showReports(box, r.id);
     const t = document.createElement("table");
-    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "k2_max", "outcome", "reasons"];
+    const head = ["serial", "slot", "mount", "radius [m]", "k1 [Hz/g]", "k2 [µg/g²]", "U95 (GUM)", "outcome", "judged", "reasons"];
     t.createTHead().insertRow().append(...head.map((x) => { const th = document.createElement("th"); th.textContent = word("web.head." + x, x); return th; }));
     const f = (v, d) => v === null ? "—" : Number(v).toFixed(d);
     for (const u of r.results) {
       const tr = t.insertRow();
-      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), f(u.k2_max_ug_per_g2, 3), word("web.outcome." + u.outcome, u.outcome), u.reasons]
-        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 8) td.className = v; });
+      [u.serial, u.slot, u.mount, f(u.radius_m, 6), f(u.k1_hz_per_g, 6), f(u.k2_ug_per_g2, 3), f(u.k2_U95 ?? u.k2_ci95_half_ug_per_g2, 3), word("web.outcome." + u.outcome, u.outcome), judgedText(u.judged, u.k2_max_ug_per_g2), u.reasons]
+        .forEach((v, k) => { const td = tr.insertCell(); td.textContent = v; if (k === 7) td.className = u.outcome; });
     }
     box.appendChild(t);
     if (state.session && state.session.role !== "operator" && r.results.length) box.appendChild(excludeForm(r));
@@ -192,7 +205,7 @@ export async function findUnit(ev) {
     const ul = document.createElement("ul");
     for (const t of r.tests) {
       const li = document.createElement("li");
-      li.textContent = t.run_id + " slot " + t.slot + ": " + t.outcome + ", k2_max " + (t.k2_max_ug_per_g2 === null ? "—" : t.k2_max_ug_per_g2.toFixed(3)) + " µg/g²";
+      li.textContent = t.run_id + " slot " + t.slot + ": " + word("web.outcome." + t.outcome, t.outcome) + ", " + judgedText(t.judged, t.k2_max_ug_per_g2);
       ul.appendChild(li);
     }
     box.appendChild(ul);
