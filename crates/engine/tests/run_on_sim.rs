@@ -2,6 +2,8 @@
 //! drivers): a complete run, every safety path by fault injection, failed
 //! instruments, abort, and the refusal of a plan beyond the limits.
 
+mod common;
+
 use spinbench_analysis::Mount;
 use spinbench_engine::event::{Event, EventSink, RunState};
 use spinbench_engine::plan::DecisionRule;
@@ -100,14 +102,7 @@ fn run_prepared(
     let pause = Arc::new(AtomicBool::new(false));
     let unpause = pause.clone();
     let summary = {
-        let options = RunOptions {
-            run_id: "test".into(),
-            abort: abort.clone(),
-            pause: pause.clone(),
-            module_silence: Duration::from_secs(2),
-            station_config_toml: String::new(),
-            sink_hold_limit: Duration::from_secs(600),
-        };
+        let options = common::options(&abort, &pause);
         let mut ex = Executor::new(
             &station,
             compiled,

@@ -4,18 +4,17 @@
 //! run killed inside a round resumed from its journal with no level lost or
 //! measured twice.
 
+mod common;
+
 use spinbench_analysis::{Direction, Mount};
 use spinbench_engine::event::{Event, RunState};
 use spinbench_engine::plan::Step;
-use spinbench_engine::{AbortFlag, Executor, RunOptions, RunSummary, StationConfig, TestPlan};
+use spinbench_engine::{RunSummary, StationConfig, TestPlan};
 use spinbench_sim::SimConfig;
 use spinbench_sim::config::DipConfig;
 use spinbench_sim::serve::{RunningBench, ServeOptions};
-use spinbench_sim::station::{SimOperator, station_toml};
+use spinbench_sim::station::station_toml;
 use std::collections::BTreeSet;
-use std::sync::atomic::AtomicBool;
-use std::sync::{Arc, Mutex};
-use std::time::Duration;
 
 /// The planned levels [g]: 5 g apart, so a level halfway between two is
 /// 2.5 g from each (the least spacing a chosen level keeps).
@@ -71,58 +70,13 @@ fn bench() -> RunningBench {
     RunningBench::start(sim, ServeOptions::default()).expect("bench")
 }
 
-/// Run the plan on `bench`, after `journal` when resuming; abort once the
-/// step `abort_in_step` has run for 5 one-second values. The summary and
-/// every event.
+/// Run the plan on `bench` ([`common::run_plan`]).
 fn run(
     bench: &RunningBench,
     journal: Option<&[Event]>,
     abort_in_step: Option<usize>,
 ) -> (RunSummary, Vec<Event>) {
-    let station = StationConfig::from_toml(&station_toml(bench, "")).expect("station config");
-    let compiled = plan().compile(&station).expect("plan fits the station");
-    let events = Arc::new(Mutex::new(Vec::new()));
-    let abort = AbortFlag::new();
-    let options = RunOptions {
-        run_id: "sequential".into(),
-        abort: abort.clone(),
-        pause: Arc::new(AtomicBool::new(false)),
-        module_silence: Duration::from_secs(2),
-        station_config_toml: String::new(),
-        sink_hold_limit: Duration::from_secs(600),
-    };
-    let mut ex = Executor::new(
-        &station,
-        compiled,
-        station.connect().expect("connect the bench's devices"),
-        Box::new(SimOperator::new(bench, true)),
-        options,
-    );
-    if let Some(past) = journal {
-        ex.restore(past);
-    }
-    let sink = events.clone();
-    let mut in_step: Option<u64> = None;
-    ex.subscribe(move |e: &Event| {
-        match e {
-            Event::StepStarted { index, .. } if Some(*index) == abort_in_step => in_step = Some(0),
-            Event::Values { .. } => {
-                if let Some(n) = in_step.as_mut() {
-                    *n += 1;
-                    if *n >= 5 {
-                        abort.request("the test");
-                    }
-                }
-            }
-            _ => {}
-        }
-        if let Ok(mut v) = sink.lock() {
-            v.push(e.clone());
-        }
-    });
-    let summary = ex.run();
-    let events = events.lock().map(|v| v.clone()).unwrap_or_default();
-    (summary, events)
+    common::run_plan(bench, &plan(), journal, abort_in_step)
 }
 
 /// The levels slot 0-based `slot` was measured at in `mount` that the
@@ -248,8 +202,7 @@ fn levels_are_added_beside_an_instruments_own_dip_and_mirrored_in_the_other_moun
 #[test]
 fn a_run_killed_inside_a_round_resumes_with_no_level_lost_or_measured_twice() {
     let bench = bench();
-    let station = StationConfig::from_toml(&station_toml(&bench, "")).expect("station config");
-    let steps = plan().compile(&station).expect("compiles").steps;
+    let steps = common::steps_of(&bench, &plan());
     // The second round of mounting P.
     let round = steps
         .iter()

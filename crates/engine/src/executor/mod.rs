@@ -642,12 +642,37 @@ impl<'a> Executor<'a> {
                 .rev()
                 .find(|&i| matches!(steps[i], Step::Mount { .. }))
         });
+        // And the chamber's soak it was measuring at: the air and the
+        // instruments are back at the room's temperature after the break.
+        let resoak = first_todo.and_then(|t| {
+            (0..t)
+                .rev()
+                .find(|&i| matches!(steps[i], Step::Soak { .. }))
+        });
         for (index, step) in steps.iter().enumerate() {
-            let setup = matches!(step, Step::PowerOn | Step::CheckAlive);
-            let needed = !self.progress.completed.contains(&index)
-                || (self.progress.resumed && (setup || Some(index) == remount));
-            if !needed {
+            // A resume measures in the run's thermal state: the instruments
+            // were unpowered, so they are warmed up again (and soaked again
+            // at the chamber's setpoint) before the first measured step.
+            let setup = matches!(step, Step::PowerOn | Step::CheckAlive | Step::WarmUp { .. });
+            let done = self.progress.completed.contains(&index);
+            let again = self.progress.resumed
+                && done
+                && (setup || Some(index) == remount || Some(index) == resoak);
+            if done && !again {
                 continue;
+            }
+            if again
+                && let Step::WarmUp { seconds } = step
+                && *seconds > 0.0
+            {
+                self.emit(Event::Notice {
+                    message: format!(
+                        "resumed: the instruments warm up again for {seconds:.0} s before the first measured step, so that the run is measured in one thermal state"
+                    ),
+                    wording: Some(
+                        Wording::new("notice.resume_warm_up").with("seconds", format!("{seconds:.0}")),
+                    ),
+                })?;
             }
             if self.options.abort.is_set() {
                 return Err(EngineError::Aborted(self.options.abort.by()));
