@@ -14,20 +14,45 @@ pub const FLAGS: [ReasonCode; 2] = [ReasonCode::TemperatureUnsettled, ReasonCode
 
 pub use crate::bounds::is_run_id;
 
-/// Whether an instrument's record calls for a retest: failed,
-/// inconclusive, incomplete, or flagged by one of [`FLAGS`].
+/// Whether an instrument's record calls for a retest: inconclusive,
+/// incomplete, or flagged by one of [`FLAGS`]. A plain fail does not: it
+/// was decided against the limit with its U95, and the same instrument
+/// measured again fails again; it is set aside, or retested on purpose
+/// ([`may_retest`], [`RetestChoice::include_fails`]).
 pub fn needs_retest(record: &UnitRecord) -> bool {
-    matches!(
-        record.outcome,
-        Outcome::Fail | Outcome::Inconclusive | Outcome::Incomplete
-    ) || record.reasons.iter().any(|r| FLAGS.contains(&r.code))
+    matches!(record.outcome, Outcome::Inconclusive | Outcome::Incomplete)
+        || record.reasons.iter().any(|r| FLAGS.contains(&r.code))
+}
+
+/// Whether an instrument may be named in a retest: one that needs it, or
+/// a fail retested on purpose.
+pub fn may_retest(record: &UnitRecord) -> bool {
+    needs_retest(record) || record.outcome == Outcome::Fail
+}
+
+/// Which instruments a retest takes besides those that need one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RetestChoice {
+    /// The plain fails too (an engineer who doubts the fixture or the
+    /// cable); by default they are set aside.
+    pub include_fails: bool,
+}
+
+impl RetestChoice {
+    /// Whether the retest takes `record`.
+    pub fn takes(self, record: &UnitRecord) -> bool {
+        needs_retest(record) || (self.include_fails && record.outcome == Outcome::Fail)
+    }
 }
 
 /// Why no retest plan could be made.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum RetestError {
-    /// Every instrument passed (or was marginal) with nothing flagged.
-    #[error("nothing to retest in run {0}: every instrument passed with nothing flagged")]
+    /// Every instrument was decided (passed, marginal or failed) with
+    /// nothing flagged.
+    #[error(
+        "nothing to retest in run {0}: every instrument was decided (pass or fail) with nothing flagged; a clear fail is set aside (retest it on purpose with --include-fails)"
+    )]
     NothingToRetest(String),
     /// The run has no results yet.
     #[error("run {0} has no graded results yet: wait for it to finish, then retest it")]
@@ -38,11 +63,12 @@ pub enum RetestError {
 }
 
 /// The plan that retests `run_id`: `original` with only the slots whose
-/// records need a retest, `retest_of` set, and the name marked.
+/// records the `choice` takes, `retest_of` set, and the name marked.
 pub fn retest_plan(
     run_id: &str,
     original: &TestPlan,
     records: &[UnitRecord],
+    choice: RetestChoice,
 ) -> Result<(TestPlan, Vec<String>), RetestError> {
     if !is_run_id(run_id) {
         return Err(RetestError::BadRunId(run_id.chars().take(80).collect()));
@@ -50,7 +76,7 @@ pub fn retest_plan(
     if records.is_empty() {
         return Err(RetestError::NotGraded(run_id.to_string()));
     }
-    let again: Vec<&UnitRecord> = records.iter().filter(|r| needs_retest(r)).collect();
+    let again: Vec<&UnitRecord> = records.iter().filter(|r| choice.takes(r)).collect();
     if again.is_empty() {
         return Err(RetestError::NothingToRetest(run_id.to_string()));
     }
@@ -291,7 +317,7 @@ mod tests {
     }
 
     #[test]
-    fn only_the_failed_inconclusive_incomplete_and_flagged_are_tested_again() {
+    fn only_the_inconclusive_incomplete_and_flagged_are_tested_again_and_fails_on_purpose() {
         let plan = TestPlan::from_toml(
             "name = \"batch 7\"\n[serials]\n1 = \"P:A\"\n2 = \"P:B\"\n3 = \"N:C\"\n4 = \"D\"\n5 = \"E\"\n6 = \"F\"\n",
         )
@@ -309,15 +335,24 @@ mod tests {
             ),
             record(5, "F", Outcome::Marginal, vec![]),
         ];
-        let (again, serials) = retest_plan("run-1-ab", &plan, &records).expect("retest");
+        // The clear fail is set aside by default.
+        let (again, serials) =
+            retest_plan("run-1-ab", &plan, &records, RetestChoice::default()).expect("retest");
+        assert_eq!(serials, ["C", "D", "E"]);
+        let everyone = RetestChoice {
+            include_fails: true,
+        };
+        let (again_with_fails, serials) =
+            retest_plan("run-1-ab", &plan, &records, everyone).expect("retest");
         assert_eq!(serials, ["B", "C", "D", "E"]);
+        assert!(again_with_fails.serials.contains_key("2"));
         let kept: Vec<(&str, &str)> = again
             .serials
             .iter()
             .map(|(k, v)| (k.as_str(), v.as_str()))
             .collect();
         // Same slots, same serials with their mountings.
-        assert_eq!(kept, [("2", "P:B"), ("3", "N:C"), ("4", "D"), ("5", "E")]);
+        assert_eq!(kept, [("3", "N:C"), ("4", "D"), ("5", "E")]);
         assert_eq!(again.retest_of.as_deref(), Some("run-1-ab"));
         assert_eq!(again.name, "retest of batch 7");
         again.validate().expect("a valid plan");
@@ -325,17 +360,20 @@ mod tests {
         let text = toml::to_string(&again).expect("toml");
         assert_eq!(TestPlan::from_toml(&text).expect("parsed"), again);
 
-        let all_pass = vec![record(0, "A", Outcome::Pass, vec![])];
+        let decided = vec![
+            record(0, "A", Outcome::Pass, vec![]),
+            record(1, "B", Outcome::Fail, vec![]),
+        ];
         assert_eq!(
-            retest_plan("run-1-ab", &plan, &all_pass),
+            retest_plan("run-1-ab", &plan, &decided, RetestChoice::default()),
             Err(RetestError::NothingToRetest("run-1-ab".into()))
         );
         assert!(matches!(
-            retest_plan("run-1-ab", &plan, &[]),
+            retest_plan("run-1-ab", &plan, &[], RetestChoice::default()),
             Err(RetestError::NotGraded(_))
         ));
         assert!(matches!(
-            retest_plan("../etc", &plan, &records),
+            retest_plan("../etc", &plan, &records, RetestChoice::default()),
             Err(RetestError::BadRunId(_))
         ));
     }
@@ -448,7 +486,8 @@ mod tests {
             "levels = \"auto\"\ntarget_k2_u95_ug_per_g2 = 8\n[serials]\n1 = \"X\"\n2 = \"Y\"\n",
         )
         .expect("plan");
-        let (again, serials) = retest_plan("run-1-ab", &plan, &records).expect("retest");
+        let (again, serials) =
+            retest_plan("run-1-ab", &plan, &records, RetestChoice::default()).expect("retest");
         assert_eq!(serials, ["X"]);
         // Measured until certain, designed under what would decide X.
         assert_eq!(
@@ -514,7 +553,8 @@ mod tests {
             temperatures_c: vec![25.0, 60.0],
             ..plan.clone()
         };
-        let (again, _) = retest_plan("run-1-ab", &hot, &records).expect("retest");
+        let (again, _) =
+            retest_plan("run-1-ab", &hot, &records, RetestChoice::default()).expect("retest");
         assert_eq!(again.sequential, None);
     }
 

@@ -55,8 +55,9 @@ pub enum RetestFromStoreError {
 /// Check a plan against the store before it runs: no serial looks like an
 /// earlier run's without being it; and, for a retest (`retest_of`), the run
 /// exists and has ended, and every serial of the plan is one of its
-/// instruments that needs a retest ([`spinbench_engine::retest::needs_retest`]),
-/// so no record claims to retest what was never tested or passed.
+/// instruments that may be retested ([`spinbench_engine::retest::may_retest`]:
+/// one that needs it, or a fail on purpose), so no record claims to retest
+/// what was never tested or passed.
 pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromStoreError> {
     for given in plan.serials.values() {
         if let Some(stored) = store.look_alike_serial(given)? {
@@ -81,7 +82,7 @@ pub fn check_retest_of(store: &Store, plan: &TestPlan) -> Result<(), RetestFromS
     let needing: Vec<String> = store
         .results(run_id)?
         .into_iter()
-        .filter(|r| spinbench_engine::retest::needs_retest(&r.record))
+        .filter(|r| spinbench_engine::retest::may_retest(&r.record))
         .map(|r| r.record.serial)
         .collect();
     if let Some(serial) = plan.serials.values().find(|s| !needing.contains(s)) {
@@ -119,7 +120,11 @@ pub struct Retest {
 /// station config the run used, and the advice for its inconclusive
 /// instruments against the retest plan's prediction from the station's
 /// model of its own runs.
-pub fn retest_plan_from_store(store: &Store, run_id: &str) -> Result<Retest, RetestFromStoreError> {
+pub fn retest_plan_from_store(
+    store: &Store,
+    run_id: &str,
+    choice: spinbench_engine::retest::RetestChoice,
+) -> Result<Retest, RetestFromStoreError> {
     if !is_run_id(run_id) {
         return Err(RetestError::BadRunId(run_id.chars().take(80).collect()).into());
     }
@@ -139,7 +144,7 @@ pub fn retest_plan_from_store(store: &Store, run_id: &str) -> Result<Retest, Ret
         )
     })?;
     let records: Vec<_> = record.results.into_iter().map(|r| r.record).collect();
-    let (mut plan, serials) = retest_plan(run_id, &original, &records)?;
+    let (mut plan, serials) = retest_plan(run_id, &original, &records, choice)?;
     let learned = crate::station_model::learn_from(
         store,
         &record.start.station,

@@ -1,4 +1,4 @@
-//! `spinbench retest RUN`: a finished run's failed
+//! `spinbench retest RUN`: a finished run's failed (on purpose)
 //! instruments tested again, same serials, slots and plan, linked both ways
 //! in the store and in both runs' reports; what cannot be retested is
 //! refused with what to do.
@@ -82,16 +82,27 @@ fn a_runs_failed_instruments_are_tested_again_and_the_runs_are_linked() {
         runs[0].id.clone()
     };
 
-    let (ok, said, err) = spinbench(&[
-        "retest",
-        &first,
-        "--simulate",
-        "--quiet",
-        "--seed",
-        "4",
-        "--data",
-        data_s,
-    ]);
+    // Two clear fails and a pass: nothing needs a retest, and the refusal
+    // says how to retest the fails on purpose. Nothing is run.
+    let retest = |choice: &[&str]| {
+        let mut args = vec!["retest", first.as_str()];
+        args.extend_from_slice(choice);
+        args.extend(["--simulate", "--quiet", "--seed", "4", "--data", data_s]);
+        spinbench(&args)
+    };
+    let (ok, _, err) = retest(&[]);
+    assert!(
+        !ok && err.contains("nothing to retest") && err.contains("--include-fails"),
+        "{err}"
+    );
+    let stored_runs = || {
+        Store::connect(&target)
+            .expect("store")
+            .runs()
+            .expect("runs")
+    };
+    assert_eq!(stored_runs().len(), 1);
+    let (ok, said, err) = retest(&["--include-fails"]);
     // The same instruments fail again on the same bench: the command says so
     // by its exit status, and the retest is stored all the same.
     assert!(

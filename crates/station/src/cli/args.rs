@@ -158,12 +158,16 @@ pub enum Command {
         #[arg(long, value_parser = parse_store)]
         db: Option<StoreTarget>,
     },
-    /// Test again the failed, inconclusive, incomplete and flagged
-    /// instruments of a finished run: same serials, slots and plan, the new
-    /// run linked to RUN in the store and both reports.
+    /// Test again the inconclusive, incomplete and flagged instruments of a
+    /// finished run: same serials, slots and plan, the new run linked to RUN
+    /// in the store and both reports. A clear fail is set aside.
     Retest {
         /// The run to retest (its identifier, as `spinbench runs list` shows).
         run: String,
+        /// Test the clear fails again too (a doubted fixture or cable): a
+        /// fail was decided with its U95 and the same instrument fails again.
+        #[arg(long)]
+        include_fails: bool,
         /// The station config (TOML); default: the one RUN used. With
         /// --simulate its device sections are replaced by the bench's.
         #[arg(long)]

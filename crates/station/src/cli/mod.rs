@@ -232,6 +232,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
         ),
         Command::Retest {
             run,
+            include_fails,
             station,
             simulate,
             bench,
@@ -240,6 +241,7 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             db,
         } => run::retest(
             &run,
+            spinbench_engine::retest::RetestChoice { include_fails },
             station.as_deref(),
             simulate_with(simulate, &bench)?,
             &bench,

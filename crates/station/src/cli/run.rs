@@ -243,13 +243,14 @@ pub(super) fn run_plan(
     Ok(())
 }
 
-/// `spinbench retest RUN`: the run's failed, inconclusive, incomplete and
-/// flagged instruments tested again with the same serials, slots and plan
-/// (`retest_of` links the new run to RUN), on the station config given or,
-/// without one, the config RUN used.
-#[allow(clippy::too_many_arguments)]
+/// `spinbench retest RUN`: the run's inconclusive, incomplete and flagged
+/// instruments (and, chosen, its fails) tested again with the same
+/// serials, slots and plan (`retest_of` links the new run to RUN), on the
+/// station config given or, without one, the config RUN used.
+#[allow(clippy::too_many_arguments)] // each is one of `retest`'s options
 pub(super) fn retest(
     run_id: &str,
+    choice: spinbench_engine::retest::RetestChoice,
     station_path: Option<&Path>,
     simulate: bool,
     bench_args: &crate::virtual_bench::BenchArgs,
@@ -266,7 +267,7 @@ pub(super) fn retest(
             .with_context(|| format!("cannot open the store {target} to find run {run_id}"))?;
         // A run id or a label (`2026-11-24 · station 1 · #7`).
         let run_id = store.id_of_label(run_id)?;
-        let retest = crate::retest::retest_plan_from_store(&store, &run_id)?;
+        let retest = crate::retest::retest_plan_from_store(&store, &run_id, choice)?;
         (run_id, retest)
     };
     let crate::retest::Retest {

@@ -290,7 +290,10 @@ pub(super) async fn retest(
         app.runner.catch_up_left_over();
         let store = store(app)?;
         let recorded_by = store.run(&asked).ok().flatten().map(|r| r.station);
-        Ok((retest_plan_from_store(&store, &asked), recorded_by))
+        // The web's Retest takes what needs one; a clear fail is set aside
+        // (the board says so), retested on purpose from the command line.
+        let choice = spinbench_engine::retest::RetestChoice::default();
+        Ok((retest_plan_from_store(&store, &asked, choice), recorded_by))
     })
     .await?;
     // The instruments go back to the centrifuge and fixtures they were
