@@ -477,6 +477,15 @@ fn an_operator_runs_a_test_in_the_browser_on(backend: web::Backend) {
         "the retest button",
         "return !!document.getElementById('retest-button')",
     );
+    // Before it starts: that the retest is measured until the verdict is
+    // certain (WEB-2 was measured in one mounting, so it has no interval
+    // to advise on).
+    b.wait_for(
+        20,
+        "the retest's advice",
+        "const l = document.getElementById('retest-advice'); \
+         return !!l && l.textContent.includes('Measured until the verdict is certain: up to 12 level(s)')",
+    );
     b.screenshot(&shots.join("8-retest-offered.png"));
     b.click("#retest-button");
     // It asks first, naming the instruments.

@@ -4,7 +4,8 @@
 //! cannot drift from them; a test holds its paths to the route table.
 
 use super::{
-    assets, auth, charts, equipment, exclusions, history, live, plans, runs, schema, session, users,
+    assets, auth, charts, equipment, exclusions, history, live, plans, retest_offer, runs, schema,
+    session, users,
 };
 use utoipa::openapi::security::{ApiKey, ApiKeyValue, SecurityScheme};
 use utoipa::{Modify, OpenApi};
@@ -98,7 +99,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         session::login, session::logout, session::session, session::set_language, session::catalogue,
         live::status, live::events,
         plans::plans, plans::save_plan, plans::design_plan, plans::station, plans::save_station,
-        history::runs, runs::start_run, history::run, history::report, exclusions::exclude_level, exclusions::withdraw_exclusion, runs::retest, runs::resume_run,
+        history::runs, runs::start_run, history::run, history::report, exclusions::exclude_level, exclusions::withdraw_exclusion, runs::retest, retest_offer::retest_offer, runs::resume_run,
         runs::answer_prompt, runs::pause, runs::resume, runs::abort, runs::acknowledge_fault, history::unit,
         charts::control_charts,
         equipment::equipment, equipment::set_equipment, equipment::signature,

@@ -34,6 +34,7 @@ mod exclusions;
 mod history;
 mod live;
 mod plans;
+mod retest_offer;
 mod runs;
 pub mod schema;
 mod session;
@@ -424,6 +425,11 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
             post(exclusions::withdraw_exclusion),
         ),
         ("post", "/api/runs/{id}/retest", post(runs::retest)),
+        (
+            "get",
+            "/api/runs/{id}/retest",
+            get(retest_offer::retest_offer),
+        ),
         ("post", "/api/runs/{id}/resume", post(runs::resume_run)),
         ("post", "/api/run/prompt", post(runs::answer_prompt)),
         ("post", "/api/run/pause", post(runs::pause)),

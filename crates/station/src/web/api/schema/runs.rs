@@ -108,6 +108,71 @@ pub struct RetestStarted {
     pub serials: Vec<String>,
 }
 
+/// `GET /api/runs/{id}/retest`: what a retest would take and do, before it starts.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RetestOffer {
+    /// The run it would retest.
+    pub retest_of: String,
+    /// The serials it would test again (a clear fail is set aside).
+    pub serials: Vec<String>,
+    /// The levels per mounting the data may add, measured until the
+    /// verdict is certain (`None`: the plan measures its levels only).
+    pub sequential_levels_per_mounting: Option<u32>,
+    /// For each inconclusive instrument: what would decide it.
+    pub advice: Vec<RetestAdviceRow>,
+}
+
+/// What a retest can do for one inconclusive instrument.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct RetestAdviceRow {
+    /// The instrument.
+    pub serial: String,
+    /// Its slot (from 1).
+    pub slot: i64,
+    /// The judged value [µg/g²].
+    pub value_ug_per_g2: f64,
+    /// Its U95 [µg/g²].
+    #[serde(rename = "U95")]
+    pub u95_ug_per_g2: f64,
+    /// The limit [µg/g²].
+    pub limit_ug_per_g2: f64,
+    /// The U95 under which the same value is decided: its distance from
+    /// the limit [µg/g²].
+    pub deciding_u95_ug_per_g2: f64,
+    /// Its levels off the curve, as `P 40 g`.
+    pub off_curve: Vec<String>,
+    /// The retest's predicted K2 U95 for it [µg/g²] (`None`: no prediction).
+    pub predicted_u95_ug_per_g2: Option<f64>,
+    /// Whether the retest is predicted to decide it (`None`: not known).
+    pub can_decide: Option<bool>,
+    /// The runs it came out inconclusive in, this one included.
+    pub inconclusive_runs: i64,
+    /// All of it in one English line.
+    pub text: String,
+}
+
+impl From<&spinbench_engine::retest::RetestAdvice> for RetestAdviceRow {
+    fn from(a: &spinbench_engine::retest::RetestAdvice) -> RetestAdviceRow {
+        RetestAdviceRow {
+            serial: a.serial.clone(),
+            slot: i64::try_from(a.slot).unwrap_or(i64::MAX),
+            value_ug_per_g2: a.value_ug_per_g2,
+            u95_ug_per_g2: a.u95_ug_per_g2,
+            limit_ug_per_g2: a.limit_ug_per_g2,
+            deciding_u95_ug_per_g2: a.deciding_u95_ug_per_g2,
+            off_curve: a
+                .off_curve
+                .iter()
+                .map(|l| format!("{} {} g", l.mount, l.g))
+                .collect(),
+            predicted_u95_ug_per_g2: a.predicted_u95_ug_per_g2,
+            can_decide: a.can_decide,
+            inconclusive_runs: i64::try_from(a.inconclusive_runs).unwrap_or(i64::MAX),
+            text: a.text(),
+        }
+    }
+}
+
 /// `POST /api/run/prompt`.
 #[derive(Debug, Deserialize, ToSchema)]
 pub struct PromptAnswer {

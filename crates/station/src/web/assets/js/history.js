@@ -62,9 +62,36 @@ export function judgedText(j, k2Max) {
   const value = j.value_ug_per_g2 === null
     ? word("web.judged.not_measured", "not measured")
     : (j.value_ug_per_g2 >= 0 ? "+" : "") + j.value_ug_per_g2.toFixed(3) + (j.U95 === null ? "" : " ± " + j.U95.toFixed(3)) + " µg/g²";
-  return word("web.judged.value", "%{measurand} %{value} (limit %{limit} µg/g², %{rule})")
-    .replace("%{measurand}", j.measurand).replace("%{value}", value)
-    .replace("%{limit}", String(j.limit_ug_per_g2)).replace("%{rule}", word("web.judged.rule." + j.rule, j.rule));
+  const rule = word("web.judged.rule." + j.rule, j.rule);
+  return fill("web.judged.value", j.measurand + " " + value + " (limit " + j.limit_ug_per_g2 + " µg/g², " + rule + ")",
+    { measurand: j.measurand, value, limit: j.limit_ug_per_g2, rule });
+}
+
+// Before a retest is started: what it takes and, for each inconclusive
+// instrument, what would decide it and whether this retest is predicted to.
+async function showRetestOffer(box, runId, idPrefix) {
+  const list = document.createElement("ul");
+  list.id = idPrefix + "retest-advice";
+  box.appendChild(list);
+  try {
+    const offer = await api("GET", "/api/runs/" + encodeURIComponent(runId) + "/retest");
+    const f = (v) => Number(v).toFixed(3);
+    for (const a of offer.advice) {
+      let line = fill("web.retest.advice", a.serial + ": " + f(a.value_ug_per_g2) + " ± " + f(a.U95) + " µg/g² against the limit " + a.limit_ug_per_g2 + " µg/g²; a U95 under " + f(a.deciding_u95_ug_per_g2) + " µg/g² decides it",
+        { serial: a.serial, value: f(a.value_ug_per_g2), u95: f(a.U95), limit: a.limit_ug_per_g2, deciding: f(a.deciding_u95_ug_per_g2) });
+      if (a.inconclusive_runs > 1) line += fill("web.retest.advice_tries", " (inconclusive in " + a.inconclusive_runs + " runs)", { n: a.inconclusive_runs });
+      if (a.off_curve.length) line += fill("web.retest.advice_off_curve", "; off its curve at " + a.off_curve.join(", "), { levels: a.off_curve.join(", ") });
+      const predicted = a.predicted_u95_ug_per_g2 === null ? "—" : f(a.predicted_u95_ug_per_g2);
+      if (a.can_decide === true) line += fill("web.retest.advice_can", "; this retest is predicted to decide it (U95 " + predicted + " µg/g²)", { predicted });
+      if (a.can_decide === false) line += fill("web.retest.advice_cannot", "; no retest is predicted to decide it (U95 " + predicted + " µg/g²): judge it by review or set it aside", { predicted });
+      const li = document.createElement("li"); li.textContent = line; list.appendChild(li);
+    }
+    if (offer.sequential_levels_per_mounting) {
+      const li = document.createElement("li");
+      li.textContent = fill("web.retest.sequential", "Measured until the verdict is certain: up to " + offer.sequential_levels_per_mounting + " level(s) per mounting chosen by the data", { n: offer.sequential_levels_per_mounting });
+      list.appendChild(li);
+    }
+  } catch (e) { show(e.message); }
 }
 
 export async function showRun(id) {
@@ -180,6 +207,7 @@ export function showLinks(box, r, idPrefix = "") {
       } catch (e) { show(e.message); }
     });
     box.appendChild(b);
+    showRetestOffer(box, r.id, idPrefix);
   }
 }
 
