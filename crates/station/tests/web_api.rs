@@ -822,10 +822,16 @@ fn a_run_through_the_api_from_start_to_report_on(backend: Backend) {
         let offer: Value = serde_json::from_slice(&offered.body).expect("json");
         assert_eq!(offer["serials"], json!(to_retest), "{offer}");
         for a in offer["advice"].as_array().into_iter().flatten() {
-            assert!(a["deciding_u95_ug_per_g2"].is_number() && a["text"].is_string(), "{a}");
+            assert!(
+                a["deciding_u95_ug_per_g2"].is_number() && a["text"].is_string(),
+                "{a}"
+            );
         }
     }
-    assert_eq!(op.send("GET", "/api/runs/no-such-run/retest", None).status, 404);
+    assert_eq!(
+        op.send("GET", "/api/runs/no-such-run/retest", None).status,
+        404
+    );
     let r = op.send("POST", &retest, None);
     if to_retest.is_empty() {
         assert_eq!(r.status, 409, "{:?}", r.json());
