@@ -611,13 +611,7 @@ fn postgres_a_whole_test_runs_with_a_role_that_has_data_rights_only() {
     // rows and nothing else, as a plant's DBA grants it.
     let dir = tempfile::tempdir().expect("tempdir");
     let url = fresh_postgres();
-    let role = format!(
-        "app_{}",
-        url.rsplit('/')
-            .next()
-            .unwrap_or("x")
-            .trim_start_matches("spinbench_test_")
-    );
+    let role = common::role_for(&url, "app");
     let mut owner = postgres::Client::connect(&url, postgres::NoTls).expect("owner");
     owner
         .batch_execute(&format!(
@@ -875,13 +869,7 @@ fn postgres_a_role_the_upgrade_left_without_rights_fails_loudly_until_migrate_gr
     // added one (its owner's rights only).
     let dir = tempfile::tempdir().expect("tempdir");
     let url = fresh_postgres();
-    let role = format!(
-        "up_{}",
-        url.rsplit('/')
-            .next()
-            .unwrap_or("x")
-            .trim_start_matches("spinbench_test_")
-    );
+    let role = common::role_for(&url, "up");
     let mut owner = postgres::Client::connect(&url, postgres::NoTls).expect("owner");
     owner
         .batch_execute(&format!(

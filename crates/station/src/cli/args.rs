@@ -342,6 +342,10 @@ pub enum Command {
         /// default on what later migrations create; may be repeated.
         #[arg(long, value_name = "ROLE")]
         grant: Vec<String>,
+        /// A PostgreSQL role (an analyst's) to grant read access to the
+        /// view analyst_results only, never a table; may be repeated.
+        #[arg(long, value_name = "ROLE")]
+        grant_analyst: Vec<String>,
     },
     /// Retention: for each run that ended and started more than DAYS ago,
     /// archive its one-second values and events to Parquet files in the

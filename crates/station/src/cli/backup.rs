@@ -231,21 +231,27 @@ fn refuse_inside(dir: &Path, db: &StoreTarget, data: Option<&Path>) -> Result<()
     Ok(())
 }
 
-/// `spinbench migrate --db PATH|URL [--history]`.
+/// `spinbench migrate --db PATH|URL [--history] [--grant ROLE]… [--grant-analyst ROLE]…`:
+/// `grants` are the stations' roles and the analysts'.
 pub(super) fn migrate(
     db: &StoreTarget,
     history: bool,
-    grant: &[String],
+    grants: (&[String], &[String]),
     out: &mut dyn Write,
 ) -> Result<()> {
+    let (grant, grant_analyst) = grants;
     // Every role name checked before anything is changed.
-    if let Some(bad) = grant.iter().find(|r| !spinbench_store::is_role_name(r)) {
-        anyhow::bail!(
-            "--grant {bad:?}: not a PostgreSQL role name (letters, digits and _, not starting with a digit, at most 63)"
-        );
-    }
-    if !grant.is_empty() && !matches!(db, StoreTarget::Postgres(_)) {
-        anyhow::bail!("--grant: an SQLite file has no roles; --grant is for a PostgreSQL store");
+    for (option, roles) in [("--grant", grant), ("--grant-analyst", grant_analyst)] {
+        if let Some(bad) = roles.iter().find(|r| !spinbench_store::is_role_name(r)) {
+            anyhow::bail!(
+                "{option} {bad:?}: not a PostgreSQL role name (letters, digits and _, not starting with a digit, at most 63)"
+            );
+        }
+        if !roles.is_empty() && !matches!(db, StoreTarget::Postgres(_)) {
+            anyhow::bail!(
+                "{option}: an SQLite file has no roles; {option} is for a PostgreSQL store"
+            );
+        }
     }
     let (store, before, after) = match Store::migrate_target(db) {
         Ok(done) => done,
@@ -281,6 +287,15 @@ pub(super) fn migrate(
         writeln!(
             out,
             "{db}: role {role} granted its data rights on every table and sequence, and on those later migrations create"
+        )?;
+    }
+    for role in grant_analyst {
+        store.grant_analyst_rights(role).with_context(|| {
+            format!("run `spinbench migrate --grant-analyst {role}` as the store's owner, who may grant its view")
+        })?;
+        writeln!(
+            out,
+            "{db}: role {role} may read analyst_results (and no table)"
         )?;
     }
     if history {

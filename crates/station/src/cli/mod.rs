@@ -285,7 +285,12 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             crate::doctor::run(station.as_deref(), simulated, &db, &data, out)
         }
         Command::Restore { backup, db } => backup::restore(&backup, &db, out),
-        Command::Migrate { db, history, grant } => backup::migrate(&db, history, &grant, out),
+        Command::Migrate {
+            db,
+            history,
+            grant,
+            grant_analyst,
+        } => backup::migrate(&db, history, (&grant, &grant_analyst), out),
         Command::Prune {
             older_than,
             archive,

@@ -81,3 +81,16 @@ pub fn batch_file(dir: &std::path::Path, ext: &str) -> std::path::PathBuf {
         })
         .unwrap_or_else(|| panic!("no batch-report-*.{ext} in {}", dir.display()))
 }
+
+/// A role name of one test's own: `prefix` and the fresh database's
+/// name in `url`, so tests running at once never share a role.
+#[allow(dead_code)] // not every test file makes roles
+pub fn role_for(url: &str, prefix: &str) -> String {
+    format!(
+        "{prefix}_{}",
+        url.rsplit('/')
+            .next()
+            .unwrap_or("x")
+            .trim_start_matches("spinbench_test_")
+    )
+}

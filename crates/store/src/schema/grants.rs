@@ -32,23 +32,8 @@ impl Store {
     /// SELECT`), and make them the owner's default for what later
     /// migrations create. PostgreSQL only; run as the store's owner.
     pub fn grant_data_rights(&self, role: &str) -> Result<(), StoreError> {
-        if !is_role_name(role) {
-            return Err(StoreError::message(
-                &self.target,
-                "grant the station's role",
-                format!(
-                    "{role:?} is not a role name (letters, digits and _, not starting with a digit, at most {MAX_ROLE_LEN})"
-                ),
-            ));
-        }
+        self.check_grantee(role, "grant the station's role")?;
         let mut db = self.db();
-        if db.dialect() != Dialect::Postgres {
-            return Err(StoreError::message(
-                &self.target,
-                "grant the station's role",
-                "an SQLite file has no roles: --grant is for a PostgreSQL store".into(),
-            ));
-        }
         let r = format!("\"{role}\"");
         db.batch(&format!(
             "GRANT USAGE ON SCHEMA public TO {r};
@@ -58,6 +43,42 @@ impl Store {
              ALTER DEFAULT PRIVILEGES IN SCHEMA public GRANT USAGE, SELECT ON SEQUENCES TO {r};"
         ))
         .map_err(self.err(&format!("grant the role {role} its data rights")))
+    }
+
+    /// Grant `role` the analyst's read of the view `analyst_results` and
+    /// nothing else: no table, so the users' password hashes, the sessions
+    /// and the raw records stay the station's. PostgreSQL only; run as the
+    /// store's owner.
+    pub fn grant_analyst_rights(&self, role: &str) -> Result<(), StoreError> {
+        self.check_grantee(role, "grant the analyst's role")?;
+        let r = format!("\"{role}\"");
+        self.db()
+            .batch(&format!(
+                "GRANT USAGE ON SCHEMA public TO {r};
+                 GRANT SELECT ON analyst_results TO {r};"
+            ))
+            .map_err(self.err(&format!("grant the role {role} the analyst's view")))
+    }
+
+    /// A role a grant may name, on a store that has roles.
+    fn check_grantee(&self, role: &str, what: &str) -> Result<(), StoreError> {
+        if !is_role_name(role) {
+            return Err(StoreError::message(
+                &self.target,
+                what,
+                format!(
+                    "{role:?} is not a role name (letters, digits and _, not starting with a digit, at most {MAX_ROLE_LEN})"
+                ),
+            ));
+        }
+        if self.db().dialect() != Dialect::Postgres {
+            return Err(StoreError::message(
+                &self.target,
+                what,
+                "an SQLite file has no roles: a grant is for a PostgreSQL store".into(),
+            ));
+        }
+        Ok(())
     }
 }
 

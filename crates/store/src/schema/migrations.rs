@@ -322,7 +322,84 @@ pub const MIGRATIONS: &[Migration] = &[
         postgres: "ALTER TABLE runs ADD COLUMN utc_offset_s integer NOT NULL DEFAULT 0
         CONSTRAINT runs_utc_offset_s_range CHECK (utc_offset_s BETWEEN -43200 AND 50400);",
     },
+    Migration {
+        what: "the analyst's view (analyst_results: one row per instrument and run, what its verdict judged, the rule, the reasons' codes, the plan and the operator as columns) and, on PostgreSQL, a comment on every table and on the view",
+        sqlite: MIGRATION_21_SQLITE,
+        postgres: MIGRATION_21_POSTGRES,
+    },
 ];
+
+/// The analyst's view (migration 21) in one spelling: each dialect gives
+/// its JSON reads (the plan's name and operator, the rule, the reasons'
+/// codes). The judged value is the instrument's K2 on a plan deciding on
+/// K2, else k2_max with the U95 of the mounting it came from.
+macro_rules! analyst_view {
+    ($plan_name:literal, $operator:literal, $rule:literal, $reason_codes:literal) => {
+        concat!(
+            "CREATE VIEW analyst_results AS
+    SELECT r.run_id, runs.station, runs.started_at, runs.utc_offset_s, runs.software_version,
+        ", $plan_name, " AS plan_name,
+        ", $operator, " AS operator,
+        runs.retest_of,
+        r.slot, r.serial, r.outcome, r.measurand,
+        CASE r.measurand WHEN 'K2' THEN r.instrument_k2_ug_per_g2 ELSE r.k2_max_ug_per_g2 END
+            AS judged_ug_per_g2,
+        CASE r.measurand WHEN 'K2' THEN r.instrument_k2_u95
+            ELSE CASE WHEN abs(coalesce(r.k2_p_ug_per_g2, 0)) >= abs(coalesce(r.k2_n_ug_per_g2, 0))
+                THEN r.k2_p_u95 ELSE r.k2_n_u95 END
+        END AS judged_u95,
+        r.limit_ug_per_g2,
+        ", $rule, " AS decision_rule,
+        ", $reason_codes, " AS reason_codes,
+        r.instrument_k2_ug_per_g2, r.instrument_k2_u95,
+        r.k2_p_ug_per_g2, r.k2_p_u95, r.k2_n_ug_per_g2, r.k2_n_u95, r.k2_max_ug_per_g2,
+        r.revision
+    FROM results AS r JOIN runs ON runs.id = r.run_id;"
+        )
+    };
+}
+
+/// The analyst's view on SQLite (migration 21).
+const MIGRATION_21_SQLITE: &str = analyst_view!(
+    "json_extract(runs.plan_json, '$.name')",
+    "json_extract(runs.plan_json, '$.operator')",
+    "json_extract(r.record_json, '$.decision.rule')",
+    "(SELECT group_concat(json_extract(reason.value, '$.code'), ',')
+            FROM json_each(r.record_json, '$.reasons') AS reason)"
+);
+
+/// The analyst's view on PostgreSQL (migration 21), and what each table
+/// holds said in the catalogue a DBA reads (psql's describe).
+const MIGRATION_21_POSTGRES: &str = concat!(
+    analyst_view!(
+        "runs.plan_json->>'name'",
+        "runs.plan_json->>'operator'",
+        "r.record_json->'decision'->>'rule'",
+        "(SELECT string_agg(reason.value->>'code', ',')
+            FROM jsonb_array_elements(CASE jsonb_typeof(r.record_json->'reasons')
+                WHEN 'array' THEN r.record_json->'reasons' ELSE '[]'::jsonb END) AS reason)"
+    ),
+    "
+    COMMENT ON VIEW analyst_results IS 'One row per instrument and run: what its verdict judged (measurand K2 or k2_max, judged_ug_per_g2 with judged_u95 [µg/g²], against limit_ug_per_g2 by decision_rule guarded or simple), outcome, reason_codes (comma-separated), plan_name, operator. The analyst role reads this view only (spinbench migrate --grant-analyst ROLE).';
+    COMMENT ON TABLE runs IS 'One row per run: its station, plan (jsonb), state, start and end, and the retest it is of.';
+    COMMENT ON TABLE results IS 'One row per instrument of a run: its outcome, figures as columns (k2 per mounting, K2, U95 [µg/g²]) and the whole record (record_json).';
+    COMMENT ON TABLE points IS 'One row per averaged point: an instrument at a level in a mounting and direction.';
+    COMMENT ON TABLE units IS 'The instruments of each run, by slot (numbered from 1).';
+    COMMENT ON TABLE values_1s IS 'Every one-second value of every instrument (pruned into Parquet archives by spinbench prune).';
+    COMMENT ON TABLE events IS 'The run''s event log as the engine sent it (pruned with the values).';
+    COMMENT ON TABLE operator_actions IS 'What the operator was asked and answered, with its wording.';
+    COMMENT ON TABLE run_notices IS 'A run''s notices and faults, kept with its record.';
+    COMMENT ON TABLE stations IS 'The fleet: each station''s identity and heartbeat.';
+    COMMENT ON TABLE equipment IS 'Each station''s equipment register: identity, certificate, calibration and due dates.';
+    COMMENT ON TABLE audit IS 'Who did what on the web and the command line (append-only).';
+    COMMENT ON TABLE users IS 'The web''s users: password hashes; no analyst reads it.';
+    COMMENT ON TABLE sessions IS 'Web sessions (hashed tokens): no analyst reads it.';
+    COMMENT ON TABLE spinbench_migrations IS 'The store''s migrations, each with its release.';
+    COMMENT ON COLUMN results.instrument_k2_ug_per_g2 IS 'The instrument''s own K2 = (k2_P - k2_N)/2 [µg/g²] (docs/method.md (15)).';
+    COMMENT ON COLUMN results.instrument_k2_u95 IS 'Its expanded uncertainty at 95 % [µg/g²].';
+    COMMENT ON COLUMN results.measurand IS 'What the verdict judged: K2 or k2_max.';
+    COMMENT ON COLUMN results.limit_ug_per_g2 IS 'The plan''s limit on it [µg/g²].';"
+);
 
 /// Migration 17 on SQLite: the register's key changes, so its table is
 /// made again (it holds one row per device). Each station the store knew
