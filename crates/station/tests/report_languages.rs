@@ -221,6 +221,18 @@ fn chinese_reports_carry_no_english_and_page_one_holds_what_a_signer_signs() {
         );
     }
 
+    // The details say each mounting's span of the instruments' temperatures.
+    let en_html =
+        std::fs::read_to_string(file("report-", &format!("{run_id}-en.html"))).expect("html");
+    assert!(
+        en_html.contains("instrument temperature (each mounting)") && en_html.contains(" °C"),
+        "no temperature spans in the English HTML"
+    );
+    assert!(
+        zh_html.contains("仪表温度（各安装方向）"),
+        "no temperature spans in the zh-CN HTML"
+    );
+
     // Page 1 of each language: the limit, K2 ± U95 and the verdict of
     // every instrument, the operator's actions, the sign-off block.
     let en_pdf = pdf_pages(&file("report-", &format!("{run_id}-en.pdf")));

@@ -248,7 +248,12 @@ pub fn sign_off_labels(lang: Lang) -> [String; 3] {
 pub fn identity_rows(report: &RunReport, lang: Lang) -> Vec<(String, String)> {
     crate::meta_rows_in(report, lang)
         .into_iter()
-        .filter(|(label, _)| !matches!(*label, "decision rule" | "prediction"))
+        .filter(|(label, _)| {
+            !matches!(
+                *label,
+                "decision rule" | "prediction" | "instrument temperature"
+            )
+        })
         .map(|(label, value)| (tr(lang, &format!("meta.{label}")), value))
         .collect()
 }

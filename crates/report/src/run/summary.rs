@@ -249,6 +249,9 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
             format!("spinbench {}", report.record.start.software_version),
         ),
     ]);
+    if let Some(spans) = temperature_spans(report, lang) {
+        rows.push(("instrument temperature", spans));
+    }
     if let Some(p) = plan.plan.as_ref().and_then(|p| p.prediction.clone()) {
         let a = spinbench_engine::planning::achieved(report.units.iter().map(|u| u.record()));
         let shown = |v: Option<f64>, digits: usize| {
@@ -292,6 +295,30 @@ pub(crate) fn meta_rows_in(report: &RunReport, lang: Lang) -> Vec<(&'static str,
         ));
     }
     rows
+}
+
+/// Each mounting's span of the instruments' temperatures over the run's
+/// points, `P 26.98–26.99 °C; N 23.95–26.05 °C`: a signer sees whether the
+/// mountings were measured in one thermal state (`None`: no point has a
+/// temperature).
+fn temperature_spans(report: &RunReport, lang: Lang) -> Option<String> {
+    let mut spans: std::collections::BTreeMap<spinbench_analysis::Mount, (f64, f64)> =
+        std::collections::BTreeMap::new();
+    for u in &report.units {
+        for p in &u.record().points {
+            if let Some(t) = p.temperature_c.filter(|t| t.is_finite()) {
+                let span = spans.entry(p.mount).or_insert((t, t));
+                *span = (span.0.min(t), span.1.max(t));
+            }
+        }
+    }
+    (!spans.is_empty()).then(|| {
+        spans
+            .iter()
+            .map(|(m, (low, high))| format!("{m} {low:.2}–{high:.2} °C"))
+            .collect::<Vec<_>>()
+            .join(&tr(lang, "report.list_separator"))
+    })
 }
 
 pub(crate) fn numbers(row: &SummaryRow) -> [Option<f64>; 11] {
