@@ -39,6 +39,7 @@ pub mod stability;
 pub mod state;
 mod steps;
 mod units;
+mod walk;
 
 pub use crate::bench::Bench;
 pub use keeper::{KEEP_RETRY, unconfirmed_safe_devices};
@@ -49,11 +50,11 @@ pub use steps::{label, wording};
 use crate::abort::AbortFlag;
 use crate::config::StationConfig;
 use crate::event::{DeviceIdentity, DeviceRole, Event, EventSink, RunState, Wording};
-use crate::plan::{CompiledPlan, Fixture, Step};
+use crate::plan::{CompiledPlan, Fixture};
 use crate::record::{Reason, ReasonCode, UnitRecord};
 use spinbench_devices::DeviceError;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 /// Scale factor assumed before the tumble has measured it [Hz/g].
@@ -631,92 +632,5 @@ impl<'a> Executor<'a> {
             stop_confirmed: self.safe.stop_confirmed,
             safe_devices_confirmed: self.safe.safe_devices_confirmed,
         }
-    }
-
-    fn execute_steps(&mut self) -> Result<(), EngineError> {
-        let steps = self.plan.steps.clone();
-        // On resume: the first step still to do, and the mounting it needs.
-        let first_todo = (0..steps.len()).find(|i| !self.progress.completed.contains(i));
-        let remount = first_todo.and_then(|t| {
-            (0..t)
-                .rev()
-                .find(|&i| matches!(steps[i], Step::Mount { .. }))
-        });
-        // And the chamber's soak it was measuring at: the air and the
-        // instruments are back at the room's temperature after the break.
-        let resoak = first_todo.and_then(|t| {
-            (0..t)
-                .rev()
-                .find(|&i| matches!(steps[i], Step::Soak { .. }))
-        });
-        for (index, step) in steps.iter().enumerate() {
-            // A resume measures in the run's thermal state: the instruments
-            // were unpowered, so they are warmed up again (and soaked again
-            // at the chamber's setpoint) before the first measured step.
-            let setup = matches!(step, Step::PowerOn | Step::CheckAlive | Step::WarmUp { .. });
-            let done = self.progress.completed.contains(&index);
-            let again = self.progress.resumed
-                && done
-                && (setup || Some(index) == remount || Some(index) == resoak);
-            if done && !again {
-                continue;
-            }
-            if again
-                && let Step::WarmUp { seconds } = step
-                && *seconds > 0.0
-            {
-                self.emit(Event::Notice {
-                    message: format!(
-                        "resumed: the instruments warm up again for {seconds:.0} s before the first measured step, so that the run is measured in one thermal state"
-                    ),
-                    wording: Some(
-                        Wording::new("notice.resume_warm_up").with("seconds", format!("{seconds:.0}")),
-                    ),
-                })?;
-            }
-            if self.options.abort.is_set() {
-                return Err(EngineError::Aborted(self.options.abort.by()));
-            }
-            if self.options.pause.load(Ordering::Relaxed) {
-                self.set_state(Trigger::Pause)?;
-                while self.options.pause.load(Ordering::Relaxed) {
-                    if self.options.abort.is_set() {
-                        return Err(EngineError::Aborted(self.options.abort.by()));
-                    }
-                    if self.acquisition.streaming {
-                        // Keep reading (and keep the safety checks running) while held.
-                        self.next_window()?;
-                    } else {
-                        std::thread::sleep(Duration::from_millis(10));
-                    }
-                }
-                self.set_state(Trigger::Resume)?;
-            }
-            self.emit(Event::StepStarted {
-                index,
-                of: steps.len(),
-                label: label(step),
-                wording: Some(wording(step)),
-            })?;
-            match step {
-                Step::PowerOn => self.power_on()?,
-                Step::CheckAlive => self.check_alive()?,
-                Step::WarmUp { seconds } => self.warm_up(*seconds)?,
-                Step::Mount { fixtures } => self.mount(fixtures)?,
-                Step::Tumble { up } => self.tumble(*up)?,
-                Step::CrossTumble { as_on_arm } => self.cross_tumble(*as_on_arm)?,
-                Step::Soak { setpoint_c } => self.soak(*setpoint_c)?,
-                Step::Radius { pass } => self.radius(*pass)?,
-                Step::Level {
-                    pass,
-                    g_nominal,
-                    direction,
-                } => self.level(index, *pass, *g_nominal, *direction)?,
-                Step::Decide { pass, round } => self.decide(index, *pass, *round)?,
-                Step::Stop => self.command_rate(0.0)?,
-            }
-            self.emit(Event::StepDone { index })?;
-        }
-        Ok(())
     }
 }

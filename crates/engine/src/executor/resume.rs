@@ -3,6 +3,7 @@
 
 use super::Executor;
 use crate::event::Event;
+use crate::plan::Step;
 use crate::record::{PointRecord, Reason};
 use spinbench_analysis::tumble::{MeanReading, TumbleCalibration};
 use std::collections::{BTreeMap, BTreeSet};
@@ -14,6 +15,35 @@ pub(super) struct Progress {
     pub(super) completed: BTreeSet<usize>,
     /// The run continues one recorded before.
     pub(super) resumed: bool,
+}
+
+impl Progress {
+    /// The steps of `steps` to run, in order, each with whether it was done
+    /// before and is done again. A fresh run does every step. A resume does
+    /// the steps not done, and again what the break undid: the power-on and
+    /// alive check, the warm-up (the instruments were unpowered: a run is
+    /// measured in one thermal state), the last mounting before the first
+    /// step to do and the last chamber soak before it.
+    pub(super) fn to_run(&self, steps: &[Step]) -> Vec<(usize, bool)> {
+        let first_todo = (0..steps.len()).find(|i| !self.completed.contains(i));
+        let last_before =
+            |is: fn(&Step) -> bool| first_todo.and_then(|t| (0..t).rev().find(|&i| is(&steps[i])));
+        let remount = last_before(|s| matches!(s, Step::Mount { .. }));
+        let resoak = last_before(|s| matches!(s, Step::Soak { .. }));
+        steps
+            .iter()
+            .enumerate()
+            .filter_map(|(index, step)| {
+                let setup = matches!(step, Step::PowerOn | Step::CheckAlive | Step::WarmUp { .. });
+                if !self.completed.contains(&index) {
+                    Some((index, false))
+                } else {
+                    (self.resumed && (setup || Some(index) == remount || Some(index) == resoak))
+                        .then_some((index, true))
+                }
+            })
+            .collect()
+    }
 }
 
 impl Executor<'_> {
@@ -129,5 +159,52 @@ impl Executor<'_> {
         if time_s.is_finite() && time_s > 0.0 {
             self.acquisition.windows = self.acquisition.windows.max(time_s.ceil() as u64);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::Fixture;
+
+    #[test]
+    fn a_resume_does_again_what_the_break_undid_and_nothing_else() {
+        let mount = || Step::Mount {
+            fixtures: Vec::<Option<Fixture>>::new(),
+        };
+        let steps = vec![
+            Step::PowerOn,
+            Step::CheckAlive,
+            Step::WarmUp { seconds: 600.0 },
+            mount(),
+            Step::Radius { pass: 0 },
+            mount(),
+            Step::Soak { setpoint_c: 60.0 },
+            Step::Radius { pass: 1 },
+            Step::Stop,
+        ];
+        let fresh = Progress::default();
+        assert_eq!(
+            fresh.to_run(&steps),
+            (0..steps.len()).map(|i| (i, false)).collect::<Vec<_>>()
+        );
+        // Broken off in the second mounting's radius: the set-up, the warm-up,
+        // that mounting and its soak again; the first mounting's radius not.
+        let resumed = Progress {
+            completed: (0..7).collect(),
+            resumed: true,
+        };
+        assert_eq!(
+            resumed.to_run(&steps),
+            [
+                (0, true),
+                (1, true),
+                (2, true),
+                (5, true),
+                (6, true),
+                (7, false),
+                (8, false)
+            ]
+        );
     }
 }
