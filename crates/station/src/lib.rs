@@ -12,6 +12,7 @@
 //! * [`terminal`] — the operator at the terminal and the progress printer;
 //! * [`signals`] — SIGINT, SIGTERM and SIGHUP abort the run, naming the signal;
 //! * [`users`] — adding a user, the one way the CLI and the web API do it;
+//! * [`tokens`] — API tokens for machine clients, made and revoked the same way;
 //! * [`paths`] — where things live: the data directory, the store, a run's files;
 //! * [`web`] — `spinbench serve`: the web UI and the HTTP API.
 
@@ -33,6 +34,7 @@ pub mod signals;
 pub mod station_model;
 pub mod station_run;
 pub mod terminal;
+pub mod tokens;
 pub mod users;
 pub mod virtual_bench;
 pub mod web;

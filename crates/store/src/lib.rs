@@ -40,6 +40,7 @@ mod schema;
 mod sink;
 pub mod testing;
 pub mod tls;
+mod tokens;
 mod users;
 
 pub use csv::{FORMULA_STARTS, csv_text_field, csv_text_unguarded};
@@ -52,6 +53,7 @@ pub use record::{
 pub use retention::{EventRow, PrunableRun};
 pub use schema::{MIGRATIONS, Migration, MigrationApplied, is_role_name};
 pub use sink::StoreSink;
+pub use tokens::ApiTokenRow;
 pub use users::{AuditRow, Replaced, UserRow};
 
 use db::{Db, DbError, Dialect, Row, Value};

@@ -290,6 +290,13 @@ pub enum Command {
         #[command(subcommand)]
         action: UserAction,
     },
+    /// Manage the API tokens of machine clients (an MES calls the API with
+    /// `Authorization: Bearer <secret>` instead of a person's login).
+    Token {
+        /// What to do.
+        #[command(subcommand)]
+        action: TokenAction,
+    },
     /// Back the store up into DIR while the station may run: an SQLite
     /// store through SQLite's online backup API, checked; a PostgreSQL
     /// store through pg_dump (custom format), checked by pg_restore --list;
@@ -465,6 +472,36 @@ pub enum UserAction {
     /// Remove a user; their sessions end on every server.
     Remove {
         /// Login name.
+        name: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+}
+
+/// Actions of `spinbench token`.
+#[derive(Debug, Subcommand)]
+pub enum TokenAction {
+    /// Make a token; its secret is printed this once (the store keeps its hash).
+    Add {
+        /// The machine it is for (a name like a user's, never reused).
+        name: String,
+        /// operator, engineer or admin: what its calls may do.
+        #[arg(long, default_value = "operator")]
+        role: String,
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// List the tokens, revoked ones too (never a secret).
+    List {
+        /// The store.
+        #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]
+        db: StoreTarget,
+    },
+    /// Revoke a token: its calls are refused on every server within seconds.
+    Revoke {
+        /// The token's name.
         name: String,
         /// The store.
         #[arg(long, default_value = "spinbench-data/spinbench.db", value_parser = parse_store)]

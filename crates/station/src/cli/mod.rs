@@ -13,7 +13,9 @@
 
 mod args;
 
-pub use args::{Cli, Command, EquipmentAction, PlanAction, ReportOutput, RunsAction, UserAction};
+pub use args::{
+    Cli, Command, EquipmentAction, PlanAction, ReportOutput, RunsAction, TokenAction, UserAction,
+};
 
 use crate::paths::parse_store;
 use crate::points_file::read_points_file;
@@ -328,6 +330,11 @@ pub fn run(cli: Cli, out: &mut dyn Write) -> Result<()> {
             }
             UserAction::Passwd { name, db } => user::change(&name, None, true, &db, out),
             UserAction::Remove { name, db } => user::remove(&name, &db, out),
+        },
+        Command::Token { action } => match action {
+            TokenAction::Add { name, role, db } => user::add_token(&name, &role, &db, out),
+            TokenAction::List { db } => user::list_tokens(&db, out),
+            TokenAction::Revoke { name, db } => user::revoke_token(&name, &db, out),
         },
         Command::Plan { action } => match action {
             PlanAction::Design {

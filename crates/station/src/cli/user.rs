@@ -90,3 +90,64 @@ pub(super) fn remove(name: &str, db: &StoreTarget, out: &mut dyn Write) -> Resul
     writeln!(out, "user {name} removed; their sessions have ended")?;
     Ok(())
 }
+
+/// `spinbench token add NAME`: the secret printed this once.
+pub(super) fn add_token(
+    name: &str,
+    role: &str,
+    db: &StoreTarget,
+    out: &mut dyn Write,
+) -> Result<()> {
+    let store = open_store(db)?;
+    let by = format!("{} (command line)", crate::users::os_user());
+    let made = crate::tokens::add_token(&store, name, role, &by)
+        .with_context(|| format!("{db}: API token '{name}'"))?;
+    writeln!(
+        out,
+        "API token {name} made as {} in {db}; its secret, shown this once \
+         (the client sends it as 'Authorization: Bearer <secret>'):\n{}",
+        made.role.as_str(),
+        made.secret
+    )?;
+    Ok(())
+}
+
+/// `spinbench token list`.
+pub(super) fn list_tokens(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    use spinbench_report::lang::{Lang, date_time};
+    let store = open_store(db)?;
+    for t in store.api_tokens()? {
+        let state = match (&t.revoked_at, &t.revoked_by) {
+            (Some(at), by) => format!(
+                "revoked {} by {}",
+                date_time(Lang::En, *at),
+                by.as_deref().unwrap_or("?")
+            ),
+            (None, _) => match t.last_used_at {
+                Some(at) => format!("live, last used {}", date_time(Lang::En, at)),
+                None => "live, never used".to_string(),
+            },
+        };
+        writeln!(
+            out,
+            "{:<24} {:<9} made {} by {}; {state}",
+            t.name,
+            t.role,
+            date_time(Lang::En, t.created_at),
+            t.created_by
+        )?;
+    }
+    Ok(())
+}
+
+/// `spinbench token revoke NAME`.
+pub(super) fn revoke_token(name: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
+    let store = open_store(db)?;
+    let by = format!("{} (command line)", crate::users::os_user());
+    crate::tokens::revoke_token(&store, name, &by).with_context(|| format!("{db}: API token"))?;
+    writeln!(
+        out,
+        "API token {name} revoked; its calls are refused on every server within seconds"
+    )?;
+    Ok(())
+}

@@ -43,6 +43,26 @@ pub struct Session {
     /// When the store last confirmed it (another server may have ended it).
     #[serde(skip)]
     checked: Instant,
+    /// A machine client's API token, not a browser's cookie: no CSRF token
+    /// is asked of it ([`crate::tokens`]).
+    #[serde(skip)]
+    pub by_token: bool,
+}
+
+impl Session {
+    /// The session of one call with an API token: `user` as the audit log
+    /// names it ([`crate::tokens::token_user`]).
+    pub fn machine(user: String, role: Role) -> Session {
+        Session {
+            user,
+            role,
+            csrf: String::new(),
+            last_seen: Instant::now(),
+            kept: Instant::now(),
+            checked: Instant::now(),
+            by_token: true,
+        }
+    }
 }
 
 fn random_token() -> String {
@@ -120,6 +140,7 @@ impl Sessions {
             last_seen: Instant::now(),
             kept: Instant::now(),
             checked: Instant::now(),
+            by_token: false,
         };
         // A store that cannot keep it leaves a session for this process's life.
         let _ = store.save_session(&token_hash(&token), user, &session.csrf);
@@ -261,6 +282,7 @@ impl Sessions {
             last_seen: Instant::now(),
             kept: Instant::now(),
             checked: Instant::now(),
+            by_token: false,
         };
         self.by_token
             .lock()

@@ -10,6 +10,7 @@ pub mod auth;
 pub mod eta;
 pub mod hub;
 mod left_over;
+pub mod machine_tokens;
 pub mod metrics;
 mod plans_shipped;
 pub mod runner;
@@ -37,6 +38,8 @@ pub struct AppState {
     pub db: StoreTarget,
     /// Open sessions.
     pub sessions: auth::Sessions,
+    /// The API tokens of machine clients seen lately.
+    pub machine_tokens: machine_tokens::MachineTokens,
     /// Failed logins per name and address.
     pub logins: throttle::LoginThrottle,
     /// The engine's events.
@@ -214,6 +217,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         store: Mutex::new(store),
         db: db.clone(),
         sessions: auth::Sessions::default(),
+        machine_tokens: machine_tokens::MachineTokens::default(),
         logins: throttle::LoginThrottle::default(),
         hub,
         runner,

@@ -327,6 +327,30 @@ pub const MIGRATIONS: &[Migration] = &[
         sqlite: MIGRATION_21_SQLITE,
         postgres: MIGRATION_21_POSTGRES,
     },
+    Migration {
+        what: "API tokens for machine clients (a name, a role, the SHA-256 of the secret, who made and revoked it)",
+        sqlite: "CREATE TABLE api_tokens (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL CHECK (role IN ('operator', 'engineer', 'admin')),
+        secret_hash TEXT NOT NULL UNIQUE,
+        created_by TEXT NOT NULL,
+        created_at INTEGER NOT NULL,
+        last_used_at INTEGER,
+        revoked_at INTEGER,
+        revoked_by TEXT
+    );",
+        postgres: "CREATE TABLE api_tokens (
+        name TEXT PRIMARY KEY,
+        role TEXT NOT NULL CONSTRAINT api_tokens_role_known CHECK (role IN ('operator', 'engineer', 'admin')),
+        secret_hash TEXT NOT NULL UNIQUE,
+        created_by TEXT NOT NULL,
+        created_at timestamptz NOT NULL,
+        last_used_at timestamptz,
+        revoked_at timestamptz,
+        revoked_by TEXT
+    );
+    COMMENT ON TABLE api_tokens IS 'API tokens of machine clients (hashed secrets): no analyst reads it.';",
+    },
 ];
 
 /// The analyst's view (migration 21) in one spelling: each dialect gives

@@ -5,9 +5,9 @@
 
 use super::{
     assets, auth, charts, equipment, exclusions, history, live, plans, retest_offer, runs, schema,
-    session, users,
+    session, tokens, users,
 };
-use utoipa::openapi::security::{ApiKey, ApiKeyValue, SecurityScheme};
+use utoipa::openapi::security::{ApiKey, ApiKeyValue, HttpAuthScheme, HttpBuilder, SecurityScheme};
 use utoipa::{Modify, OpenApi};
 
 /// The security schemes: the session cookie, and the CSRF token every
@@ -31,6 +31,39 @@ impl Modify for SecuritySchemes {
                 "the session's CSRF token (in the login's answer and GET /api/session), on every request that changes something",
             ))),
         );
+        components.add_security_scheme(
+            "token",
+            SecurityScheme::Http(
+                HttpBuilder::new()
+                    .scheme(HttpAuthScheme::Bearer)
+                    .description(Some(
+                        "a machine client's API token (an admin makes it: POST /api/tokens or spinbench token add), \
+instead of the session cookie; a token call needs no CSRF token",
+                    ))
+                    .build(),
+            ),
+        );
+    }
+}
+
+/// Every operation that takes a session also takes an API token (one
+/// alternative more in its `security`), so a generated client can be given
+/// either.
+fn add_token_alternative(doc: &mut serde_json::Value) {
+    let Some(paths) = doc["paths"].as_object_mut() else {
+        return;
+    };
+    for op in paths
+        .values_mut()
+        .filter_map(|ops| ops.as_object_mut())
+        .flat_map(|ops| ops.values_mut())
+    {
+        let Some(security) = op.get_mut("security").and_then(|s| s.as_array_mut()) else {
+            continue;
+        };
+        if security.iter().any(|r| r.get("session").is_some()) {
+            security.push(serde_json::json!({"token": []}));
+        }
     }
 }
 
@@ -88,7 +121,8 @@ fn add_run_links(doc: &mut serde_json::Value) {
         title = "spinbench station API",
         description = "The HTTP API of a spinbench centrifuge test station (the web UI uses the same). \
 Log in with POST /api/login: the answer sets the session cookie and gives the CSRF token, which every \
-request that changes something sends in X-CSRF-Token. Roles: operator < engineer < admin. Errors are \
+request that changes something sends in X-CSRF-Token. A machine client (an MES) sends an API token \
+instead (Authorization: Bearer sbt_…, made by an admin), and no CSRF token. Roles: operator < engineer < admin. Errors are \
 JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4 KiB, any other at most \
 2 MiB (413 beyond). Run results' reasons and control-chart rules are worded in the user's language \
 (PUT /api/session/language), their codes stay machine names.",
@@ -104,6 +138,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         charts::control_charts,
         equipment::equipment, equipment::set_equipment, equipment::signature,
         live::fleet, live::retire_station, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
+        tokens::tokens, tokens::add_token, tokens::revoke_token,
     ),
     // Types used only as parameters are listed, so their references resolve.
     components(schemas(schema::ReportFormatName, schema::LanguageTag)),
@@ -127,6 +162,7 @@ pub fn json() -> &'static str {
     JSON.get_or_init(|| {
         let made = serde_json::to_value(ApiDoc::openapi()).and_then(|mut doc| {
             add_run_links(&mut doc);
+            add_token_alternative(&mut doc);
             serde_json::to_string_pretty(&doc)
         });
         made.unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"))

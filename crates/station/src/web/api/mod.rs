@@ -38,6 +38,7 @@ mod retest_offer;
 mod runs;
 pub mod schema;
 mod session;
+mod tokens;
 mod users;
 
 type App = Arc<AppState>;
@@ -180,6 +181,9 @@ async fn authorize_as(
     changes: bool,
     confirm: bool,
 ) -> ApiResult<Session> {
+    if let Some(secret) = bearer(headers) {
+        return authorize_token(app, secret, min, confirm).await;
+    }
     let token = headers
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
@@ -241,8 +245,47 @@ async fn authorize_as(
     check_session(session, headers, min, changes)
 }
 
+/// The secret of an `Authorization: Bearer` header, if any.
+fn bearer(headers: &HeaderMap) -> Option<String> {
+    let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
+    let (scheme, secret) = value.trim().split_once(' ')?;
+    scheme
+        .eq_ignore_ascii_case("bearer")
+        .then(|| secret.trim().to_string())
+}
+
+/// The session of a call with an API token (a machine client): its role
+/// checked; no CSRF token (no browser sends the header by itself).
+async fn authorize_token(
+    app: &App,
+    secret: String,
+    min: Role,
+    confirm: bool,
+) -> ApiResult<Session> {
+    use super::machine_tokens::TokenCheck;
+    let found = blocking(app, move |app| {
+        Ok(app.machine_tokens.check(&app.store, &secret, confirm))
+    })
+    .await?;
+    let session = match found {
+        TokenCheck::Valid(session) => session,
+        TokenCheck::Refused => {
+            return Err(ApiError::new(
+                StatusCode::UNAUTHORIZED,
+                "this API token is unknown or revoked: ask an admin for one (spinbench token add)",
+            ));
+        }
+        TokenCheck::Unknown => {
+            return Err(ApiError::store_unavailable(
+                "the API token cannot be confirmed while the store does not answer, so nothing was changed",
+            ));
+        }
+    };
+    check_session(Some(session), &HeaderMap::new(), min, false)
+}
+
 /// The request's session checked for its CSRF token (when it changes
-/// something) and its role.
+/// something and came with a browser's cookie) and its role.
 fn check_session(
     session: Option<Session>,
     headers: &HeaderMap,
@@ -454,6 +497,9 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("delete", "/api/users/{name}", delete(users::delete_user)),
         ("put", "/api/users/{name}", put(users::change_user)),
         ("get", "/api/audit", get(users::audit_log)),
+        ("get", "/api/tokens", get(tokens::tokens)),
+        ("post", "/api/tokens", post(tokens::add_token)),
+        ("delete", "/api/tokens/{name}", delete(tokens::revoke_token)),
         ("get", "/api/fleet", get(live::fleet)),
         (
             "delete",

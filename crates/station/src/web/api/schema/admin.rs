@@ -168,3 +168,49 @@ pub struct FleetStation {
     /// This is the station of the server answering.
     pub this_station: bool,
 }
+
+/// One API token of a machine client (its secret is never shown again).
+#[derive(Debug, Serialize, ToSchema)]
+pub struct TokenEntry {
+    /// Its name (the machine it is for).
+    pub name: String,
+    /// Its role.
+    #[schema(value_type = crate::web::auth::Role)]
+    pub role: String,
+    /// Who made it.
+    pub created_by: String,
+    /// Unix time it was made [s].
+    pub created_at: i64,
+    /// Unix time it was last used (at most a minute late) [s].
+    pub last_used_at: Option<i64>,
+    /// Unix time it was revoked [s]; a revoked token is refused.
+    pub revoked_at: Option<i64>,
+    /// Who revoked it.
+    pub revoked_by: Option<String>,
+}
+
+/// `POST /api/tokens`.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct NewToken {
+    /// The machine it is for: lower-case ASCII letters, digits, `.`, `_`,
+    /// `-`, `@`, with at least one letter or digit; never reused.
+    #[schema(max_length = 64, pattern = "^[a-z0-9._@-]*[a-z0-9][a-z0-9._@-]*$")]
+    pub name: String,
+    /// Its role (what its calls may do).
+    #[schema(value_type = crate::web::auth::Role)]
+    pub role: String,
+}
+
+/// Its answer: the secret, shown this once.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct TokenMade {
+    /// Its name.
+    pub name: String,
+    /// Its role.
+    #[schema(value_type = crate::web::auth::Role)]
+    pub role: String,
+    /// What the client sends as `Authorization: Bearer <secret>`; the
+    /// station keeps its SHA-256 only and cannot show it again.
+    pub secret: String,
+}
