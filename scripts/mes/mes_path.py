@@ -7,6 +7,10 @@ prints and writes.
 
     python mes_path.py CLIENT_DIR BASE_URL USER PASSWORD PLAN SERIALS_JSON PDF_OUT
 
+With USER "token:", PASSWORD is an API token's secret: the client sends it
+as `Authorization: Bearer` (a machine client: no login, no cookie, no
+CSRF token).
+
 Prints one JSON line: the run, its state, the prompts answered, each
 instrument's outcome, and every /api/status answer's state as the
 generated model parsed it (a field the model cannot parse raises here).
@@ -15,6 +19,27 @@ generated model parsed it (a field the model cannot parse raises here).
 import json
 import sys
 import time
+
+
+def logged_in(base, user, password, Client, AuthenticatedClient, login, Login, SessionReply):
+    """A person's client: logged in, its cookie and CSRF token carried."""
+    anonymous = Client(base_url=base, raise_on_unexpected_status=True)
+    answer = login.sync_detailed(client=anonymous, body=Login(user=user, password=password))
+    if not isinstance(answer.parsed, SessionReply):
+        raise SystemExit(f"login: {answer.status_code} {answer.content!r}")
+    cookie = answer.headers["set-cookie"].split(";", 1)[0]
+    name, value = cookie.split("=", 1)
+    # The session is a cookie and the CSRF token a header (both documented
+    # as security schemes): the generator's authenticated client carries them.
+    return AuthenticatedClient(
+        base_url=base,
+        token=answer.parsed.csrf,
+        prefix="",
+        auth_header_name="X-CSRF-Token",
+        cookies={name: value},
+        raise_on_unexpected_status=True,
+        timeout=None,
+    )
 
 
 def main() -> int:
@@ -36,23 +61,17 @@ def main() -> int:
         StatusReply,
     )
 
-    anonymous = Client(base_url=base, raise_on_unexpected_status=True)
-    answer = login.sync_detailed(client=anonymous, body=Login(user=user, password=password))
-    if not isinstance(answer.parsed, SessionReply):
-        raise SystemExit(f"login: {answer.status_code} {answer.content!r}")
-    cookie = answer.headers["set-cookie"].split(";", 1)[0]
-    name, value = cookie.split("=", 1)
-    # The session is a cookie and the CSRF token a header (both documented
-    # as security schemes): the generator's authenticated client carries them.
-    client = AuthenticatedClient(
-        base_url=base,
-        token=answer.parsed.csrf,
-        prefix="",
-        auth_header_name="X-CSRF-Token",
-        cookies={name: value},
-        raise_on_unexpected_status=True,
-        timeout=None,
-    )
+    if user == "token:":
+        # A machine client: the generator's authenticated client sends the
+        # token as the documented bearer scheme, and nothing else.
+        client = AuthenticatedClient(
+            base_url=base,
+            token=password,
+            raise_on_unexpected_status=True,
+            timeout=None,
+        )
+    else:
+        client = logged_in(base, user, password, Client, AuthenticatedClient, login, Login, SessionReply)
 
     wanted = StartRunSerials()
     wanted.additional_properties = json.loads(serials)

@@ -3,7 +3,8 @@
 //! generates a Python client from the document the server serves, and
 //! `scripts/mes/mes_path.py` logs in, starts a run, answers every prompt
 //! while parsing every `/api/status` with the generated model, reads the
-//! run and downloads its PDF — on SQLite and on PostgreSQL.
+//! run and downloads its PDF — on SQLite and on PostgreSQL, as a person
+//! (login, cookie, CSRF token) and as a machine (an API token, nothing else).
 
 #[path = "common/web.rs"]
 mod web;
@@ -44,21 +45,62 @@ fn pdf_text(pdf: &Path) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
 }
 
+/// How the MES is known to the station.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Auth {
+    /// Logged in as the user `mes`.
+    Password,
+    /// An operator's API token `mes`, made by `spinbench token add`.
+    Token,
+}
+
 #[test]
 fn a_generated_client_completes_the_mes_path() {
-    mes_path_on(Backend::Sqlite);
+    mes_path_on(Backend::Sqlite, Auth::Password);
 }
 
 #[test]
 fn postgres_a_generated_client_completes_the_mes_path() {
-    mes_path_on(Backend::Postgres);
+    mes_path_on(Backend::Postgres, Auth::Password);
 }
 
-fn mes_path_on(backend: Backend) {
+#[test]
+fn a_generated_client_completes_the_mes_path_with_an_api_token() {
+    mes_path_on(Backend::Sqlite, Auth::Token);
+}
+
+#[test]
+fn postgres_a_generated_client_completes_the_mes_path_with_an_api_token() {
+    mes_path_on(Backend::Postgres, Auth::Token);
+}
+
+/// `spinbench token add mes` on the store of `data`: the secret.
+fn make_token(data: &Path) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_spinbench"))
+        .args(["token", "add", "mes", "--role", "operator", "--db"])
+        .arg(web::store_of(data))
+        .output()
+        .expect("spinbench token add");
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    said.lines().last().unwrap_or("").trim().to_string()
+}
+
+fn mes_path_on(backend: Backend, auth: Auth) {
     let Some(python) = python() else { return };
     let dir = tempfile::tempdir().expect("tempdir");
     backend.prepare(dir.path());
-    add_user(dir.path(), "mes", "operator", "mes-password-1");
+    let (user, password) = match auth {
+        Auth::Password => {
+            add_user(dir.path(), "mes", "operator", "mes-password-1");
+            ("mes".to_string(), "mes-password-1".to_string())
+        }
+        Auth::Token => ("token:".to_string(), make_token(dir.path())),
+    };
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
     std::fs::write(
         dir.path().join("plans").join("mes.toml"),
@@ -113,8 +155,8 @@ fn mes_path_on(backend: Backend) {
         .arg(&generated)
         .arg(&server.base)
         .args([
-            "mes",
-            "mes-password-1",
+            user.as_str(),
+            password.as_str(),
             "mes",
             r#"{"1": "MES-1", "2": "MES-2"}"#,
         ])
@@ -150,7 +192,14 @@ fn mes_path_on(backend: Backend) {
         summary["pdf_bytes"].as_u64().unwrap_or(0)
     );
     assert!(bytes.starts_with(b"%PDF-") && bytes.windows(5).any(|w| w == b"%%EOF"));
-    let mut ours = Client::login(&server, "mes", "mes-password-1");
+    let mut ours = match auth {
+        Auth::Password => Client::login(&server, "mes", "mes-password-1"),
+        Auth::Token => {
+            let mut c = Client::new(&server);
+            c.bearer = Some(password.clone());
+            c
+        }
+    };
     let r = ours.send("GET", &format!("/api/runs/{run_id}/report/pdf"), None);
     assert_eq!(r.status, 200);
     let own = dir.path().join("own.pdf");

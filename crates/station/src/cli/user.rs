@@ -11,13 +11,7 @@ pub(super) fn add(name: &str, role: &str, db: &StoreTarget, out: &mut dyn Write)
     let password = read_password(name)?;
     // Checked before a new store file is made for it.
     crate::users::check_new_user(name, &password).map_err(anyhow::Error::msg)?;
-    if let StoreTarget::File(path) = db
-        && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
-    {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create", dir.display()))?;
-    }
-    let store = spinbench_store::Store::connect(db)?;
+    let store = create_store(db)?;
     let role = crate::users::add_user(&store, name, role, &password, "spinbench (command line)")
         .with_context(|| format!("{db}: user '{name}'"))?;
     writeln!(out, "user {name} added as {} in {db}", role.as_str())?;
@@ -91,6 +85,24 @@ pub(super) fn remove(name: &str, db: &StoreTarget, out: &mut dyn Write) -> Resul
     Ok(())
 }
 
+/// The store, made (with its directory) when it is not there yet.
+fn create_store(db: &StoreTarget) -> Result<spinbench_store::Store> {
+    if let StoreTarget::File(path) = db
+        && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+    {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
+    }
+    Ok(spinbench_store::Store::connect(db)?)
+}
+
+/// A store that exists, opened to be written (a token is for a station's
+/// store: none is made for it).
+fn open_store_to_change(db: &StoreTarget) -> Result<spinbench_store::Store> {
+    drop(open_store(db)?);
+    Ok(spinbench_store::Store::connect(db)?)
+}
+
 /// `spinbench token add NAME`: the secret printed this once.
 pub(super) fn add_token(
     name: &str,
@@ -98,7 +110,8 @@ pub(super) fn add_token(
     db: &StoreTarget,
     out: &mut dyn Write,
 ) -> Result<()> {
-    let store = open_store(db)?;
+    // Made before the first `serve` as the first admin is: the store with it.
+    let store = create_store(db)?;
     let by = format!("{} (command line)", crate::users::os_user());
     let made = crate::tokens::add_token(&store, name, role, &by)
         .with_context(|| format!("{db}: API token '{name}'"))?;
@@ -142,7 +155,7 @@ pub(super) fn list_tokens(db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
 
 /// `spinbench token revoke NAME`.
 pub(super) fn revoke_token(name: &str, db: &StoreTarget, out: &mut dyn Write) -> Result<()> {
-    let store = open_store(db)?;
+    let store = open_store_to_change(db)?;
     let by = format!("{} (command line)", crate::users::os_user());
     crate::tokens::revoke_token(&store, name, &by).with_context(|| format!("{db}: API token"))?;
     writeln!(

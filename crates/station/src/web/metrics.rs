@@ -34,6 +34,12 @@ pub struct Metrics {
     store_queue_depth: IntGauge,
     store_queue_age_s: Gauge,
     store_run_errors: IntGauge,
+    /// Webhook deliveries ended, by result (`delivered`, `failed`).
+    pub webhook_deliveries: IntCounterVec,
+    /// Webhook tries the receiver did not take (each is tried again).
+    pub webhook_failed_attempts: IntCounter,
+    /// Webhook deliveries waiting.
+    pub webhook_waiting: IntGauge,
     /// The process's failed run writes already counted into `store_errors`.
     run_failures_counted: std::sync::atomic::AtomicU64,
 }
@@ -110,6 +116,24 @@ impl Metrics {
             "spinbench_store_run_write_errors",
             "the running (or last) run's writes to the store that failed and were tried again",
         )?;
+        let webhook_deliveries = IntCounterVec::new(
+            Opts::new(
+                "spinbench_webhook_deliveries_total",
+                "webhook deliveries ended, by result (delivered, failed: every try spent)",
+            ),
+            &["result"],
+        )?;
+        let webhook_failed_attempts = IntCounter::new(
+            "spinbench_webhook_failed_attempts_total",
+            "webhook tries the receiver did not take (tried again with back-off)",
+        )?;
+        let webhook_waiting = IntGauge::new(
+            "spinbench_webhook_waiting",
+            "webhook deliveries waiting to be made",
+        )?;
+        registry.register(Box::new(webhook_deliveries.clone()))?;
+        registry.register(Box::new(webhook_failed_attempts.clone()))?;
+        registry.register(Box::new(webhook_waiting.clone()))?;
         registry.register(Box::new(state.clone()))?;
         registry.register(Box::new(rate_deg_s.clone()))?;
         registry.register(Box::new(demand_deg_s.clone()))?;
@@ -143,6 +167,9 @@ impl Metrics {
             store_queue_depth,
             store_queue_age_s,
             store_run_errors,
+            webhook_deliveries,
+            webhook_failed_attempts,
+            webhook_waiting,
             run_failures_counted: std::sync::atomic::AtomicU64::new(0),
         })
     }

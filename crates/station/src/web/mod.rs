@@ -17,6 +17,7 @@ pub mod runner;
 pub mod server;
 pub mod throttle;
 pub mod tls;
+pub mod webhooks;
 
 use anyhow::{Context, Result};
 use spinbench_engine::StationConfig;
@@ -54,6 +55,8 @@ pub struct AppState {
     pub secure_cookies: bool,
     /// What `/metrics` tells the plant's monitoring.
     pub metrics: metrics::Metrics,
+    /// The runs' start, end and faults pushed to the plant's receiver.
+    pub webhooks: Arc<webhooks::Webhooks>,
 }
 
 /// How `spinbench serve` was asked to run (its command-line options).
@@ -99,6 +102,14 @@ pub struct ServeArgs {
     /// `station` (several virtual benches on one store need their own).
     #[arg(long)]
     pub name: Option<String>,
+    /// POST each run's start, end and faults (JSON, HMAC-SHA256 signed) to
+    /// this http(s) URL; with --webhook-secret-file.
+    #[arg(long, requires = "webhook_secret_file")]
+    pub webhook_url: Option<String>,
+    /// The file holding the webhooks' shared secret (16 to 1024 bytes;
+    /// keep it readable by the station's user only).
+    #[arg(long, requires = "webhook_url")]
+    pub webhook_secret_file: Option<PathBuf>,
 }
 
 impl ServeArgs {
@@ -127,6 +138,11 @@ impl ServeArgs {
 
 /// Start the server and serve until Ctrl-C; then abort any run into the safe state.
 pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
+    // Checked before anything is opened or made.
+    let webhook_target = match (&args.webhook_url, &args.webhook_secret_file) {
+        (Some(url), Some(file)) => Some(webhooks::WebhookTarget::from_args(url, file)?),
+        _ => None,
+    };
     std::fs::create_dir_all(&args.data)
         .with_context(|| format!("{}: cannot create the data directory", args.data.display()))?;
     let db = args
@@ -229,6 +245,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
         },
         secure_cookies: tls.is_some(),
         metrics: metrics::Metrics::new().context("the metrics")?,
+        webhooks: Arc::new(webhooks::Webhooks::new(webhook_target)),
     });
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
@@ -268,6 +285,7 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     };
     let heartbeat = spawn_heartbeat(state.clone(), db.clone(), address, identity)?;
     left_over::spawn_catch_up(state.clone(), db.clone(), args.data.clone())?;
+    state.webhooks.spawn(state.clone())?;
     let stopping = state.clone();
     let gated = state.clone();
     let gate = move |router| api::gate_sessions(router, gated);
@@ -301,6 +319,12 @@ pub fn serve(args: ServeArgs, out: &mut dyn std::io::Write) -> Result<()> {
     // Whatever still runs goes to its safe state before the process ends.
     state.runner.shutdown("the server stopping", RUN_STOP_LIMIT);
     state.hub.close();
+    if state.webhooks.url().is_some() && !state.webhooks.drain(webhooks::DRAIN_LIMIT) {
+        eprintln!(
+            "webhooks not delivered within {} s were dropped (GET /api/webhooks listed them): the runs' records are in the store",
+            webhooks::DRAIN_LIMIT.as_secs()
+        );
+    }
     // A store that does not answer holds the heartbeat's last write (and
     // any request's call): the process does not wait for it beyond
     // STOP_STORE_WAIT (a service manager's stop time-out is 90 s).

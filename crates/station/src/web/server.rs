@@ -414,8 +414,8 @@ pub fn route_body_limit(method: &axum::http::Method, path: &str) -> usize {
 /// most its route's limit ([`route_body_limit`]; 413 otherwise, at once
 /// when its Content-Length says so), then handed on whole: a client
 /// trickling its body holds its connection no longer than that. A change
-/// (POST, PUT, DELETE) other than a login without a session cookie is
-/// answered 401 before its body is read: nothing is buffered for a request
+/// (POST, PUT, DELETE) other than a login without a session cookie or an
+/// API token is answered 401 before its body is read: nothing is buffered for a request
 /// that cannot be done.
 pub async fn body_deadline(
     limit: Duration,
@@ -449,7 +449,9 @@ pub async fn body_deadline(
         .get(header::COOKIE)
         .and_then(|v| v.to_str().ok())
         .and_then(super::auth::session_token)
-        .is_some();
+        .is_some()
+        || super::api::bearer(request.headers())
+            .is_some_and(|secret| crate::tokens::is_token_shaped(&secret));
     if change && path.starts_with("/api/") && path != "/api/login" && !has_session {
         return (
             StatusCode::UNAUTHORIZED,

@@ -205,6 +205,9 @@ pub struct Client {
     pub cookie: Option<String>,
     /// The CSRF token.
     pub csrf: Option<String>,
+    /// An API token's secret, sent as `Authorization: Bearer` (a machine
+    /// client: no cookie, no CSRF token).
+    pub bearer: Option<String>,
 }
 
 /// A response: status, `Set-Cookie`, content type, body text.
@@ -249,6 +252,7 @@ impl Client {
             base: server.base.clone(),
             cookie: None,
             csrf: None,
+            bearer: None,
         }
     }
 
@@ -294,6 +298,9 @@ impl Client {
         }
         if csrf && let Some(t) = &self.csrf {
             request = request.header("X-CSRF-Token", t);
+        }
+        if let Some(secret) = &self.bearer {
+            request = request.header("Authorization", format!("Bearer {secret}"));
         }
         if let Some(b) = body {
             // A plan or station config is TOML text, as the web UI sends
@@ -408,6 +415,24 @@ impl Client {
         let r = self.send("GET", path, None);
         assert_eq!(r.status, status, "GET {path}: {:?}", r.json());
         r.json()
+    }
+
+    /// Answer "go on" at every prompt of the run `run_id` until it ends;
+    /// how many prompts it asked.
+    pub fn answer_prompts_until_end(&mut self, run_id: &str) -> usize {
+        let mut prompts = 0;
+        loop {
+            let s = self.wait_status(120, |s| {
+                s["prompt"].is_string() || s["active"].is_null() && s["run_id"] == run_id
+            });
+            if s["active"].is_null() {
+                return prompts;
+            }
+            let r = self.send("POST", "/api/run/prompt", Some(r#"{"proceed": true}"#));
+            assert_eq!(r.status, 200, "{:?}", r.json());
+            prompts += 1;
+            assert!(prompts < 10, "too many prompts");
+        }
     }
 
     /// Poll `/api/status` until `done` holds (at most `seconds`).

@@ -67,6 +67,46 @@ fn add_token_alternative(doc: &mut serde_json::Value) {
     }
 }
 
+/// OpenAPI 3.1's `webhooks`: what `serve --webhook-url` POSTs to the
+/// plant's receiver, with its headers (utoipa 5 writes no webhooks).
+fn add_webhooks(doc: &mut serde_json::Value) {
+    let body = serde_json::json!({
+        "type": "object",
+        "required": ["event", "delivery", "station", "run_id", "at_unix_s", "run"],
+        "properties": {
+            "event": {"type": "string", "enum": ["run.started", "run.ended", "run.faulted"]},
+            "delivery": {"type": "string", "description": "the delivery's id, the same on every try (X-Spinbench-Delivery): a receiver that got it already answers 2xx and does nothing"},
+            "station": {"type": "string"},
+            "run_id": {"type": "string"},
+            "at_unix_s": {"type": "integer", "description": "when the station saw the event [Unix s]"},
+            "run": {"type": "string", "description": "the run's path in this API (GET it with an API token for its results)"},
+            "resumed": {"type": "boolean", "description": "run.started: continued from its journal"},
+            "plan": {"type": "string", "description": "run.started: the plan's name"},
+            "operator": {"type": "string", "description": "run.started: who started it (token:NAME for an API token)"},
+            "serials": {"type": "array", "items": {"type": "string"}, "description": "run.started: the instruments by slot (empty: a free slot)"},
+            "state": {"$ref": "#/components/schemas/LiveRunState", "description": "run.ended: how it ended"},
+            "reason": {"type": ["string", "null"], "description": "run.ended, run.faulted: why, when not completed"},
+            "outcomes": {"type": "object", "additionalProperties": {"$ref": "#/components/schemas/OutcomeName"}, "description": "run.ended: each instrument's outcome by serial"},
+        },
+    });
+    doc["webhooks"] = serde_json::json!({
+        "runEvent": {
+            "post": {
+                "summary": "A run started, ended or faulted",
+                "description": "Sent by `spinbench serve --webhook-url URL --webhook-secret-file FILE`, one delivery at a time in the events' order; tried again with back-off (1 s doubling to 60 s, 8 tries) until the receiver answers 2xx. X-Spinbench-Signature is `sha256=` and the hex HMAC-SHA256 of `TIMESTAMP.BODY` under the shared secret, TIMESTAMP being X-Spinbench-Timestamp.",
+                "parameters": [
+                    {"name": "X-Spinbench-Event", "in": "header", "required": true, "schema": {"type": "string", "enum": ["run.started", "run.ended", "run.faulted"]}},
+                    {"name": "X-Spinbench-Delivery", "in": "header", "required": true, "schema": {"type": "string"}},
+                    {"name": "X-Spinbench-Timestamp", "in": "header", "required": true, "description": "Unix seconds of this try", "schema": {"type": "string"}},
+                    {"name": "X-Spinbench-Signature", "in": "header", "required": true, "description": "sha256=HEX: the HMAC-SHA256 of TIMESTAMP.BODY", "schema": {"type": "string"}},
+                ],
+                "requestBody": {"required": true, "content": {"application/json": {"schema": body}}},
+                "responses": {"2XX": {"description": "taken; anything else (or no answer in 10 s) is tried again"}},
+            }
+        }
+    });
+}
+
 /// Links from the answers that name runs (`GET /api/runs`, `POST
 /// /api/runs`) to every operation that takes a run id, so
 /// a client (and Schemathesis's stateful phase) can follow them with a run
@@ -138,7 +178,7 @@ JSON {\"error\": \"…\"} that say what to do. Request bodies: a login at most 4
         charts::control_charts,
         equipment::equipment, equipment::set_equipment, equipment::signature,
         live::fleet, live::retire_station, users::users, users::add_user, users::delete_user, users::change_user, users::audit_log,
-        tokens::tokens, tokens::add_token, tokens::revoke_token,
+        tokens::tokens, tokens::add_token, tokens::revoke_token, tokens::webhooks,
     ),
     // Types used only as parameters are listed, so their references resolve.
     components(schemas(schema::ReportFormatName, schema::LanguageTag)),
@@ -163,6 +203,7 @@ pub fn json() -> &'static str {
         let made = serde_json::to_value(ApiDoc::openapi()).and_then(|mut doc| {
             add_run_links(&mut doc);
             add_token_alternative(&mut doc);
+            add_webhooks(&mut doc);
             serde_json::to_string_pretty(&doc)
         });
         made.unwrap_or_else(|e| format!("{{\"error\": \"the OpenAPI document: {e}\"}}"))

@@ -246,7 +246,7 @@ async fn authorize_as(
 }
 
 /// The secret of an `Authorization: Bearer` header, if any.
-fn bearer(headers: &HeaderMap) -> Option<String> {
+pub(in crate::web) fn bearer(headers: &HeaderMap) -> Option<String> {
     let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
     let (scheme, secret) = value.trim().split_once(' ')?;
     scheme
@@ -500,6 +500,7 @@ fn routes() -> Vec<(&'static str, &'static str, MethodRouter<App>)> {
         ("get", "/api/tokens", get(tokens::tokens)),
         ("post", "/api/tokens", post(tokens::add_token)),
         ("delete", "/api/tokens/{name}", delete(tokens::revoke_token)),
+        ("get", "/api/webhooks", get(tokens::webhooks)),
         ("get", "/api/fleet", get(live::fleet)),
         (
             "delete",

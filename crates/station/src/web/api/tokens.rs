@@ -1,7 +1,7 @@
-//! API tokens of machine clients (admins make, list and revoke them; see
-//! `crate::tokens`).
+//! Machine clients: their API tokens (admins make, list and revoke them;
+//! see `crate::tokens`) and the webhooks pushed to them.
 
-use super::schema::{ErrorBody, NewToken, TokenEntry, TokenMade};
+use super::schema::{ErrorBody, NewToken, TokenEntry, TokenMade, WebhooksReply};
 use super::{
     ApiError, ApiResult, App, Bytes, HeaderMap, Json, Path, Role, State, StatusCode, authorize,
     blocking, parse_json, store,
@@ -111,4 +111,23 @@ pub(super) async fn revoke_token(
     })
     .await?;
     Ok(StatusCode::NO_CONTENT)
+}
+
+/// This server's webhooks and their last deliveries (an admin).
+#[utoipa::path(get, path = "/api/webhooks", tag = "users",
+    security(("session" = [])),
+    responses(
+        (status = 200, description = "the receiver and the deliveries", body = WebhooksReply),
+        (status = 401, description = "not logged in", body = ErrorBody),
+        (status = 403, description = "not an admin", body = ErrorBody),
+    ))]
+pub(super) async fn webhooks(
+    State(app): State<App>,
+    headers: HeaderMap,
+) -> ApiResult<Json<WebhooksReply>> {
+    authorize(&app, &headers, Role::Admin, false).await?;
+    Ok(Json(WebhooksReply {
+        url: app.webhooks.url(),
+        deliveries: app.webhooks.deliveries(),
+    }))
 }

@@ -214,3 +214,13 @@ pub struct TokenMade {
     /// station keeps its SHA-256 only and cannot show it again.
     pub secret: String,
 }
+
+/// The webhooks of this server and their last deliveries.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct WebhooksReply {
+    /// The receiver's URL (without any user or password), or null when
+    /// this server sends no webhooks (`serve --webhook-url`).
+    pub url: Option<String>,
+    /// The last deliveries (at most 200), newest first.
+    pub deliveries: Vec<crate::web::webhooks::WebhookDelivery>,
+}
