@@ -7,10 +7,16 @@
 //! meanwhile. The run's record (plan, devices, radii, points, results,
 //! operator actions, end) stays, so its reports, exports and history are
 //! unchanged; `replay` of a pruned run has no values to check against.
+//!
+//! Each file stands alone: its key-value metadata names the run (id,
+//! label, station, start, the software that ran it and the one that
+//! archived it, the archive's layout) and maps slots to serials, and the
+//! events' time is a Parquet timestamp (UTC, milliseconds).
 
 use anyhow::{Context, Result, bail};
 use parquet::basic::Compression;
 use parquet::data_type::{BoolType, ByteArray, ByteArrayType, DoubleType, Int64Type};
+use parquet::file::metadata::KeyValue;
 use parquet::file::properties::WriterProperties;
 use parquet::file::reader::{FileReader, SerializedFileReader};
 use parquet::file::writer::SerializedFileWriter;
@@ -19,6 +25,10 @@ use spinbench_store::{EventRow, Store, StoreTarget, ValueRow};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// The archive files' layout, in their metadata (`spinbench.layout`):
+/// 2 added the metadata and the events' timestamp column `at`.
+pub const ARCHIVE_LAYOUT: &str = "2";
 
 /// The retention `prune` keeps when not told otherwise [days].
 pub const DEFAULT_RETENTION_DAYS: f64 = 365.0;
@@ -100,6 +110,7 @@ pub fn prune(
             writeln!(out, " — changed while read; left for the next prune")?;
             continue;
         }
+        let metadata = archive_metadata(&store, &p.run)?;
         let values_file = archive.join(format!("{id}-values.parquet"));
         let events_file = archive.join(format!("{id}-events.parquet"));
         // An earlier prune that archived the run (or one of its files) and
@@ -115,10 +126,10 @@ pub fn prune(
         }
         let mut written = Ok(());
         if !values_done {
-            written = write_values(&values, id, &values_file);
+            written = write_values(&values, id, &metadata, &values_file);
         }
         if !events_done && written.is_ok() {
-            written = write_events(&events, id, &events_file);
+            written = write_events(&events, id, &metadata, &events_file);
         }
         if let Err(e) = written {
             writeln!(out, " — not archived: {e:#}; kept in the store")?;
@@ -168,6 +179,73 @@ pub fn prune(
     Ok(done)
 }
 
+/// What makes a run's archive files stand alone: the run, its station,
+/// start and software, who archived it, and which serial was in each slot
+/// (a slot as numbered on the fixtures, from 1).
+fn archive_metadata(store: &Store, run: &spinbench_store::RunRow) -> Result<Vec<KeyValue>> {
+    let start = store.run_start(&run.id)?;
+    let mut slots: std::collections::BTreeMap<i64, String> = std::collections::BTreeMap::new();
+    if let Some(plan) = start.as_ref().and_then(|s| s.plan.plan.as_ref()) {
+        for (slot, serial) in &plan.serials {
+            let serial = serial
+                .strip_prefix("P:")
+                .or_else(|| serial.strip_prefix("N:"))
+                .unwrap_or(serial)
+                .trim();
+            if let Ok(slot) = slot.trim().parse::<i64>()
+                && !serial.is_empty()
+            {
+                slots.insert(slot, serial.to_string());
+            }
+        }
+    }
+    // The serials as the store kept them, where it has them.
+    for unit in store.unit_radii(&run.id)? {
+        slots.insert(unit.slot + 1, unit.serial);
+    }
+    let slots: serde_json::Map<String, serde_json::Value> = slots
+        .into_iter()
+        .map(|(slot, serial)| (slot.to_string(), serial.into()))
+        .collect();
+    let started = utc_rfc3339(run.started_at);
+    let mut kv = vec![
+        ("spinbench.layout", ARCHIVE_LAYOUT.to_string()),
+        ("spinbench.run", run.id.clone()),
+        ("spinbench.label", run.label()),
+        ("spinbench.station", run.station.clone()),
+        ("spinbench.started_at", started),
+        ("spinbench.utc_offset_s", run.utc_offset_s.to_string()),
+        (
+            "spinbench.archived_by",
+            format!("spinbench {}", env!("CARGO_PKG_VERSION")),
+        ),
+        (
+            "spinbench.slots",
+            serde_json::Value::Object(slots).to_string(),
+        ),
+    ];
+    if let Some(start) = &start {
+        kv.push(("spinbench.software", start.software_version.clone()));
+    }
+    Ok(kv
+        .into_iter()
+        .map(|(k, v)| KeyValue::new(k.to_string(), v))
+        .collect())
+}
+
+/// `at` [Unix s] as RFC 3339 UTC (`2026-12-04T19:21:00Z`).
+fn utc_rfc3339(at: i64) -> String {
+    let days = at.div_euclid(86_400);
+    let secs = at.rem_euclid(86_400);
+    let (y, m, d) = spinbench_store::equipment::civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        secs / 3600,
+        secs % 3600 / 60,
+        secs % 60
+    )
+}
+
 /// A regular file (not a link, not a folder) at `path`.
 fn regular_file(path: &Path) -> bool {
     std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_file())
@@ -182,6 +260,7 @@ fn regular_file(path: &Path) -> bool {
 fn write_parquet(
     path: &Path,
     schema: &str,
+    metadata: &[KeyValue],
     write: impl FnOnce(&mut SerializedFileWriter<std::fs::File>) -> Result<()>,
 ) -> Result<()> {
     use std::os::unix::fs::OpenOptionsExt;
@@ -208,6 +287,7 @@ fn write_parquet(
         let props = Arc::new(
             WriterProperties::builder()
                 .set_compression(Compression::SNAPPY)
+                .set_key_value_metadata(Some(metadata.to_vec()))
                 .build(),
         );
         let mut writer =
@@ -251,7 +331,17 @@ fn present<T: Copy>(values: impl Iterator<Item = Option<T>>) -> (Vec<T>, Vec<i16
     (kept, levels)
 }
 
-fn write_values(values: &[ValueRow], run_id: &str, path: &Path) -> Result<()> {
+fn write_values(
+    values: &[ValueRow],
+    run_id: &str,
+    metadata: &[KeyValue],
+    path: &Path,
+) -> Result<()> {
+    let mut metadata = metadata.to_vec();
+    metadata.push(KeyValue::new(
+        "spinbench.columns".into(),
+        "t_s: seconds from the run's start; slot: numbered from 1, as on the fixtures; output_hz: the instrument's one-second output [Hz]; rate_deg_s: the table's rate [deg/s]; on_speed: the rate within tolerance; temperature_c: the instrument's temperature [°C]".to_string(),
+    ));
     write_parquet(
         path,
         "message values_1s {
@@ -263,6 +353,7 @@ fn write_values(values: &[ValueRow], run_id: &str, path: &Path) -> Result<()> {
             REQUIRED BOOLEAN on_speed;
             OPTIONAL DOUBLE temperature_c;
         }",
+        &metadata,
         |writer| {
             let mut group = writer.next_row_group()?;
             let mut column = 0;
@@ -310,16 +401,27 @@ fn write_values(values: &[ValueRow], run_id: &str, path: &Path) -> Result<()> {
     )
 }
 
-fn write_events(events: &[EventRow], run_id: &str, path: &Path) -> Result<()> {
+fn write_events(
+    events: &[EventRow],
+    run_id: &str,
+    metadata: &[KeyValue],
+    path: &Path,
+) -> Result<()> {
+    let mut metadata = metadata.to_vec();
+    metadata.push(KeyValue::new(
+        "spinbench.columns".into(),
+        "seq: the event's number in the run; at: when it happened (UTC); kind: its name; json: the event as the store kept it".to_string(),
+    ));
     write_parquet(
         path,
         "message events {
             REQUIRED BYTE_ARRAY run (UTF8);
             REQUIRED INT64 seq;
-            REQUIRED INT64 at_unix_s;
+            REQUIRED INT64 at (TIMESTAMP(MILLIS, true));
             REQUIRED BYTE_ARRAY kind (UTF8);
             REQUIRED BYTE_ARRAY json (UTF8);
         }",
+        &metadata,
         |writer| {
             let mut group = writer.next_row_group()?;
             let mut column = 0;
@@ -328,7 +430,7 @@ fn write_events(events: &[EventRow], run_id: &str, path: &Path) -> Result<()> {
                     1 | 2 => {
                         let v: Vec<i64> = events
                             .iter()
-                            .map(|e| if column == 1 { e.seq } else { e.at })
+                            .map(|e| if column == 1 { e.seq } else { e.at * 1000 })
                             .collect();
                         c.typed::<Int64Type>().write_batch(&v, None, None)?;
                     }

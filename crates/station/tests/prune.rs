@@ -89,7 +89,50 @@ fn prune_on(db_arg: Option<String>) {
     assert_eq!(archived.len(), events.len());
     for (row, e) in archived.iter().zip(&events) {
         assert_eq!(row.get_long(1).expect("seq"), e.seq);
+        assert_eq!(
+            row.get_timestamp_millis(2).expect("at, a timestamp"),
+            e.at * 1000
+        );
         assert_eq!(row.get_string(4).expect("json"), &e.json);
+    }
+    // Each file stands alone: the run, its station and software, and the
+    // serial in each slot, in its metadata.
+    let units = store.unit_radii(&id).expect("units");
+    assert!(!units.is_empty());
+    for file in [
+        format!("{id}-values.parquet"),
+        format!("{id}-events.parquet"),
+    ] {
+        let path = archive.join(&file);
+        let reader = SerializedFileReader::new(std::fs::File::open(&path).expect("open"))
+            .expect("parquet");
+        let kv: std::collections::BTreeMap<String, String> = reader
+            .metadata()
+            .file_metadata()
+            .key_value_metadata()
+            .expect("key-value metadata")
+            .iter()
+            .filter_map(|k| Some((k.key.clone(), k.value.clone()?)))
+            .collect();
+        assert_eq!(kv["spinbench.run"], id, "{file}");
+        assert_eq!(kv["spinbench.layout"], "2");
+        assert_eq!(kv["spinbench.station"], before.start.station);
+        assert_eq!(kv["spinbench.software"], before.start.software_version);
+        assert!(kv["spinbench.label"].contains('#'), "{kv:?}");
+        assert!(
+            kv["spinbench.started_at"].len() == 20 && kv["spinbench.started_at"].ends_with('Z'),
+            "{kv:?}"
+        );
+        assert!(kv["spinbench.columns"].contains("[Hz]") || file.contains("events"));
+        let slots: serde_json::Value =
+            serde_json::from_str(&kv["spinbench.slots"]).expect("the slots as JSON");
+        for u in &units {
+            assert_eq!(
+                slots[(u.slot + 1).to_string()],
+                u.serial.as_str(),
+                "{file}: {slots}"
+            );
+        }
     }
     // Deleted from the store; the record, the export and the report unchanged.
     assert_eq!(store.value_count(&id).expect("count"), 0);

@@ -199,8 +199,10 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
         "return document.querySelectorAll('#runs-table tbody tr').length > 0",
     );
     b.click("#runs-table tbody tr a");
+    // The run's detail is read from the store and its retest offer
+    // designed: on a loaded machine beside other browser tests, slow.
     b.wait_for(
-        10,
+        30,
         "the run with its reasons and the retest button in Chinese",
         "const b = document.getElementById('retest-button'); \
          return !!b && b.textContent.startsWith('复测 1 台仪表') \
