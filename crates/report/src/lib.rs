@@ -19,7 +19,7 @@ mod text;
 
 pub use batch::{
     BatchReport, BatchTest, Distribution, Outlier, Repeat, batch_csv, batch_html, batch_html_in,
-    gather_batch,
+    batch_of, gather_batch, newest_batch,
 };
 pub use pdf::{batch_pdf, pdf, web_font};
 pub use run::{

@@ -104,8 +104,8 @@ fn prune_on(db_arg: Option<String>) {
         format!("{id}-events.parquet"),
     ] {
         let path = archive.join(&file);
-        let reader = SerializedFileReader::new(std::fs::File::open(&path).expect("open"))
-            .expect("parquet");
+        let reader =
+            SerializedFileReader::new(std::fs::File::open(&path).expect("open")).expect("parquet");
         let kv: std::collections::BTreeMap<String, String> = reader
             .metadata()
             .file_metadata()

@@ -277,6 +277,28 @@ impl Store {
         self.results_where("s.run_id = $1", run_id)
     }
 
+    /// The newest `runs` runs of `station` (at most [`MAX_RUNS_PAGE`]) and
+    /// every result of them, both oldest first: two statements, whatever
+    /// the window and however many runs the store holds (the control
+    /// charts' read).
+    pub fn newest_runs_with_results(
+        &self,
+        station: &str,
+        runs: usize,
+    ) -> Result<(Vec<RunRow>, Vec<ResultRow>), StoreError> {
+        let runs = runs.clamp(1, MAX_RUNS_PAGE);
+        let (mut listed, _) = self.runs_page(Some(station), None, runs)?;
+        listed.reverse();
+        let results = self.results_where(
+            &format!(
+                "s.run_id IN (SELECT n.id FROM runs n WHERE n.station = $1
+                              ORDER BY n.started_at DESC, n.id DESC LIMIT {runs})"
+            ),
+            station,
+        )?;
+        Ok((listed, results))
+    }
+
     /// A serial of an earlier run that looks like `serial` but is not it
     /// (a Cyrillic `А` for a Latin `A`, a case typed differently): a run
     /// under such a serial would split one instrument's history in two.

@@ -730,6 +730,48 @@ fn postgres_two_migrates_at_once_apply_each_migration_once() {
 }
 
 #[test]
+fn the_control_charts_window_is_read_in_two_statements_whatever_the_history() {
+    on_both(|target| {
+        let store = Store::connect(target).expect("store");
+        let window_cost = |store: &Store| {
+            let before = spinbench_store::testing::statements_on_this_thread();
+            let (runs, results) = store
+                .newest_runs_with_results("bench 1", 4)
+                .expect("the window");
+            (
+                spinbench_store::testing::statements_on_this_thread() - before,
+                runs,
+                results,
+            )
+        };
+        for i in 0..6 {
+            write_run(&store, &format!("c-{i:02}"), &["A", "B"]);
+        }
+        let (small, runs, results) = window_cost(&store);
+        let ids: Vec<&str> = runs.iter().map(|r| r.id.as_str()).collect();
+        assert_eq!(
+            ids,
+            ["c-02", "c-03", "c-04", "c-05"],
+            "{target}: the newest, oldest first"
+        );
+        assert_eq!(results.len(), 8, "{target}: two instruments a run");
+        assert!(results.iter().all(|r| ids.contains(&r.run_id.as_str())));
+        for i in 6..20 {
+            write_run(&store, &format!("c-{i:02}"), &["A", "B"]);
+        }
+        let (large, runs, results) = window_cost(&store);
+        assert_eq!(runs.len(), 4);
+        assert_eq!(runs[3].id, "c-19", "{target}");
+        assert_eq!(results.len(), 8);
+        assert_eq!(
+            (small, large),
+            (2, 2),
+            "{target}: the window cost {small} statements at 6 runs, {large} at 20"
+        );
+    });
+}
+
+#[test]
 fn the_run_list_is_paged_by_the_database_at_a_cost_that_does_not_grow_with_history() {
     on_both(|target| {
         let store = Store::connect(target).expect("store");

@@ -23,7 +23,7 @@ use plotters::prelude::*;
 use spinbench_analysis::UnitAnalysis;
 use spinbench_analysis::unit::repeatability_of;
 use spinbench_engine::Outcome;
-use spinbench_store::{RunRow, Store};
+use spinbench_store::{ResultRow, RunRow, Store};
 use std::collections::BTreeMap;
 
 /// One instrument test (one unit of one run).
@@ -214,15 +214,41 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
             );
         }
     }
-    runs.sort_by(|a, b| a.started_at.cmp(&b.started_at).then(a.id.cmp(&b.id)));
-    let mut tests = Vec::new();
+    let mut results = Vec::new();
     for run in &runs {
-        for r in store.results(&run.id)? {
+        results.extend(store.results(&run.id)?);
+    }
+    Ok(batch_of(runs, results))
+}
+
+/// The batch of `station`'s newest `runs` runs (the control charts'
+/// window), read in two statements whatever the store's history.
+pub fn newest_batch(store: &Store, station: &str, runs: usize) -> Result<BatchReport, ReportError> {
+    let (runs, results) = store.newest_runs_with_results(station, runs)?;
+    Ok(batch_of(runs, results))
+}
+
+/// The batch of `runs` and their `results` (no store read).
+pub fn batch_of(mut runs: Vec<RunRow>, results: Vec<ResultRow>) -> BatchReport {
+    runs.sort_by(|a, b| a.started_at.cmp(&b.started_at).then(a.id.cmp(&b.id)));
+    let started: BTreeMap<&str, i64> = runs.iter().map(|r| (r.id.as_str(), r.started_at)).collect();
+    let mut results: Vec<(i64, ResultRow)> = results
+        .into_iter()
+        .filter_map(|r| started.get(r.run_id.as_str()).map(|t| (*t, r)))
+        .collect();
+    results.sort_by(|(ta, a), (tb, b)| {
+        ta.cmp(tb)
+            .then(a.run_id.cmp(&b.run_id))
+            .then(a.slot.cmp(&b.slot))
+    });
+    let mut tests = Vec::new();
+    {
+        for (started_at, r) in results {
             let temperature_coefficients = r.record.temperature_coefficients;
             let a = r.record.analysis;
             tests.push(BatchTest {
-                run_id: run.id.clone(),
-                started_at: run.started_at,
+                run_id: r.run_id,
+                started_at,
                 serial: r.serial,
                 slot: r.record.slot,
                 radius_m: r.record.radius_m.clone(),
@@ -292,5 +318,5 @@ pub fn gather_batch(store: &Store, run_ids: &[String]) -> Result<BatchReport, Re
         control: crate::control::ControlReport::default(),
     };
     report.rebaseline(crate::control::DEFAULT_BASELINE_RUNS);
-    Ok(report)
+    report
 }

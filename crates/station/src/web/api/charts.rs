@@ -69,19 +69,19 @@ pub(super) async fn control_charts(
             spinbench_store::MAX_RUNS_PAGE
         )));
     }
-    let batch = blocking(&app, move |app| {
-        let store = store(app)?;
-        // The newest runs, filtered and counted by the database, oldest first.
-        let (newest, _) = store.runs_page(Some(&station), None, window)?;
-        let ids: Vec<String> = newest.into_iter().rev().map(|r| r.id).collect();
-        // No run of that station: nothing to chart (an empty list of ids
-        // would mean every run).
-        Ok((!ids.is_empty()).then(|| spinbench_report::gather_batch(&store, &ids)))
+    // The newest runs and their results, filtered, windowed and ordered by
+    // the database: two statements, whatever the history.
+    let mut batch = blocking(&app, move |app| {
+        Ok(spinbench_report::newest_batch(
+            &*store(app)?,
+            &station,
+            window,
+        ))
     })
     .await?
-    .transpose()
     .map_err(|e| ApiError::internal(e.to_string()))?;
-    let Some(mut batch) = batch else {
+    if batch.runs.is_empty() {
+        // No run of that station: nothing to chart.
         return Ok(Json(ChartsReply {
             baseline_runs: baseline,
             runs: 0,
@@ -89,7 +89,7 @@ pub(super) async fn control_charts(
             yield_by_run: Vec::new(),
             yield_by_day: Vec::new(),
         }));
-    };
+    }
     batch.rebaseline(baseline);
     let c = &batch.control;
     let charts: Vec<ChartReply> = c
