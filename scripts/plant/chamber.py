@@ -12,6 +12,9 @@ Faults, one command a line on stdin:
   alarm W     the alarm word becomes W (0 clears it)
   reboot S    the controller restarts: away for S seconds, then back with
               its power-on setpoint (23.0 degC) and stopped
+  silence S   from the next reply on, no reply is sent for S seconds (a
+              link that drops bytes; the connection stays up); answered
+              once the silence is over, with the replies it dropped
 Each command is acknowledged on stdout ("ok <command>"); the first line of
 stdout is "listening PORT".
 """
@@ -44,6 +47,25 @@ class Chamber:
             single=True,
         )
         self.server = None
+        self.silence_s = 0.0
+        self.silent_until = None
+        self.dropped = 0
+        self.silence_over = None
+
+    def trace_packet(self, sending, data):
+        if not sending or self.silence_s <= 0:
+            return data
+        now = asyncio.get_running_loop().time()
+        if self.silent_until is None:
+            self.silent_until = now + self.silence_s
+        if now < self.silent_until:
+            self.dropped += 1
+            return b""
+        self.silence_s = 0.0
+        self.silent_until = None
+        if self.silence_over is not None:
+            self.silence_over.set()
+        return data
 
     def trace_pdu(self, sending, pdu):
         if sending and self.busy > 0 and not pdu.isError():
@@ -58,7 +80,10 @@ class Chamber:
 
     async def serve(self):
         self.server = ModbusTcpServer(
-            self.context, address=("127.0.0.1", self.port), trace_pdu=self.trace_pdu
+            self.context,
+            address=("127.0.0.1", self.port),
+            trace_pdu=self.trace_pdu,
+            trace_packet=self.trace_packet,
         )
         await self.server.serve_forever()
 
@@ -100,6 +125,12 @@ class Chamber:
                 await asyncio.sleep(float(value))
                 asyncio.create_task(self.serve())
                 await asyncio.sleep(0.2)
+            elif what == "silence":
+                self.dropped = 0
+                self.silence_over = asyncio.Event()
+                self.silence_s = float(value)
+                await self.silence_over.wait()
+                line += f" (dropped {self.dropped} replies)"
             elif what == "outage":
                 await self.server.shutdown()
                 print("ok " + line + " (down)", flush=True)

@@ -72,6 +72,10 @@ enum Failed {
     Busy(u8),
     /// Away: the connection failed (refused, reset, closed).
     Away,
+    /// Silent: no reply to any of the I/O policy's tries (a link that
+    /// drops bytes, a controller busy restarting its Modbus task): ridden
+    /// as an outage is.
+    Silent,
     /// Anything else: final.
     Final,
 }
@@ -110,10 +114,10 @@ impl<T: Transport> ModbusChamber<T> {
         self
     }
 
-    /// One operation, riding a controller that is busy or briefly away
-    /// (rebooting) within the outage budget, with back-off
-    /// ([`crate::outage::Outage`]); a refusal or a silent controller (the
-    /// I/O policy's retries spent) is final at once.
+    /// One operation, riding a controller that is busy, briefly away
+    /// (rebooting) or silent (no reply to any of the I/O policy's tries)
+    /// within the outage budget, with back-off ([`crate::outage::Outage`]);
+    /// a refusal or a garbled reply is final at once.
     fn exchange(&mut self, op: ChamberOp) -> Result<ChamberReply, DeviceError> {
         let mut outage: Option<crate::outage::Outage> = None;
         loop {
@@ -133,6 +137,7 @@ impl<T: Transport> ModbusChamber<T> {
                         o.lasted().as_secs_f64(),
                         spinbench_wire::chamber::modbus_exception_meaning(code)
                     ),
+                    Failed::Silent => format!("silent for {:.1} s", o.lasted().as_secs_f64()),
                     _ => format!("away for {:.1} s", o.lasted().as_secs_f64()),
                 };
                 return Err(self.error(
@@ -247,7 +252,8 @@ impl<T: Transport> ModbusChamber<T> {
         }
         let how = match last {
             Attempt::Io(_) => Failed::Away,
-            _ => Failed::Final,
+            Attempt::Timeout => Failed::Silent,
+            Attempt::Garbled(..) => Failed::Final,
         };
         Err((
             self.error(

@@ -318,3 +318,41 @@ fn modbus_a_controller_rebooting_is_waited_for_within_the_outage_budget() {
     );
     t.verify().expect("transcript followed");
 }
+
+#[test]
+fn modbus_silence_within_the_outage_budget_is_ridden_and_beyond_it_is_named() {
+    let read = crc(&[1, 3, 0, 101, 0, 1]);
+    // Every try of one exchange unanswered (a link dropping bytes), then
+    // an answer after the back-off: ridden, as a refused connection is.
+    let mut steps = Vec::new();
+    for _ in 0..3 {
+        steps.push(Step::Write(read.clone()));
+        steps.push(Step::Silence);
+    }
+    steps.push(Step::Write(read.clone()));
+    steps.push(Step::Reply(crc(&[1, 3, 2, 0x00, 0xEB])));
+    let (mut c, t) = rtu(steps);
+    let started = std::time::Instant::now();
+    assert_eq!(c.temperature_c().expect("rode the silence"), 23.5);
+    assert!(
+        started.elapsed() >= std::time::Duration::from_millis(90),
+        "one back-off pause"
+    );
+    t.verify().expect("transcript followed");
+    // Silent beyond the budget: the command fails, saying so.
+    let mut steps = Vec::new();
+    for _ in 0..6 {
+        steps.push(Step::Write(read.clone()));
+        steps.push(Step::Silence);
+    }
+    let t = Transcript::new(steps);
+    let mut c = ModbusChamber::new(t.clone(), map(), ModbusFraming::Rtu, "climate", POLICY)
+        .with_outage_budget(std::time::Duration::from_millis(250));
+    let e = c.temperature_c().expect_err("silent too long");
+    let said = e.to_string();
+    assert!(
+        said.contains("silent for") && said.contains("chamber.outage_s"),
+        "{said}"
+    );
+    t.verify().expect("transcript followed");
+}
