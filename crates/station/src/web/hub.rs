@@ -61,7 +61,7 @@ pub struct StatusSnapshot {
     /// The current step.
     pub step: Option<StepNow>,
     /// The current step's label as a key and values, for the page's language.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<crate::web::api::schema::Wording>)]
     pub step_wording: Option<Wording>,
     /// Settling or averaging at a level.
     pub progress: Option<ProgressNow>,
@@ -85,7 +85,7 @@ pub struct StatusSnapshot {
     /// Interlocks closed.
     pub interlocks_closed: Option<bool>,
     /// Counter-module counters.
-    #[schema(value_type = Vec<Object>)]
+    #[schema(value_type = Vec<crate::web::api::schema::ModuleCounters>)]
     pub modules: Vec<ModuleHealth>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
@@ -105,17 +105,17 @@ pub struct StatusSnapshot {
     /// The fixture it asks of each slot (for the page's language): null for
     /// a slot it asks nothing of, else the fixture as the engine names it
     /// (`"Up"`, `"Down"`, `{"Arm": "P"}`, `{"Crosswise": {"as_on_arm": true}}`).
-    #[schema(value_type = Vec<Option<Value>>)]
+    #[schema(value_type = Vec<Option<crate::web::api::schema::FixtureName>>)]
     pub prompt_fixtures: Vec<Option<spinbench_engine::plan::Fixture>>,
     /// The last notices (newest last).
     pub notices: Vec<String>,
     /// Each of `notices` as a key and values (`None` for the server's own).
-    #[schema(value_type = Vec<Object>)]
+    #[schema(value_type = Vec<Option<crate::web::api::schema::Wording>>)]
     pub notice_wordings: Vec<Option<Wording>>,
     /// Why the run stopped, when it faulted or was aborted.
     pub reason: Option<String>,
     /// `reason` as a key and values, when the fault that stopped it had one.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<crate::web::api::schema::Wording>)]
     pub reason_wording: Option<Wording>,
     /// Points taken.
     pub points: usize,
@@ -129,7 +129,7 @@ pub struct StatusSnapshot {
     /// Serial number per slot.
     pub serials: Vec<Option<String>>,
     /// Every slot's live state (the board).
-    #[schema(value_type = Vec<Object>)]
+    #[schema(value_type = Vec<crate::web::api::schema::BoardSlot>)]
     pub board: Vec<spinbench_engine::board::SlotState>,
     /// A fault stopped the run (`reason` says which); its banner stays
     /// until someone acknowledges it.
@@ -137,11 +137,11 @@ pub struct StatusSnapshot {
     /// Who acknowledged the fault and when, once someone has (audited).
     pub fault_acknowledged: Option<Acknowledgement>,
     /// The run's plan's predicted K2 U95 and centrifuge time.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<crate::web::api::schema::Prediction>)]
     pub prediction: Option<spinbench_engine::plan::PlanPrediction>,
     /// What the run achieved, once it ended: the median K2 U95 and the
     /// centrifuge time of its level steps.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<crate::web::api::schema::AchievedFigures>)]
     pub achieved: Option<spinbench_engine::planning::Achieved>,
 }
 

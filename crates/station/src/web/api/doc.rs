@@ -224,6 +224,84 @@ mod tests {
             .collect()
     }
 
+    /// Every schema `name` reaches through `$ref`s, `name` included.
+    fn reached(doc: &serde_json::Value, name: &str) -> Vec<(String, serde_json::Value)> {
+        fn refs(v: &serde_json::Value, out: &mut Vec<String>) {
+            match v {
+                serde_json::Value::Object(m) => {
+                    if let Some(r) = m.get("$ref").and_then(|r| r.as_str()) {
+                        out.push(r.trim_start_matches("#/components/schemas/").to_string());
+                    }
+                    m.values().for_each(|v| refs(v, out));
+                }
+                serde_json::Value::Array(a) => a.iter().for_each(|v| refs(v, out)),
+                _ => {}
+            }
+        }
+        let mut seen: Vec<(String, serde_json::Value)> = Vec::new();
+        let mut todo = vec![name.to_string()];
+        while let Some(n) = todo.pop() {
+            if seen.iter().any(|(s, _)| *s == n) {
+                continue;
+            }
+            let schema = doc["components"]["schemas"][&n].clone();
+            assert!(!schema.is_null(), "{n} is referenced and not documented");
+            refs(&schema, &mut todo);
+            seen.push((n, schema));
+        }
+        seen
+    }
+
+    /// The places in `v` where an object is left untyped (`type: object`
+    /// without properties or a value schema), by path.
+    fn untyped_objects(v: &serde_json::Value, at: &str, out: &mut Vec<String>) {
+        if let Some(m) = v.as_object() {
+            let is_object = m.get("type").is_some_and(|t| {
+                t == "object"
+                    || t.as_array()
+                        .is_some_and(|a| a.iter().any(|t| t == "object"))
+            });
+            if is_object && !m.contains_key("properties") && !m.contains_key("additionalProperties")
+            {
+                out.push(at.to_string());
+            }
+            for (k, v) in m {
+                untyped_objects(v, &format!("{at}/{k}"), out);
+            }
+        } else if let Some(a) = v.as_array() {
+            for (i, v) in a.iter().enumerate() {
+                untyped_objects(v, &format!("{at}/{i}"), out);
+            }
+        }
+    }
+
+    #[test]
+    fn the_status_is_typed_to_its_leaves() {
+        let doc: serde_json::Value = serde_json::from_str(json()).expect("the document is JSON");
+        let mut untyped = Vec::new();
+        let schemas = reached(&doc, "StatusReply");
+        for (name, schema) in &schemas {
+            untyped_objects(schema, name, &mut untyped);
+        }
+        assert!(untyped.is_empty(), "untyped objects: {untyped:?}");
+        let names: Vec<&str> = schemas.iter().map(|(n, _)| n.as_str()).collect();
+        for typed in [
+            "BoardSlot",
+            "Wording",
+            "ModuleCounters",
+            "Prediction",
+            "AchievedFigures",
+            "FixtureName",
+        ] {
+            assert!(names.contains(&typed), "{typed} in {names:?}");
+        }
+        // A board slot refuses a field it does not document.
+        assert_eq!(
+            doc["components"]["schemas"]["BoardSlot"]["additionalProperties"],
+            false
+        );
+    }
+
     #[test]
     fn documented_states_and_outcomes_are_the_ones_sent() {
         let doc: serde_json::Value = serde_json::from_str(json()).expect("the document is JSON");

@@ -86,7 +86,7 @@ pub struct DesignReply {
     pub decision_warning: Option<String>,
     /// The same as a wording (`{key, args}`, the catalogue's
     /// `say.plan.decision.*`), for the page's language.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<super::Wording>)]
     pub decision_wording: Option<spinbench_engine::event::Wording>,
 }
 
@@ -375,7 +375,7 @@ pub struct UnitHistory {
 }
 
 /// A mounting: P (input axis toward the spin axis) or N.
-#[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
+#[derive(Debug, Clone, Copy, Serialize, Deserialize, ToSchema)]
 pub enum MountName {
     /// Input axis toward the spin axis.
     P,

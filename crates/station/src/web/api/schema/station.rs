@@ -95,7 +95,7 @@ pub struct ErrorBody {
     /// its values (`{"key": "error.overdue", "args": {…}}`), so a page
     /// words it in the user's language.
     #[serde(skip_serializing_if = "Option::is_none")]
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<super::Wording>)]
     pub wording: Option<spinbench_engine::event::Wording>,
 }
 
@@ -229,7 +229,7 @@ pub struct PlanSummary {
     pub decision_warning: Option<String>,
     /// The same as a wording (`{key, args}`, the catalogue's
     /// `say.plan.decision.*`), for the page's language.
-    #[schema(value_type = Option<Object>)]
+    #[schema(value_type = Option<super::Wording>)]
     pub decision_wording: Option<spinbench_engine::event::Wording>,
 }
 
