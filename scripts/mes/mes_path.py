@@ -105,7 +105,11 @@ def main() -> int:
     pdf = report.sync_detailed(run_id, ReportFormatName.PDF, client=client)
     if pdf.status_code != 200:
         raise SystemExit(f"report: {pdf.status_code} {pdf.content!r}")
-    payload = pdf.parsed.payload.read()
+    # Raw bytes, documented in OpenAPI 3.1's way (the media type, no
+    # schema): the generated client hands back the response's content.
+    payload = pdf.content
+    if pdf.headers.get("content-type") != "application/pdf":
+        raise SystemExit(f"report: content type {pdf.headers.get('content-type')!r}")
     with open(pdf_out, "wb") as f:
         f.write(payload)
     print(

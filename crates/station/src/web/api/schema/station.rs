@@ -80,8 +80,8 @@ pub enum FleetStationState {
     Offline,
 }
 
-/// A file's bytes (a PDF or XLSX report): documented as a string of
-/// format `binary`, so a generated client hands back the bytes as a file.
+/// A file's bytes (a PDF or XLSX report): in the document, its media type
+/// with no schema (OpenAPI 3.1's raw bytes; `doc::raw_bytes_without_schema`).
 #[derive(Debug, ToSchema)]
 #[schema(value_type = String, format = Binary)]
 pub struct BinaryFile(pub Vec<u8>);
