@@ -26,16 +26,28 @@ pub fn received() -> usize {
     RECEIVED.load(std::sync::atomic::Ordering::SeqCst)
 }
 
+/// What waiting for the safe state's keepers found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SafeWait {
+    /// How long the process waited for them [s] (0: nothing was left).
+    pub waited_s: f64,
+    /// Every stop and device is confirmed safe now.
+    pub all_confirmed: bool,
+}
+
 /// Before the program exits: while a centrifuge's stop is not acknowledged,
 /// keep the process (and the thread that commands the stop) alive, saying
 /// so every 10 s, until it is acknowledged or another signal comes.
-pub fn wait_for_unconfirmed_stops() {
+pub fn wait_for_unconfirmed_stops() -> SafeWait {
     use spinbench_engine::executor::{
         KEEP_RETRY, STOP_NOT_CONFIRMED, unconfirmed_safe_devices, unconfirmed_stops,
     };
     let left = || unconfirmed_stops() + unconfirmed_safe_devices();
     if left() == 0 {
-        return;
+        return SafeWait {
+            waited_s: 0.0,
+            all_confirmed: true,
+        };
     }
     let signals_before = received();
     let since = std::time::Instant::now();
@@ -61,6 +73,10 @@ pub fn wait_for_unconfirmed_stops() {
             said = Some(std::time::Instant::now());
         }
         std::thread::sleep(std::time::Duration::from_millis(200));
+    }
+    SafeWait {
+        waited_s: since.elapsed().as_secs_f64(),
+        all_confirmed: left() == 0,
     }
 }
 

@@ -74,7 +74,7 @@ fn the_shipped_alert_rules_are_valid_and_fire_on_the_series_that_should_raise_th
     let said =
         String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
     assert!(
-        out.status.success() && said.contains("5 rules found"),
+        out.status.success() && said.contains("6 rules found"),
         "{said}"
     );
     let out = Command::new("promtool")

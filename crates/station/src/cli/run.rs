@@ -225,12 +225,22 @@ pub(super) fn run_plan(
         crate::station_run::RunControl::abort_only(abort),
     )?;
     crate::station_run::render_records(out, &finished)?;
-    crate::signals::wait_for_unconfirmed_stops();
+    let safe = crate::signals::wait_for_unconfirmed_stops();
     if !finished.summary.safe_devices_confirmed {
+        if !safe.all_confirmed {
+            anyhow::bail!(
+                "the run ended {:?} and its safe state is still not confirmed: {}",
+                finished.summary.state,
+                finished.summary.reason.unwrap_or_default()
+            );
+        }
+        // Confirmed by the keeper after the run's end: said as it happened,
+        // not as the run's end found it.
         anyhow::bail!(
-            "the run ended {:?} but the safe state was not confirmed: {}",
+            "the run ended {:?}: {}; its safe state was confirmed {:.0} s after the run's end, by trying again",
             finished.summary.state,
-            finished.summary.reason.unwrap_or_default()
+            finished.summary.reason.unwrap_or_default(),
+            safe.waited_s
         );
     }
     if finished.summary.state != spinbench_engine::RunState::Completed {

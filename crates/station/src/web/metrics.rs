@@ -131,6 +131,11 @@ impl Metrics {
             "spinbench_webhook_waiting",
             "webhook deliveries waiting to be made",
         )?;
+        // Both results shown from the start (0), so an alert on `failed`
+        // has its series before the first failure.
+        for result in ["delivered", "failed"] {
+            webhook_deliveries.with_label_values(&[result]);
+        }
         registry.register(Box::new(webhook_deliveries.clone()))?;
         registry.register(Box::new(webhook_failed_attempts.clone()))?;
         registry.register(Box::new(webhook_waiting.clone()))?;
