@@ -33,6 +33,11 @@ pub trait Chamber: Send {
     /// on (a driver that cannot ride outages ignores it): the safe state
     /// shortens it and leaves the rest to its keeper.
     fn set_outage_budget(&mut self, _budget: std::time::Duration) {}
+    /// Busy replies (Modbus exceptions 05, 06) ridden since the driver was
+    /// made (0 for a driver that has none).
+    fn busy_replies(&self) -> u64 {
+        0
+    }
 }
 
 /// Largest or smallest setpoint any chamber driver sends [°C].
@@ -64,6 +69,8 @@ pub struct ModbusChamber<T: Transport> {
     /// How long a controller that is away (connection refused or reset) or
     /// busy (exception 05 or 06) is waited for, trying again with back-off.
     outage_budget: std::time::Duration,
+    /// Busy replies ridden so far.
+    busy_replies: u64,
 }
 
 /// How one exchange failed.
@@ -105,6 +112,7 @@ impl<T: Transport> ModbusChamber<T> {
             device,
             policy,
             outage_budget: std::time::Duration::from_secs_f64(crate::outage::DEFAULT_OUTAGE_S),
+            busy_replies: 0,
         }
     }
 
@@ -127,6 +135,9 @@ impl<T: Transport> ModbusChamber<T> {
             };
             if matches!(how, Failed::Final) {
                 return Err(error);
+            }
+            if matches!(how, Failed::Busy(_)) {
+                self.busy_replies += 1;
             }
             let budget = self.outage_budget;
             let o = outage.get_or_insert_with(|| crate::outage::Outage::new(budget));
@@ -309,6 +320,9 @@ fn hex(bytes: &[u8]) -> String {
 impl<T: Transport> Chamber for ModbusChamber<T> {
     fn set_outage_budget(&mut self, budget: std::time::Duration) {
         self.outage_budget = budget;
+    }
+    fn busy_replies(&self) -> u64 {
+        self.busy_replies
     }
     fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
         check_setpoint(&self.device, celsius)?;
@@ -587,6 +601,9 @@ impl Chamber for PurgeOnRelay {
     fn set_outage_budget(&mut self, budget: std::time::Duration) {
         self.chamber.set_outage_budget(budget);
         self.relay.set_outage_budget(budget);
+    }
+    fn busy_replies(&self) -> u64 {
+        self.chamber.busy_replies() + self.relay.busy_replies()
     }
     fn set_setpoint_c(&mut self, celsius: f64) -> Result<(), DeviceError> {
         self.chamber.set_setpoint_c(celsius)

@@ -279,7 +279,9 @@ fn modbus_busy_is_asked_again_and_a_wrong_address_is_named() {
         Step::Reply(crc(&[1, 0x83, 0x02])),
     ]);
     let started = std::time::Instant::now();
+    assert_eq!(c.busy_replies(), 0);
     assert_eq!(c.temperature_c().expect("asked again"), 23.5);
+    assert_eq!(c.busy_replies(), 2, "each busy reply counted");
     assert!(started.elapsed() >= std::time::Duration::from_millis(300));
     let e = c.temperature_c().expect_err("wrong address");
     assert!(e.to_string().contains("wrong register address"), "{e}");

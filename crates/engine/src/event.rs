@@ -271,6 +271,10 @@ pub enum Event {
         interlocks_closed: bool,
         /// Each counter module's link and window counters.
         modules: Vec<ModuleHealth>,
+        /// The chamber controller's busy replies ridden in this run (none
+        /// without a chamber).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        chamber_busy_replies: Option<u64>,
     },
     /// Something the operator should know; the run goes on.
     Notice {

@@ -197,7 +197,15 @@ fn a_run_soaks_through_busy_an_outage_silence_and_a_reboot_and_an_alarm_while_me
         "no soak:\n{}",
         run.transcript()
     );
-    peer.tell("busy 1");
+    // Six busy replies in a row: each asked again, and the operator told.
+    peer.tell("busy 6");
+    assert!(
+        run.operate_until(&sim, Duration::from_secs(60), |l| l
+            .contains("answered busy")
+            && l.contains("times in this run")),
+        "no notice of the busy replies:\n{}",
+        run.transcript()
+    );
     // Longer than the soak's 5-s poll, so that a poll meets it.
     peer.tell("outage 6");
     // 3 s with no reply at all, the connection up (a link dropping

@@ -218,10 +218,12 @@ impl Executor<'_> {
             // interlock shows as open.
             let interlocks_closed = self.demand_deg_s != 0.0
                 || self.bench.centrifuge.read_interlocks().unwrap_or(false);
+            let chamber_busy_replies = self.bench.chamber.as_ref().map(|c| c.busy_replies());
             self.emit(Event::Health {
                 supply: vec![first, (second.volts, second.amps)],
                 interlocks_closed,
                 modules,
+                chamber_busy_replies,
             })?;
         }
         let slots = self.units.len();
@@ -306,9 +308,33 @@ impl Executor<'_> {
         if let Some(held) = restore_setpoint(chamber.as_mut(), setpoint_c)? {
             self.emit(setpoint_restored(held, setpoint_c))?;
         }
-        Ok(())
+        self.notice_chamber_busy()
+    }
+
+    /// Tell the operator when the chamber's controller has answered busy
+    /// [`CHAMBER_BUSY_NOTICE_AFTER`] more times since the last such
+    /// notice: each was ridden, but a controller often busy is overloaded
+    /// or polled by another program, and an outage may follow.
+    pub(super) fn notice_chamber_busy(&mut self) -> Result<(), EngineError> {
+        let Some(chamber) = self.bench.chamber.as_ref() else {
+            return Ok(());
+        };
+        let busy = chamber.busy_replies();
+        if busy < self.chamber.busy_noticed + CHAMBER_BUSY_NOTICE_AFTER {
+            return Ok(());
+        }
+        self.chamber.busy_noticed = busy;
+        self.emit(Event::Notice {
+            message: format!(
+                "the chamber controller answered busy {busy} times in this run (each asked again): is another program polling it, or is it overloaded?"
+            ),
+            wording: Some(Wording::new("notice.chamber_busy").with("count", busy)),
+        })
     }
 }
+
+/// After how many more busy replies of the chamber the operator is told.
+pub const CHAMBER_BUSY_NOTICE_AFTER: u64 = 5;
 
 /// Read the setpoint the controller holds back, and when it is not the
 /// run's (a controller that restarted forgets its setpoint and stops),

@@ -15,6 +15,8 @@ pub(super) struct ChamberState {
     pub(super) setpoint_c: Option<f64>,
     /// The dry-air purge is on.
     pub(super) purge_on: bool,
+    /// The controller's busy replies the last notice told of.
+    pub(super) busy_noticed: u64,
 }
 
 /// The purge goes on this far above the dew point [°C].
@@ -74,6 +76,7 @@ impl Executor<'_> {
                 if let Some(held) = ports::restore_setpoint(chamber.as_mut(), setpoint_c)? {
                     self.emit(ports::setpoint_restored(held, setpoint_c))?;
                 }
+                self.notice_chamber_busy()?;
             }
             let in_band = (air_c - setpoint_c).abs() <= soak.tolerance_c;
             history.push_back((

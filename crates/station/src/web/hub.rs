@@ -87,6 +87,9 @@ pub struct StatusSnapshot {
     /// Counter-module counters.
     #[schema(value_type = Vec<crate::web::api::schema::ModuleCounters>)]
     pub modules: Vec<ModuleHealth>,
+    /// The chamber controller's busy replies ridden in this run (null
+    /// without a chamber, or before the first health reading).
+    pub chamber_busy_replies: Option<u64>,
     /// The prompt waiting for an answer.
     pub prompt: Option<String>,
     /// When the prompt was raised (server time, Unix seconds): the page
@@ -417,10 +420,12 @@ impl Hub {
                 supply,
                 interlocks_closed,
                 modules,
+                chamber_busy_replies,
             } => {
                 s.supply = supply.clone();
                 s.interlocks_closed = Some(*interlocks_closed);
                 s.modules = modules.clone();
+                s.chamber_busy_replies = *chamber_busy_replies;
             }
             Event::Prompt { text, fixtures } => {
                 s.prompt = Some(text.clone());

@@ -40,6 +40,7 @@ pub struct Metrics {
     pub webhook_failed_attempts: IntCounter,
     /// Webhook deliveries waiting.
     pub webhook_waiting: IntGauge,
+    chamber_busy_replies: IntGauge,
     /// The process's failed run writes already counted into `store_errors`.
     run_failures_counted: std::sync::atomic::AtomicU64,
 }
@@ -116,6 +117,11 @@ impl Metrics {
             "spinbench_store_run_write_errors",
             "the running (or last) run's writes to the store that failed and were tried again",
         )?;
+        let chamber_busy_replies = IntGauge::new(
+            "spinbench_chamber_busy_replies",
+            "the chamber controller's busy replies ridden in the running (or last) run",
+        )?;
+        registry.register(Box::new(chamber_busy_replies.clone()))?;
         let webhook_deliveries = IntCounterVec::new(
             Opts::new(
                 "spinbench_webhook_deliveries_total",
@@ -175,6 +181,7 @@ impl Metrics {
             webhook_deliveries,
             webhook_failed_attempts,
             webhook_waiting,
+            chamber_busy_replies,
             run_failures_counted: std::sync::atomic::AtomicU64::new(0),
         })
     }
@@ -235,6 +242,8 @@ impl Metrics {
             _ => 0.0,
         };
         self.progress.set(progress);
+        self.chamber_busy_replies
+            .set(status.chamber_busy_replies.unwrap_or(0) as i64);
         let live = status
             .board
             .iter()
