@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 use web::{Client, add_user, serve};
 
 #[test]
-fn item_14_a_device_or_a_fifo_as_the_tls_certificate_is_refused_at_once() {
+fn a_device_or_a_fifo_as_the_tls_certificate_is_refused_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
     let fifo = dir.path().join("cert.fifo");
     let made = Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
@@ -255,7 +255,7 @@ fn items_5_6_25_backups_are_private_never_inside_the_data_and_never_take_a_stray
 }
 
 #[test]
-fn item_12_serve_refuses_to_start_on_a_store_it_cannot_write() {
+fn serve_refuses_to_start_on_a_store_it_cannot_write() {
     // A store this user can read but not write: on PostgreSQL, a database
     // user with SELECT only (root writes any file, so SQLite cannot show it
     // in a test run as root).
@@ -297,7 +297,7 @@ fn item_12_serve_refuses_to_start_on_a_store_it_cannot_write() {
 }
 
 #[test]
-fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
+fn a_calibration_from_the_future_or_of_no_device_is_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let db = dir.path().join("spinbench.db");
     let db_s = db.to_str().expect("utf-8");
@@ -363,7 +363,7 @@ fn item_23_a_calibration_from_the_future_or_of_no_device_is_refused() {
 }
 
 #[test]
-fn item_22_an_admin_may_retest_past_an_overdue_device_with_a_reason() {
+fn an_admin_may_retest_past_an_overdue_device_with_a_reason() {
     let dir = tempfile::tempdir().expect("tempdir");
     add_user(dir.path(), "admin", "admin", "admin-password");
     add_user(dir.path(), "op", "operator", "op-password");
@@ -444,7 +444,7 @@ fn silent_devices() -> (String, std::thread::JoinHandle<()>) {
 }
 
 #[test]
-fn item_2_sigterm_with_silent_devices_ends_in_bounded_time_and_records_the_run() {
+fn sigterm_with_silent_devices_ends_in_bounded_time_and_records_the_run() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (addr, _held) = silent_devices();
     // The longest a command may take: 5 s × 2 attempts (MAX_COMMAND_MS).
@@ -518,7 +518,7 @@ fn item_2_sigterm_with_silent_devices_ends_in_bounded_time_and_records_the_run()
 }
 
 #[test]
-fn item_4_a_backup_leaves_out_a_run_being_run_and_refreshes_a_file_that_grew() {
+fn a_backup_leaves_out_a_run_being_run_and_refreshes_a_file_that_grew() {
     let dir = tempfile::tempdir().expect("tempdir");
     let data = dir.path().join("data");
     std::fs::create_dir_all(&data).expect("data");
@@ -590,7 +590,7 @@ fn station_at(addr: &str, io: &str) -> String {
 }
 
 #[test]
-fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
+fn a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
     let dir = tempfile::tempdir().expect("tempdir");
     let folder = dir.path().join("conf");
     std::fs::create_dir(&folder).expect("conf");
@@ -672,7 +672,7 @@ fn item_7_a_station_config_that_cannot_be_written_is_not_applied_nor_audited() {
 }
 
 #[test]
-fn item_8_a_store_that_cannot_be_written_is_read_and_backups_are_out_of_wal() {
+fn a_store_that_cannot_be_written_is_read_and_backups_are_out_of_wal() {
     let dir = tempfile::tempdir().expect("tempdir");
     let data = dir.path().join("data");
     std::fs::create_dir_all(&data).expect("data");

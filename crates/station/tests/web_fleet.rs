@@ -380,7 +380,7 @@ fn serve_refused(data: &std::path::Path, extra: &[&str]) -> (bool, String) {
 }
 
 #[test]
-fn item_1_and_2_stations_of_one_store_keep_their_names_and_registers() {
+fn stations_of_one_store_keep_their_names_and_registers() {
     stations_keep_their_names_and_registers_on(Backend::Sqlite);
 }
 
