@@ -30,7 +30,10 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
     web::add_user(dir.path(), "op", "operator", "op-password");
     web::add_user(dir.path(), "eng", "engineer", "eng-password");
     std::fs::create_dir_all(dir.path().join("plans")).expect("plans");
-    // A k2 limit no instrument meets: the run has an instrument to retest.
+    // A k2 limit no instrument meets: ZH-1 comes out a clear fail (never
+    // retested by default) or inconclusive; ZH-2, typed in below, is
+    // measured in mounting N only (no K2, no verdict): the run has an
+    // instrument to retest either way.
     let strict = format!(
         "{}[limits]\nk2_max_ug_per_g2 = 0.001\n",
         web::short_plan("zh test", &["ZH-1"])
@@ -81,6 +84,7 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
          return p.dataset.canDecide === 'false' && p.textContent.includes('预测的 K2 U95') \
            && p.textContent.includes('按保护带判定没有仪表能通过') && !p.textContent.includes('the predicted')",
     );
+    b.type_into("#serial-2", "N:ZH-2");
     b.click("#start-button");
     b.wait_for(
         10,
@@ -199,13 +203,11 @@ fn a_chinese_operator_runs_retests_and_is_stopped_by_the_register_on(backend: we
         "return document.querySelectorAll('#runs-table tbody tr').length > 0",
     );
     b.click("#runs-table tbody tr a");
-    // The run's detail is read from the store and its retest offer
-    // designed: on a loaded machine beside other browser tests, slow.
     b.wait_for(
-        30,
+        10,
         "the run with its reasons and the retest button in Chinese",
         "const b = document.getElementById('retest-button'); \
-         return !!b && b.textContent.startsWith('复测 1 台仪表') \
+         return !!b && /^复测 [12] 台仪表/.test(b.textContent) && b.textContent.includes('ZH-2') \
          && ['超过限值', '跨越限值'].some((w) => document.getElementById('run-detail').textContent.includes(w))",
     );
     b.screenshot(&shots.join("zh-3-retest-offered.png"));
