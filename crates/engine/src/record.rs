@@ -317,6 +317,47 @@ pub struct UnitRecord {
     pub exclusions: Vec<spinbench_analysis::exclusion::LevelExclusion>,
 }
 
+impl UnitRecord {
+    /// The stand-in for a stored record this release cannot read: the
+    /// instrument's slot, serial, outcome and k2_max as the store's columns
+    /// hold them, no figures, and one reason that says why (a report of
+    /// the run still shows its other instruments).
+    pub fn unreadable(
+        slot: usize,
+        serial: &str,
+        outcome: Outcome,
+        k2_max_ug_per_g2: Option<f64>,
+        why: &str,
+    ) -> UnitRecord {
+        UnitRecord {
+            slot,
+            serial: serial.to_string(),
+            tumble: None,
+            cross_axis_ug_per_g: None,
+            drawing_radius_m: 0.0,
+            radius_m: BTreeMap::new(),
+            radius_reading_u_ppm: BTreeMap::new(),
+            points: Vec::new(),
+            analysis: None,
+            k2_max_ug_per_g2,
+            outcome,
+            reasons: vec![Reason {
+                code: ReasonCode::Other,
+                text: format!(
+                    "its stored record cannot be read by this release ({why}): its figures are not shown; the store keeps the record as it was written"
+                ),
+                args: BTreeMap::new(),
+            }],
+            decision_rule: None,
+            decision: None,
+            table_signature: None,
+            at_temperatures: Vec::new(),
+            temperature_coefficients: None,
+            exclusions: Vec::new(),
+        }
+    }
+}
+
 /// What an instrument's k2 verdict judged: the quantity, its value and
 /// U95 as measured, the limit and the rule. The one reading of them every
 /// surface shows beside the outcome.

@@ -46,8 +46,13 @@ pub struct ResultRow {
     pub outcome: Outcome,
     /// k2_max [µg/g²].
     pub k2_max_ug_per_g2: Option<f64>,
-    /// The whole record, read back as the type the engine wrote.
+    /// The whole record, read back as the type the engine wrote (a
+    /// stand-in with no figures when it cannot be read: `unreadable`).
     pub record: UnitRecord,
+    /// Why the stored record cannot be read by this release, when it
+    /// cannot: that instrument is shown as unreadable, the run's other
+    /// instruments as they are.
+    pub unreadable: Option<String>,
     /// How many times engineers changed it after the run (0 as the run
     /// wrote it): a change names the revision it was made from, so two
     /// changes made at once from one revision cannot both land.
@@ -257,15 +262,29 @@ impl Store {
                 let outcome_name = r.text(3);
                 let outcome = Outcome::parse(&outcome_name)
                     .ok_or_else(|| unreadable(format!("'{outcome_name}' is not an outcome")))?;
-                let record: UnitRecord = serde_json::from_str(&r.text(5))
-                    .map_err(|e| unreadable(format!("the stored record: {e}")))?;
+                let slot = slot_index(r.int(1));
+                let (record, why) = match serde_json::from_str::<UnitRecord>(&r.text(5)) {
+                    Ok(record) => (record, None),
+                    Err(e) => {
+                        let why = format!("the stored record: {e}");
+                        let stand_in = UnitRecord::unreadable(
+                            usize::try_from(slot).unwrap_or(0),
+                            &serial,
+                            outcome,
+                            r.opt_real(4),
+                            &why,
+                        );
+                        (stand_in, Some(why))
+                    }
+                };
                 Ok(ResultRow {
                     run_id,
-                    slot: slot_index(r.int(1)),
+                    slot,
                     serial,
                     outcome,
                     k2_max_ug_per_g2: r.opt_real(4),
                     record,
+                    unreadable: why,
                     revision: r.int(6),
                 })
             })

@@ -52,13 +52,16 @@ pub(super) fn runs_show(run: &str, db: &StoreTarget, out: &mut dyn Write) -> Res
         r.reason.map(|x| format!(": {x}")).unwrap_or_default()
     )?;
     for u in store.results(run)? {
+        let judged = match &u.unreadable {
+            Some(why) => format!("its stored record cannot be read ({why})"),
+            None => u.record.judged_text(),
+        };
         writeln!(
             out,
-            "  slot {:>2} {:<12} {:<12} {}",
+            "  slot {:>2} {:<12} {:<12} {judged}",
             u.slot + 1,
             u.serial,
             u.outcome,
-            u.record.judged_text()
         )?;
     }
     Ok(())

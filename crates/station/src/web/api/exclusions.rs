@@ -224,6 +224,13 @@ fn change_record(
         .ok_or_else(|| {
             ApiError::not_found(format!("run {id} ({state}) has no instrument '{serial}'"))
         })?;
+    // A stand-in for a record this release cannot read is never written
+    // back over the stored one.
+    if let Some(why) = &result.unreadable {
+        return Err(ApiError::conflict(format!(
+            "the stored record of '{serial}' in run {id} cannot be read by this release ({why}), so it cannot be reduced again here; nothing was changed"
+        )));
+    }
     // The body was well formed; the record's state refuses it (a level the
     // run does not have, one already out or not out, too few levels left).
     let after = change(&result.record, &compiled, &station)
