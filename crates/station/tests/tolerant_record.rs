@@ -9,8 +9,13 @@ mod common;
 use common::spinbench;
 use spinbench_store::{Store, StoreTarget};
 
+/// The keys put before a stored run's station config: its zone, and a key
+/// of a later release this one does not know.
+const FUTURE_CONFIG: &str = "time_zone = \"UTC+08:00\"\nkey_of_a_later_release = 1\n";
+
 /// Run the short plan (three instruments) into `db`, then take `points`
-/// out of slot 2's stored record with `break_record`.
+/// out of slot 2's stored record and put [`FUTURE_CONFIG`] before the
+/// run's station config with `break_record`.
 fn tolerant_on(db_arg: Option<String>, break_record: impl Fn(&str, &str)) {
     let dir = tempfile::tempdir().expect("tempdir");
     let data = dir.path().join("data");
@@ -77,6 +82,12 @@ fn tolerant_on(db_arg: Option<String>, break_record: impl Fn(&str, &str)) {
         assert!(html.contains(serial), "{serial} in the report");
     }
     assert!(html.contains("cannot be read"), "the unreadable one named");
+    // The station's zone read from a config with a key this release does
+    // not know (never silently UTC).
+    assert!(
+        html.contains("UTC+08:00"),
+        "the report's times in the station's zone"
+    );
     let (ok, said, err) = spinbench(&["runs", "show", &id, "--db", &db]);
     assert!(ok, "{err}");
     assert!(
@@ -99,6 +110,11 @@ fn an_unreadable_stored_record_costs_its_instrument_not_the_run() {
             )
             .expect("update");
         assert!(n > 0);
+        c.execute(
+            "UPDATE runs SET station_config = ?2 || station_config WHERE id = ?1",
+            [id, FUTURE_CONFIG],
+        )
+        .expect("update");
     });
 }
 
@@ -116,5 +132,10 @@ fn postgres_an_unreadable_stored_record_costs_its_instrument_not_the_run() {
             )
             .expect("update");
         assert!(n > 0);
+        c.execute(
+            "UPDATE runs SET station_config = $2 || station_config WHERE id = $1",
+            &[&id, &FUTURE_CONFIG],
+        )
+        .expect("update");
     });
 }

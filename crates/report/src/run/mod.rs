@@ -102,12 +102,14 @@ pub fn gather(store: &Store, run_id: &str) -> Result<RunReport, ReportError> {
     })
 }
 
-/// The station's time zone in a run's recorded config (UTC when absent or unreadable).
+/// The station's time zone in a run's recorded config, its `time_zone`
+/// read alone (a config another release wrote, with keys this one does not
+/// know, still says its zone); UTC when absent or unreadable.
 fn recorded_zone(record: &RunRecord) -> spinbench_engine::time_zone::UtcOffset {
     record
         .start
         .station_config
         .as_deref()
-        .and_then(|text| spinbench_engine::config::StationConfig::from_toml(text).ok())
-        .map_or(spinbench_engine::time_zone::UtcOffset::UTC, |c| c.time_zone)
+        .and_then(|text| spinbench_engine::time_zone::of_station_config(text).ok())
+        .unwrap_or(spinbench_engine::time_zone::UtcOffset::UTC)
 }

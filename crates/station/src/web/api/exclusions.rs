@@ -205,8 +205,13 @@ fn change_record(
             "run {id} did not record its station config, so it cannot be reduced again here; use `spinbench analyze --exclude-level`"
         ))
     })?;
-    let station = spinbench_engine::StationConfig::from_toml(&station_toml)
-        .map_err(|e| ApiError::internal(format!("run {id}'s station config: {e}")))?;
+    // A config another release wrote (a key this one does not know) cannot
+    // reduce the run again here: said, not a server error.
+    let station = spinbench_engine::StationConfig::from_toml(&station_toml).map_err(|e| {
+        ApiError::conflict(format!(
+            "run {id}'s recorded station config cannot be read by this release ({e}), so it cannot be reduced again here; nothing was changed"
+        ))
+    })?;
     let plan: TestPlan = start.plan.plan.ok_or_else(|| {
         ApiError::conflict(format!(
             "run {id}'s plan: {}",
