@@ -179,6 +179,17 @@ pub fn prune(
     Ok(done)
 }
 
+/// `metadata` and the file's own `spinbench.columns` (each column's meaning
+/// and unit).
+fn with_columns(metadata: &[KeyValue], columns: &str) -> Vec<KeyValue> {
+    let mut all = metadata.to_vec();
+    all.push(KeyValue::new(
+        "spinbench.columns".into(),
+        columns.to_string(),
+    ));
+    all
+}
+
 /// What makes a run's archive files stand alone: the run, its station,
 /// start and software, who archived it, and which serial was in each slot
 /// (a slot as numbered on the fixtures, from 1).
@@ -337,11 +348,10 @@ fn write_values(
     metadata: &[KeyValue],
     path: &Path,
 ) -> Result<()> {
-    let mut metadata = metadata.to_vec();
-    metadata.push(KeyValue::new(
-        "spinbench.columns".into(),
-        "t_s: seconds from the run's start; slot: numbered from 1, as on the fixtures; output_hz: the instrument's one-second output [Hz]; rate_deg_s: the table's rate [deg/s]; on_speed: the rate within tolerance; temperature_c: the instrument's temperature [°C]".to_string(),
-    ));
+    let metadata = with_columns(
+        metadata,
+        "t_s: seconds from the run's start; slot: numbered from 1, as on the fixtures; output_hz: the instrument's one-second output [Hz]; rate_deg_s: the table's rate [deg/s]; on_speed: the rate within tolerance; temperature_c: the instrument's temperature [°C]",
+    );
     write_parquet(
         path,
         "message values_1s {
@@ -407,11 +417,10 @@ fn write_events(
     metadata: &[KeyValue],
     path: &Path,
 ) -> Result<()> {
-    let mut metadata = metadata.to_vec();
-    metadata.push(KeyValue::new(
-        "spinbench.columns".into(),
-        "seq: the event's number in the run; at: when it happened (UTC); kind: its name; json: the event as the store kept it".to_string(),
-    ));
+    let metadata = with_columns(
+        metadata,
+        "seq: the event's number in the run; at: when it happened (UTC); kind: its name; json: the event as the store kept it",
+    );
     write_parquet(
         path,
         "message events {

@@ -51,11 +51,23 @@ pub struct NewToken {
 
 /// The hex SHA-256 of a token's secret: what the store keeps.
 pub fn secret_hash(secret: &str) -> String {
+    sha256_hex(secret)
+}
+
+/// The hex SHA-256 of `text` (what the store keeps of a session's or an
+/// API token's secret).
+pub(crate) fn sha256_hex(text: &str) -> String {
     use sha2::Digest;
-    sha2::Sha256::digest(secret.as_bytes())
+    sha2::Sha256::digest(text.as_bytes())
         .iter()
         .map(|b| format!("{b:02x}"))
         .collect()
+}
+
+/// 256 random bits as 64 hex digits (a session's or an API token's secret).
+pub(crate) fn random_hex_256() -> String {
+    let bytes: [u8; 32] = rand::random();
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// Whether `secret` is shaped like a token's secret (prefix and 64 hex
@@ -83,11 +95,7 @@ pub fn add_token(store: &Store, name: &str, role: &str, by: &str) -> Result<NewT
     if store.api_tokens()?.iter().any(|t| t.name == name) {
         return Err(TokenError::Exists(name.to_string()));
     }
-    let bytes: [u8; 32] = rand::random();
-    let secret = format!(
-        "{TOKEN_PREFIX}{}",
-        bytes.iter().map(|b| format!("{b:02x}")).collect::<String>()
-    );
+    let secret = format!("{TOKEN_PREFIX}{}", random_hex_256());
     store.add_api_token(name, role.as_str(), &secret_hash(&secret), by)?;
     Ok(NewToken {
         name: name.to_string(),

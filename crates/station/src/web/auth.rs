@@ -66,8 +66,7 @@ impl Session {
 }
 
 fn random_token() -> String {
-    let bytes: [u8; 32] = rand::random();
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
+    crate::tokens::random_hex_256()
 }
 
 /// The open sessions: cached here, kept in the store (the SHA-256 of each
@@ -122,11 +121,7 @@ const SESSION_STORE_WAIT: Duration = Duration::from_millis(500);
 
 /// The hex SHA-256 of a session token: what the store keeps.
 fn token_hash(token: &str) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(token.as_bytes())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
+    crate::tokens::sha256_hex(token)
 }
 
 impl Sessions {
